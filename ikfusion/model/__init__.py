@@ -1,0 +1,29 @@
+"""The human model: body dimensions, URDF generation, and the Pinocchio model with ball joints."""
+
+from .ball_joints import BallJoint, merge_revolute_triplets
+from .body import Body
+from .human_model import HumanModel, SiteInfo
+from .joints import ANGLE_NAMES, JOINTS, SEGMENTS, AngleSpec, JointSpec, load_joint_specs
+from .layout import CONTACT_SITES, SENSOR_SEGMENTS, TAG_SITES, BodyLayout, build_layout
+from .urdf import body_to_urdf, write_urdf
+
+__all__ = [
+    "ANGLE_NAMES",
+    "CONTACT_SITES",
+    "JOINTS",
+    "SEGMENTS",
+    "SENSOR_SEGMENTS",
+    "TAG_SITES",
+    "AngleSpec",
+    "BallJoint",
+    "Body",
+    "BodyLayout",
+    "HumanModel",
+    "JointSpec",
+    "SiteInfo",
+    "body_to_urdf",
+    "build_layout",
+    "load_joint_specs",
+    "merge_revolute_triplets",
+    "write_urdf",
+]

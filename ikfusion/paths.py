@@ -1,0 +1,33 @@
+"""Where the shipped files live: ``configs/`` and ``robots/`` beside the package."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .errors import ConfigError
+
+_REPO_ROOT = Path(__file__).resolve().parent.parent
+
+
+def configs_dir() -> Path:
+    """Folder of the shipped YAML configurations (``configs/``)."""
+    return _REPO_ROOT / "configs"
+
+
+def robots_dir() -> Path:
+    """Folder of the shipped URDF files (``robots/``)."""
+    return _REPO_ROOT / "robots"
+
+
+def shipped_config(*parts: str) -> Path:
+    """Path of a shipped configuration file, e.g. ``shipped_config("sensors", "mvn17.yaml")``.
+
+    Raises:
+        ConfigError: When the file is not shipped.
+    """
+    path = configs_dir().joinpath(*parts)
+    if not path.is_file():
+        raise ConfigError(
+            f"shipped configuration {'/'.join(parts)!r} not found under {configs_dir()}"
+        )
+    return path

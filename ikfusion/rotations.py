@@ -1,0 +1,266 @@
+"""Rotation helpers: quaternions, matrices, Euler angles, SO(3) exp/log and slerp.
+
+Conventions (SPEC section 1):
+
+* Quaternions are scalar first, ``quat_wxyz = (w, x, y, z)``. Pinocchio stores the free-flyer
+  and spherical-joint quaternions as (x, y, z, w); convert at that boundary with
+  :func:`wxyz_to_xyzw` / :func:`xyzw_to_wxyz`.
+* ``R_a_b`` maps coordinates in frame b to frame a; an IMU orientation is ``R_world_sensor``.
+* Xsens Euler angles are Roll, Pitch, Yaw with ``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)``.
+* Intrinsic Tait-Bryan sequences are written as axis strings: ``"YXZ"`` means
+  ``R = Ry(a0) @ Rx(a1) @ Rz(a2)``.
+
+Every function accepts a single item or a stack (leading batch dimensions) and returns the same
+leading shape. Angles are radians unless the name says degrees.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+_AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
+
+#: ``R_enu_ned``: coordinates in NED (x North, y East, z Down) to ENU (x East, y North, z Up).
+R_ENU_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+#: ``R_enu_nwu``: coordinates in NWU (x North, y West, z Up) to ENU.
+R_ENU_NWU = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+
+
+def axis_rotation(axis: str, angle: npt.ArrayLike) -> np.ndarray:
+    """Rotation matrix about a principal axis.
+
+    Args:
+        axis: ``"x"``, ``"y"`` or ``"z"`` (case-insensitive).
+        angle: Angle(s) [rad], any shape ``S``.
+
+    Returns:
+        Matrices of shape ``S + (3, 3)``.
+    """
+    a = np.asarray(angle, dtype=float)
+    c, s = np.cos(a), np.sin(a)
+    i = _AXIS_INDEX[axis.lower()]
+    j, k = (i + 1) % 3, (i + 2) % 3
+    R = np.zeros(a.shape + (3, 3))
+    R[..., i, i] = 1.0
+    R[..., j, j] = c
+    R[..., k, k] = c
+    R[..., j, k] = -s
+    R[..., k, j] = s
+    return R
+
+
+def euler_to_matrix(sequence: str, angles: npt.ArrayLike) -> np.ndarray:
+    """Intrinsic Tait-Bryan angles to a rotation matrix.
+
+    Args:
+        sequence: Three distinct axes, e.g. ``"YXZ"`` for ``R = Ry(a0) @ Rx(a1) @ Rz(a2)``.
+        angles: Shape ``S + (3,)`` [rad], in the order of ``sequence``.
+
+    Returns:
+        Matrices of shape ``S + (3, 3)``.
+    """
+    _check_sequence(sequence)
+    a = np.asarray(angles, dtype=float)
+    R = axis_rotation(sequence[0], a[..., 0])
+    R = R @ axis_rotation(sequence[1], a[..., 1])
+    return R @ axis_rotation(sequence[2], a[..., 2])
+
+
+def matrix_to_euler(sequence: str, R: npt.ArrayLike) -> np.ndarray:
+    """Rotation matrix to intrinsic Tait-Bryan angles, the inverse of :func:`euler_to_matrix`.
+
+    The middle angle lies in [-pi/2, pi/2], the outer two in (-pi, pi]. The decomposition is
+    unique while the middle angle stays away from +-pi/2 (gimbal lock).
+
+    Args:
+        sequence: Three distinct axes, e.g. ``"YXZ"``.
+        R: Matrices of shape ``S + (3, 3)``.
+
+    Returns:
+        Angles of shape ``S + (3,)`` [rad].
+    """
+    _check_sequence(sequence)
+    M = np.asarray(R, dtype=float)
+    i, j, k = (_AXIS_INDEX[c] for c in sequence.lower())
+    parity = 1.0 if (j - i) % 3 == 1 else -1.0
+    middle = np.arcsin(np.clip(parity * M[..., i, k], -1.0, 1.0))
+    first = np.arctan2(-parity * M[..., j, k], M[..., k, k])
+    last = np.arctan2(-parity * M[..., i, j], M[..., i, i])
+    return np.stack([first, middle, last], axis=-1)
+
+
+def xsens_euler_to_matrix(
+    roll_deg: npt.ArrayLike, pitch_deg: npt.ArrayLike, yaw_deg: npt.ArrayLike
+) -> np.ndarray:
+    """Xsens Roll/Pitch/Yaw [deg] to ``R_world_sensor = Rz(yaw) @ Ry(pitch) @ Rx(roll)``."""
+    angles = np.stack(np.broadcast_arrays(yaw_deg, pitch_deg, roll_deg), axis=-1)
+    return euler_to_matrix("ZYX", np.deg2rad(np.asarray(angles, dtype=float)))
+
+
+def matrix_to_xsens_euler(R: npt.ArrayLike) -> np.ndarray:
+    """``R_world_sensor`` to Xsens ``(roll, pitch, yaw)`` [deg], shape ``S + (3,)``."""
+    yaw_pitch_roll = np.rad2deg(matrix_to_euler("ZYX", R))
+    return yaw_pitch_roll[..., ::-1]
+
+
+def quat_wxyz_to_matrix(quat_wxyz: npt.ArrayLike) -> np.ndarray:
+    """Unit quaternion(s) (w, x, y, z) to rotation matrices; the input is normalised first.
+
+    Args:
+        quat_wxyz: Shape ``S + (4,)``. NaN quaternions give NaN matrices.
+
+    Returns:
+        Shape ``S + (3, 3)``.
+    """
+    q = np.asarray(quat_wxyz, dtype=float)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    R = np.empty(q.shape[:-1] + (3, 3))
+    R[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    R[..., 0, 1] = 2 * (x * y - w * z)
+    R[..., 0, 2] = 2 * (x * z + w * y)
+    R[..., 1, 0] = 2 * (x * y + w * z)
+    R[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    R[..., 1, 2] = 2 * (y * z - w * x)
+    R[..., 2, 0] = 2 * (x * z - w * y)
+    R[..., 2, 1] = 2 * (y * z + w * x)
+    R[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return R
+
+
+def matrix_to_quat_wxyz(R: npt.ArrayLike) -> np.ndarray:
+    """Rotation matrices to unit quaternions (w, x, y, z) with ``w >= 0``.
+
+    Uses the numerically stable branch per matrix (largest diagonal element).
+
+    Args:
+        R: Shape ``S + (3, 3)``.
+
+    Returns:
+        Shape ``S + (4,)``.
+    """
+    M = np.asarray(R, dtype=float)
+    flat = M.reshape(-1, 3, 3)
+    q = np.empty((flat.shape[0], 4))
+    trace = np.trace(flat, axis1=1, axis2=2)
+    diag = np.stack([trace, flat[:, 0, 0], flat[:, 1, 1], flat[:, 2, 2]], axis=1)
+    branch = np.argmax(diag, axis=1)
+    for b in range(4):
+        sel = branch == b
+        if not np.any(sel):
+            continue
+        m = flat[sel]
+        if b == 0:
+            s = 2.0 * np.sqrt(1.0 + trace[sel])
+            q[sel] = np.stack(
+                [0.25 * s, (m[:, 2, 1] - m[:, 1, 2]) / s, (m[:, 0, 2] - m[:, 2, 0]) / s,
+                 (m[:, 1, 0] - m[:, 0, 1]) / s], axis=1)
+        else:
+            i = b - 1
+            j, k = (i + 1) % 3, (i + 2) % 3
+            s = 2.0 * np.sqrt(np.maximum(1.0 + m[:, i, i] - m[:, j, j] - m[:, k, k], 0.0))
+            out = np.empty((m.shape[0], 4))
+            out[:, 0] = (m[:, k, j] - m[:, j, k]) / s
+            out[:, 1 + i] = 0.25 * s
+            out[:, 1 + j] = (m[:, j, i] + m[:, i, j]) / s
+            out[:, 1 + k] = (m[:, k, i] + m[:, i, k]) / s
+            q[sel] = out
+    q *= np.where(q[:, :1] < 0.0, -1.0, 1.0)
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    return q.reshape(M.shape[:-2] + (4,))
+
+
+def wxyz_to_xyzw(quat_wxyz: npt.ArrayLike) -> np.ndarray:
+    """Reorder (w, x, y, z) to Pinocchio's (x, y, z, w)."""
+    q = np.asarray(quat_wxyz, dtype=float)
+    return np.concatenate([q[..., 1:], q[..., :1]], axis=-1)
+
+
+def xyzw_to_wxyz(quat_xyzw: npt.ArrayLike) -> np.ndarray:
+    """Reorder Pinocchio's (x, y, z, w) to (w, x, y, z)."""
+    q = np.asarray(quat_xyzw, dtype=float)
+    return np.concatenate([q[..., 3:], q[..., :3]], axis=-1)
+
+
+def skew(v: npt.ArrayLike) -> np.ndarray:
+    """Skew-symmetric matrices ``[v]x`` with ``[v]x @ u = v x u``; shape ``S + (3, 3)``."""
+    a = np.asarray(v, dtype=float)
+    S = np.zeros(a.shape[:-1] + (3, 3))
+    S[..., 0, 1], S[..., 0, 2] = -a[..., 2], a[..., 1]
+    S[..., 1, 0], S[..., 1, 2] = a[..., 2], -a[..., 0]
+    S[..., 2, 0], S[..., 2, 1] = -a[..., 1], a[..., 0]
+    return S
+
+
+def exp_so3(rotvec: npt.ArrayLike) -> np.ndarray:
+    """Exponential map: rotation vector(s) ``omega`` [rad] to ``R = exp([omega]x)`` (Rodrigues)."""
+    w = np.asarray(rotvec, dtype=float)
+    theta = np.linalg.norm(w, axis=-1)[..., None, None]
+    K = skew(w)
+    small = theta < 1e-8
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0 - theta**2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - theta**2 / 24.0, (1.0 - np.cos(safe)) / safe**2)
+    return np.eye(3) + a * K + b * (K @ K)
+
+
+def log_so3(R: npt.ArrayLike) -> np.ndarray:
+    """Logarithm map: rotation matrices to rotation vectors [rad] with norm in [0, pi].
+
+    Accurate near the identity and near a half turn (uses the quaternion form).
+    """
+    q = matrix_to_quat_wxyz(R)
+    v = q[..., 1:]
+    s = np.linalg.norm(v, axis=-1)
+    angle = 2.0 * np.arctan2(s, q[..., 0])
+    small = s < 1e-12
+    scale = np.where(small, 2.0 / np.where(q[..., 0] == 0, 1.0, q[..., 0]),
+                     angle / np.where(small, 1.0, s))
+    return v * scale[..., None]
+
+
+def angle_between(R_a: npt.ArrayLike, R_b: npt.ArrayLike) -> np.ndarray:
+    """Geodesic angle [rad] between rotations, ``|log(R_a^T R_b)|``; shape ``S``."""
+    A = np.asarray(R_a, dtype=float)
+    B = np.asarray(R_b, dtype=float)
+    return np.linalg.norm(log_so3(np.swapaxes(A, -1, -2) @ B), axis=-1)
+
+
+def slerp(quat0_wxyz: npt.ArrayLike, quat1_wxyz: npt.ArrayLike, t: npt.ArrayLike) -> np.ndarray:
+    """Spherical linear interpolation between unit quaternions (w, x, y, z) along the short arc.
+
+    Args:
+        quat0_wxyz: Start, shape ``S + (4,)``.
+        quat1_wxyz: End, same shape.
+        t: Fraction in [0, 1], broadcast against ``S``.
+
+    Returns:
+        Unit quaternions of shape ``broadcast(S, t.shape) + (4,)``.
+    """
+    q0 = np.asarray(quat0_wxyz, dtype=float)
+    q1 = np.asarray(quat1_wxyz, dtype=float)
+    tt = np.asarray(t, dtype=float)[..., None]
+    dot = np.sum(q0 * q1, axis=-1, keepdims=True)
+    q1 = np.where(dot < 0.0, -q1, q1)
+    dot = np.abs(dot)
+    theta = np.arccos(np.clip(dot, -1.0, 1.0))
+    sin_theta = np.sin(theta)
+    near = sin_theta < 1e-9
+    safe = np.where(near, 1.0, sin_theta)
+    w0 = np.where(near, 1.0 - tt, np.sin((1.0 - tt) * theta) / safe)
+    w1 = np.where(near, tt, np.sin(tt * theta) / safe)
+    q = w0 * q0 + w1 * q1
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def random_rotations(n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` rotation matrices drawn uniformly on SO(3) (normalised Gaussian quaternions)."""
+    q = rng.normal(size=(n, 4))
+    return quat_wxyz_to_matrix(q)
+
+
+def _check_sequence(sequence: str) -> None:
+    s = sequence.lower()
+    if len(s) != 3 or set(s) != {"x", "y", "z"}:
+        raise ValueError(f"Euler sequence must be three distinct axes of xyz, got {sequence!r}")

@@ -1,0 +1,101 @@
+"""Rotation helpers: conventions, round trips, and the hard cases near identity and pi."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from ikfusion import rotations as rot
+
+SEQUENCES = ["XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX"]
+unit = st.floats(-1.0, 1.0, allow_nan=False)
+
+
+@given(st.tuples(unit, unit, unit, unit).filter(lambda q: np.linalg.norm(q) > 1e-3))
+def test_quaternion_matrix_round_trip(q: tuple[float, float, float, float]) -> None:
+    quat = np.array(q) / np.linalg.norm(q)
+    R = rot.quat_wxyz_to_matrix(quat)
+    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+    assert np.linalg.det(R) == pytest.approx(1.0)
+    back = rot.matrix_to_quat_wxyz(R)
+    assert back[0] >= 0.0
+    assert min(np.abs(back - quat).max(), np.abs(back + quat).max()) < 1e-9
+
+
+def test_quaternion_convention_is_scalar_first() -> None:
+    # 90 deg about z: (cos 45, 0, 0, sin 45)
+    R = rot.quat_wxyz_to_matrix([np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)])
+    np.testing.assert_allclose(R @ [1, 0, 0], [0, 1, 0], atol=1e-12)
+
+
+@pytest.mark.parametrize("sequence", SEQUENCES)
+@given(a=st.floats(-3.1, 3.1), b=st.floats(-1.55, 1.55), c=st.floats(-3.1, 3.1))
+@settings(max_examples=60)
+def test_euler_round_trip(sequence: str, a: float, b: float, c: float) -> None:
+    R = rot.euler_to_matrix(sequence, [a, b, c])
+    back = rot.matrix_to_euler(sequence, R)
+    np.testing.assert_allclose(rot.euler_to_matrix(sequence, back), R, atol=1e-12)
+    np.testing.assert_allclose(back, [a, b, c], atol=1e-7)
+
+
+def test_euler_is_intrinsic_product() -> None:
+    a = np.array([0.3, -0.4, 1.1])
+    R = rot.euler_to_matrix("YXZ", a)
+    expected = rot.axis_rotation("y", a[0]) @ rot.axis_rotation("x", a[1]) @ rot.axis_rotation(
+        "z", a[2])
+    np.testing.assert_allclose(R, expected, atol=1e-15)
+
+
+def test_xsens_euler_convention() -> None:
+    roll, pitch, yaw = 10.0, -20.0, 130.0
+    R = rot.xsens_euler_to_matrix(roll, pitch, yaw)
+    expected = (rot.axis_rotation("z", np.radians(yaw)) @ rot.axis_rotation(
+        "y", np.radians(pitch)) @ rot.axis_rotation("x", np.radians(roll)))
+    np.testing.assert_allclose(R, expected, atol=1e-15)
+    np.testing.assert_allclose(rot.matrix_to_xsens_euler(R), [roll, pitch, yaw], atol=1e-9)
+
+
+@given(st.tuples(unit, unit, unit), st.floats(0.0, np.pi - 1e-6))
+def test_exp_log_round_trip(axis: tuple[float, float, float], angle: float) -> None:
+    v = np.array(axis)
+    if np.linalg.norm(v) < 1e-3:
+        v = np.array([0.0, 0.0, 1.0])
+    w = v / np.linalg.norm(v) * angle
+    R = rot.exp_so3(w)
+    np.testing.assert_allclose(rot.log_so3(R), w, atol=1e-7)
+
+
+def test_exp_log_near_identity_and_half_turn() -> None:
+    for w in ([1e-10, 0, 0], [0, 1e-14, 2e-14], [np.pi - 1e-9, 0, 0]):
+        np.testing.assert_allclose(rot.log_so3(rot.exp_so3(w)), w, atol=1e-8)
+    angle = rot.angle_between(np.eye(3), rot.exp_so3([0, 0, np.pi]))
+    assert angle == pytest.approx(np.pi)
+
+
+def test_exp_matches_pinocchio() -> None:
+    import pinocchio as pin
+
+    rng = np.random.default_rng(3)
+    for w in rng.normal(size=(20, 3)):
+        np.testing.assert_allclose(rot.exp_so3(w), pin.exp3(w), atol=1e-12)
+
+
+def test_slerp_midpoint_and_ends() -> None:
+    q0 = np.array([1.0, 0, 0, 0])
+    q1 = rot.matrix_to_quat_wxyz(rot.axis_rotation("z", 1.0))
+    mid = rot.slerp(q0, q1, 0.5)
+    np.testing.assert_allclose(rot.quat_wxyz_to_matrix(mid), rot.axis_rotation("z", 0.5),
+                               atol=1e-12)
+    np.testing.assert_allclose(rot.slerp(q0, q1, 0.0), q0, atol=1e-12)
+    np.testing.assert_allclose(rot.slerp(q0, -q1, 1.0), q1, atol=1e-12)  # short arc
+
+
+def test_enu_conversions() -> None:
+    north_in_ned = np.array([1.0, 0, 0])
+    np.testing.assert_allclose(rot.R_ENU_NED @ north_in_ned, [0, 1, 0])
+    np.testing.assert_allclose(rot.R_ENU_NED @ [0, 0, 1.0], [0, 0, -1])  # down
+    np.testing.assert_allclose(rot.R_ENU_NWU @ [0, 1.0, 0], [-1, 0, 0])  # west
+    for M in (rot.R_ENU_NED, rot.R_ENU_NWU):
+        assert np.linalg.det(M) == pytest.approx(1.0)
