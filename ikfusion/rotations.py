@@ -132,7 +132,8 @@ def quat_wxyz_to_matrix(quat_wxyz: npt.ArrayLike) -> np.ndarray:
 def matrix_to_quat_wxyz(R: npt.ArrayLike) -> np.ndarray:
     """Rotation matrices to unit quaternions (w, x, y, z) with ``w >= 0``.
 
-    Uses the numerically stable branch per matrix (largest diagonal element).
+    All four algebraic candidates are formed and, per matrix, the numerically stable one (the
+    largest of w, x, y, z) is kept; no Python loop over the batch.
 
     Args:
         R: Shape ``S + (3, 3)``.
@@ -141,34 +142,22 @@ def matrix_to_quat_wxyz(R: npt.ArrayLike) -> np.ndarray:
         Shape ``S + (4,)``.
     """
     M = np.asarray(R, dtype=float)
-    flat = M.reshape(-1, 3, 3)
-    q = np.empty((flat.shape[0], 4))
-    trace = np.trace(flat, axis1=1, axis2=2)
-    diag = np.stack([trace, flat[:, 0, 0], flat[:, 1, 1], flat[:, 2, 2]], axis=1)
-    branch = np.argmax(diag, axis=1)
-    for b in range(4):
-        sel = branch == b
-        if not np.any(sel):
-            continue
-        m = flat[sel]
-        if b == 0:
-            s = 2.0 * np.sqrt(1.0 + trace[sel])
-            q[sel] = np.stack(
-                [0.25 * s, (m[:, 2, 1] - m[:, 1, 2]) / s, (m[:, 0, 2] - m[:, 2, 0]) / s,
-                 (m[:, 1, 0] - m[:, 0, 1]) / s], axis=1)
-        else:
-            i = b - 1
-            j, k = (i + 1) % 3, (i + 2) % 3
-            s = 2.0 * np.sqrt(np.maximum(1.0 + m[:, i, i] - m[:, j, j] - m[:, k, k], 0.0))
-            out = np.empty((m.shape[0], 4))
-            out[:, 0] = (m[:, k, j] - m[:, j, k]) / s
-            out[:, 1 + i] = 0.25 * s
-            out[:, 1 + j] = (m[:, j, i] + m[:, i, j]) / s
-            out[:, 1 + k] = (m[:, k, i] + m[:, i, k]) / s
-            q[sel] = out
-    q *= np.where(q[:, :1] < 0.0, -1.0, 1.0)
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    return q.reshape(M.shape[:-2] + (4,))
+    m00, m01, m02 = M[..., 0, 0], M[..., 0, 1], M[..., 0, 2]
+    m10, m11, m12 = M[..., 1, 0], M[..., 1, 1], M[..., 1, 2]
+    m20, m21, m22 = M[..., 2, 0], M[..., 2, 1], M[..., 2, 2]
+    # 4 * q_i * q_j products; row k is the candidate whose k-th component is largest.
+    candidates = np.stack([
+        np.stack([1.0 + m00 + m11 + m22, m21 - m12, m02 - m20, m10 - m01], axis=-1),
+        np.stack([m21 - m12, 1.0 + m00 - m11 - m22, m01 + m10, m02 + m20], axis=-1),
+        np.stack([m02 - m20, m01 + m10, 1.0 - m00 + m11 - m22, m12 + m21], axis=-1),
+        np.stack([m10 - m01, m02 + m20, m12 + m21, 1.0 - m00 - m11 + m22], axis=-1),
+    ], axis=-2)
+    diag = np.stack([1.0 + m00 + m11 + m22, 1.0 + m00 - m11 - m22, 1.0 - m00 + m11 - m22,
+                     1.0 - m00 - m11 + m22], axis=-1)
+    branch = np.argmax(diag, axis=-1)
+    q = np.take_along_axis(candidates, branch[..., None, None], axis=-2)[..., 0, :]
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.where(q[..., :1] < 0.0, -q, q)
 
 
 def wxyz_to_xyzw(quat_wxyz: npt.ArrayLike) -> np.ndarray:
@@ -208,16 +197,24 @@ def exp_so3(rotvec: npt.ArrayLike) -> np.ndarray:
 def log_so3(R: npt.ArrayLike) -> np.ndarray:
     """Logarithm map: rotation matrices to rotation vectors [rad] with norm in [0, pi].
 
-    Accurate near the identity and near a half turn (uses the quaternion form).
+    Uses the trace/skew formula, with a series near the identity and the quaternion form near a
+    half turn (where the skew part vanishes), so it is accurate everywhere.
     """
-    q = matrix_to_quat_wxyz(R)
-    v = q[..., 1:]
-    s = np.linalg.norm(v, axis=-1)
-    angle = 2.0 * np.arctan2(s, q[..., 0])
-    small = s < 1e-12
-    scale = np.where(small, 2.0 / np.where(q[..., 0] == 0, 1.0, q[..., 0]),
-                     angle / np.where(small, 1.0, s))
-    return v * scale[..., None]
+    M = np.asarray(R, dtype=float)
+    vee = 0.5 * np.stack([M[..., 2, 1] - M[..., 1, 2], M[..., 0, 2] - M[..., 2, 0],
+                          M[..., 1, 0] - M[..., 0, 1]], axis=-1)
+    cos = np.clip(0.5 * (M[..., 0, 0] + M[..., 1, 1] + M[..., 2, 2] - 1.0), -1.0, 1.0)
+    sin = np.linalg.norm(vee, axis=-1)
+    theta = np.arctan2(sin, cos)
+    scale = np.where(sin > 1e-7, theta / np.where(sin > 1e-7, sin, 1.0), 1.0 + sin**2 / 6.0)
+    out = vee * scale[..., None]
+    near_pi = cos < -0.99
+    if np.any(near_pi):
+        q = matrix_to_quat_wxyz(M[near_pi])
+        v = q[..., 1:]
+        n = np.linalg.norm(v, axis=-1, keepdims=True)
+        out[near_pi] = v * (2.0 * np.arctan2(n, q[..., :1]) / n)
+    return out
 
 
 def angle_between(R_a: npt.ArrayLike, R_b: npt.ArrayLike) -> np.ndarray:

@@ -118,7 +118,9 @@ def _triplet_spec(model: pin.Model, ids: tuple[int, int, int],
         lo = float(np.degrees(model.lowerPositionLimit[iq]))
         hi = float(np.degrees(model.upperPositionLimit[iq]))
         angles.append(AngleSpec(angle, axis, sign, lo, hi))
-    parent = model.names[model.parents[ids[0]]]
+    joint_frame = next(f for f in model.frames
+                       if f.type == pin.FrameType.JOINT and f.parentJoint == ids[0])
+    parent = model.frames[joint_frame.parentFrame].name
     child_bodies = [f.name for f in model.frames
                     if f.parentJoint == ids[2] and f.type == pin.FrameType.BODY]
     child = child_bodies[0] if child_bodies else name

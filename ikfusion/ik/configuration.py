@@ -1,0 +1,84 @@
+"""A robot configuration ``q`` with its forward kinematics and frame Jacobians computed once.
+
+Frames are addressed by Pinocchio frame index. Jacobians are ``LOCAL_WORLD_ALIGNED``: rows 0-2
+map ``dq`` to the world-frame velocity of the frame origin [m], rows 3-5 to the world-frame
+angular velocity [rad] (per unit tangent step).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+
+class Configuration:
+    """Model, data and a read-only configuration; kinematics are cached per :meth:`update`.
+
+    Args:
+        model: The Pinocchio model.
+        q: Configuration, size ``model.nq``.
+    """
+
+    def __init__(self, model: pin.Model, q: npt.ArrayLike) -> None:
+        self.model = model
+        self.data = model.createData()
+        self._placements: dict[int, pin.SE3] = {}
+        self._jacobians: dict[int, np.ndarray] = {}
+        self.update(q)
+
+    @property
+    def q(self) -> np.ndarray:
+        """The configuration (a read-only view)."""
+        return self._q
+
+    def update(self, q: npt.ArrayLike) -> None:
+        """Set ``q`` and run forward kinematics and joint Jacobians once."""
+        qq = np.array(q, dtype=float)
+        qq.setflags(write=False)
+        self._q = qq
+        pin.computeJointJacobians(self.model, self.data, qq)
+        self._placements.clear()
+        self._jacobians.clear()
+
+    def placement(self, frame_id: int) -> pin.SE3:
+        """``T_world_frame`` of one frame."""
+        T = self._placements.get(frame_id)
+        if T is None:
+            T = pin.updateFramePlacement(self.model, self.data, frame_id)
+            self._placements[frame_id] = T
+        return T
+
+    def jacobian(self, frame_id: int) -> np.ndarray:
+        """Frame Jacobian (6, nv), LOCAL_WORLD_ALIGNED (linear rows first)."""
+        J = self._jacobians.get(frame_id)
+        if J is None:
+            J = pin.getFrameJacobian(self.model, self.data, frame_id, pin.LOCAL_WORLD_ALIGNED)
+            self._jacobians[frame_id] = J
+        return J
+
+    def rotations(self, frame_ids: Sequence[int]) -> np.ndarray:
+        """``R_world_frame`` of several frames, shape (k, 3, 3)."""
+        return np.array([self.placement(f).rotation for f in frame_ids]).reshape(-1, 3, 3)
+
+    def positions(self, frame_ids: Sequence[int]) -> np.ndarray:
+        """``p_world_frame`` [m] of several frames, shape (k, 3)."""
+        return np.array([self.placement(f).translation for f in frame_ids]).reshape(-1, 3)
+
+    def angular_jacobians(self, frame_ids: Sequence[int]) -> np.ndarray:
+        """World angular-velocity Jacobians, shape (k, 3, nv)."""
+        return np.array([self.jacobian(f)[3:] for f in frame_ids]).reshape(-1, 3, self.model.nv)
+
+    def linear_jacobians(self, frame_ids: Sequence[int]) -> np.ndarray:
+        """World linear-velocity Jacobians of frame origins, shape (k, 3, nv)."""
+        return np.array([self.jacobian(f)[:3] for f in frame_ids]).reshape(-1, 3, self.model.nv)
+
+    def integrate(self, dq: npt.ArrayLike) -> np.ndarray:
+        """``q ⊕ dq`` on the configuration manifold (a new array)."""
+        return pin.integrate(self.model, self._q, np.asarray(dq, dtype=float))
+
+    def difference(self, q_from: npt.ArrayLike) -> np.ndarray:
+        """Tangent vector ``q ⊖ q_from`` (from ``q_from`` to the current ``q``), size nv."""
+        return pin.difference(self.model, np.asarray(q_from, dtype=float), self._q)

@@ -1,0 +1,132 @@
+"""Contact detection from the kinematics, heel and toe separately, with hysteresis.
+
+A contact point enters contact when it is near the floor, nearly still horizontally and among
+the lowest points of the body. It leaves when the *sensed* pose (every joint between two tracked
+segments set from the targets, before the no-slip constraints bend anything) lifts it above the
+lowest point or pulls it away from its anchor: a planted point cannot reveal lift-off by its own
+motion, since the constraint holds it. Hints given with a frame override the detection.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class ContactState:
+    """Contact state of every contact point.
+
+    Attributes:
+        names: Contact point names.
+        active: (k,) in contact.
+        anchors: (k, 3) [m] where each point is held while in contact.
+        age: (k,) [s] how long each point has been in contact.
+    """
+
+    names: list[str]
+    active: np.ndarray
+    anchors: np.ndarray
+    age: np.ndarray
+
+    @classmethod
+    def empty(cls, names: Sequence[str]) -> ContactState:
+        """No point in contact."""
+        k = len(names)
+        return cls(list(names), np.zeros(k, dtype=bool), np.zeros((k, 3)), np.zeros(k))
+
+    def as_dict(self) -> dict[str, bool]:
+        """Name -> in contact."""
+        return {n: bool(a) for n, a in zip(self.names, self.active)}
+
+
+@dataclass(frozen=True)
+class ContactThresholds:
+    """Hysteresis thresholds [m, m/s] (see ``configs/solver.yaml``, section contacts)."""
+
+    floor_z: float = 0.0
+    enter_height: float = 0.03
+    enter_speed: float = 0.5
+    enter_relative: float = 0.03
+    leave_relative: float = 0.025
+    leave_distance: float = 0.02
+    settle_speed: float = 0.2
+
+
+def update_contacts(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.ndarray,
+                    p_sensed: np.ndarray, dt: float, thresholds: ContactThresholds,
+                    hints: Mapping[str, bool] | None = None) -> ContactState:
+    """The contact state for the next frame.
+
+    Args:
+        state: Current state.
+        p_solved: (k, 3) contact point positions of the solved pose [m].
+        p_solved_previous: (k, 3) the same one frame earlier [m].
+        p_sensed: (k, 3) positions in the sensed pose (any translation) [m].
+        dt: Frame interval [s].
+        thresholds: Hysteresis thresholds.
+        hints: Name -> in contact, overriding the detection for those points.
+
+    Returns:
+        A new state.
+    """
+    th = thresholds
+    active = state.active.copy()
+    anchors = state.anchors.copy()
+    height_rel = p_sensed[:, 2] - p_sensed[:, 2].min()
+    drift, other_age = _drift_from_other_foot(state.names, active, anchors, p_sensed, state.age)
+    speed = (np.linalg.norm((p_solved - p_solved_previous)[:, :2], axis=1) / dt
+             if dt > 0 else np.zeros(len(active)))
+    # Two planted feet that disagree: the foot planted earlier lets go (toe-off).
+    pulled = (drift > th.leave_distance) & (state.age >= other_age)
+    leave = active & ((height_rel > th.leave_relative) | pulled)
+    enter = (~active & (p_solved[:, 2] < th.floor_z + th.enter_height)
+             & (speed < th.enter_speed) & (height_rel < th.enter_relative))
+    if hints:
+        for i, name in enumerate(state.names):
+            if name in hints:
+                want = bool(hints[name])
+                leave[i] = active[i] and not want
+                enter[i] = (not active[i]) and want
+    active = (active & ~leave) | enter
+    if not active.any() and not hints:
+        # Without a flight hint the lowest point of the sensed pose keeps the body grounded.
+        lowest = int(np.argmin(p_sensed[:, 2]))
+        active[lowest] = True
+        if not state.active[lowest]:
+            enter[lowest] = True
+    anchors[enter] = p_solved[enter]
+    anchors[enter, 2] = np.maximum(anchors[enter, 2], th.floor_z)
+    settle = th.settle_speed * max(dt, 0.0)
+    anchors[:, 2] = np.maximum(anchors[:, 2] - settle, th.floor_z)
+    age = np.where(active, state.age + max(dt, 0.0), 0.0)
+    age[enter] = 0.0
+    return ContactState(state.names, active, anchors, age)
+
+
+def _foot_of(name: str) -> str:
+    return "Left" if name.startswith("Left") else "Right" if name.startswith("Right") else name
+
+
+def _drift_from_other_foot(names: Sequence[str], active: np.ndarray, anchors: np.ndarray,
+                           p_sensed: np.ndarray, age: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """How far each planted point is pulled from its anchor by the other foot.
+
+    The sensed pose is aligned on the planted points of the *other* foot; the horizontal
+    distance of the point from its anchor then says how much the two feet disagree [m] (0 when
+    the other foot has no planted point). Also returns the longest contact age of the other
+    foot's planted points [s] (+inf when none).
+    """
+    feet = [_foot_of(n) for n in names]
+    drift = np.zeros(len(names))
+    other_age = np.full(len(names), np.inf)
+    for i, foot in enumerate(feet):
+        others = active & np.array([f != foot for f in feet])
+        if not active[i] or not others.any():
+            continue
+        offset = np.mean(anchors[others] - p_sensed[others], axis=0)
+        drift[i] = np.linalg.norm((p_sensed[i] + offset - anchors[i])[:2])
+        other_age[i] = age[others].max()
+    return drift, other_age

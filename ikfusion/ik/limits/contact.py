@@ -1,0 +1,71 @@
+"""Contact points: no slip while in contact, never below the floor."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import numpy.typing as npt
+
+from ..configuration import Configuration
+from .base import Equality, Inequality
+
+
+class ContactConstraint:
+    """Contact points in contact stay at their anchors: ``p_i(q ⊕ dq) = anchor_i`` (3 rows each).
+
+    Args:
+        frame_ids: Frame indices of the contact points.
+        names: Their names (``LeftHeel``, ...).
+    """
+
+    def __init__(self, frame_ids: Sequence[int], names: Sequence[str]) -> None:
+        self.frame_ids = list(frame_ids)
+        self.names = list(names)
+        self.active = np.zeros(len(self.frame_ids), dtype=bool)
+        self.anchors = np.zeros((len(self.frame_ids), 3))
+
+    def set_anchors(self, active: npt.ArrayLike, anchors: npt.ArrayLike) -> None:
+        """Which points are in contact (k,) and where they are held (k, 3) [m]."""
+        self.active = np.asarray(active, dtype=bool).copy()
+        self.anchors = np.asarray(anchors, dtype=float).reshape(-1, 3).copy()
+
+    def equality(self, configuration: Configuration) -> Equality:
+        """Linearised rows ``J_i dq = anchor_i - p_i`` for the active points."""
+        ids = [f for f, a in zip(self.frame_ids, self.active) if a]
+        nv = configuration.model.nv
+        if not ids:
+            return Equality(np.zeros((0, nv)), np.zeros(0))
+        J = configuration.linear_jacobians(ids).reshape(-1, nv)
+        b = (self.anchors[self.active] - configuration.positions(ids)).reshape(-1)
+        return Equality(J, b)
+
+    def slide_m(self, configuration: Configuration) -> np.ndarray:
+        """Distance of each point from its anchor (k,) [m]; NaN for points not in contact."""
+        p = configuration.positions(self.frame_ids)
+        d = np.linalg.norm(p - self.anchors, axis=1)
+        return np.where(self.active, d, np.nan)
+
+
+class FloorLimit:
+    """Contact points stay above the floor: ``z_i(q ⊕ dq) >= floor_z``.
+
+    Args:
+        frame_ids: Frame indices of the points.
+        floor_z: Floor height [m].
+    """
+
+    def __init__(self, frame_ids: Sequence[int], floor_z: float = 0.0) -> None:
+        self.frame_ids = list(frame_ids)
+        self.floor_z = float(floor_z)
+        self.enabled = np.ones(len(self.frame_ids), dtype=bool)
+
+    def inequality(self, configuration: Configuration) -> Inequality:
+        """Rows ``-J_z dq <= z - floor_z`` for the enabled points."""
+        ids = [f for f, e in zip(self.frame_ids, self.enabled) if e]
+        nv = configuration.model.nv
+        if not ids:
+            return Inequality(np.zeros((0, nv)), np.zeros(0))
+        Jz = configuration.linear_jacobians(ids)[:, 2, :]
+        z = configuration.positions(ids)[:, 2]
+        return Inequality(-Jz, z - self.floor_z)

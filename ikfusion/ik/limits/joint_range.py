@@ -1,0 +1,96 @@
+"""Ranges of motion of ball joints as linearised limits on their anatomical angles.
+
+No peer library limits spherical joints; without it arms bend backwards. Each joint's
+anatomical angles ``a = (a1, a2, a3)`` (intrinsic Euler sequence with signs, see
+``configs/joints.yaml``) relate to the joint's tangent step ``w`` (the child-frame rotation
+vector Pinocchio uses for spherical joints) through ``w = E(a) da``, with
+
+    E = [R3^T R2^T s1 e1,  R3^T s2 e2,  s3 e3],   Ri = R(ei, si ai),
+
+so the linearised limits are ``lower - a <= E^-1 w <= upper - a``. ``E`` is invertible while the
+middle angle stays away from +-90 deg, which the ranges guarantee.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from ...model.ball_joints import BallJoint
+from ...rotations import exp_so3, quat_wxyz_to_matrix, xyzw_to_wxyz
+from ..configuration import Configuration
+from .base import Inequality
+
+_UNIT = np.eye(3)
+
+
+class JointRangeLimit:
+    """Anatomical range-of-motion limits of every ball joint.
+
+    Args:
+        joints: ``HumanModel.ball_joints``.
+        margin_deg: Only angles within this distance of a limit produce rows (the others
+            cannot reach it in one step); keeps the QP small.
+    """
+
+    def __init__(self, joints: Mapping[str, BallJoint], margin_deg: float = 25.0) -> None:
+        specs = [j.spec for j in joints.values()]
+        self.names = list(joints)
+        self.idx_q = np.array([j.idx_q for j in joints.values()])
+        self.idx_v = np.array([j.idx_v for j in joints.values()])
+        axis_index = {"x": 0, "y": 1, "z": 2}
+        self.axes = np.array([[axis_index[a.axis] for a in s.angles] for s in specs])
+        self.signs = np.array([[a.sign for a in s.angles] for s in specs], dtype=float)
+        self.lower = np.radians([[a.lower_deg for a in s.angles] for s in specs])
+        self.upper = np.radians([[a.upper_deg for a in s.angles] for s in specs])
+        i, j = self.axes[:, 0], self.axes[:, 1]
+        self.parity = np.where((j - i) % 3 == 1, 1.0, -1.0)
+        self.margin = np.radians(margin_deg)
+        self._q_cols = self.idx_q[:, None] + np.arange(4)
+
+    def angles(self, q: np.ndarray) -> np.ndarray:
+        """Anatomical angles (joints, 3) [rad] in sequence order."""
+        R = quat_wxyz_to_matrix(xyzw_to_wxyz(np.asarray(q)[self._q_cols]))
+        n = np.arange(len(R))
+        i, j, k = self.axes[:, 0], self.axes[:, 1], self.axes[:, 2]
+        p = self.parity
+        middle = np.arcsin(np.clip(p * R[n, i, k], -1.0, 1.0))
+        first = np.arctan2(-p * R[n, j, k], R[n, k, k])
+        last = np.arctan2(-p * R[n, i, j], R[n, i, i])
+        return np.stack([first, middle, last], axis=1) * self.signs
+
+    def rate_matrices(self, angles: np.ndarray) -> np.ndarray:
+        """``E^-1`` per joint (joints, 3, 3): anatomical angle rates from the tangent step."""
+        e = _UNIT[self.axes] * self.signs[:, :, None]  # (n, 3, 3): row m = s_m * e_m
+        R2 = exp_so3(e[:, 1] * angles[:, 1:2])
+        R3 = exp_so3(e[:, 2] * angles[:, 2:3])
+        R3t = np.swapaxes(R3, 1, 2)
+        col1 = R3t @ np.swapaxes(R2, 1, 2) @ e[:, 0, :, None]
+        col2 = R3t @ e[:, 1, :, None]
+        E = np.concatenate([col1, col2, e[:, 2, :, None]], axis=2)
+        return np.linalg.inv(E)
+
+    def violation_deg(self, q: np.ndarray) -> np.ndarray:
+        """How far each angle lies outside its range (joints, 3) [deg], 0 inside."""
+        a = self.angles(q)
+        return np.degrees(np.maximum(self.lower - a, 0.0) + np.maximum(a - self.upper, 0.0))
+
+    def inequality(self, configuration: Configuration) -> Inequality:
+        """Rows ``G dq <= h`` for the angles near or beyond a limit."""
+        nv = configuration.model.nv
+        a = self.angles(configuration.q)
+        near_up = a > self.upper - self.margin
+        near_lo = a < self.lower + self.margin
+        if not (near_up.any() or near_lo.any()):
+            return Inequality(np.zeros((0, nv)), np.zeros(0))
+        Einv = self.rate_matrices(a)
+        rows, h = [], []
+        for mask, sign, bound in ((near_up, 1.0, self.upper), (near_lo, -1.0, self.lower)):
+            jn, m = np.nonzero(mask)
+            G = np.zeros((len(jn), nv))
+            cols = self.idx_v[jn, None] + np.arange(3)
+            G[np.arange(len(jn))[:, None], cols] = sign * Einv[jn, m]
+            rows.append(G)
+            h.append(sign * (bound[jn, m] - a[jn, m]))
+        return Inequality(np.vstack(rows), np.concatenate(h))

@@ -1,0 +1,36 @@
+"""Velocity bounds: how far the configuration may move from the previous frame in one frame."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from ..configuration import Configuration
+
+
+class VelocityLimit:
+    """Box ``-v_max dt <= (q ⊕ dq) ⊖ q_prev <= v_max dt`` on every tangent coordinate.
+
+    Args:
+        max_velocity: Per tangent coordinate (nv,) [m/s for the root translation, rad/s else].
+    """
+
+    def __init__(self, max_velocity: npt.ArrayLike) -> None:
+        self.max_velocity = np.asarray(max_velocity, dtype=float).reshape(-1)
+        self.q_previous: np.ndarray | None = None
+        self.dt = 0.0
+
+    def set_previous(self, q_previous: npt.ArrayLike | None, dt: float) -> None:
+        """The previous frame's configuration and the time step [s] (None: no bound)."""
+        self.q_previous = None if q_previous is None else np.asarray(q_previous, dtype=float)
+        self.dt = float(dt)
+
+    def bounds(self, configuration: Configuration) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(lb, ub)`` on ``dq``, or None when there is no previous frame."""
+        if self.q_previous is None or self.dt <= 0.0:
+            return None
+        moved = configuration.difference(self.q_previous)
+        span = self.max_velocity * self.dt
+        lb = np.minimum(-span - moved, 0.0)
+        ub = np.maximum(span - moved, 0.0)
+        return lb, ub

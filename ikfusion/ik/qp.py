@@ -1,0 +1,140 @@
+"""The Gauss-Newton step as one quadratic program, built in one place and inspectable.
+
+    minimise    1/2 dq^T H dq + c^T dq
+    subject to  G dq <= h,   A dq = b,   lb <= dq <= ub
+
+``H`` and ``c`` sum the tasks' ``J^T W J`` and ``J^T W e`` plus a small Levenberg-Marquardt
+damping. When the constraints cannot all hold (a planted foot out of reach within the ranges of
+motion), :func:`solve_qp` solves a relaxed problem in which every equality and inequality row
+has a slack variable with a heavy quadratic penalty, and reports that it did.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import qpsolvers
+
+from ..errors import SolverError
+from .configuration import Configuration
+from .limits.base import Equality, Inequality
+from .tasks.base import Task
+
+#: Backends the benchmark compares; the default is the exact and fastest one there.
+DEFAULT_BACKEND = "daqp"
+
+
+@dataclass
+class QpProblem:
+    """One tangent-space QP (dense matrices)."""
+
+    H: np.ndarray
+    c: np.ndarray
+    G: np.ndarray
+    h: np.ndarray
+    A: np.ndarray
+    b: np.ndarray
+    lb: np.ndarray | None = None
+    ub: np.ndarray | None = None
+
+
+@dataclass
+class QpSolution:
+    """A QP step.
+
+    Attributes:
+        dq: Tangent step (nv,).
+        relaxed: True when the constraints were relaxed with penalised slack.
+        slack: Largest slack used [m or rad] (0 when not relaxed).
+    """
+
+    dq: np.ndarray
+    relaxed: bool = False
+    slack: float = 0.0
+
+
+def build_qp(configuration: Configuration, tasks: Sequence[Task],
+             inequalities: Sequence[Inequality], equalities: Sequence[Equality],
+             bounds: tuple[np.ndarray, np.ndarray] | None = None,
+             damping: float = 1e-8) -> QpProblem:
+    """Assemble the QP of one Gauss-Newton step at ``configuration``."""
+    nv = configuration.model.nv
+    H = np.zeros((nv, nv))
+    c = np.zeros(nv)
+    for task in tasks:
+        task.add_objective(configuration, H, c)
+    H[np.diag_indices(nv)] += damping
+    G = np.vstack([i.G for i in inequalities]) if inequalities else np.zeros((0, nv))
+    h = np.concatenate([i.h for i in inequalities]) if inequalities else np.zeros(0)
+    A = np.vstack([e.A for e in equalities]) if equalities else np.zeros((0, nv))
+    b = np.concatenate([e.b for e in equalities]) if equalities else np.zeros(0)
+    lb, ub = bounds if bounds is not None else (None, None)
+    return QpProblem(H, c, G, h, A, b, lb, ub)
+
+
+def _solver_options(backend: str) -> dict[str, Any]:
+    if backend == "osqp":
+        return {"eps_abs": 1e-7, "eps_rel": 1e-7, "polishing": True, "max_iter": 20000,
+                "verbose": False}
+    return {}
+
+
+def _call(backend: str, H: np.ndarray, c: np.ndarray, G: np.ndarray | None, h: np.ndarray | None,
+          A: np.ndarray | None, b: np.ndarray | None, lb: np.ndarray | None,
+          ub: np.ndarray | None) -> np.ndarray | None:
+    if backend not in qpsolvers.available_solvers:
+        raise SolverError(
+            f"QP backend {backend!r} is not installed; available: "
+            f"{', '.join(qpsolvers.available_solvers)}")
+    try:
+        x = qpsolvers.solve_qp(H, c, G, h, A, b, lb, ub, solver=backend,
+                               **_solver_options(backend))
+    except (ValueError, qpsolvers.QPError):
+        return None
+    if x is None or not np.all(np.isfinite(x)):
+        return None
+    return np.asarray(x)
+
+
+def solve_qp(problem: QpProblem, backend: str = DEFAULT_BACKEND,
+             slack_weight: float = 1e8) -> QpSolution:
+    """Solve the step; fall back to the penalised-slack relaxation when it is infeasible.
+
+    Raises:
+        SolverError: When even the relaxed problem fails (never silently).
+    """
+    p = problem
+    G = p.G if len(p.h) else None
+    h = p.h if len(p.h) else None
+    A = p.A if len(p.b) else None
+    b = p.b if len(p.b) else None
+    x = _call(backend, p.H, p.c, G, h, A, b, p.lb, p.ub)
+    if x is not None:
+        return QpSolution(x)
+    return _solve_relaxed(p, backend, slack_weight)
+
+
+def _solve_relaxed(p: QpProblem, backend: str, slack_weight: float) -> QpSolution:
+    """Every constraint row gets a slack ``s`` with cost ``slack_weight/2 * s^2``."""
+    nv = p.H.shape[0]
+    m_in, m_eq = len(p.h), len(p.b)
+    n = nv + m_in + m_eq
+    H = np.zeros((n, n))
+    H[:nv, :nv] = p.H
+    H[np.arange(nv, n), np.arange(nv, n)] = slack_weight
+    c = np.concatenate([p.c, np.zeros(m_in + m_eq)])
+    G = np.hstack([p.G, -np.eye(m_in), np.zeros((m_in, m_eq))]) if m_in else None
+    A = np.hstack([p.A, np.zeros((m_eq, m_in)), -np.eye(m_eq)]) if m_eq else None
+    lb = np.concatenate([p.lb if p.lb is not None else np.full(nv, -np.inf),
+                         np.zeros(m_in), np.full(m_eq, -np.inf)])
+    ub = np.concatenate([p.ub if p.ub is not None else np.full(nv, np.inf),
+                         np.full(m_in + m_eq, np.inf)])
+    x = _call(backend, H, c, G, p.h if m_in else None, A, p.b if m_eq else None, lb, ub)
+    if x is None:
+        raise SolverError(f"the relaxed IK step failed with backend {backend!r} "
+                          f"({nv} variables, {m_in} inequalities, {m_eq} equalities)")
+    slack = float(np.max(np.abs(x[nv:]))) if n > nv else 0.0
+    return QpSolution(x[:nv], relaxed=True, slack=slack)

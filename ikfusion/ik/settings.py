@@ -1,0 +1,74 @@
+"""Solver settings: weights, limits and thresholds from ``configs/solver.yaml``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from ..errors import ConfigError
+from ..paths import shipped_config
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """Every tunable of :class:`ikfusion.ik.Solver` (see ``configs/solver.yaml`` for units)."""
+
+    backend: str = "daqp"
+    max_iterations: int = 4
+    first_frame_iterations: int = 40
+    step_tolerance: float = 1e-5
+    constraint_tolerance: float = 2e-5
+    levenberg_marquardt: float = 1e-9
+    orientation: float = 1.0
+    position: float = 1.0
+    posture: float = 1e-3
+    posture_joints: dict[str, float] = field(default_factory=dict)
+    smoothness_root_translation: float = 1e-6
+    smoothness_root_rotation: float = 1e-6
+    smoothness_joints: float = 1e-6
+    ballistic: float = 1e3
+    joint_range_margin_deg: float = 25.0
+    max_joint_velocity: float = 30.0
+    max_root_velocity: float = 15.0
+    max_root_angular_velocity: float = 30.0
+    contacts: bool = True
+    floor_z: float = 0.0
+    enter_height: float = 0.03
+    enter_speed: float = 0.5
+    enter_relative: float = 0.03
+    leave_relative: float = 0.025
+    leave_distance: float = 0.02
+    settle_speed: float = 0.2
+
+    @classmethod
+    def load(cls, path: str | Path | None = None, **overrides: Any) -> SolverSettings:
+        """Read a solver YAML (sections are flattened); keyword overrides win.
+
+        Raises:
+            ConfigError: Unknown keys or values of the wrong type, naming the key.
+        """
+        file = Path(path) if path is not None else shipped_config("solver.yaml")
+        try:
+            doc = yaml.safe_load(file.read_text()) or {}
+        except (OSError, yaml.YAMLError) as err:
+            raise ConfigError(f"cannot read solver settings: {err}", path=file) from err
+        flat: dict[str, Any] = {}
+        for section, values in doc.items():
+            if not isinstance(values, dict):
+                raise ConfigError("expected a mapping", path=file, field=str(section))
+            flat.update(values)
+        flat.update(overrides)
+        known = {f.name: f for f in fields(cls)}
+        for key, value in flat.items():
+            if key not in known:
+                raise ConfigError(f"unknown setting; known: {', '.join(known)}", path=file,
+                                  field=key)
+            default = getattr(cls(), key)
+            if isinstance(default, int | float) and not isinstance(default, bool):
+                if isinstance(value, bool) or not isinstance(value, int | float):
+                    raise ConfigError(f"expected a number, found {value!r}", path=file, field=key)
+                flat[key] = type(default)(value)
+        return replace(cls(), **flat)

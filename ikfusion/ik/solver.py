@@ -1,0 +1,340 @@
+"""The whole-body solver: each frame a few Gauss-Newton steps, each a QP in the tangent space.
+
+Per frame, warm started from the previous frame:
+
+* costs: segment orientations (IMU), site positions (UWB, markers), a posture prior on joints
+  the sensors leave open, smoothness toward the previous frame, and during flight a ballistic
+  pelvis path;
+* constraints: anatomical ranges of motion (linearised), contact points in contact held at
+  their touch-down anchors (no slip), contact points above the floor, velocity bounds.
+
+Global translation without aiding comes from chaining contacts: the planted foot is the anchor.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterable, Sequence
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+from tqdm import tqdm
+
+from ..model.human_model import HumanModel
+from ..rotations import matrix_to_quat_wxyz, wxyz_to_xyzw
+from .configuration import Configuration
+from .contacts import ContactState, ContactThresholds, update_contacts
+from .frame import Frame
+from .limits import ContactConstraint, FloorLimit, JointRangeLimit, VelocityLimit
+from .pose import Motion, Pose
+from .qp import build_qp, solve_qp
+from .settings import SolverSettings
+from .tasks import DampingTask, OrientationTask, PositionTask, PostureTask, Task
+
+GRAVITY = np.array([0.0, 0.0, -9.81])
+
+
+class Solver:
+    """Frame-by-frame whole-body IK on a :class:`HumanModel`.
+
+    Args:
+        model: The human model.
+        settings: Weights, limits and thresholds; ``configs/solver.yaml`` when omitted.
+        **overrides: Individual settings (e.g. ``backend="proxqp"``).
+    """
+
+    def __init__(self, model: HumanModel, settings: SolverSettings | None = None,
+                 **overrides: Any) -> None:
+        base = settings if settings is not None else SolverSettings.load()
+        self.settings = replace(base, **overrides) if overrides else base
+        self.model = model
+        s = self.settings
+        segments = model.segment_names
+        self._segment_index = {n: i for i, n in enumerate(segments)}
+        self.orientation_task = OrientationTask(
+            [model.segment_frame_id(n) for n in segments], segments, s.orientation)
+        sites = model.site_names
+        self._site_index = {n: i for i, n in enumerate(sites)}
+        self.position_task = PositionTask([model.site_frame_id(n) for n in sites], sites,
+                                          s.position)
+        self.posture_task = PostureTask.from_joints(model.ball_joints, s.posture_joints, s.posture)
+        self._posture_weights = self.posture_task.weights.copy()
+        self._joint_segments = [(j.spec.parent, j.spec.child) for j in model.ball_joints.values()]
+        self._joint_parent = np.array([self._segment_index[a] for a, _ in self._joint_segments],
+                                      dtype=int)
+        self._joint_child = np.array([self._segment_index[b] for _, b in self._joint_segments],
+                                     dtype=int)
+        self._toe_joints = [(k, self._segment_index[j.spec.parent])
+                            for k, j in enumerate(model.ball_joints.values())
+                            if j.name.endswith("BallFoot")]
+        self._joint_q_cols = np.array([j.idx_q for j in model.ball_joints.values()],
+                                      dtype=int)[:, None] + np.arange(4)
+        self.damping_task = DampingTask(self._tangent_vector(
+            s.smoothness_root_translation, s.smoothness_root_rotation, s.smoothness_joints))
+        root_frame = model.segment_frame_id(segments[0])
+        self.root_task = PositionTask([root_frame], [segments[0]])
+        self.contact_names = model.sites_of_kind("contact") if s.contacts else []
+        contact_ids = [model.site_frame_id(n) for n in self.contact_names]
+        self.contact_constraint = ContactConstraint(contact_ids, self.contact_names)
+        self.floor_limit = FloorLimit(contact_ids, s.floor_z)
+        self.joint_limits = JointRangeLimit(model.ball_joints, s.joint_range_margin_deg)
+        self.velocity_limit = VelocityLimit(self._tangent_vector(
+            s.max_root_velocity, s.max_root_angular_velocity, s.max_joint_velocity))
+        self.thresholds = ContactThresholds(
+            s.floor_z, s.enter_height, s.enter_speed, s.enter_relative, s.leave_relative,
+            s.leave_distance, s.settle_speed)
+        self._configuration = Configuration(model.model, model.neutral())
+        self._sensed_data = model.model.createData()
+        self._contact_ids = contact_ids
+        self.reset()
+
+    def _tangent_vector(self, root_linear: float, root_angular: float,
+                        joints: float) -> np.ndarray:
+        v = np.full(self.model.model.nv, joints, dtype=float)
+        v[:3], v[3:6] = root_linear, root_angular
+        return v
+
+    # ------------------------------------------------------------------ state
+    def reset(self, q: np.ndarray | None = None) -> None:
+        """Forget the previous frames (the next frame is solved from scratch, or from ``q``)."""
+        self._q: np.ndarray | None = None if q is None else np.asarray(q, dtype=float).copy()
+        self._q_start = self._q
+        self._time: float | None = None
+        self._contacts = ContactState.empty(self.contact_names)
+        self._p_contacts = np.zeros((len(self.contact_names), 3))
+        self._root_velocity = np.zeros(3)
+
+    @property
+    def contacts(self) -> ContactState:
+        """The current contact state (for the next frame)."""
+        return self._contacts
+
+    # ------------------------------------------------------------------ targets
+    def _set_targets(self, frame: Frame) -> np.ndarray:
+        """Load a frame's targets into the tasks; returns the tracked-segment mask."""
+        n = len(self._segment_index)
+        R = np.tile(np.eye(3), (n, 1, 1))
+        w = np.zeros(n)
+        for name, R_target in frame.orientations.items():
+            i = self._segment_index.get(name)
+            if i is None:
+                self.model.segment_frame_id(name)  # raises NameNotFound with the valid names
+                continue
+            R[i] = R_target
+            w[i] = frame.orientation_weights.get(name, 1.0)
+        self.orientation_task.set_targets(R, w)
+        tracked = self.orientation_task.weights > 0
+        m = len(self._site_index)
+        p = np.zeros((m, 3))
+        info = np.zeros((m, 3, 3))
+        for name, p_target in frame.positions.items():
+            if name not in self._site_index:
+                self.model.site_frame_id(name)
+            i = self._site_index[name]
+            p[i] = p_target
+            weight = np.asarray(frame.position_weights.get(name, 1.0), dtype=float)
+            info[i] = weight * np.eye(3) if weight.ndim == 0 else weight
+        self.position_task.set_targets(p, info)
+        both = tracked[self._joint_parent] & tracked[self._joint_child]
+        self.posture_task.weights = np.where(both, 0.0, self._posture_weights)
+        return tracked
+
+    def _sensed_configuration(self, q: np.ndarray, tracked: np.ndarray) -> np.ndarray:
+        """``q`` with the root and every joint between two tracked segments set from targets.
+
+        This is the pose the sensors say, before the constraints bend anything.
+        """
+        qs = q.copy()
+        T = self.orientation_task.targets
+        both = tracked[self._joint_parent] & tracked[self._joint_child]
+        if tracked[0]:
+            qs[3:7] = wxyz_to_xyzw(matrix_to_quat_wxyz(T[0]))
+        if both.any():
+            R = np.swapaxes(T[self._joint_parent[both]], 1, 2) @ T[self._joint_child[both]]
+            qs[self._joint_q_cols[both]] = wxyz_to_xyzw(matrix_to_quat_wxyz(R))
+        for joint, foot in self._toe_joints:
+            if tracked[foot] and not tracked[self._joint_child[joint]]:
+                qs[self._joint_q_cols[joint]] = self._level_toe(T[foot], joint)
+        return qs
+
+    def _level_toe(self, R_world_foot: np.ndarray, joint: int) -> np.ndarray:
+        """Toe joint quaternion (x, y, z, w) keeping an unsensed toe level on heel-off.
+
+        While the foot pitches toe-down, the toes stay flat on the floor.
+        """
+        forward = R_world_foot[:, 0]
+        pitch = np.arctan2(-forward[2], np.hypot(forward[0], forward[1]))
+        spec = list(self.model.ball_joints.values())[joint].spec
+        flex = next(a for a in spec.angles if a.name == "flex")
+        angle = np.clip(np.degrees(max(pitch, 0.0)), flex.lower_deg, flex.upper_deg)
+        angles = [np.radians(angle) if a.name == "flex" else 0.0 for a in spec.angles]
+        return wxyz_to_xyzw(matrix_to_quat_wxyz(spec.rotation(angles)))
+
+    def _initial_guess(self, tracked: np.ndarray) -> np.ndarray:
+        q = self.model.neutral() if self._q_start is None else self._q_start.copy()
+        return self._sensed_configuration(q, tracked)
+
+    # ------------------------------------------------------------------ solving
+    def step(self, frame: Frame) -> Pose:
+        """Solve one frame.
+
+        Args:
+            frame: Targets; its time must increase from frame to frame.
+
+        Returns:
+            The solved :class:`Pose`.
+        """
+        start = time.perf_counter()
+        s = self.settings
+        tracked = self._set_targets(frame)
+        first = self._q is None or self._time is None
+        dt = 0.0 if first else float(frame.time - self._time)  # type: ignore[operator]
+        if first:
+            q = self._initial_guess(tracked)
+            iterations = s.first_frame_iterations
+            self.damping_task.set_reference(None)
+            self.velocity_limit.set_previous(None, 0.0)
+        else:
+            q = self._q.copy()  # type: ignore[union-attr]
+            iterations = s.max_iterations
+            self.damping_task.set_reference(self._q)
+            self.velocity_limit.set_previous(self._q, dt)
+        self.contact_constraint.set_anchors(self._contacts.active, self._contacts.anchors)
+        self.floor_limit.enabled = ~self._contacts.active
+        flight = not first and not self._contacts.active.any()
+        tasks: list[Task] = [self.orientation_task, self.position_task, self.posture_task,
+                             self.damping_task]
+        if frame.root_position is not None:
+            self.root_task.set_targets(np.asarray(frame.root_position, dtype=float)[None],
+                                       [frame.root_position_weight])
+            tasks.append(self.root_task)
+        elif flight:
+            p_root = self._q[:3] + self._root_velocity * dt + 0.5 * GRAVITY * dt**2  # type: ignore[index]
+            self.root_task.set_targets(p_root[None], [s.ballistic])
+            tasks.append(self.root_task)
+        conf = self._configuration
+        conf.update(q)
+        done, relaxed = 0, False
+        for done in range(1, iterations + 1):  # noqa: B007 - `done` is reported after the loop
+            problem = build_qp(
+                conf, tasks,
+                [self.joint_limits.inequality(conf), self.floor_limit.inequality(conf)],
+                [self.contact_constraint.equality(conf)],
+                self.velocity_limit.bounds(conf), s.levenberg_marquardt)
+            solution = solve_qp(problem, s.backend)
+            relaxed = relaxed or solution.relaxed
+            conf.update(conf.integrate(solution.dq))
+            slide = self.contact_constraint.slide_m(conf)
+            held = not np.any(slide[np.isfinite(slide)] > s.constraint_tolerance)
+            if np.max(np.abs(solution.dq)) < s.step_tolerance and held:
+                break
+        relaxed = self._project_on_constraints(conf) or relaxed
+        q = conf.q.copy()
+        if first:
+            q = self._place_on_floor(q)
+            conf.update(q)
+        pose = self._finish_frame(frame, q, tracked, dt, first, start, done, relaxed)
+        return pose
+
+    def _project_on_constraints(self, conf: Configuration, max_steps: int = 4) -> bool:
+        """Remove the linearisation residual of the contacts with minimum-norm steps.
+
+        The Gauss-Newton loop may stop while large steps (a target out of reach) still leave a
+        second-order error on planted points; a few QPs with only the constraints and
+        ``1/2 |dq|^2`` bring it under ``constraint_tolerance`` so planted feet never slide.
+
+        Returns:
+            True when a step had to be relaxed.
+        """
+        s = self.settings
+        nv = self.model.model.nv
+        relaxed = False
+        for _ in range(max_steps):
+            slide = self.contact_constraint.slide_m(conf)
+            if not np.any(slide[np.isfinite(slide)] > s.constraint_tolerance):
+                break
+            problem = build_qp(conf, [], [self.joint_limits.inequality(conf),
+                                          self.floor_limit.inequality(conf)],
+                               [self.contact_constraint.equality(conf)], None, 0.0)
+            problem.H = np.eye(nv)
+            solution = solve_qp(problem, s.backend)
+            relaxed = relaxed or solution.relaxed
+            conf.update(conf.integrate(solution.dq))
+        return relaxed
+
+    def _place_on_floor(self, q: np.ndarray) -> np.ndarray:
+        """First frame: lift or lower the body so its lowest contact point is on the floor."""
+        conf = self._configuration
+        conf.update(q)
+        if not self._contact_ids:
+            return q
+        z = conf.positions(self._contact_ids)[:, 2]
+        q = q.copy()
+        q[2] += self.settings.floor_z - z.min()
+        return q
+
+    def _contact_positions(self, q: np.ndarray) -> np.ndarray:
+        data = self._sensed_data
+        pin.forwardKinematics(self.model.model, data, q)
+        return np.array([pin.updateFramePlacement(self.model.model, data, f).translation
+                         for f in self._contact_ids]).reshape(-1, 3)
+
+    def _finish_frame(self, frame: Frame, q: np.ndarray, tracked: np.ndarray, dt: float,
+                      first: bool, start: float, iterations: int, relaxed: bool) -> Pose:
+        conf = self._configuration
+        p_contacts = conf.positions(self._contact_ids)
+        contacts_now = self._contacts.as_dict()
+        slide = self.contact_constraint.slide_m(conf)
+        if self._contact_ids:
+            p_sensed = self._contact_positions(self._sensed_configuration(q, tracked))
+            previous = p_contacts if first else self._p_contacts
+            self._contacts = update_contacts(self._contacts, p_contacts, previous, p_sensed, dt,
+                                             self.thresholds, frame.contacts)
+            if first:
+                self._contacts = update_contacts(self._contacts, p_contacts, p_contacts,
+                                                 p_sensed, dt, self.thresholds, frame.contacts)
+                contacts_now = self._contacts.as_dict()
+        if not first and dt > 0:
+            self._root_velocity = (q[:3] - self._q[:3]) / dt  # type: ignore[index]
+        self._p_contacts = p_contacts
+        self._q = q
+        self._time = frame.time
+        residuals = {
+            "orientation_deg": self.orientation_task.errors_deg(conf),
+            "position_m": self.position_task.errors_m(conf),
+            "contact_slide_m": {n: float(d) for n, d in zip(self.contact_names, slide)
+                                if np.isfinite(d)},
+        }
+        return Pose(self.model, float(frame.time), q, contacts_now,
+                    time.perf_counter() - start, iterations, residuals, relaxed)
+
+    def solve(self, frames: Iterable[Frame], progress: bool = False,
+              total: int | None = None) -> Motion:
+        """Solve a sequence of frames from scratch.
+
+        Args:
+            frames: Frames in time order.
+            progress: Show a progress bar (tqdm).
+            total: Number of frames, for the progress bar.
+
+        Returns:
+            The :class:`Motion`.
+        """
+        self.reset()
+        poses: list[Pose] = []
+        for frame in tqdm(frames, total=total, disable=not progress, unit="frame"):
+            poses.append(self.step(frame))
+        warnings = []
+        relaxed = sum(p.relaxed for p in poses)
+        if relaxed:
+            warnings.append(f"{relaxed} frame(s) needed relaxed constraints (a planted foot "
+                            "out of reach within the ranges of motion)")
+        return Motion.from_poses(self.model, poses, self.contact_names, warnings)
+
+    def frames_from_targets(self, times: Sequence[float],
+                            orientations: dict[str, np.ndarray]) -> list[Frame]:
+        """Frames from per-segment orientation arrays ``{segment: (N, 3, 3)}``."""
+        return [Frame(float(t), {n: R[k] for n, R in orientations.items()})
+                for k, t in enumerate(times)]

@@ -1,0 +1,72 @@
+"""Position task: frame origins (sites) follow target positions (UWB tags, markers)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import numpy.typing as npt
+
+from ..configuration import Configuration
+from .base import Task
+
+
+class PositionTask(Task):
+    """Residual ``e_i = p_world_frame_i - p_world_target_i`` [m].
+
+    Each frame has a 3x3 information matrix (inverse covariance [1/m^2]), so anisotropic UWB
+    covariances weigh the axes correctly; :meth:`set_targets` also accepts scalar weights.
+
+    Args:
+        frame_ids: Pinocchio frame indices.
+        names: Their names.
+        weight: Global scale of the information matrices.
+    """
+
+    def __init__(self, frame_ids: Sequence[int], names: Sequence[str], weight: float = 1.0) -> None:
+        self.frame_ids = list(frame_ids)
+        self.names = list(names)
+        self.weight = float(weight)
+        k = len(self.frame_ids)
+        self.targets = np.zeros((k, 3))
+        self.information = np.zeros((k, 3, 3))
+
+    def set_targets(self, p_world_target: npt.ArrayLike, weights: npt.ArrayLike) -> None:
+        """Targets (k, 3) [m] and weights: (k,) scalars or (k, 3, 3) information matrices."""
+        p = np.asarray(p_world_target, dtype=float).reshape(-1, 3)
+        w = np.asarray(weights, dtype=float)
+        info = w[:, None, None] * np.eye(3) if w.ndim == 1 else w.reshape(-1, 3, 3)
+        bad = ~np.isfinite(p).all(axis=1)
+        self.targets = np.where(bad[:, None], 0.0, p)
+        self.information = np.where(bad[:, None, None], 0.0, info)
+
+    def row_weights(self) -> np.ndarray:
+        """Diagonal of the information matrices (rows with zero are inactive)."""
+        return self.weight * np.einsum("kii->ki", self.information).reshape(-1)
+
+    def compute_error(self, configuration: Configuration) -> np.ndarray:
+        """Stacked position errors (3k,) [m]."""
+        return (configuration.positions(self.frame_ids) - self.targets).reshape(-1)
+
+    def compute_jacobian(self, configuration: Configuration) -> np.ndarray:
+        """Stacked linear Jacobians (3k, nv)."""
+        return configuration.linear_jacobians(self.frame_ids).reshape(-1, configuration.model.nv)
+
+    def add_objective(self, configuration: Configuration, H: np.ndarray, c: np.ndarray) -> None:
+        """Accumulate ``J^T W J`` and ``J^T W e`` with the full information matrices."""
+        if not self.is_active():
+            return
+        active = [i for i in range(len(self.frame_ids)) if self.information[i].any()]
+        ids = [self.frame_ids[i] for i in active]
+        J = configuration.linear_jacobians(ids)
+        e = configuration.positions(ids) - self.targets[active]
+        W = self.weight * self.information[active]
+        WJ = W @ J
+        H += np.einsum("kin,kim->nm", J, WJ)
+        c += np.einsum("kin,ki->n", WJ, e)
+
+    def errors_m(self, configuration: Configuration) -> dict[str, float]:
+        """Distance of each active frame to its target [m]."""
+        e = self.compute_error(configuration).reshape(-1, 3)
+        return {n: float(np.linalg.norm(v)) for n, v, W in zip(self.names, e, self.information)
+                if W.any()}

@@ -1,0 +1,1 @@
+"""Simulation: motion sources (procedural gait, mapped mocap) and simulated sensors."""

@@ -1,0 +1,331 @@
+"""Procedural walking: footsteps along a path, rolling feet, arm swing, solved into configurations.
+
+The walk is planned in Cartesian space and turned into model configurations with the solver
+itself, so the ground truth is a kinematically exact motion of the model:
+
+* a path (straight, a circle, or straight legs joined by turns) walked at a speed that ramps up
+  smoothly after a standing N-pose;
+* footprints: each foot lands where the pelvis will be 22 % of a gait cycle later, beside the
+  path; each stance rolls over the heel (heel rocker), stays flat, then rolls over the ball of
+  the foot with the toes flat (heel-off); each swing follows a smooth arc with clearance;
+* pelvis bobbing, sway and rotation, thorax counter-rotation, arm swing, elbow flexion;
+* contact phases (heel and toe separately) are given to the solver as hints, so planted points
+  are held exactly (hard no-slip constraints) and the truth never slides.
+
+All positions in metres, angles in degrees where named ``_deg``; world frame Z up.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from tqdm import tqdm
+
+from ..ik.frame import Frame
+from ..ik.solver import Solver
+from ..model.human_model import HumanModel
+from ..rotations import axis_rotation
+
+_CONTACTS = ("LeftHeel", "LeftToe", "RightHeel", "RightToe")
+#: Segments whose orientation the plan dictates (legs follow from the feet positions).
+_UPPER_BODY = ("Pelvis", "T8", "Neck", "Head", "RightShoulder", "RightUpperArm", "RightForeArm",
+               "RightHand", "LeftShoulder", "LeftUpperArm", "LeftForeArm", "LeftHand")
+
+
+@dataclass(frozen=True)
+class GaitParameters:
+    """A walk.
+
+    Attributes:
+        path: ``"straight"``, ``"circle"`` or ``"turns"`` (straight legs joined by 90 deg turns).
+        speed: Walking speed [m/s].
+        step_length: Distance between consecutive footprints along the path [m].
+        duration: Total duration including the standing start [s].
+        stand: Standing N-pose at the start [s].
+        radius: Circle (or turn) radius [m].
+        leg_length: Straight legs of the ``"turns"`` path [m].
+        clearance: Peak foot lift in swing [m].
+        heel_strike_deg: Foot pitch (toes up) at heel strike [deg].
+        toe_off_deg: Foot pitch (heel up) at toe-off [deg].
+        arm_swing_deg: Shoulder flexion amplitude [deg].
+        start_heading_deg: Initial walking direction [deg] (0 = +X).
+    """
+
+    path: str = "straight"
+    speed: float = 1.2
+    step_length: float = 0.65
+    duration: float = 10.0
+    stand: float = 2.0
+    radius: float = 2.0
+    leg_length: float = 3.0
+    clearance: float = 0.04
+    heel_strike_deg: float = 15.0
+    toe_off_deg: float = 30.0
+    arm_swing_deg: float = 18.0
+    start_heading_deg: float = 0.0
+
+    @property
+    def cycle(self) -> float:
+        """Gait cycle (stride) duration [s]."""
+        return 2.0 * self.step_length / self.speed
+
+
+@dataclass
+class GaitMotion:
+    """The generated walk (ground truth).
+
+    Attributes:
+        time: (N,) [s].
+        q: (N, nq) configurations.
+        contact_names: Names of the contact columns.
+        contacts: (N, 4) true contact phases.
+        parameters: The walk.
+    """
+
+    model: HumanModel
+    time: np.ndarray
+    q: np.ndarray
+    contact_names: list[str]
+    contacts: np.ndarray
+    parameters: GaitParameters
+    warnings: list[str] = field(default_factory=list)
+
+
+class _Path:
+    """Arc-length parametrised path in the floor plane: position (x, y) [m] and heading [rad]."""
+
+    def __init__(self, p: GaitParameters) -> None:
+        self.p = p
+        self.heading0 = np.radians(p.start_heading_deg)
+
+    def _local(self, s: float) -> tuple[np.ndarray, float]:
+        p = self.p
+        if p.path == "straight":
+            return np.array([s, 0.0]), 0.0
+        if p.path == "circle":
+            a = s / p.radius
+            return np.array([p.radius * np.sin(a), p.radius * (1.0 - np.cos(a))]), a
+        if p.path == "turns":
+            pos, heading = np.zeros(2), 0.0
+            arc = 0.5 * np.pi * p.radius
+            remaining = s
+            while True:
+                straight = min(remaining, p.leg_length)
+                pos = pos + straight * np.array([np.cos(heading), np.sin(heading)])
+                remaining -= straight
+                if remaining <= 0.0:
+                    return pos, heading
+                a = min(remaining, arc) / p.radius
+                centre = pos + p.radius * np.array([-np.sin(heading), np.cos(heading)])
+                heading_new = heading + a
+                pos = centre + p.radius * np.array([np.sin(heading_new), -np.cos(heading_new)])
+                heading = heading_new
+                remaining -= a * p.radius
+                if remaining <= 0.0:
+                    return pos, heading
+        raise ValueError(f"unknown path {p.path!r}; use straight, circle or turns")
+
+    def at(self, s: float) -> tuple[np.ndarray, float]:
+        pos, heading = self._local(s)
+        R = axis_rotation("z", self.heading0)[:2, :2]
+        return R @ pos, heading + self.heading0
+
+
+def _smoothstep(x: np.ndarray | float) -> np.ndarray:
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * x * (10.0 - 15.0 * x + 6.0 * x * x)
+
+
+class GaitPlanner:
+    """Plans every target of a walk; :func:`generate_gait` solves it into configurations.
+
+    Args:
+        model: The human model (its body sets the foot geometry and leg reach).
+        parameters: The walk.
+    """
+
+    def __init__(self, model: HumanModel, parameters: GaitParameters) -> None:
+        self.model = model
+        self.p = parameters
+        self.path = _Path(parameters)
+        q0 = model.neutral()
+        self.pelvis_height = float(q0[2])
+        ankle = model.segment_position(q0, "RightFoot")
+        ball = model.segment_position(q0, "RightToe")
+        heel = model.site_position(q0, "RightHeel")
+        toe = model.site_position(q0, "RightToe")
+        self.ankle_height = float(ankle[2])
+        self.half_width = float(abs(ankle[1]))
+        # Foot geometry in the foot frame (flat foot, ankle at the origin).
+        self.heel_local = heel - ankle
+        self.ball_local = ball - ankle
+        self.toe_in_toe = toe - ball
+        self.ramp = 1.0
+        self._s_grid = np.linspace(0.0, parameters.duration + 2 * parameters.cycle, 4000)
+        v = parameters.speed * _smoothstep((self._s_grid - parameters.stand) / self.ramp)
+        self._dist = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(
+            self._s_grid))])
+
+    # ---------------------------------------------------------------- timing
+    def distance(self, t: float) -> float:
+        """Arc length walked by the pelvis at time ``t`` [m]."""
+        return float(np.interp(t, self._s_grid, self._dist))
+
+    def _tau(self, t: float) -> float:
+        return t - self.p.stand
+
+    def footprint(self, side: str, k: int) -> tuple[np.ndarray, float]:
+        """Flat-foot ankle position (x, y, z) and yaw of footprint ``k`` (-1: standing)."""
+        T = self.p.cycle
+        if k < 0:
+            s = 0.0
+        else:
+            land = (0.4 if side == "Right" else 0.9) * T + k * T
+            s = self.distance(self.p.stand + land + 0.22 * T)
+        c, heading = self.path.at(s)
+        lateral = np.array([-np.sin(heading), np.cos(heading)])
+        sign = 1.0 if side == "Left" else -1.0
+        xy = c + sign * self.half_width * lateral
+        return np.array([xy[0], xy[1], self.ankle_height]), heading
+
+    def _phase(self, side: str, t: float) -> tuple[str, int, float]:
+        """(``"stance"`` or ``"swing"``, footprint index, fraction of the phase)."""
+        T = self.p.cycle
+        tau = self._tau(t)
+        off = 0.0 if side == "Right" else 0.5 * T
+        rel = tau - off  # toe-off of swing k happens at rel = k T
+        if rel < 0.0:
+            return "stance", -1, 1.0 + rel / (0.6 * T) if rel > -0.6 * T else 0.0
+        k = int(np.floor(rel / T))
+        within = rel - k * T
+        if within < 0.4 * T:
+            return "swing", k, within / (0.4 * T)
+        return "stance", k, (within - 0.4 * T) / (0.6 * T)
+
+    # ---------------------------------------------------------------- foot poses
+    def _pose_about(self, pivot_local: np.ndarray, p_ankle_flat: np.ndarray, yaw: float,
+                    pitch: float) -> tuple[np.ndarray, np.ndarray]:
+        """Foot pose rotated by ``pitch`` about a point of the flat foot (kept fixed)."""
+        R_yaw = axis_rotation("z", yaw)
+        R = R_yaw @ axis_rotation("y", pitch)
+        pivot = p_ankle_flat + R_yaw @ pivot_local
+        return R, pivot - R @ pivot_local
+
+    def foot(self, side: str, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool, bool]:
+        """``(R_world_foot, p_world_ankle, R_world_toe, heel_contact, toe_contact)``."""
+        phase, k, f = self._phase(side, t)
+        hs = -np.radians(self.p.heel_strike_deg)
+        to = np.radians(self.p.toe_off_deg)
+        if phase == "stance":
+            p_flat, yaw = self.footprint(side, k)
+            R_toe = axis_rotation("z", yaw)
+            standing_start = k < 0 and self._tau(t) < -0.6 * self.p.cycle
+            if f < 1.0 / 6.0 and k >= 0:  # heel rocker
+                pitch = hs * (1.0 - _smoothstep(6.0 * f))
+                R, pa = self._pose_about(self.heel_local, p_flat, yaw, float(pitch))
+                return R, pa, R, True, f > 0.12
+            if f < 0.75 or standing_start:
+                return R_toe, p_flat, R_toe, True, True
+            pitch = to * _smoothstep((f - 0.75) / 0.25)  # heel-off about the ball
+            R, pa = self._pose_about(self.ball_local, p_flat, yaw, float(pitch))
+            return R, pa, R_toe, pitch < np.radians(2.0), True
+        start, yaw0 = self.footprint(side, k - 1)
+        end, yaw1 = self.footprint(side, k)
+        R0, p0 = self._pose_about(self.ball_local, start, yaw0, to)
+        R1, p1 = self._pose_about(self.heel_local, end, yaw1, hs)
+        w = float(_smoothstep(f))
+        p = (1.0 - w) * p0 + w * p1
+        p[2] += self.p.clearance * np.sin(np.pi * f) ** 2 * 2.0
+        yaw = yaw0 + w * np.angle(np.exp(1j * (yaw1 - yaw0)))
+        pitch = (1.0 - w) * to + w * hs
+        R = axis_rotation("z", yaw) @ axis_rotation("y", pitch)
+        toe_relax = float(_smoothstep(f / 0.5))
+        R_toe = R @ axis_rotation("y", -(1.0 - toe_relax) * to)
+        return R, p, R_toe, False, False
+
+    def contact_points(self, R_foot: np.ndarray, p_ankle: np.ndarray,
+                       R_toe: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World heel and toe-tip positions of a foot pose."""
+        heel = p_ankle + R_foot @ self.heel_local
+        ball = p_ankle + R_foot @ self.ball_local
+        return heel, ball + R_toe @ self.toe_in_toe
+
+    # ---------------------------------------------------------------- upper body
+    def upper_body(self, t: float) -> np.ndarray:
+        """A configuration whose upper-body segments give the orientation targets."""
+        T = self.p.cycle
+        tau = self._tau(t)
+        walking = float(_smoothstep(tau / self.ramp)) if tau > 0 else 0.0
+        phase = 2.0 * np.pi * (tau - 0.4 * T) / T  # 0 at right heel strike
+        s = self.distance(t)
+        c, heading = self.path.at(s)
+        arm = self.p.arm_swing_deg * walking
+        angles = {
+            "jRightShoulder_flex": -arm * np.cos(phase), "jLeftShoulder_flex": arm * np.cos(phase),
+            "jRightShoulder_abd": 5.0 * walking, "jLeftShoulder_abd": 5.0 * walking,
+            "jRightElbow_flex": 15.0 + walking * (12.0 - 8.0 * np.cos(phase)),
+            "jLeftElbow_flex": 15.0 + walking * (12.0 + 8.0 * np.cos(phase)),
+            "jT9T8_rot": -4.0 * walking * np.cos(phase),
+            "jL5S1_flex": 2.0 * walking,
+            "jT1C7_rot": 3.0 * walking * np.cos(phase),
+        }
+        pelvis_yaw = heading + np.radians(4.0 * walking * np.cos(phase))
+        R_pelvis = (axis_rotation("z", pelvis_yaw)
+                    @ axis_rotation("x", np.radians(-3.0 * walking * np.sin(phase)))
+                    @ axis_rotation("y", np.radians(3.0 * walking)))
+        lateral = np.array([-np.sin(heading), np.cos(heading)])
+        sway = 0.02 * walking * np.sin(phase)
+        z = self.pelvis_height - walking * (0.055 - 0.012 * np.cos(2.0 * phase))
+        xy = c + sway * lateral
+        return self.model.configuration(angles, p_world_pelvis=[xy[0], xy[1], z],
+                                        R_world_pelvis=R_pelvis)
+
+    def frame(self, t: float) -> Frame:
+        """All targets and contact hints at time ``t``."""
+        q = self.upper_body(t)
+        data = self.model.forward(q)
+        orientations = {s: data.oMf[self.model.segment_frame_id(s)].rotation.copy()
+                        for s in _UPPER_BODY}
+        positions = {}
+        weights: dict[str, float | np.ndarray] = {}
+        hints = {}
+        for side in ("Right", "Left"):
+            R_foot, p_ankle, R_toe, heel_on, toe_on = self.foot(side, t)
+            orientations[f"{side}Foot"] = R_foot
+            orientations[f"{side}Toe"] = R_toe
+            heel, toe = self.contact_points(R_foot, p_ankle, R_toe)
+            positions[f"{side}Heel"], positions[f"{side}Toe"] = heel, toe
+            weights[f"{side}Heel"] = weights[f"{side}Toe"] = 1e4
+            hints[f"{side}Heel"], hints[f"{side}Toe"] = heel_on, toe_on
+        return Frame(t, orientations, positions, hints, orientation_weights={
+            **{f"{s}Foot": 10.0 for s in ("Right", "Left")},
+            **{f"{s}Toe": 10.0 for s in ("Right", "Left")}}, position_weights=weights,
+            root_position=q[:3].copy(), root_position_weight=1e2)
+
+
+def generate_gait(model: HumanModel, parameters: GaitParameters | None = None,
+                  rate: float = 60.0, progress: bool = False) -> GaitMotion:
+    """Generate a walk as exact model configurations.
+
+    Args:
+        model: The human model.
+        parameters: The walk (defaults: 10 s straight at 1.2 m/s after a 2 s N-pose).
+        rate: Sample rate [Hz].
+        progress: Show a progress bar.
+
+    Returns:
+        The :class:`GaitMotion` (ground truth).
+    """
+    p = parameters or GaitParameters()
+    planner = GaitPlanner(model, p)
+    solver = Solver(model, max_iterations=8)
+    times = np.arange(0.0, p.duration, 1.0 / rate)
+    qs, contacts = [], []
+    for t in tqdm(times, disable=not progress, unit="frame", desc="gait"):
+        frame = planner.frame(float(t))
+        pose = solver.step(frame)
+        qs.append(pose.q)
+        contacts.append([frame.contacts[c] for c in _CONTACTS])  # type: ignore[index]
+    return GaitMotion(model, times, np.array(qs), list(_CONTACTS), np.array(contacts, dtype=bool),
+                      p)
