@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 import numpy.typing as npt
+import pinocchio as pin
 
 _AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
 
@@ -133,7 +134,8 @@ def matrix_to_quat_wxyz(R: npt.ArrayLike) -> np.ndarray:
     """Rotation matrices to unit quaternions (w, x, y, z) with ``w >= 0``.
 
     All four algebraic candidates are formed and, per matrix, the numerically stable one (the
-    largest of w, x, y, z) is kept; no Python loop over the batch.
+    largest of w, x, y, z) is kept. Small batches go through Pinocchio's quaternion constructor
+    (a C++ call per matrix is cheaper than NumPy's per-operation overhead there).
 
     Args:
         R: Shape ``S + (3, 3)``.
@@ -142,6 +144,12 @@ def matrix_to_quat_wxyz(R: npt.ArrayLike) -> np.ndarray:
         Shape ``S + (4,)``.
     """
     M = np.asarray(R, dtype=float)
+    if M.ndim == 2 or (M.ndim == 3 and len(M) <= 24 and np.isfinite(M).all()):
+        flat = M.reshape(-1, 3, 3)
+        q = np.array([pin.Quaternion(m).coeffs() for m in flat])  # (x, y, z, w)
+        q = q[:, [3, 0, 1, 2]] / np.linalg.norm(q, axis=1, keepdims=True)
+        q[q[:, 0] < 0.0] *= -1.0
+        return q.reshape(M.shape[:-2] + (4,))
     m00, m01, m02 = M[..., 0, 0], M[..., 0, 1], M[..., 0, 2]
     m10, m11, m12 = M[..., 1, 0], M[..., 1, 1], M[..., 1, 2]
     m20, m21, m22 = M[..., 2, 0], M[..., 2, 1], M[..., 2, 2]

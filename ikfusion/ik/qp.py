@@ -60,17 +60,28 @@ def build_qp(configuration: Configuration, tasks: Sequence[Task],
              inequalities: Sequence[Inequality], equalities: Sequence[Equality],
              bounds: tuple[np.ndarray, np.ndarray] | None = None,
              damping: float = 1e-8) -> QpProblem:
-    """Assemble the QP of one Gauss-Newton step at ``configuration``."""
+    """Assemble the QP of one Gauss-Newton step at ``configuration`` from task objects."""
     nv = configuration.model.nv
     H = np.zeros((nv, nv))
     c = np.zeros(nv)
     for task in tasks:
         task.add_objective(configuration, H, c)
+    return assemble_qp(H, c, inequalities, equalities, bounds, damping)
+
+
+def assemble_qp(H: np.ndarray, c: np.ndarray, inequalities: Sequence[Inequality],
+                equalities: Sequence[Equality],
+                bounds: tuple[np.ndarray, np.ndarray] | None = None,
+                damping: float = 1e-8) -> QpProblem:
+    """A :class:`QpProblem` from an accumulated objective and constraint blocks."""
+    nv = H.shape[0]
     H[np.diag_indices(nv)] += damping
-    G = np.vstack([i.G for i in inequalities]) if inequalities else np.zeros((0, nv))
-    h = np.concatenate([i.h for i in inequalities]) if inequalities else np.zeros(0)
-    A = np.vstack([e.A for e in equalities]) if equalities else np.zeros((0, nv))
-    b = np.concatenate([e.b for e in equalities]) if equalities else np.zeros(0)
+    ineq = [i for i in inequalities if len(i.h)]
+    eq = [e for e in equalities if len(e.b)]
+    G = np.vstack([i.G for i in ineq]) if ineq else np.zeros((0, nv))
+    h = np.concatenate([i.h for i in ineq]) if ineq else np.zeros(0)
+    A = np.vstack([e.A for e in eq]) if eq else np.zeros((0, nv))
+    b = np.concatenate([e.b for e in eq]) if eq else np.zeros(0)
     lb, ub = bounds if bounds is not None else (None, None)
     return QpProblem(H, c, G, h, A, b, lb, ub)
 

@@ -17,6 +17,7 @@ class SolverSettings:
     """Every tunable of :class:`ikfusion.ik.Solver` (see ``configs/solver.yaml`` for units)."""
 
     backend: str = "daqp"
+    compiled: bool = True
     max_iterations: int = 4
     first_frame_iterations: int = 40
     step_tolerance: float = 1e-5

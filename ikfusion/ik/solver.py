@@ -24,12 +24,13 @@ from tqdm import tqdm
 
 from ..model.human_model import HumanModel
 from ..rotations import matrix_to_quat_wxyz, wxyz_to_xyzw
+from .compiled import compiled_kinematics
 from .configuration import Configuration
 from .contacts import ContactState, ContactThresholds, update_contacts
 from .frame import Frame
 from .limits import ContactConstraint, FloorLimit, JointRangeLimit, VelocityLimit
 from .pose import Motion, Pose
-from .qp import build_qp, solve_qp
+from .qp import QpProblem, assemble_qp, build_qp, solve_qp
 from .settings import SolverSettings
 from .tasks import DampingTask, OrientationTask, PositionTask, PostureTask, Task
 
@@ -68,7 +69,12 @@ class Solver:
                                      dtype=int)
         self._toe_joints = [(k, self._segment_index[j.spec.parent])
                             for k, j in enumerate(model.ball_joints.values())
-                            if j.name.endswith("BallFoot")]
+                            if j.name.endswith("BallFoot") and j.spec.angles[0].name == "flex"]
+        self._toe_flexion = {}
+        for k, _ in self._toe_joints:
+            flex = list(model.ball_joints.values())[k].spec.angles[0]
+            axis = np.eye(3)["xyz".index(flex.axis)] * flex.sign
+            self._toe_flexion[k] = (axis, np.radians(flex.lower_deg), np.radians(flex.upper_deg))
         self._joint_q_cols = np.array([j.idx_q for j in model.ball_joints.values()],
                                       dtype=int)[:, None] + np.arange(4)
         self.damping_task = DampingTask(self._tangent_vector(
@@ -85,6 +91,17 @@ class Solver:
         self.thresholds = ContactThresholds(
             s.floor_z, s.enter_height, s.enter_speed, s.enter_relative, s.leave_relative,
             s.leave_distance, s.settle_speed)
+        self._site_frames = [model.site_frame_id(n) for n in sites] + [root_frame]
+        self._contact_rows = np.array([self._site_index[n] for n in self.contact_names], dtype=int)
+        self._kinematics = None
+        if s.compiled:
+            try:
+                self._kinematics = compiled_kinematics(
+                    model.model, self.orientation_task.frame_ids,
+                    list(model.ball_joints.values()), self._site_frames)
+                self._geometry = self._kinematics.geometry(model.model)
+            except NotImplementedError:
+                self._kinematics = None
         self._configuration = Configuration(model.model, model.neutral())
         self._sensed_data = model.model.createData()
         self._contact_ids = contact_ids
@@ -162,15 +179,14 @@ class Solver:
     def _level_toe(self, R_world_foot: np.ndarray, joint: int) -> np.ndarray:
         """Toe joint quaternion (x, y, z, w) keeping an unsensed toe level on heel-off.
 
-        While the foot pitches toe-down, the toes stay flat on the floor.
+        While the foot pitches toe-down, the toes stay flat on the floor: the toe joint flexes
+        by the foot's pitch (within its range), about the joint's flexion axis.
         """
         forward = R_world_foot[:, 0]
         pitch = np.arctan2(-forward[2], np.hypot(forward[0], forward[1]))
-        spec = list(self.model.ball_joints.values())[joint].spec
-        flex = next(a for a in spec.angles if a.name == "flex")
-        angle = np.clip(np.degrees(max(pitch, 0.0)), flex.lower_deg, flex.upper_deg)
-        angles = [np.radians(angle) if a.name == "flex" else 0.0 for a in spec.angles]
-        return wxyz_to_xyzw(matrix_to_quat_wxyz(spec.rotation(angles)))
+        axis, lower, upper = self._toe_flexion[joint]
+        half = 0.5 * float(np.clip(max(pitch, 0.0), lower, upper))
+        return np.concatenate([np.sin(half) * axis, [np.cos(half)]])
 
     def _initial_guess(self, tracked: np.ndarray) -> np.ndarray:
         q = self.model.neutral() if self._q_start is None else self._q_start.copy()
@@ -218,11 +234,7 @@ class Solver:
         conf.update(q)
         done, relaxed = 0, False
         for done in range(1, iterations + 1):  # noqa: B007 - `done` is reported after the loop
-            problem = build_qp(
-                conf, tasks,
-                [self.joint_limits.inequality(conf), self.floor_limit.inequality(conf)],
-                [self.contact_constraint.equality(conf)],
-                self.velocity_limit.bounds(conf), s.levenberg_marquardt)
+            problem = self._problem(conf, tasks)
             solution = solve_qp(problem, s.backend)
             relaxed = relaxed or solution.relaxed
             conf.update(conf.integrate(solution.dq))
@@ -237,6 +249,38 @@ class Solver:
             conf.update(q)
         pose = self._finish_frame(frame, q, tracked, dt, first, start, done, relaxed)
         return pose
+
+    def _problem(self, conf: Configuration, tasks: list[Task]) -> QpProblem:
+        """The QP of one Gauss-Newton step (compiled residuals when available)."""
+        s = self.settings
+        bounds = self.velocity_limit.bounds(conf)
+        if self._kinematics is None:
+            return build_qp(
+                conf, tasks,
+                [self.joint_limits.inequality(conf), self.floor_limit.inequality(conf)],
+                [self.contact_constraint.equality(conf)], bounds, s.levenberg_marquardt)
+        nv = self.model.model.nv
+        e_or, J_or, e_post, B_post, angles, E_inv, p_sites, J_sites = self._kinematics(
+            conf.q, self.orientation_task.targets, self._geometry)
+        H = np.zeros((nv, nv))
+        c = np.zeros(nv)
+        w = self.orientation_task.row_weights()
+        WJ = w[:, None] * J_or
+        H += J_or.T @ WJ
+        c += WJ.T @ e_or[:, 0]
+        self.posture_task.add_blocks(e_post.reshape(-1, 3), B_post.reshape(-1, 3, 3), H, c)
+        P = p_sites.reshape(-1, 3)
+        J = J_sites.reshape(-1, 3, nv)
+        self.position_task.add_rows(P[:-1], J[:-1], H, c)
+        if self.root_task in tasks:
+            self.root_task.add_rows(P[-1:], J[-1:], H, c)
+        self.damping_task.add_objective(conf, H, c)
+        Pc, Jc = P[self._contact_rows], J[self._contact_rows]
+        return assemble_qp(
+            H, c,
+            [self.joint_limits.rows(angles.reshape(-1, 3), E_inv.reshape(-1, 3, 3), nv),
+             self.floor_limit.rows(Pc, Jc)],
+            [self.contact_constraint.rows(Pc, Jc)], bounds, s.levenberg_marquardt)
 
     def _project_on_constraints(self, conf: Configuration, max_steps: int = 4) -> bool:
         """Remove the linearisation residual of the contacts with minimum-norm steps.

@@ -32,12 +32,17 @@ class ContactConstraint:
 
     def equality(self, configuration: Configuration) -> Equality:
         """Linearised rows ``J_i dq = anchor_i - p_i`` for the active points."""
-        ids = [f for f, a in zip(self.frame_ids, self.active) if a]
         nv = configuration.model.nv
-        if not ids:
+        if not self.active.any():
             return Equality(np.zeros((0, nv)), np.zeros(0))
-        J = configuration.linear_jacobians(ids).reshape(-1, nv)
-        b = (self.anchors[self.active] - configuration.positions(ids)).reshape(-1)
+        return self.rows(configuration.positions(self.frame_ids),
+                         configuration.linear_jacobians(self.frame_ids))
+
+    def rows(self, p_world: np.ndarray, J_linear: np.ndarray) -> Equality:
+        """Rows from every point's position (k, 3) [m] and linear Jacobian (k, 3, nv)."""
+        nv = J_linear.shape[-1]
+        J = J_linear[self.active].reshape(-1, nv)
+        b = (self.anchors[self.active] - p_world[self.active]).reshape(-1)
         return Equality(J, b)
 
     def slide_m(self, configuration: Configuration) -> np.ndarray:
@@ -62,10 +67,13 @@ class FloorLimit:
 
     def inequality(self, configuration: Configuration) -> Inequality:
         """Rows ``-J_z dq <= z - floor_z`` for the enabled points."""
-        ids = [f for f, e in zip(self.frame_ids, self.enabled) if e]
         nv = configuration.model.nv
-        if not ids:
+        if not self.enabled.any():
             return Inequality(np.zeros((0, nv)), np.zeros(0))
-        Jz = configuration.linear_jacobians(ids)[:, 2, :]
-        z = configuration.positions(ids)[:, 2]
-        return Inequality(-Jz, z - self.floor_z)
+        return self.rows(configuration.positions(self.frame_ids),
+                         configuration.linear_jacobians(self.frame_ids))
+
+    def rows(self, p_world: np.ndarray, J_linear: np.ndarray) -> Inequality:
+        """Rows from every point's position (k, 3) [m] and linear Jacobian (k, 3, nv)."""
+        on = self.enabled
+        return Inequality(-J_linear[on, 2, :], p_world[on, 2] - self.floor_z)

@@ -78,13 +78,20 @@ class JointRangeLimit:
 
     def inequality(self, configuration: Configuration) -> Inequality:
         """Rows ``G dq <= h`` for the angles near or beyond a limit."""
-        nv = configuration.model.nv
         a = self.angles(configuration.q)
+        return self.rows(a, None, configuration.model.nv)
+
+    def rows(self, angles: np.ndarray, rate_matrices: np.ndarray | None, nv: int) -> Inequality:
+        """Rows ``G dq <= h`` from the current angles (joints, 3) [rad].
+
+        ``rate_matrices`` (``E^-1``, joints x 3 x 3) are computed when not given.
+        """
+        a = angles
         near_up = a > self.upper - self.margin
         near_lo = a < self.lower + self.margin
         if not (near_up.any() or near_lo.any()):
             return Inequality(np.zeros((0, nv)), np.zeros(0))
-        Einv = self.rate_matrices(a)
+        Einv = self.rate_matrices(a) if rate_matrices is None else rate_matrices
         rows, h = [], []
         for mask, sign, bound in ((near_up, 1.0, self.upper), (near_lo, -1.0, self.lower)):
             jn, m = np.nonzero(mask)

@@ -56,12 +56,18 @@ class PositionTask(Task):
         """Accumulate ``J^T W J`` and ``J^T W e`` with the full information matrices."""
         if not self.is_active():
             return
-        active = [i for i in range(len(self.frame_ids)) if self.information[i].any()]
-        ids = [self.frame_ids[i] for i in active]
-        J = configuration.linear_jacobians(ids)
-        e = configuration.positions(ids) - self.targets[active]
-        W = self.weight * self.information[active]
-        WJ = W @ J
+        self.add_rows(configuration.positions(self.frame_ids),
+                      configuration.linear_jacobians(self.frame_ids), H, c)
+
+    def add_rows(self, p_world: np.ndarray, J_linear: np.ndarray, H: np.ndarray,
+                 c: np.ndarray) -> None:
+        """Accumulate from every frame's position (k, 3) [m] and linear Jacobian (k, 3, nv)."""
+        active = self.information.any(axis=(1, 2))
+        if not active.any():
+            return
+        J = J_linear[active]
+        e = p_world[active] - self.targets[active]
+        WJ = self.weight * self.information[active] @ J
         H += np.einsum("kin,kim->nm", J, WJ)
         c += np.einsum("kin,ki->n", WJ, e)
 

@@ -73,10 +73,16 @@ class PostureTask(Task):
     def add_objective(self, configuration: Configuration, H: np.ndarray, c: np.ndarray) -> None:
         """Block-diagonal assembly (no dense Jacobian)."""
         e = self.compute_error(configuration).reshape(-1, 3)
-        B = right_jacobian_inverse(e)
-        BtB = self.weights[:, None, None] * (np.swapaxes(B, 1, 2) @ B)
-        Bte = self.weights[:, None] * np.einsum("kji,kj->ki", B, e)
-        rows = self._v_cols[:, :, None]
-        cols = self._v_cols[:, None, :]
-        H[rows, cols] += BtB
-        c[self._v_cols] += Bte
+        self.add_blocks(e, right_jacobian_inverse(e), H, c)
+
+    def add_blocks(self, e: np.ndarray, B: np.ndarray, H: np.ndarray, c: np.ndarray) -> None:
+        """Accumulate the objective from errors (j, 3) and Jacobian blocks ``Jr^-1`` (j, 3, 3)."""
+        w = self.weights
+        active = w > 0
+        if not active.any():
+            return
+        e, B, w, cols = e[active], B[active], w[active], self._v_cols[active]
+        BtB = w[:, None, None] * (np.swapaxes(B, 1, 2) @ B)
+        Bte = w[:, None] * np.einsum("kji,kj->ki", B, e)
+        H[cols[:, :, None], cols[:, None, :]] += BtB
+        c[cols] += Bte
