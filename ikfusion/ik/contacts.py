@@ -47,63 +47,104 @@ class ContactThresholds:
     """Hysteresis thresholds [m, m/s] (see ``configs/solver.yaml``, section contacts)."""
 
     floor_z: float = 0.0
-    enter_height: float = 0.03
+    enter_height: float = 0.02
     enter_speed: float = 0.5
     enter_relative: float = 0.03
     leave_relative: float = 0.025
     leave_distance: float = 0.02
     settle_speed: float = 0.2
+    tilt_deg: float = 5.0
 
 
-def update_contacts(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.ndarray,
-                    p_sensed: np.ndarray, dt: float, thresholds: ContactThresholds,
-                    hints: Mapping[str, bool] | None = None) -> ContactState:
-    """The contact state for the next frame.
+def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: ContactThresholds,
+                     hints: Mapping[str, bool] | None = None,
+                     foot_pitch: np.ndarray | None = None) -> ContactState:
+    """Let go of planted points the current frame's sensed pose lifts (run before solving).
 
     Args:
         state: Current state.
+        p_sensed: (k, 3) contact point positions in this frame's sensed pose [m] (any
+            translation).
+        thresholds: Hysteresis thresholds.
+        hints: Name -> in contact, overriding the detection for those points.
+        foot_pitch: (k,) pitch [rad] of each point's foot (toe down positive), NaN when unknown.
+            A foot pitched toe-down cannot stand on its heel, one pitched toe-up not on its toes.
+
+    Returns:
+        A new state (the same anchors, fewer active points).
+    """
+    th = thresholds
+    active = state.active.copy()
+    height_rel = p_sensed[:, 2] - p_sensed[:, 2].min()
+    drift, other_age = _drift_from_other_foot(state.names, active, state.anchors, p_sensed,
+                                              state.age)
+    # Two planted feet that disagree: the foot planted earlier lets go (toe-off).
+    pulled = (drift > th.leave_distance) & (state.age >= other_age)
+    tilted = _tilted(state.names, foot_pitch, np.radians(th.tilt_deg))
+    leave = active & ((height_rel > th.leave_relative) | pulled | tilted)
+    for i, name in enumerate(state.names):
+        if hints and name in hints:
+            leave[i] = active[i] and not hints[name]
+    if active.any() and not (active & ~leave).any() and not hints:
+        # Without a flight hint the lowest planted point of the sensed pose keeps the body down.
+        candidates = np.where(active, p_sensed[:, 2], np.inf)
+        leave[int(np.argmin(candidates))] = False
+    return ContactState(state.names, active & ~leave, state.anchors.copy(), state.age.copy())
+
+
+def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.ndarray,
+               p_sensed: np.ndarray, dt: float, thresholds: ContactThresholds,
+               hints: Mapping[str, bool] | None = None,
+               foot_pitch: np.ndarray | None = None) -> ContactState:
+    """Plant the points that reached the floor this frame (run after solving).
+
+    A point enters contact when it is near the floor, slow, among the lowest points of the
+    sensed pose and not ruled out by its foot's pitch; its anchor is where it was solved.
+
+    Args:
+        state: State after :func:`release_contacts`.
         p_solved: (k, 3) contact point positions of the solved pose [m].
         p_solved_previous: (k, 3) the same one frame earlier [m].
         p_sensed: (k, 3) positions in the sensed pose (any translation) [m].
         dt: Frame interval [s].
         thresholds: Hysteresis thresholds.
         hints: Name -> in contact, overriding the detection for those points.
+        foot_pitch: See :func:`release_contacts`.
 
     Returns:
-        A new state.
+        A new state; anchors above the floor settle toward it at ``settle_speed``.
     """
     th = thresholds
     active = state.active.copy()
     anchors = state.anchors.copy()
     height_rel = p_sensed[:, 2] - p_sensed[:, 2].min()
-    drift, other_age = _drift_from_other_foot(state.names, active, anchors, p_sensed, state.age)
-    speed = (np.linalg.norm((p_solved - p_solved_previous)[:, :2], axis=1) / dt
+    speed = (np.linalg.norm(p_solved - p_solved_previous, axis=1) / dt
              if dt > 0 else np.zeros(len(active)))
-    # Two planted feet that disagree: the foot planted earlier lets go (toe-off).
-    pulled = (drift > th.leave_distance) & (state.age >= other_age)
-    leave = active & ((height_rel > th.leave_relative) | pulled)
+    tilted = _tilted(state.names, foot_pitch, np.radians(th.tilt_deg))
     enter = (~active & (p_solved[:, 2] < th.floor_z + th.enter_height)
-             & (speed < th.enter_speed) & (height_rel < th.enter_relative))
-    if hints:
-        for i, name in enumerate(state.names):
-            if name in hints:
-                want = bool(hints[name])
-                leave[i] = active[i] and not want
-                enter[i] = (not active[i]) and want
-    active = (active & ~leave) | enter
-    if not active.any() and not hints:
-        # Without a flight hint the lowest point of the sensed pose keeps the body grounded.
-        lowest = int(np.argmin(p_sensed[:, 2]))
-        active[lowest] = True
-        if not state.active[lowest]:
-            enter[lowest] = True
+             & (speed < th.enter_speed) & (height_rel < th.enter_relative) & ~tilted)
+    for i, name in enumerate(state.names):
+        if hints and name in hints:
+            enter[i] = (not active[i]) and bool(hints[name])
+    if not active.any() and not enter.any() and not hints:
+        enter[int(np.argmin(p_sensed[:, 2]))] = True
+    active |= enter
     anchors[enter] = p_solved[enter]
     anchors[enter, 2] = np.maximum(anchors[enter, 2], th.floor_z)
-    settle = th.settle_speed * max(dt, 0.0)
-    anchors[:, 2] = np.maximum(anchors[:, 2] - settle, th.floor_z)
+    anchors[:, 2] = np.maximum(anchors[:, 2] - th.settle_speed * max(dt, 0.0), th.floor_z)
     age = np.where(active, state.age + max(dt, 0.0), 0.0)
     age[enter] = 0.0
     return ContactState(state.names, active, anchors, age)
+
+
+def _tilted(names: Sequence[str], foot_pitch: np.ndarray | None, limit: float) -> np.ndarray:
+    """Points whose foot pitch rules them out: heels when toe-down, toes when toe-up."""
+    if foot_pitch is None:
+        return np.zeros(len(names), dtype=bool)
+    heel = np.array(["Heel" in n for n in names])
+    toe = np.array(["Toe" in n for n in names])
+    pitch = np.nan_to_num(np.asarray(foot_pitch, dtype=float), nan=0.0)
+    return (heel & (pitch > limit)) | (toe & (pitch < -limit))
 
 
 def _foot_of(name: str) -> str:

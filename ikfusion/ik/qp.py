@@ -88,7 +88,7 @@ def assemble_qp(H: np.ndarray, c: np.ndarray, inequalities: Sequence[Inequality]
 
 def _solver_options(backend: str) -> dict[str, Any]:
     if backend == "osqp":
-        return {"eps_abs": 1e-7, "eps_rel": 1e-7, "polishing": True, "max_iter": 20000,
+        return {"eps_abs": 1e-7, "eps_rel": 1e-7, "polish": True, "max_iter": 20000,
                 "verbose": False}
     return {}
 

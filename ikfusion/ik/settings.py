@@ -37,12 +37,13 @@ class SolverSettings:
     max_root_angular_velocity: float = 30.0
     contacts: bool = True
     floor_z: float = 0.0
-    enter_height: float = 0.03
+    enter_height: float = 0.02
     enter_speed: float = 0.5
     enter_relative: float = 0.03
     leave_relative: float = 0.025
     leave_distance: float = 0.02
     settle_speed: float = 0.2
+    tilt_deg: float = 5.0
 
     @classmethod
     def load(cls, path: str | Path | None = None, **overrides: Any) -> SolverSettings:

@@ -26,7 +26,7 @@ from ..model.human_model import HumanModel
 from ..rotations import matrix_to_quat_wxyz, wxyz_to_xyzw
 from .compiled import compiled_kinematics
 from .configuration import Configuration
-from .contacts import ContactState, ContactThresholds, update_contacts
+from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
 from .frame import Frame
 from .limits import ContactConstraint, FloorLimit, JointRangeLimit, VelocityLimit
 from .pose import Motion, Pose
@@ -90,7 +90,7 @@ class Solver:
             s.max_root_velocity, s.max_root_angular_velocity, s.max_joint_velocity))
         self.thresholds = ContactThresholds(
             s.floor_z, s.enter_height, s.enter_speed, s.enter_relative, s.leave_relative,
-            s.leave_distance, s.settle_speed)
+            s.leave_distance, s.settle_speed, s.tilt_deg)
         self._site_frames = [model.site_frame_id(n) for n in sites] + [root_frame]
         self._contact_rows = np.array([self._site_index[n] for n in self.contact_names], dtype=int)
         self._kinematics = None
@@ -217,6 +217,11 @@ class Solver:
             iterations = s.max_iterations
             self.damping_task.set_reference(self._q)
             self.velocity_limit.set_previous(self._q, dt)
+        if not first and self._contact_ids:
+            sensed = self._sensed_configuration(self._q, tracked)  # type: ignore[arg-type]
+            self._contacts = release_contacts(
+                self._contacts, self._contact_positions(sensed), self.thresholds,
+                frame.contacts, self._foot_pitch(self._q, tracked))  # type: ignore[arg-type]
         self.contact_constraint.set_anchors(self._contacts.active, self._contacts.anchors)
         self.floor_limit.enabled = ~self._contacts.active
         flight = not first and not self._contacts.active.any()
@@ -319,6 +324,23 @@ class Solver:
         q[2] += self.settings.floor_z - z.min()
         return q
 
+    def _foot_pitch(self, q: np.ndarray, tracked: np.ndarray) -> np.ndarray:
+        """Pitch [rad] (toe down positive) of the foot of each contact point.
+
+        From the foot's target when tracked, else from the solved pose.
+        """
+        out = np.full(len(self.contact_names), np.nan)
+        for i, name in enumerate(self.contact_names):
+            foot = f"{'Left' if name.startswith('Left') else 'Right'}Foot"
+            k = self._segment_index.get(foot)
+            if k is None:
+                continue
+            R = (self.orientation_task.targets[k] if tracked[k]
+                 else self.model.segment_rotation(q, foot))
+            forward = R[:, 0]
+            out[i] = np.arctan2(-forward[2], np.hypot(forward[0], forward[1]))
+        return out
+
     def _contact_positions(self, q: np.ndarray) -> np.ndarray:
         data = self._sensed_data
         pin.forwardKinematics(self.model.model, data, q)
@@ -334,11 +356,10 @@ class Solver:
         if self._contact_ids:
             p_sensed = self._contact_positions(self._sensed_configuration(q, tracked))
             previous = p_contacts if first else self._p_contacts
-            self._contacts = update_contacts(self._contacts, p_contacts, previous, p_sensed, dt,
-                                             self.thresholds, frame.contacts)
+            pitch = self._foot_pitch(q, tracked)
+            self._contacts = touch_down(self._contacts, p_contacts, previous, p_sensed, dt,
+                                        self.thresholds, frame.contacts, pitch)
             if first:
-                self._contacts = update_contacts(self._contacts, p_contacts, p_contacts,
-                                                 p_sensed, dt, self.thresholds, frame.contacts)
                 contacts_now = self._contacts.as_dict()
         if not first and dt > 0:
             self._root_velocity = (q[:3] - self._q[:3]) / dt  # type: ignore[index]

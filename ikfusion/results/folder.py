@@ -1,0 +1,105 @@
+"""The result folder of ``solve`` (SPEC section 6), written atomically.
+
+Files: ``joint_angles.csv`` (time, then ``<joint>_flex/_abd/_rot`` [deg]), ``segments.csv``
+(``time,segment,px,py,pz,qw,qx,qy,qz``; world frame, Z up, metres), ``sites.csv``
+(``time,site,x,y,z``), ``contacts.csv`` (``time,LeftHeel,LeftToe,RightHeel,RightToe`` as 0/1),
+``motion.bvh`` and ``summary.json`` (frames, rate, solve time per frame, warnings).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from ..ik.pose import Motion
+from ..rotations import matrix_to_quat_wxyz
+from .atomic import atomic_folder
+from .bvh_export import write_motion_bvh
+
+SEGMENT_COLUMNS = ("time", "segment", "px", "py", "pz", "qw", "qx", "qy", "qz")
+SITE_COLUMNS = ("time", "site", "x", "y", "z")
+
+
+def _write_long_csv(path: Path, header: tuple[str, ...], time: np.ndarray, names: list[str],
+                    values: np.ndarray) -> None:
+    """Rows ``time,name,v0,v1,...`` for every frame and name; ``values`` is (N, names, k)."""
+    with path.open("w") as out:
+        out.write(",".join(header) + "\n")
+        for k, t in enumerate(time):
+            for n, name in enumerate(names):
+                out.write(f"{t:.6f},{name}," + ",".join(f"{v:.6f}" for v in values[k, n]) + "\n")
+
+
+def _poses(motion: Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Segment positions (N, S, 3), quaternions wxyz (N, S, 4) and site positions (N, M, 3)."""
+    model = motion.model
+    data = model.model.createData()
+    segments = [model.segment_frame_id(n) for n in model.segment_names]
+    sites = [model.site_frame_id(n) for n in model.site_names]
+    n = len(motion)
+    p_seg = np.empty((n, len(segments), 3))
+    R_seg = np.empty((n, len(segments), 3, 3))
+    p_site = np.empty((n, len(sites), 3))
+    for k, q in enumerate(motion.q):
+        pin.framesForwardKinematics(model.model, data, q)
+        for i, f in enumerate(segments):
+            p_seg[k, i] = data.oMf[f].translation
+            R_seg[k, i] = data.oMf[f].rotation
+        for i, f in enumerate(sites):
+            p_site[k, i] = data.oMf[f].translation
+    return p_seg, matrix_to_quat_wxyz(R_seg), p_site
+
+
+def summary(motion: Motion, extra: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The ``summary.json`` content."""
+    ms = 1e3 * motion.solve_time
+    out: dict[str, Any] = {
+        "frames": len(motion),
+        "rate": motion.rate,
+        "duration_s": float(motion.time[-1] - motion.time[0]) if len(motion) else 0.0,
+        "solve_time_ms_mean": float(ms.mean()) if len(ms) else 0.0,
+        "solve_time_ms_p95": float(np.percentile(ms, 95)) if len(ms) else 0.0,
+        "gauss_newton_steps_mean": float(motion.iterations.mean()) if len(motion) else 0.0,
+        "relaxed_frames": int(motion.relaxed.sum()),
+        "warnings": list(motion.warnings),
+    }
+    out.update(extra or {})
+    return out
+
+
+def write_result_folder(motion: Motion, out_dir: str | Path, bvh_up: str = "z",
+                        extra_summary: Mapping[str, Any] | None = None) -> Path:
+    """Write the result folder of a solved motion; it appears whole or not at all.
+
+    Args:
+        motion: The solved motion.
+        out_dir: The folder (replaced if it exists).
+        bvh_up: Up axis of ``motion.bvh`` (``"z"`` or ``"y"``).
+        extra_summary: More keys for ``summary.json`` (calibration, UWB usage, ...).
+
+    Returns:
+        The folder.
+    """
+    model = motion.model
+    p_seg, quat_seg, p_site = _poses(motion)
+    with atomic_folder(out_dir) as tmp:
+        angles = motion.joint_angles()
+        np.savetxt(tmp / "joint_angles.csv", np.column_stack([motion.time, angles]),
+                   delimiter=",", fmt="%.6f", header=",".join(["time", *model.angle_columns]),
+                   comments="")
+        _write_long_csv(tmp / "segments.csv", SEGMENT_COLUMNS, motion.time, model.segment_names,
+                        np.concatenate([p_seg, quat_seg], axis=2))
+        _write_long_csv(tmp / "sites.csv", SITE_COLUMNS, motion.time, model.site_names, p_site)
+        contacts = np.column_stack([motion.time, motion.contacts.astype(int)])
+        np.savetxt(tmp / "contacts.csv", contacts, delimiter=",",
+                   fmt=["%.6f"] + ["%d"] * len(motion.contact_names),
+                   header=",".join(["time", *motion.contact_names]), comments="")
+        frame_time = 1.0 / motion.rate if motion.rate > 0 else 1.0 / 60.0
+        write_motion_bvh(tmp / "motion.bvh", model, motion.q, frame_time, up=bvh_up)
+        (tmp / "summary.json").write_text(json.dumps(summary(motion, extra_summary), indent=2))
+    return Path(out_dir)
