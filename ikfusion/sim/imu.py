@@ -1,0 +1,143 @@
+"""Simulated body-worn IMUs from a ground-truth motion: orientations, specific force, rate.
+
+Per sensor site (SPEC section 2), the sensor is strapped with a mounting rotation
+``R_segment_sensor`` (random by default, as real straps are) and reports what an Xsens
+MTw-class unit reports:
+
+* ``R_world_sensor``: the true orientation with white noise (default 0.5 deg in roll and
+  pitch, 1.5 deg in heading) and a slowly wandering heading error (a random walk, default about
+  1 deg per minute), the errors of magnetometer-aided orientation filters indoors;
+* ``acc``: specific force ``R_world_sensor^T (a_world - g)`` [m/s^2] in the sensor frame, with
+  white noise and a constant bias;
+* ``gyr``: angular rate in the sensor frame [rad/s], with white noise and a constant bias.
+
+Accelerations and rates come from the true kinematics by central differences of the sensor
+site position and orientation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from ..model.human_model import HumanModel
+from ..rotations import axis_rotation, exp_so3, log_so3, random_rotations
+
+GRAVITY = np.array([0.0, 0.0, -9.81])
+
+
+@dataclass(frozen=True)
+class ImuNoise:
+    """Sensor error model (standard deviations; angles in degrees where named ``_deg``).
+
+    Attributes:
+        tilt_deg: White orientation noise about the horizontal axes [deg].
+        heading_deg: White orientation noise about the vertical [deg].
+        heading_walk_deg_per_sqrt_s: Heading random walk [deg/sqrt(s)].
+        acc: White accelerometer noise [m/s^2].
+        acc_bias: Accelerometer bias, drawn once per sensor [m/s^2].
+        gyr: White gyroscope noise [rad/s].
+        gyr_bias: Gyroscope bias, drawn once per sensor [rad/s].
+    """
+
+    tilt_deg: float = 0.5
+    heading_deg: float = 1.5
+    heading_walk_deg_per_sqrt_s: float = 0.13
+    acc: float = 0.05
+    acc_bias: float = 0.05
+    gyr: float = 0.005
+    gyr_bias: float = 0.002
+
+    @classmethod
+    def none(cls) -> ImuNoise:
+        """Perfect sensors."""
+        return cls(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+@dataclass
+class SimulatedImus:
+    """Sensor streams of one capture.
+
+    Attributes:
+        time: (N,) [s].
+        segments: Segment carrying each sensor, (S,).
+        R_segment_sensor: Mounting rotations (S, 3, 3).
+        R_world_sensor: Reported orientations (S, N, 3, 3).
+        acc: Specific force in the sensor frame (S, N, 3) [m/s^2].
+        gyr: Angular rate in the sensor frame (S, N, 3) [rad/s].
+    """
+
+    time: np.ndarray
+    segments: list[str]
+    R_segment_sensor: np.ndarray
+    R_world_sensor: np.ndarray
+    acc: np.ndarray
+    gyr: np.ndarray
+
+
+def _central_difference(x: np.ndarray, dt: float) -> np.ndarray:
+    """Derivative along axis 0 (central inside, one-sided at the ends)."""
+    return np.gradient(x, dt, axis=0)
+
+
+def simulate_imus(model: HumanModel, time: np.ndarray, q: np.ndarray, segments: Sequence[str],
+                  rng: np.random.Generator, noise: ImuNoise | None = None,
+                  random_mounting: bool = True) -> SimulatedImus:
+    """Simulate the IMUs on ``segments`` along the configurations ``q`` (N, nq).
+
+    Args:
+        model: The human model (sensor sites are named like their segments).
+        time: (N,) sample times [s], uniformly spaced.
+        q: (N, nq) true configurations.
+        segments: Segments carrying a sensor.
+        rng: Random generator (mounting, noise, biases).
+        noise: Error model; :class:`ImuNoise` defaults when omitted, ``ImuNoise.none()`` for
+            perfect sensors.
+        random_mounting: Strap each sensor with a uniformly random rotation (else aligned).
+
+    Returns:
+        The :class:`SimulatedImus`.
+    """
+    noise = noise if noise is not None else ImuNoise()
+    n, s = len(time), len(segments)
+    dt = float(np.mean(np.diff(time))) if n > 1 else 1.0
+    data = model.model.createData()
+    frames = [model.site_frame_id(seg) for seg in segments]
+    R_site = np.empty((s, n, 3, 3))
+    p_site = np.empty((s, n, 3))
+    for k in range(n):
+        pin.framesForwardKinematics(model.model, data, q[k])
+        for i, f in enumerate(frames):
+            R_site[i, k] = data.oMf[f].rotation
+            p_site[i, k] = data.oMf[f].translation
+    mounting = random_rotations(s, rng) if random_mounting else np.tile(np.eye(3), (s, 1, 1))
+    R_true = R_site @ mounting[:, None]
+    acc_world = np.stack([_central_difference(_central_difference(p_site[i], dt), dt)
+                          for i in range(s)])
+    f_world = acc_world - GRAVITY
+    acc = np.einsum("snji,snj->sni", R_true, f_world)
+    rel = log_so3(np.swapaxes(R_true[:, :-1], -1, -2) @ R_true[:, 1:]) / dt  # sensor frame
+    gyr = np.empty((s, n, 3))
+    gyr[:, 1:-1] = 0.5 * (rel[:, :-1] + rel[:, 1:])
+    gyr[:, 0], gyr[:, -1] = rel[:, 0], rel[:, -1]
+    acc += noise.acc * rng.normal(size=acc.shape) + noise.acc_bias * rng.normal(size=(s, 1, 3))
+    gyr += noise.gyr * rng.normal(size=gyr.shape) + noise.gyr_bias * rng.normal(size=(s, 1, 3))
+    R_reported = _orientation_errors(R_true, noise, dt, rng)
+    return SimulatedImus(np.asarray(time, dtype=float), list(segments), mounting, R_reported,
+                         acc, gyr)
+
+
+def _orientation_errors(R_true: np.ndarray, noise: ImuNoise, dt: float,
+                        rng: np.random.Generator) -> np.ndarray:
+    """Left-multiply world-frame errors: white tilt/heading noise and a heading random walk."""
+    s, n = R_true.shape[:2]
+    white = np.radians(rng.normal(size=(s, n, 3)) * [noise.tilt_deg / np.sqrt(2),
+                                                     noise.tilt_deg / np.sqrt(2),
+                                                     noise.heading_deg])
+    walk = np.radians(noise.heading_walk_deg_per_sqrt_s) * np.sqrt(dt) * np.cumsum(
+        rng.normal(size=(s, n)), axis=1)
+    E = exp_so3(white) @ axis_rotation("z", walk)
+    return E @ R_true
