@@ -17,7 +17,7 @@ All positions in metres, angles in degrees where named ``_deg``; world frame Z u
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from tqdm import tqdm
@@ -26,6 +26,7 @@ from ..ik.frame import Frame
 from ..ik.solver import Solver
 from ..model.human_model import HumanModel
 from ..rotations import axis_rotation
+from .truth import TruthMotion
 
 _CONTACTS = ("LeftHeel", "LeftToe", "RightHeel", "RightToe")
 #: Segments whose orientation the plan dictates (legs follow from the feet positions).
@@ -69,27 +70,6 @@ class GaitParameters:
     def cycle(self) -> float:
         """Gait cycle (stride) duration [s]."""
         return 2.0 * self.step_length / self.speed
-
-
-@dataclass
-class GaitMotion:
-    """The generated walk (ground truth).
-
-    Attributes:
-        time: (N,) [s].
-        q: (N, nq) configurations.
-        contact_names: Names of the contact columns.
-        contacts: (N, 4) true contact phases.
-        parameters: The walk.
-    """
-
-    model: HumanModel
-    time: np.ndarray
-    q: np.ndarray
-    contact_names: list[str]
-    contacts: np.ndarray
-    parameters: GaitParameters
-    warnings: list[str] = field(default_factory=list)
 
 
 class _Path:
@@ -305,7 +285,7 @@ class GaitPlanner:
 
 
 def generate_gait(model: HumanModel, parameters: GaitParameters | None = None,
-                  rate: float = 60.0, progress: bool = False) -> GaitMotion:
+                  rate: float = 60.0, progress: bool = False) -> TruthMotion:
     """Generate a walk as exact model configurations.
 
     Args:
@@ -315,7 +295,7 @@ def generate_gait(model: HumanModel, parameters: GaitParameters | None = None,
         progress: Show a progress bar.
 
     Returns:
-        The :class:`GaitMotion` (ground truth).
+        The ground truth; ``info["parameters"]`` holds the walk.
     """
     p = parameters or GaitParameters()
     planner = GaitPlanner(model, p)
@@ -327,5 +307,5 @@ def generate_gait(model: HumanModel, parameters: GaitParameters | None = None,
         pose = solver.step(frame)
         qs.append(pose.q)
         contacts.append([frame.contacts[c] for c in _CONTACTS])  # type: ignore[index]
-    return GaitMotion(model, times, np.array(qs), list(_CONTACTS), np.array(contacts, dtype=bool),
-                      p)
+    return TruthMotion(model, times, np.array(qs), list(_CONTACTS),
+                       np.array(contacts, dtype=bool), f"gait:{p.path}", {"parameters": p})

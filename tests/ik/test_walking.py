@@ -70,7 +70,7 @@ def test_planted_points_do_not_slide(walk, human: HumanModel) -> None:
 
 def test_walked_distance_matches_truth(walk) -> None:
     truth, motion = walk
-    every = int(round(truth.parameters.cycle * 60.0))
+    every = int(round(truth.info['parameters'].cycle * 60.0))
     walked = stride_path_length(motion.q, every)
     expected = stride_path_length(truth.q, every)
     assert expected > 5.0

@@ -1,0 +1,103 @@
+"""Ground truth of a simulated capture, and its ``truth.npz`` file (SPEC section 5)."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from ..model.human_model import HumanModel
+from ..rotations import matrix_to_quat_wxyz
+
+
+@dataclass
+class TruthMotion:
+    """A motion of the model that simulated sensors are computed from.
+
+    Attributes:
+        model: The human model it moves.
+        time: (N,) [s].
+        q: (N, nq) configurations.
+        contact_names: Contact points (columns of ``contacts``).
+        contacts: (N, k) true contact phases.
+        source: Where it came from (``gait:circle``, a BVH path, ...).
+        info: Anything else worth keeping (gait parameters, BVH mapping notes).
+    """
+
+    model: HumanModel
+    time: np.ndarray
+    q: np.ndarray
+    contact_names: list[str]
+    contacts: np.ndarray
+    source: str = ""
+    info: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def rate(self) -> float:
+        """Sample rate [Hz]."""
+        return float(1.0 / np.mean(np.diff(self.time))) if len(self.time) > 1 else 0.0
+
+
+def contact_phases(model: HumanModel, q: np.ndarray, time: np.ndarray,
+                   names: list[str], height: float = 0.03, speed: float = 0.3) -> np.ndarray:
+    """Contact phases from kinematics: a point near the floor (z = 0) that is nearly still."""
+    P = site_positions(model, q, names)
+    dt = float(np.mean(np.diff(time))) if len(time) > 1 else 1.0
+    v = np.linalg.norm(np.gradient(P, dt, axis=0), axis=2)
+    return (P[..., 2] < height) & (v < speed)
+
+
+def site_positions(model: HumanModel, q: np.ndarray, names: list[str]) -> np.ndarray:
+    """World positions (N, k, 3) [m] of sites along configurations (N, nq)."""
+    data = model.model.createData()
+    ids = [model.site_frame_id(n) for n in names]
+    out = np.empty((len(q), len(ids), 3))
+    for k, qk in enumerate(q):
+        pin.framesForwardKinematics(model.model, data, qk)
+        for i, f in enumerate(ids):
+            out[k, i] = data.oMf[f].translation
+    return out
+
+
+def write_truth(path: str | Path, truth: TruthMotion) -> Path:
+    """Write ``truth.npz``: time, q, segment poses, site positions and contact phases.
+
+    Keys: ``time`` (N,) [s]; ``q`` (N, nq); ``segment_names``; ``p_world_segment`` (N, S, 3)
+    [m]; ``quat_wxyz_world_segment`` (N, S, 4); ``site_names``; ``p_world_site`` (N, M, 3) [m];
+    ``contact_names``; ``contacts`` (N, k) bool; ``joint_angle_names`` and ``joint_angles``
+    (N, 66) [deg]; ``source``.
+    """
+    model = truth.model
+    segments = model.segment_names
+    sites = model.site_names
+    data = model.model.createData()
+    n = len(truth.time)
+    p_seg = np.empty((n, len(segments), 3))
+    R_seg = np.empty((n, len(segments), 3, 3))
+    for k, q in enumerate(truth.q):
+        pin.framesForwardKinematics(model.model, data, q)
+        for i, s in enumerate(segments):
+            M = data.oMf[model.segment_frame_id(s)]
+            p_seg[k, i], R_seg[k, i] = M.translation, M.rotation
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".npz")
+    os.close(fd)
+    try:
+        np.savez_compressed(
+            tmp, time=truth.time, q=truth.q, segment_names=np.array(segments),
+            p_world_segment=p_seg, quat_wxyz_world_segment=matrix_to_quat_wxyz(R_seg),
+            site_names=np.array(sites), p_world_site=site_positions(model, truth.q, sites),
+            contact_names=np.array(truth.contact_names), contacts=truth.contacts,
+            joint_angle_names=np.array(model.angle_columns),
+            joint_angles=model.joint_angle_matrix(truth.q), source=np.array(truth.source))
+        os.replace(tmp, target)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return target

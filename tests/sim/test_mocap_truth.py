@@ -1,0 +1,58 @@
+"""Real mocap as ground truth: the model follows the clip, and an IMU-only solve follows it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ikfusion.ik import Frame, Solver
+from ikfusion.model import SENSOR_SEGMENTS
+from ikfusion.sim.imu import ImuNoise, simulate_imus
+from ikfusion.sim.mocap import motion_from_bvh
+from ikfusion.sim.truth import site_positions, write_truth
+
+
+@pytest.fixture(scope="module")
+def sfu_walk(request):
+    root = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "mocap"
+    path = root / "sfu_0005_Walking001.bvh"
+    if not path.exists():
+        pytest.skip(f"real recordings not available: {path} is absent (a user's clone)")
+    return motion_from_bvh(path)
+
+
+def test_truth_stands_on_the_floor_with_alternating_contacts(sfu_walk) -> None:
+    truth = sfu_walk
+    assert truth.info["body"]["height"] == pytest.approx(1.58, abs=0.05)
+    P = site_positions(truth.model, truth.q, truth.contact_names)
+    assert abs(np.percentile(P[..., 2].min(axis=1), 2)) < 1e-6
+    feet = truth.contacts[:, :2].any(axis=1), truth.contacts[:, 2:].any(axis=1)
+    assert 0.3 < feet[0].mean() < 0.9 and 0.3 < feet[1].mean() < 0.9
+    assert (feet[0] | feet[1]).mean() > 0.9  # walking: always a foot down
+
+
+def test_imu_only_solve_follows_the_clip(sfu_walk, rng) -> None:
+    truth = sfu_walk
+    model = truth.model
+    imus = simulate_imus(model, truth.time, truth.q, SENSOR_SEGMENTS, rng, ImuNoise.none(),
+                         random_mounting=False)
+    frames = [Frame(float(t), {s: imus.R_world_sensor[i, k] for i, s in enumerate(SENSOR_SEGMENTS)})
+              for k, t in enumerate(truth.time)]
+    motion = Solver(model).solve(frames)
+    head_true = site_positions(model, truth.q, ["HeadTop"])[:, 0]
+    head = site_positions(model, motion.q, ["HeadTop"])[:, 0]
+    head += head_true[0] - head[0]  # IMUs cannot know where the walk started
+    assert np.linalg.norm(head_true - head, axis=1).max() < 0.1
+
+
+def test_truth_file_has_the_documented_keys(sfu_walk, tmp_path: Path) -> None:
+    path = write_truth(tmp_path / "truth.npz", sfu_walk)
+    with np.load(path) as npz:
+        for key in ("time", "q", "segment_names", "p_world_segment", "quat_wxyz_world_segment",
+                    "site_names", "p_world_site", "contact_names", "contacts",
+                    "joint_angle_names", "joint_angles"):
+            assert key in npz.files
+        assert npz["p_world_site"].shape == (len(sfu_walk.time), 24, 3)
+        assert npz["joint_angles"].shape == (len(sfu_walk.time), 66)
