@@ -1,0 +1,47 @@
+"""``ikfusion evaluate``: accuracy of a solve against the truth of a simulated capture."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from ..evaluate import evaluate
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``evaluate`` subcommand."""
+    p = subparsers.add_parser(
+        "evaluate",
+        help="accuracy metrics of a result folder against truth.npz",
+        description="Compare a `solve` result folder with the truth.npz of `simulate`: joint "
+        "angles, segment orientations, head position, foot slide (SPEC section 6).",
+    )
+    p.add_argument("result", metavar="RESULT_DIR", help="result folder of `ikfusion solve`")
+    p.add_argument("truth", metavar="TRUTH.npz", help="truth file of `ikfusion simulate`")
+    p.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
+    p.add_argument("--align", choices=["auto", "start", "none"], default="auto",
+                   help="shift the estimate to the true start position (auto: only without UWB)")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``ikfusion evaluate``."""
+    result = evaluate(args.result, args.truth, align=args.align)
+    metrics = result.as_dict()
+    if args.json:
+        print(json.dumps(metrics, indent=2))
+        return 0
+    rows = [
+        ("frames", f"{result.frames}"),
+        ("joint angle RMS", f"{result.joint_angle_rms_deg:.2f} deg"),
+        ("segment orientation RMS", f"{result.segment_orientation_rms_deg:.2f} deg"),
+        ("head position RMS (3-D)", f"{100 * result.head_position_rms_m:.1f} cm"),
+        ("head position RMS (horizontal)", f"{100 * result.head_position_rms_xy_m:.1f} cm"),
+        ("foot slide per contact (mean / max)",
+         f"{result.foot_slide_mm:.1f} / {result.foot_slide_max_mm:.1f} mm"),
+        ("start aligned to truth", "yes" if result.aligned_start else "no"),
+    ]
+    width = max(len(r[0]) for r in rows)
+    for name, value in rows:
+        print(f"{name:<{width}}  {value}")
+    return 0

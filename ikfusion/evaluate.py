@@ -1,0 +1,194 @@
+"""Accuracy of a solve against ground truth (SPEC section 6, ``ikfusion evaluate``).
+
+The result folder's CSV files are compared with ``truth.npz`` at the truth's sample times
+(the estimate is interpolated linearly, quaternions by normalised linear blending of the
+nearest samples). Without UWB the absolute position of the body is unobservable, so by default
+(``align="auto"``) an IMU-only result is shifted horizontally so that its first pelvis position
+equals the truth's; a result that used UWB is compared as it is.
+
+Metrics (all over the common time span):
+
+* ``joint_angle_rms_deg``: RMS over every anatomical angle and frame [deg];
+* ``segment_orientation_rms_deg``: RMS geodesic angle between estimated and true segment
+  orientations [deg];
+* ``head_position_rms_m`` and ``head_position_rms_xy_m``: RMS distance of site ``HeadTop``, 3-D
+  and horizontal [m];
+* ``foot_slide_mm`` and ``foot_slide_max_mm``: per contact phase of the truth, the largest
+  horizontal distance of the estimated contact point from where it was when the phase began;
+  mean and maximum over phases [mm].
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .rotations import angle_between, quat_wxyz_to_matrix
+
+
+@dataclass
+class Evaluation:
+    """Accuracy metrics of one result (see the module docstring for definitions)."""
+
+    frames: int
+    joint_angle_rms_deg: float
+    segment_orientation_rms_deg: float
+    head_position_rms_m: float
+    head_position_rms_xy_m: float
+    foot_slide_mm: float
+    foot_slide_max_mm: float
+    aligned_start: bool
+    per_joint_rms_deg: dict[str, float] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, object]:
+        """Plain dictionary (for JSON)."""
+        return asdict(self)
+
+
+def _read_table(path: Path) -> tuple[list[str], list[list[str]]]:
+    if not path.is_file():
+        raise InputError("missing from the result folder (is it a `solve` output?)", path=path)
+    with path.open() as f:
+        rows = list(csv.reader(f))
+    if not rows:
+        raise InputError("empty file", path=path, line=1)
+    return rows[0], rows[1:]
+
+
+def _floats(path: Path, header: list[str], rows: list[list[str]], columns: list[str]) -> np.ndarray:
+    missing = [c for c in columns if c not in header]
+    if missing:
+        raise InputError(f"columns missing: {', '.join(missing)}", path=path, line=1,
+                         field=missing[0])
+    index = [header.index(c) for c in columns]
+    out = np.empty((len(rows), len(columns)))
+    for r, row in enumerate(rows):
+        for k, i in enumerate(index):
+            try:
+                out[r, k] = float(row[i])
+            except (ValueError, IndexError):
+                raise InputError("not a number", path=path, line=r + 2,
+                                 field=columns[k]) from None
+    return out
+
+
+def _long_table(path: Path, key: str,
+                columns: list[str]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """A ``time,<key>,...`` table as times (N,) and name -> values (N, len(columns))."""
+    header, rows = _read_table(path)
+    if key not in header:
+        raise InputError(f"column {key!r} missing", path=path, line=1, field=key)
+    k = header.index(key)
+    names = list(dict.fromkeys(r[k] for r in rows))
+    values = _floats(path, header, rows, ["time", *columns])
+    per_name = {}
+    time = None
+    for name in names:
+        sel = np.array([r[k] == name for r in rows])
+        per_name[name] = values[sel, 1:]
+        time = values[sel, 0] if time is None else time
+    return (time if time is not None else np.zeros(0)), per_name
+
+
+def _interp(t_out: np.ndarray, t_in: np.ndarray, values: np.ndarray) -> np.ndarray:
+    return np.stack([np.interp(t_out, t_in, values[:, k]) for k in range(values.shape[1])],
+                    axis=1)
+
+
+def _interp_quat(t_out: np.ndarray, t_in: np.ndarray, quat: np.ndarray) -> np.ndarray:
+    q = quat.copy()
+    flip = np.sum(q[1:] * q[:-1], axis=1) < 0  # continuous sign
+    q[1:][np.cumsum(flip) % 2 == 1] *= -1.0
+    out = _interp(t_out, t_in, q)
+    return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+
+def _phase_slides(P: np.ndarray, contacts: np.ndarray) -> list[float]:
+    slides = []
+    for i in range(contacts.shape[1]):
+        start = None
+        for k in range(len(contacts) + 1):
+            on = k < len(contacts) and bool(contacts[k, i])
+            if on and start is None:
+                start = k
+            elif not on and start is not None:
+                seg = P[start:k, i, :2]
+                slides.append(float(np.max(np.linalg.norm(seg - seg[0], axis=1))))
+                start = None
+    return slides
+
+
+def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto") -> Evaluation:
+    """Compare a ``solve`` result folder with a ``truth.npz``.
+
+    Args:
+        result_dir: The result folder.
+        truth_path: The truth file of ``simulate``.
+        align: ``"auto"`` (shift IMU-only results to the true start), ``"start"`` or
+            ``"none"``.
+
+    Raises:
+        InputError: Missing files or columns, no overlapping time span.
+    """
+    folder = Path(result_dir)
+    truth_file = Path(truth_path)
+    if not truth_file.is_file():
+        raise InputError("truth file not found", path=truth_file)
+    truth = np.load(truth_file, allow_pickle=False)
+    t_true = truth["time"]
+    header, rows = _read_table(folder / "joint_angles.csv")
+    t_est = _floats(folder / "joint_angles.csv", header, rows, ["time"])[:, 0]
+    span = (t_true >= t_est[0] - 1e-6) & (t_true <= t_est[-1] + 1e-6)  # CSV: 6 decimals
+    if span.sum() < 2:
+        raise InputError("no common time span with the truth", path=folder / "joint_angles.csv")
+    t = t_true[span]
+    names = [str(n) for n in truth["joint_angle_names"]]
+    common = [n for n in names if n in header]
+    est_angles = _interp(t, t_est, _floats(folder / "joint_angles.csv", header, rows, common))
+    true_angles = truth["joint_angles"][span][:, [names.index(n) for n in common]]
+    diff = (est_angles - true_angles + 180.0) % 360.0 - 180.0
+    per_joint = {n: float(np.sqrt(np.mean(diff[:, k] ** 2))) for k, n in enumerate(common)}
+
+    t_seg, segments = _long_table(folder / "segments.csv", "segment",
+                                  ["px", "py", "pz", "qw", "qx", "qy", "qz"])
+    true_seg = [str(s) for s in truth["segment_names"]]
+    errors = []
+    for name, values in segments.items():
+        if name not in true_seg:
+            continue
+        R_est = quat_wxyz_to_matrix(_interp_quat(t, t_seg, values[:, 3:]))
+        R_true = quat_wxyz_to_matrix(truth["quat_wxyz_world_segment"][span, true_seg.index(name)])
+        errors.append(np.degrees(angle_between(R_est, R_true)))
+
+    t_site, sites = _long_table(folder / "sites.csv", "site", ["x", "y", "z"])
+    true_sites = [str(s) for s in truth["site_names"]]
+    summary_path = folder / "summary.json"
+    used_uwb = bool(summary_path.is_file()
+                    and json.loads(summary_path.read_text()).get("uwb", {}).get("used", False))
+    shift = np.zeros(3)
+    aligned = align == "start" or (align == "auto" and not used_uwb)
+    if aligned and "Pelvis" in segments:
+        p0 = _interp(t[:1], t_seg, segments["Pelvis"][:, :3])[0]
+        shift[:2] = (truth["p_world_segment"][span][0, true_seg.index("Pelvis")] - p0)[:2]
+    head = _interp(t, t_site, sites["HeadTop"]) + shift
+    head_true = truth["p_world_site"][span][:, true_sites.index("HeadTop")]
+    head_err = head - head_true
+    contact_names = [str(c) for c in truth["contact_names"]]
+    P = np.stack([_interp(t, t_site, sites[c]) for c in contact_names], axis=1)
+    slides = _phase_slides(P, truth["contacts"][span])
+    return Evaluation(
+        frames=int(span.sum()),
+        joint_angle_rms_deg=float(np.sqrt(np.mean(diff**2))),
+        segment_orientation_rms_deg=float(np.sqrt(np.mean(np.concatenate(errors) ** 2))),
+        head_position_rms_m=float(np.sqrt(np.mean(np.sum(head_err**2, axis=1)))),
+        head_position_rms_xy_m=float(np.sqrt(np.mean(np.sum(head_err[:, :2] ** 2, axis=1)))),
+        foot_slide_mm=1e3 * float(np.mean(slides)) if slides else 0.0,
+        foot_slide_max_mm=1e3 * float(np.max(slides)) if slides else 0.0,
+        aligned_start=aligned,
+        per_joint_rms_deg=per_joint,
+    )
