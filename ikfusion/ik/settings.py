@@ -18,9 +18,9 @@ class SolverSettings:
 
     backend: str = "daqp"
     compiled: bool = True
-    max_iterations: int = 4
+    max_iterations: int = 3
     first_frame_iterations: int = 40
-    step_tolerance: float = 1e-5
+    step_tolerance: float = 1e-3
     constraint_tolerance: float = 2e-5
     levenberg_marquardt: float = 1e-9
     orientation: float = 1.0

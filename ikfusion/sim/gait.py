@@ -244,8 +244,8 @@ class GaitPlanner:
         angles = {
             "jRightShoulder_flex": -arm * np.cos(phase), "jLeftShoulder_flex": arm * np.cos(phase),
             "jRightShoulder_abd": 5.0 * walking, "jLeftShoulder_abd": 5.0 * walking,
-            "jRightElbow_flex": 15.0 + walking * (12.0 - 8.0 * np.cos(phase)),
-            "jLeftElbow_flex": 15.0 + walking * (12.0 + 8.0 * np.cos(phase)),
+            "jRightElbow_flex": walking * (25.0 - 8.0 * np.cos(phase)),
+            "jLeftElbow_flex": walking * (25.0 + 8.0 * np.cos(phase)),
             "jT9T8_rot": -4.0 * walking * np.cos(phase),
             "jL5S1_flex": 2.0 * walking,
             "jT1C7_rot": 3.0 * walking * np.cos(phase),
