@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from ..errors import InputError
 
 #: Command modules in the order ``ikfusion --help`` lists them.
-COMMAND_MODULES: tuple[str, ...] = ("demo", "model", "evaluate")
+COMMAND_MODULES: tuple[str, ...] = ("demo", "model", "evaluate", "locate", "plan")
 
 
 class _Parser(argparse.ArgumentParser):

@@ -1,0 +1,100 @@
+"""UWB positioning: constellations, TOA logs, per-transmission fixes, DOP maps, reader planning.
+
+- :mod:`~ikfusion.uwb.constellation`: reader files (SPEC section 3);
+- :mod:`~ikfusion.uwb.toa_log`: TOA CSV logs and their grouping into transmissions (section 4);
+- :mod:`~ikfusion.uwb.toa_model` and :mod:`~ikfusion.uwb.simulate`: the measurement model;
+- :mod:`~ikfusion.uwb.locate`: the positioning solver (position + transmit time, NLOS handling);
+- :mod:`~ikfusion.uwb.dop`: dilution of precision at points and as maps;
+- :mod:`~ikfusion.uwb.placement`: choosing reader positions;
+- :mod:`~ikfusion.uwb.plot`: figures (needs matplotlib).
+"""
+
+from .constellation import (
+    DEFAULT_RANGE_SIGMA,
+    Constellation,
+    Reader,
+    constellation_from_dict,
+    load_constellation,
+    make_constellation,
+    save_constellation,
+)
+from .dop import (
+    Dop,
+    DopMap,
+    PlanSummary,
+    capture_area,
+    compute_dop,
+    constellation_dop,
+    dop_map,
+    min_readers,
+    summarize,
+)
+from .locate import (
+    FIX_COLUMNS,
+    Fixes,
+    FixStatus,
+    LocateOptions,
+    estimate_range_sigma,
+    locate,
+    locate_transmissions,
+    write_fixes_csv,
+)
+from .placement import (
+    PlacementResult,
+    border_candidates,
+    optimize_placement,
+    perimeter_layout,
+)
+from .simulate import SimulatedToa, simulate_toa
+from .toa_log import (
+    TOA_COLUMNS,
+    ToaLog,
+    Transmissions,
+    group_transmissions,
+    read_toa_csv,
+    toa_log_from_matrix,
+    write_toa_csv,
+)
+from .toa_model import predict_toa, toa_residuals
+
+__all__ = [
+    "DEFAULT_RANGE_SIGMA",
+    "FIX_COLUMNS",
+    "TOA_COLUMNS",
+    "Constellation",
+    "Dop",
+    "DopMap",
+    "FixStatus",
+    "Fixes",
+    "LocateOptions",
+    "PlacementResult",
+    "PlanSummary",
+    "Reader",
+    "SimulatedToa",
+    "ToaLog",
+    "Transmissions",
+    "border_candidates",
+    "capture_area",
+    "compute_dop",
+    "constellation_dop",
+    "constellation_from_dict",
+    "dop_map",
+    "estimate_range_sigma",
+    "group_transmissions",
+    "load_constellation",
+    "locate",
+    "locate_transmissions",
+    "make_constellation",
+    "min_readers",
+    "optimize_placement",
+    "perimeter_layout",
+    "predict_toa",
+    "read_toa_csv",
+    "save_constellation",
+    "simulate_toa",
+    "summarize",
+    "toa_log_from_matrix",
+    "toa_residuals",
+    "write_fixes_csv",
+    "write_toa_csv",
+]

@@ -1,0 +1,158 @@
+"""``ikfusion locate`` and ``ikfusion plan`` end to end."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+from uwb_sim import toa_matrix
+
+from ikfusion.cli import main
+from ikfusion.paths import configs_dir
+from ikfusion.uwb import (
+    dop_map,
+    load_constellation,
+    make_constellation,
+    save_constellation,
+    toa_log_from_matrix,
+    write_toa_csv,
+)
+
+SHIPPED = sorted((configs_dir() / "constellations").glob("*.yaml"))
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture
+def capture(tmp_path, rng):
+    """A TOA log of two tags walking in the 6 x 8 m room, 10 % NLOS, with reader offsets."""
+    room = load_constellation(configs_dir() / "constellations" / "room_6x8.yaml")
+    c = make_constellation(room.positions, ids=room.ids, area=room.area,
+                           clock_offsets=rng.uniform(-20, 20, len(room.readers)))  # fmt: skip
+    save_constellation(c, tmp_path / "readers.yaml")
+    n = 400
+    s = np.linspace(0, 1, n)
+    p = np.column_stack([1 + 4 * s, 1 + 6 * s, np.full(n, 1.2)])
+    q = np.column_stack([5 - 4 * s, 2 + 4 * s, np.full(n, 1.2)])
+    pos = np.concatenate([p, q])
+    toa, delay, tau = toa_matrix(c.positions, c.clock_offsets, pos, rng, sigma=0.03,
+                                 nlos_fraction=0.1)  # fmt: skip
+    toa[rng.random(toa.shape) < 0.05] = np.nan  # missed receptions
+    toa[5, :] = np.nan  # heard by nobody: not in the log at all
+    toa[6, 3:] = np.nan  # 3 receptions: too few in 3-D
+    tags = ["T1"] * n + ["T2"] * n
+    seq = np.concatenate([np.arange(n), np.arange(n)]) % 256
+    time = np.concatenate([s * 20, s * 20 + 0.001])
+    write_toa_csv(tmp_path / "toa.csv", toa_log_from_matrix(time, tags, seq, toa, c.ids))
+    return tmp_path, pos, delay, tau
+
+
+def _rows(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_locate_writes_fixes(capture, capsys):
+    folder, pos, delay, tau = capture
+    out = folder / "out" / "fixes.csv"
+    code = main(["locate", str(folder / "toa.csv"), "--readers", str(folder / "readers.yaml"),
+                 "--out", str(out)])  # fmt: skip
+    assert code == 0
+    printed = capsys.readouterr().out
+    assert "located 799 transmissions of 2 tag(s)" in printed and "wrote" in printed
+    rows = _rows(out)
+    assert list(rows[0]) == ["time", "tag", "seq", "x", "y", "z", "clock", "used", "rejected",
+                             "status"]  # fmt: skip
+    assert len(rows) == 799
+    assert sorted(p.name for p in out.parent.iterdir()) == ["fixes.csv"]  # no temp file left
+    # Rows are in time order; a tag's sequence number wraps at 256, so key on the first lap.
+    first = {(r["tag"], int(r["seq"])): r for r in rows if float(r["time"]) < 12.7}
+    assert ("T1", 5) not in first
+    assert first[("T1", 6)]["x"] == ""
+    assert first[("T1", 6)]["status"] == "too_few_readers" and first[("T1", 6)]["used"] == ""
+    errors, clean = [], 0
+    for i in [*range(256), *range(400, 656)]:
+        tag, seq = ("T1", i) if i < 400 else ("T2", i - 400)
+        r = first.get((tag, seq))
+        if r is None or r["status"] != "ok":
+            continue
+        est = np.array([float(r["x"]), float(r["y"]), float(r["z"])])
+        errors.append(np.linalg.norm(est - pos[i]))
+        assert float(r["clock"]) == pytest.approx(tau[i], abs=0.5)
+        rejected = [x for x in r["rejected"].split(";") if x]
+        clean += all(delay[i, int(x[1:]) - 1] > 0 for x in rejected)
+    assert len(errors) > 470  # of 511: a few fixes are rejected as inconsistent or ambiguous
+    assert np.sqrt(np.mean(np.square(errors))) < 0.08
+    assert clean >= 0.95 * len(errors)  # rejected receptions were delayed ones
+
+
+def test_locate_2d_json_and_sigma_auto(capture, capsys):
+    folder, pos, _, _ = capture
+    out = folder / "fixes2d.csv"
+    code = main(["locate", str(folder / "toa.csv"), "--readers", str(folder / "readers.yaml"),
+                 "--height", "1.2", "--sigma", "auto", "--json", "--out", str(out)])  # fmt: skip
+    assert code == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["mode"] == "2d" and report["transmissions"] == 799
+    assert report["sigma_m"] == pytest.approx(0.03, rel=0.25)
+    assert report["status"]["too_few_readers"] == 0  # 3 receptions suffice in 2-D
+    rows = _rows(out)
+    assert {float(r["z"]) for r in rows if r["status"] == "ok"} == {1.2}
+
+
+def test_locate_bad_input_exits_2(capture, capsys):
+    folder, *_ = capture
+    bad = folder / "bad.csv"
+    bad.write_text("time,tag,seq,reader,toa\n0.1,T1,0,R1,1.0\n0.2,T1,0,R2,oops\n")
+    code = main(["locate", str(bad), "--readers", str(folder / "readers.yaml"),
+                 "--out", str(folder / "x.csv")])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2 and "line 3" in err and "'toa'" in err and str(bad) in err
+    assert not (folder / "x.csv").exists()
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.stem)
+def test_plan_writes_png_and_summary(tmp_path, capsys, path):
+    out = tmp_path / f"{path.stem}.png"
+    code = main(["plan", str(path), "--out", str(out), "--step", "0.5"])
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "median" in text and "p95" in text and "under 5 cm" in text and str(out) in text
+    assert out.read_bytes()[:8] == PNG_MAGIC and out.stat().st_size > 20_000
+
+
+def test_plan_json_matches_the_api(tmp_path, capsys):
+    path = configs_dir() / "constellations" / "room_6x8.yaml"
+    code = main(["plan", str(path), "--json", "--no-plot", "--mode", "2d", "--height", "1.0"])
+    assert code == 0
+    report = json.loads(capsys.readouterr().out)
+    s = dop_map(load_constellation(path), height=1.0, mode="2d").summary()
+    assert report["summary"]["p95_cm"] == pytest.approx(100 * s.p95, abs=1e-4)
+    assert report["summary"]["fraction_under_5cm"] == pytest.approx(s.fraction_under_5cm,
+                                                                    abs=1e-4)  # fmt: skip
+    assert report["png"] is None and report["readers"] == 10
+
+
+def test_plan_optimize(tmp_path, capsys):
+    area = tmp_path / "hall.yaml"
+    area.write_text("name: hall\nsigma: 0.03\narea: [[0, 0], [20, 0], [20, 20], [0, 20]]\n")
+    out_c = tmp_path / "chosen.yaml"
+    png = tmp_path / "placement.png"
+    code = main(["plan", str(area), "--optimize", "8", "--mode", "2d", "--spacing", "2",
+                 "--step", "1", "--out", str(png), "--out-constellation", str(out_c),
+                 "--json"])  # fmt: skip
+    assert code == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["p95_improvement_percent"] > 3
+    chosen = load_constellation(out_c)
+    assert len(chosen.readers) == 8
+    np.testing.assert_allclose(chosen.positions, report["optimized"]["readers"], atol=1e-4)
+    assert png.read_bytes()[:8] == PNG_MAGIC
+
+
+def test_plan_bad_file_exits_2(tmp_path, capsys):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("readers:\n  - {id: R1, position: [0, 0]}\n")
+    assert main(["plan", str(bad), "--no-plot"]) == 2
+    assert "readers[0].position" in capsys.readouterr().err
