@@ -104,9 +104,9 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     Args:
         state: State after :func:`release_contacts`.
         p_solved: (k, 3) contact point positions of the solved pose [m].
-        p_solved_previous: (k, 3) the same one frame earlier [m].
+        p_solved_previous: (k, 3) the same some frames earlier [m].
         p_sensed: (k, 3) positions in the sensed pose (any translation) [m].
-        dt: Frame interval [s].
+        dt: Time between ``p_solved_previous`` and ``p_solved`` [s].
         thresholds: Hysteresis thresholds.
         hints: Name -> in contact, overriding the detection for those points.
         foot_pitch: See :func:`release_contacts`.

@@ -44,6 +44,8 @@ class SolverSettings:
     leave_distance: float = 0.02
     settle_speed: float = 0.2
     tilt_deg: float = 5.0
+    speed_window: int = 1
+    detection_smoothing: float = 0.5
 
     @classmethod
     def load(cls, path: str | Path | None = None, **overrides: Any) -> SolverSettings:

@@ -14,6 +14,7 @@ Global translation without aiding comes from chaining contacts: the planted foot
 from __future__ import annotations
 
 import time
+from collections import deque
 from collections.abc import Iterable, Sequence
 from dataclasses import replace
 from typing import Any
@@ -120,7 +121,10 @@ class Solver:
         self._q_start = self._q
         self._time: float | None = None
         self._contacts = ContactState.empty(self.contact_names)
-        self._p_contacts = np.zeros((len(self.contact_names), 3))
+        self._history: deque[tuple[float, np.ndarray]] = deque(
+            maxlen=max(2, self.settings.speed_window + 1))
+        self._p_sensed = np.zeros((len(self.contact_names), 3))
+        self._pitch = np.zeros(len(self.contact_names))
         self._root_velocity = np.zeros(3)
 
     @property
@@ -219,9 +223,10 @@ class Solver:
             self.velocity_limit.set_previous(self._q, dt)
         if not first and self._contact_ids:
             sensed = self._sensed_configuration(self._q, tracked)  # type: ignore[arg-type]
-            self._contacts = release_contacts(
-                self._contacts, self._contact_positions(sensed), self.thresholds,
-                frame.contacts, self._foot_pitch(self._q, tracked))  # type: ignore[arg-type]
+            self._p_sensed = self._smooth(self._p_sensed, self._contact_positions(sensed))
+            self._pitch = self._smooth(self._pitch, self._foot_pitch(self._q, tracked))  # type: ignore[arg-type]
+            self._contacts = release_contacts(self._contacts, self._p_sensed, self.thresholds,
+                                              frame.contacts, self._pitch)
         self.contact_constraint.set_anchors(self._contacts.active, self._contacts.anchors)
         self.floor_limit.enabled = ~self._contacts.active
         flight = not first and not self._contacts.active.any()
@@ -324,6 +329,11 @@ class Solver:
         q[2] += self.settings.floor_z - z.min()
         return q
 
+    def _smooth(self, previous: np.ndarray, current: np.ndarray) -> np.ndarray:
+        """Exponential smoothing of the contact-detection signals (sensor noise is white)."""
+        a = self.settings.detection_smoothing
+        return a * previous + (1.0 - a) * current
+
     def _foot_pitch(self, q: np.ndarray, tracked: np.ndarray) -> np.ndarray:
         """Pitch [rad] (toe down positive) of the foot of each contact point.
 
@@ -354,16 +364,18 @@ class Solver:
         contacts_now = self._contacts.as_dict()
         slide = self.contact_constraint.slide_m(conf)
         if self._contact_ids:
-            p_sensed = self._contact_positions(self._sensed_configuration(q, tracked))
-            previous = p_contacts if first else self._p_contacts
-            pitch = self._foot_pitch(q, tracked)
-            self._contacts = touch_down(self._contacts, p_contacts, previous, p_sensed, dt,
-                                        self.thresholds, frame.contacts, pitch)
+            if first:
+                self._p_sensed = self._contact_positions(self._sensed_configuration(q, tracked))
+                self._pitch = self._foot_pitch(q, tracked)
+            self._history.append((frame.time, p_contacts))
+            t_old, p_old = self._history[0]
+            self._contacts = touch_down(self._contacts, p_contacts, p_old, self._p_sensed,
+                                        frame.time - t_old, self.thresholds, frame.contacts,
+                                        self._pitch)
             if first:
                 contacts_now = self._contacts.as_dict()
         if not first and dt > 0:
             self._root_velocity = (q[:3] - self._q[:3]) / dt  # type: ignore[index]
-        self._p_contacts = p_contacts
         self._q = q
         self._time = frame.time
         residuals = {
