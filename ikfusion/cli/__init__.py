@@ -15,7 +15,9 @@ from collections.abc import Sequence
 from ..errors import InputError
 
 #: Command modules in the order ``ikfusion --help`` lists them.
-COMMAND_MODULES: tuple[str, ...] = ("demo", "model", "evaluate", "locate", "plan")
+COMMAND_MODULES: tuple[str, ...] = (
+    "demo", "inspect", "solve", "evaluate", "model", "locate", "plan",
+)
 
 
 class _Parser(argparse.ArgumentParser):

@@ -1,0 +1,97 @@
+"""``ikfusion solve``: an IMU recording to the result folder of SPEC section 6."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from ..errors import InputError
+from ..ik import Solver
+from ..io.mtmanager import read_mtmanager
+from ..io.sensor_map import load_sensor_map
+from ..model import Body, HumanModel
+from ..pipeline import solve_recording
+from ..results import write_result_folder
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the ``solve`` subcommand."""
+    p = subparsers.add_parser(
+        "solve",
+        help="solve an IMU recording into full-body motion",
+        description="Calibrate sensor-to-segment on the still pose at the start (the body heading "
+        "is found from the first knee movements; no sensor mounting is assumed), solve every "
+        "frame, and write the result folder (motion.bvh, joint_angles.csv, segments.csv, "
+        "sites.csv, contacts.csv, summary.json).",
+    )
+    p.add_argument("--imu", required=True, metavar="PATH", help="MT Manager trial prefix, "
+                   "folder or file")
+    p.add_argument("--map", required=True, metavar="FILE", help="sensor map YAML")
+    body = p.add_mutually_exclusive_group()
+    body.add_argument("--body", metavar="FILE", help="body dimensions YAML")
+    body.add_argument("--height", type=float, metavar="M", help="body height [m]")
+    p.add_argument("--calibrate", default="auto", metavar="auto|T0:T1|npose|tpose",
+                   help="calibration window (auto: the stillest second at the start) or pose")
+    p.add_argument("--forward", metavar="SEGMENT:AXIS",
+                   help="the sensor axis that points forward, e.g. Pelvis:-z (overrides the "
+                   "heading found from the data)")
+    p.add_argument("--rate", type=float, metavar="HZ", help="rate for files without one")
+    p.add_argument("--toa", metavar="FILE", help="UWB TOA CSV (needs --readers and --tags)")
+    p.add_argument("--readers", metavar="FILE", help="UWB constellation YAML")
+    p.add_argument("--tags", metavar="FILE", help="UWB tags YAML")
+    p.add_argument("--correction", choices=["off", "slide", "no-slide"], default=None,
+                   help="how UWB corrects drift")
+    p.add_argument("--bvh-up", choices=["z", "y"], default="z", help="up axis of motion.bvh")
+    p.add_argument("--out", required=True, metavar="DIR", help="result folder")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+def _window(text: str, rate: float) -> tuple[tuple[int, int] | None, str]:
+    if text in ("auto", "npose"):
+        return None, "npose"
+    if text == "tpose":
+        return None, "tpose"
+    try:
+        t0, t1 = (float(v) for v in text.split(":"))
+    except ValueError:
+        raise InputError(f"--calibrate must be auto, npose, tpose or T0:T1 in seconds, not "
+                         f"{text!r}", field="calibrate") from None
+    if not 0 <= t0 < t1:
+        raise InputError("--calibrate T0:T1 needs 0 <= T0 < T1", field="calibrate")
+    return (int(round(t0 * rate)), int(round(t1 * rate))), "npose"
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``ikfusion solve``."""
+    if args.toa or args.readers or args.tags:
+        raise InputError("UWB aiding (--toa/--readers/--tags) is not available yet in this "
+                         "version; solve from the IMUs alone", field="toa")
+    recording = read_mtmanager(args.imu, rate=args.rate)
+    sensor_map = load_sensor_map(args.map)
+    if args.body:
+        model = HumanModel.from_body(Body.from_yaml(args.body))
+    elif args.height is not None:
+        model = HumanModel.from_body(Body.from_height(args.height))
+    else:
+        model = HumanModel.default()
+    window, pose = _window(args.calibrate, recording.rate)
+    forward = None
+    if args.forward:
+        if ":" not in args.forward:
+            raise InputError("--forward must be SEGMENT:AXIS, e.g. Pelvis:-z", field="forward")
+        segment, axis = args.forward.split(":", 1)
+        forward = {segment: axis}
+    result = solve_recording(recording, sensor_map, model, window=window, pose=pose,
+                             forward=forward, solver=Solver(model), progress=not args.quiet)
+    cal = result.calibration
+    write_result_folder(result.motion, args.out, bvh_up=args.bvh_up, extra_summary={
+        "calibration": {"method": cal.method, "heading_deg": float(cal.heading * 57.29577951308232),
+                        "window_s": [cal.window[0] / recording.rate,
+                                     cal.window[1] / recording.rate]},
+        "uwb": {"used": False},
+    })
+    for warning in result.motion.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    print(f"wrote {args.out}: {len(result.motion)} frames at {recording.rate:g} Hz")
+    return 0

@@ -1,0 +1,93 @@
+"""From a recording to a solved motion: sensor map, calibration, frames, solver.
+
+``solve_recording`` is what ``ikfusion solve`` runs: every mapped sensor's orientation becomes
+its segment's orientation through the calibration, samples flagged invalid (lost packets, NaN)
+are simply not tracked in their frame, and the solver does the rest.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .ik import Frame, Motion, Solver
+from .imu.calibration import Calibration, calibrate
+from .io.mtmanager import ImuRecording
+from .io.sensor_map import check_sensors
+from .model.human_model import HumanModel
+
+
+@dataclass
+class SolvedRecording:
+    """A solved recording with what was learned on the way."""
+
+    motion: Motion
+    calibration: Calibration
+    warnings: list[str] = field(default_factory=list)
+
+
+def segment_streams(
+        recording: ImuRecording,
+        sensor_map: dict[str, str]) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """``R_world_sensor`` (N, 3, 3) and validity (N,) per mapped segment."""
+    R = {segment: recording.sensors[sensor].R_world_sensor
+         for sensor, segment in sensor_map.items()}
+    valid = {segment: recording.sensors[sensor].valid for sensor, segment in sensor_map.items()}
+    return R, valid
+
+
+def frames_from_recording(recording: ImuRecording, sensor_map: dict[str, str],
+                          calibration: Calibration) -> list[Frame]:
+    """One frame per sample: calibrated segment orientations of the valid samples."""
+    R, valid = segment_streams(recording, sensor_map)
+    R_segment = calibration.segment_orientations(R)
+    frames = []
+    for k, t in enumerate(recording.time):
+        frames.append(Frame(float(t), {s: R_segment[s][k] for s in R_segment if valid[s][k]}))
+    return frames
+
+
+def knee_warning(motion: Motion) -> str | None:
+    """A warning when the knees flex the wrong way (a heading or mounting mistake)."""
+    columns = motion.model.angle_columns
+    angles = motion.joint_angles()
+    for side in ("Right", "Left"):
+        name = f"j{side}Knee_flex"
+        if name in columns:
+            flex = angles[:, columns.index(name)]
+            if np.percentile(flex, 10) < -8.0 and np.median(flex) < 0.0:
+                return (f"the {side.lower()} knee flexes the wrong way (median "
+                        f"{np.median(flex):.0f} deg): the body heading or a sensor mounting is "
+                        "wrong; check --forward and the sensor map")
+    return None
+
+
+def solve_recording(recording: ImuRecording, sensor_map: dict[str, str], model: HumanModel,
+                    window: tuple[int, int] | None = None, pose: str = "npose",
+                    forward: dict[str, str] | None = None, solver: Solver | None = None,
+                    progress: bool = False) -> SolvedRecording:
+    """Calibrate on the still pose at the start and solve every frame.
+
+    Args:
+        recording: The IMU recording.
+        sensor_map: Sensor id -> segment.
+        model: The human model of the subject.
+        window: Calibration window (sample indices); found automatically when omitted.
+        pose: ``"npose"`` or ``"tpose"``.
+        forward: ``{segment: axis}`` override of the body heading (see calibration).
+        solver: A configured solver (default settings when omitted).
+        progress: Show a progress bar.
+    """
+    warnings = list(recording.warnings)
+    warnings += check_sensors(sensor_map, recording.sensors)
+    R, _ = segment_streams(recording, sensor_map)
+    cal = calibrate(R, recording.rate, window=window, forward=forward, pose=pose)
+    warnings += cal.warnings
+    frames = frames_from_recording(recording, sensor_map, cal)
+    motion = (solver or Solver(model)).solve(frames, progress=progress, total=len(frames))
+    motion.warnings = warnings + motion.warnings
+    knee = knee_warning(motion)
+    if knee:
+        motion.warnings.append(knee)
+    return SolvedRecording(motion, cal, motion.warnings)
