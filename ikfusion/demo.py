@@ -1,9 +1,10 @@
 """The main job on embedded data: simulate a capture, solve it, write results, print a table.
 
 The capture is a walk in circles in a 6 m x 8 m room (the 10-reader constellation of
-``configs/constellations/room_6x8.yaml`` surrounds it), worn by the 17-sensor MVN layout with the
-default sensor errors (orientation noise and heading wander). The body is solved from the sensor
-orientations alone, written as a result folder, and scored against the ground truth.
+``configs/constellations/room_6x8.yaml`` surrounds it), worn by the 17-sensor MVN layout with
+random mountings and the default sensor errors (orientation noise and heading wander), written
+as MT Manager files. The body is calibrated on the N-pose at the start and solved from those
+files alone, written as a result folder, and scored against the ground truth.
 """
 
 from __future__ import annotations
@@ -15,12 +16,16 @@ from pathlib import Path
 import numpy as np
 
 from .evaluate import Evaluation, evaluate
-from .ik import Frame, Motion, Solver
-from .model import SENSOR_SEGMENTS, HumanModel
+from .ik import Motion
+from .io.mtmanager import read_mtmanager
+from .io.sensor_map import load_sensor_map
+from .model import Body, HumanModel
+from .pipeline import solve_recording
 from .results import write_result_folder
+from .sim.capture import write_capture
 from .sim.gait import GaitParameters, generate_gait
-from .sim.imu import ImuNoise, simulate_imus
-from .sim.truth import TruthMotion, write_truth
+from .sim.imu import ImuNoise
+from .sim.truth import TruthMotion
 
 
 @dataclass
@@ -40,38 +45,26 @@ def demo_walk(seconds: float) -> GaitParameters:
                           step_length=0.6)
 
 
-def frames_from_imus(segments: list[str], time_s: np.ndarray, R_world_segment: np.ndarray,
-                     ) -> list[Frame]:
-    """Frames of segment orientation targets (S, N, 3, 3)."""
-    return [Frame(float(t), {s: R_world_segment[i, k] for i, s in enumerate(segments)})
-            for k, t in enumerate(time_s)]
-
-
 def run_demo(out_dir: str | Path = "ikfusion-demo", seconds: float = 60.0, seed: int = 7,
              progress: bool = True) -> DemoResult:
-    """Simulate, solve, write and evaluate.
-
-    The sensors' mounting is known here (they are simulated aligned with their segments), so
-    the demo measures the solver, not the sensor-to-segment calibration.
-    """
-    rng = np.random.default_rng(seed)
+    """Simulate a capture into files, solve it from the files alone, write and evaluate."""
     out = Path(out_dir)
-    model = HumanModel.default()
-    truth = generate_gait(model, demo_walk(seconds), rate=60.0, progress=progress)
+    truth = generate_gait(HumanModel.default(), demo_walk(seconds), rate=60.0, progress=progress)
     # Put the walk in the middle of the room (the gait starts at the origin heading +X).
     truth.q[:, 0] += 3.0
     truth.q[:, 1] += 4.0 - 1.5
-    segments = list(SENSOR_SEGMENTS)
-    imus = simulate_imus(model, truth.time, truth.q, segments, rng, ImuNoise(),
-                         random_mounting=False)
-    frames = frames_from_imus(segments, truth.time, imus.R_world_sensor)
+    capture = write_capture(out / "capture", truth, ImuNoise(), seed)
+    recording = read_mtmanager(capture.imu)
+    model = HumanModel.from_body(Body.from_yaml(capture.folder / "body.yaml"))
     start = time.perf_counter()
-    motion = Solver(model).solve(frames, progress=progress, total=len(frames))
+    solved = solve_recording(recording, load_sensor_map(capture.sensor_map), model,
+                             progress=progress)
     elapsed = time.perf_counter() - start
-    write_truth(out / "truth.npz", truth)
-    write_result_folder(motion, out / "result", extra_summary={
-        "source": "ikfusion demo: simulated walk in circles, 17 sensors, default noise"})
-    return DemoResult(out, truth, motion, evaluate(out / "result", out / "truth.npz"), elapsed)
+    write_result_folder(solved.motion, out / "result", extra_summary={
+        "source": "ikfusion demo: simulated walk in circles, 17 sensors, default noise",
+        "calibration": {"method": solved.calibration.method}, "uwb": {"used": False}})
+    evaluation = evaluate(out / "result", capture.folder / "truth.npz")
+    return DemoResult(out, truth, solved.motion, evaluation, elapsed)
 
 
 def table(result: DemoResult) -> str:
@@ -93,5 +86,6 @@ def table(result: DemoResult) -> str:
     ]
     width = max(len(r[0]) for r in rows)
     lines = [f"{name:<{width}}  {value}" for name, value in rows]
-    lines.append(f"results in {result.out_dir}/result (truth: {result.out_dir}/truth.npz)")
+    lines.append(f"results in {result.out_dir}/result, capture and truth in "
+                 f"{result.out_dir}/capture")
     return "\n".join(lines)

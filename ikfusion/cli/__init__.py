@@ -16,7 +16,7 @@ from ..errors import InputError
 
 #: Command modules in the order ``ikfusion --help`` lists them.
 COMMAND_MODULES: tuple[str, ...] = (
-    "demo", "inspect", "solve", "evaluate", "model", "locate", "plan",
+    "demo", "inspect", "simulate", "solve", "evaluate", "model", "locate", "plan",
 )
 
 

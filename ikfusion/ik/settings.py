@@ -27,6 +27,7 @@ class SolverSettings:
     position: float = 1.0
     posture: float = 1e-3
     posture_joints: dict[str, float] = field(default_factory=dict)
+    posture_axes: dict[str, list[float]] = field(default_factory=dict)
     smoothness_root_translation: float = 1e-6
     smoothness_root_rotation: float = 1e-6
     smoothness_joints: float = 1e-6

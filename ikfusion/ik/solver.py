@@ -61,7 +61,8 @@ class Solver:
         self._site_index = {n: i for i, n in enumerate(sites)}
         self.position_task = PositionTask([model.site_frame_id(n) for n in sites], sites,
                                           s.position)
-        self.posture_task = PostureTask.from_joints(model.ball_joints, s.posture_joints, s.posture)
+        self.posture_task = PostureTask.from_joints(model.ball_joints, s.posture_joints, s.posture,
+                                                    s.posture_axes)
         self._posture_weights = self.posture_task.weights.copy()
         self._joint_segments = [(j.spec.parent, j.spec.child) for j in model.ball_joints.values()]
         self._joint_parent = np.array([self._segment_index[a] for a, _ in self._joint_segments],

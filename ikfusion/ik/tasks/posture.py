@@ -27,31 +27,40 @@ class PostureTask(Task):
         idx_v: Start of each joint's rotation vector in the tangent space.
         weights: Weight of each joint [1/rad^2].
         R_reference: Reference joint rotations (j, 3, 3); identity when omitted.
+        axis_weights: Relative weight of each rotation-vector component in the child frame
+            (j, 3); ones when omitted. A knee that should stay a hinge weighs its x (abduction)
+            and z (rotation) components more than y (flexion).
     """
 
     def __init__(self, idx_q: Sequence[int], idx_v: Sequence[int], weights: npt.ArrayLike,
-                 R_reference: npt.ArrayLike | None = None) -> None:
+                 R_reference: npt.ArrayLike | None = None,
+                 axis_weights: npt.ArrayLike | None = None) -> None:
         self.idx_q = np.asarray(idx_q, dtype=int)
         self.idx_v = np.asarray(idx_v, dtype=int)
         self.weights = np.asarray(weights, dtype=float).reshape(-1)
         n = len(self.idx_q)
         self.R_reference = (np.tile(np.eye(3), (n, 1, 1)) if R_reference is None
                             else np.asarray(R_reference, dtype=float).reshape(n, 3, 3))
+        self.axis_weights = (np.ones((n, 3)) if axis_weights is None
+                             else np.asarray(axis_weights, dtype=float).reshape(n, 3))
         self._q_cols = self.idx_q[:, None] + np.arange(4)
         self._v_cols = self.idx_v[:, None] + np.arange(3)
 
     @classmethod
     def from_joints(cls, joints: Mapping[str, object], weights: Mapping[str, float],
-                    default_weight: float) -> PostureTask:
+                    default_weight: float,
+                    axis_weights: Mapping[str, Sequence[float]] | None = None) -> PostureTask:
         """Build from ``HumanModel.ball_joints`` and per-joint weights (others: default)."""
         names = list(joints)
+        axes = axis_weights or {}
         return cls([joints[n].idx_q for n in names],  # type: ignore[attr-defined]
                    [joints[n].idx_v for n in names],  # type: ignore[attr-defined]
-                   [weights.get(n, default_weight) for n in names])
+                   [weights.get(n, default_weight) for n in names],
+                   axis_weights=[axes.get(n, (1.0, 1.0, 1.0)) for n in names])
 
     def row_weights(self) -> np.ndarray:
         """Per-row weights (3 rows per joint)."""
-        return np.repeat(self.weights, 3)
+        return (self.weights[:, None] * self.axis_weights).reshape(-1)
 
     def _joint_rotations(self, q: np.ndarray) -> np.ndarray:
         return quat_wxyz_to_matrix(xyzw_to_wxyz(q[self._q_cols]))
@@ -81,8 +90,9 @@ class PostureTask(Task):
         active = w > 0
         if not active.any():
             return
-        e, B, w, cols = e[active], B[active], w[active], self._v_cols[active]
-        BtB = w[:, None, None] * (np.swapaxes(B, 1, 2) @ B)
-        Bte = w[:, None] * np.einsum("kji,kj->ki", B, e)
+        e, B, cols = e[active], B[active], self._v_cols[active]
+        W = w[active, None] * self.axis_weights[active]  # (k, 3) diagonal weights
+        BtB = np.swapaxes(B, 1, 2) @ (W[:, :, None] * B)
+        Bte = np.einsum("kji,kj->ki", B, W * e)
         H[cols[:, :, None], cols[:, None, :]] += BtB
         c[cols] += Bte

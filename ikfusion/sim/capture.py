@@ -1,0 +1,82 @@
+"""A simulated capture in the real input formats (``ikfusion simulate``, SPEC section 5).
+
+Writes ``imu/`` (MT Manager files, one per sensor, trial prefix ``SIM_``), ``sensors.yaml``
+(the sensor map), ``body.yaml``, ``truth.npz`` and, with a constellation, the UWB files
+(``readers.yaml``; TOA simulation comes with the UWB filter). Sensors are strapped with random
+mountings; the motion starts with a still N-pose, as a real session does.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from ..io.mtmanager_writer import write_mtmanager
+from ..model import SENSOR_SEGMENTS
+from ..results.atomic import atomic_folder
+from .gait import GaitParameters, generate_gait
+from .imu import ImuNoise, simulate_imus
+from .mocap import motion_from_bvh
+from .truth import TruthMotion, write_truth
+
+#: Trial prefix of simulated MT Manager files.
+PREFIX = "SIM_"
+
+
+@dataclass
+class Capture:
+    """Where a simulated capture was written."""
+
+    folder: Path
+    truth: TruthMotion
+
+    @property
+    def imu(self) -> Path:
+        """The MT Manager trial prefix."""
+        return self.folder / "imu" / PREFIX
+
+    @property
+    def sensor_map(self) -> Path:
+        """The sensor map."""
+        return self.folder / "sensors.yaml"
+
+
+def sensor_ids(segments: list[str]) -> dict[str, str]:
+    """Stable fake Xsens ids per segment (``00B5xxxx``)."""
+    return {s: f"00B5{i + 1:04X}" for i, s in enumerate(segments)}
+
+
+def truth_motion(motion: str, seconds: float, rate: float, progress: bool = False) -> TruthMotion:
+    """``"gait"`` (a walk in circles after a 2 s N-pose), ``"gait:straight"``, or a BVH path."""
+    if motion.startswith("gait"):
+        path = motion.split(":", 1)[1] if ":" in motion else "circle"
+        params = GaitParameters(path=path, radius=1.5, duration=seconds, stand=2.0, speed=1.1,
+                                step_length=0.6)
+        from ..model import HumanModel
+
+        return generate_gait(HumanModel.default(), params, rate=rate, progress=progress)
+    return motion_from_bvh(motion, rate=rate, progress=progress)
+
+
+def write_capture(folder: str | Path, truth: TruthMotion, noise: ImuNoise | None, seed: int,
+                  segments: list[str] | None = None) -> Capture:
+    """Simulate the sensors on ``truth`` and write the capture folder atomically."""
+    segs = list(segments or SENSOR_SEGMENTS)
+    rng = np.random.default_rng(seed)
+    imus = simulate_imus(truth.model, truth.time, truth.q, segs, rng, noise)
+    ids = sensor_ids(segs)
+    counter = 1000 + np.arange(len(truth.time))
+    with atomic_folder(folder) as tmp:
+        for i, segment in enumerate(segs):
+            write_mtmanager(tmp / "imu", PREFIX, ids[segment], counter, imus.R_world_sensor[i],
+                            truth.rate, acc=imus.acc[i], gyr=imus.gyr[i])
+        (tmp / "sensors.yaml").write_text(yaml.safe_dump(
+            {"sensors": {ids[s]: s for s in segs}}, sort_keys=False))
+        body = truth.model.body.to_dict() if truth.model.body is not None else {}
+        (tmp / "body.yaml").write_text(yaml.safe_dump(
+            {k: round(float(v), 4) for k, v in body.items()}, sort_keys=False))
+        write_truth(tmp / "truth.npz", truth)
+    return Capture(Path(folder), truth)
