@@ -47,7 +47,7 @@ class ContactThresholds:
     """Hysteresis thresholds [m, m/s] (see ``configs/solver.yaml``, section contacts)."""
 
     floor_z: float = 0.0
-    enter_height: float = 0.02
+    enter_height: float = 0.03
     enter_speed: float = 0.5
     enter_relative: float = 0.03
     leave_relative: float = 0.025

@@ -38,7 +38,7 @@ class SolverSettings:
     max_root_angular_velocity: float = 30.0
     contacts: bool = True
     floor_z: float = 0.0
-    enter_height: float = 0.02
+    enter_height: float = 0.03
     enter_speed: float = 0.5
     enter_relative: float = 0.03
     leave_relative: float = 0.025
