@@ -82,3 +82,29 @@ def test_moving_window_names_the_sensors(walk) -> None:
     with pytest.raises(InputError) as err:
         calibrate(R, 60.0, window=(200, 260))
     assert "LowerLeg" in str(err.value)
+
+
+def test_tpose_calibration() -> None:
+    """A still T-pose: arm segments abducted 90 deg (palms down), the rest upright."""
+    from ikfusion.rotations import axis_rotation, random_rotations
+
+    rng = np.random.default_rng(11)
+    heading = np.radians(-35.0)
+    body = axis_rotation("z", heading)
+    segments = ["Pelvis", "T8", "RightUpperArm", "RightForeArm", "LeftUpperArm", "LeftHand"]
+    mounting = dict(zip(segments, random_rotations(len(segments), rng)))  # R_segment_sensor
+    # the pelvis sensor strapped on the back: x up, z backward (its -z axis points forward)
+    mounting["Pelvis"] = np.column_stack([[0, 0, 1.0], [0, 1.0, 0], [-1.0, 0, 0]])
+    R = {}
+    for s in segments:
+        R_segment = body
+        if s in ("RightUpperArm", "RightForeArm"):
+            R_segment = body @ axis_rotation("x", np.radians(-90.0))
+        elif s in ("LeftUpperArm", "LeftHand"):
+            R_segment = body @ axis_rotation("x", np.radians(90.0))
+        R[s] = np.repeat((R_segment @ mounting[s])[None], 120, axis=0)
+    cal = calibrate(R, 60.0, pose="tpose")
+    assert cal.method.startswith("fallback")
+    assert np.degrees(cal.heading) == pytest.approx(-35.0, abs=1e-6)
+    for s in segments:
+        assert np.degrees(angle_between(cal.R_sensor_segment[s], mounting[s].T)) < 1e-6

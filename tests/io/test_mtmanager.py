@@ -147,3 +147,16 @@ def test_folder_without_exports(tmp_path: Path) -> None:
     (tmp_path / "notes.txt").write_text("hello")
     with pytest.raises(InputError, match="no MT Manager exports"):
         read_mtmanager(tmp_path)
+
+
+def test_nan_inside_data_fields(tmp_path: Path) -> None:
+    path = tmp_path / "T_00B40004.txt"
+    path.write_text("// Update Rate: 40.0Hz\n// an extra comment line\n"
+                    "PacketCounter;Acc_X;Acc_Y;Acc_Z;Quat_q0;Quat_q1;Quat_q2;Quat_q3\n"
+                    "10;1.0;NaN;3.0;1;0;0;0\n11;1.5;;3.5;NaN;0;0;0\n12;2.0;2.5;4.0;1;0;0;0\n")
+    rec = read_mtmanager(path)
+    s = rec.sensors["00B40004"]
+    assert rec.rate == 40.0
+    np.testing.assert_allclose(s.acc, [[1.0, np.nan, 3.0], [1.5, np.nan, 3.5], [2.0, 2.5, 4.0]])
+    assert s.valid.tolist() == [True, False, True]
+    assert s.lost == 0
