@@ -19,7 +19,7 @@ from ..model import SENSOR_SEGMENTS
 from ..results.atomic import atomic_folder
 from .gait import GaitParameters, generate_gait
 from .imu import ImuNoise, simulate_imus
-from .mocap import motion_from_bvh
+from .mocap import lead_in, motion_from_bvh
 from .truth import TruthMotion, write_truth
 
 #: Trial prefix of simulated MT Manager files.
@@ -50,7 +50,11 @@ def sensor_ids(segments: list[str]) -> dict[str, str]:
 
 
 def truth_motion(motion: str, seconds: float, rate: float, progress: bool = False) -> TruthMotion:
-    """``"gait"`` (a walk in circles after a 2 s N-pose), ``"gait:straight"``, or a BVH path."""
+    """The truth of ``"gait"`` (circles), ``"gait:straight"`` or a BVH path.
+
+    Walks start with a 2 s N-pose; a BVH clip gets a 2 s N-pose and a 1 s transition into its
+    first frame.
+    """
     if motion.startswith("gait"):
         path = motion.split(":", 1)[1] if ":" in motion else "circle"
         params = GaitParameters(path=path, radius=1.5, duration=seconds, stand=2.0, speed=1.1,
@@ -58,7 +62,7 @@ def truth_motion(motion: str, seconds: float, rate: float, progress: bool = Fals
         from ..model import HumanModel
 
         return generate_gait(HumanModel.default(), params, rate=rate, progress=progress)
-    return motion_from_bvh(motion, rate=rate, progress=progress)
+    return lead_in(motion_from_bvh(motion, rate=rate, progress=progress))
 
 
 def write_capture(folder: str | Path, truth: TruthMotion, noise: ImuNoise | None, seed: int,

@@ -13,6 +13,7 @@ from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 from tqdm import tqdm
 
 from ..errors import ConfigError
@@ -42,6 +43,35 @@ def body_from_dims(dims: dict[str, float]) -> tuple[Body, list[str]]:
                 raise
             dropped.append(err.field)
             kept.pop(err.field)
+
+
+def lead_in(truth: TruthMotion, npose_seconds: float = 2.0,
+            transition_seconds: float = 1.0) -> TruthMotion:
+    """Prepend a still N-pose and a smooth transition into the first frame.
+
+    A real session starts so; the N-pose faces the first frame's heading at its place on the
+    floor.
+    """
+    model = truth.model
+    rate = truth.rate
+    first = truth.q[0]
+    R0 = model.segment_rotation(first, model.segment_names[0])
+    yaw = float(np.arctan2(R0[1, 0], R0[0, 0]))
+    q_npose = model.neutral()
+    q_npose[:2] = first[:2]
+    q_npose[3:7] = pin.Quaternion(pin.utils.rotate("z", yaw)).coeffs()
+    n_still = int(round(npose_seconds * rate))
+    n_move = int(round(transition_seconds * rate))
+    blend = 0.5 - 0.5 * np.cos(np.pi * np.arange(1, n_move + 1) / (n_move + 1))
+    moving = [pin.interpolate(model.model, q_npose, first, float(a)) for a in blend]
+    q = np.vstack([np.repeat(q_npose[None], n_still, axis=0), np.array(moving).reshape(
+        -1, len(first)), truth.q])
+    time = np.arange(len(q)) / rate
+    contacts = contact_phases(model, q, time, truth.contact_names)
+    contacts[:n_still] = True
+    contacts[n_still + n_move:] = truth.contacts
+    return TruthMotion(model, time, q, truth.contact_names, contacts, truth.source,
+                       {**truth.info, "lead_in_s": npose_seconds + transition_seconds})
 
 
 def motion_from_bvh(path: str | Path, rate: float = 60.0,
