@@ -115,7 +115,8 @@ def solve_qp(problem: QpProblem, backend: str = DEFAULT_BACKEND,
     """Solve the step; fall back to the penalised-slack relaxation when it is infeasible.
 
     Raises:
-        SolverError: When even the relaxed problem fails (never silently).
+        SolverError: When even the relaxed problem fails with every backend (never silently;
+            the solver then keeps the previous pose for that frame and says so).
     """
     p = problem
     G = p.G if len(p.h) else None
@@ -125,10 +126,21 @@ def solve_qp(problem: QpProblem, backend: str = DEFAULT_BACKEND,
     x = _call(backend, p.H, p.c, G, h, A, b, p.lb, p.ub)
     if x is not None:
         return QpSolution(x)
-    return _solve_relaxed(p, backend, slack_weight)
+    # Infeasible (or a numerical failure): relax, with a milder penalty and another backend
+    # before giving up, since a heavy penalty makes the relaxed problem ill-conditioned.
+    attempts = [(backend, slack_weight), (backend, slack_weight * 1e-4)]
+    attempts += [(other, slack_weight * 1e-4) for other in ("proxqp", "daqp")
+                 if other != backend and other in qpsolvers.available_solvers]
+    for name, weight in attempts:
+        solution = _solve_relaxed(p, name, weight)
+        if solution is not None:
+            return solution
+    raise SolverError(f"the relaxed IK step failed with every backend tried "
+                      f"({', '.join(a for a, _ in attempts)}; {p.H.shape[0]} variables, "
+                      f"{len(p.h)} inequalities, {len(p.b)} equalities)")
 
 
-def _solve_relaxed(p: QpProblem, backend: str, slack_weight: float) -> QpSolution:
+def _solve_relaxed(p: QpProblem, backend: str, slack_weight: float) -> QpSolution | None:
     """Every constraint row gets a slack ``s`` with cost ``slack_weight/2 * s^2``."""
     nv = p.H.shape[0]
     m_in, m_eq = len(p.h), len(p.b)
@@ -145,7 +157,6 @@ def _solve_relaxed(p: QpProblem, backend: str, slack_weight: float) -> QpSolutio
                          np.full(m_in + m_eq, np.inf)])
     x = _call(backend, H, c, G, p.h if m_in else None, A, p.b if m_eq else None, lb, ub)
     if x is None:
-        raise SolverError(f"the relaxed IK step failed with backend {backend!r} "
-                          f"({nv} variables, {m_in} inequalities, {m_eq} equalities)")
+        return None
     slack = float(np.max(np.abs(x[nv:]))) if n > nv else 0.0
     return QpSolution(x[:nv], relaxed=True, slack=slack)

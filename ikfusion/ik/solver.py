@@ -23,6 +23,7 @@ import numpy as np
 import pinocchio as pin
 from tqdm import tqdm
 
+from ..errors import SolverError
 from ..model.human_model import HumanModel
 from ..rotations import matrix_to_quat_wxyz, wxyz_to_xyzw
 from .compiled import compiled_kinematics
@@ -122,6 +123,7 @@ class Solver:
         self._q_start = self._q
         self._time: float | None = None
         self._contacts = ContactState.empty(self.contact_names)
+        self._failures: list[str] = []
         self._history: deque[tuple[float, np.ndarray]] = deque(
             maxlen=max(2, self.settings.speed_window + 1))
         self._p_sensed = np.zeros((len(self.contact_names), 3))
@@ -246,7 +248,12 @@ class Solver:
         done, relaxed = 0, False
         for done in range(1, iterations + 1):  # noqa: B007 - `done` is reported after the loop
             problem = self._problem(conf, tasks)
-            solution = solve_qp(problem, s.backend)
+            try:
+                solution = solve_qp(problem, s.backend)
+            except SolverError as err:
+                self._failures.append(f"t = {frame.time:.3f} s: {err}; kept the last step")
+                relaxed = True
+                break
             relaxed = relaxed or solution.relaxed
             conf.update(conf.integrate(solution.dq))
             slide = self.contact_constraint.slide_m(conf)
@@ -314,7 +321,10 @@ class Solver:
                                           self.floor_limit.inequality(conf)],
                                [self.contact_constraint.equality(conf)], None, 0.0)
             problem.H = np.eye(nv)
-            solution = solve_qp(problem, s.backend)
+            try:
+                solution = solve_qp(problem, s.backend)
+            except SolverError:
+                return True
             relaxed = relaxed or solution.relaxed
             conf.update(conf.integrate(solution.dq))
         return relaxed
@@ -405,6 +415,9 @@ class Solver:
         for frame in tqdm(frames, total=total, disable=not progress, unit="frame"):
             poses.append(self.step(frame))
         warnings = []
+        if self._failures:
+            warnings.append(f"{len(self._failures)} frame(s) where no QP backend could solve a "
+                            f"step (first: {self._failures[0]})")
         relaxed = sum(p.relaxed for p in poses)
         if relaxed:
             warnings.append(f"{relaxed} frame(s) needed relaxed constraints (a planted foot "

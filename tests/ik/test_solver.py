@@ -103,3 +103,25 @@ def test_unreachable_contacts_relax_instead_of_failing(human: HumanModel) -> Non
                                                             "LeftFoot")}
     pose = solver.step(Frame(1 / 60, targets))
     assert np.all(np.isfinite(pose.q))
+
+
+def test_a_failing_qp_never_crashes_the_solve(human: HumanModel, rng, monkeypatch) -> None:
+    import ikfusion.ik.solver as solver_module
+    from ikfusion.errors import SolverError
+
+    qs = smooth_motion(human, rng, frames=12)
+    frames = frames_from(human, qs)
+    real = solver_module.solve_qp
+    calls = {"n": 0}
+
+    def flaky(problem, backend):
+        calls["n"] += 1
+        if calls["n"] == 20:
+            raise SolverError("no backend could solve it")
+        return real(problem, backend)
+
+    monkeypatch.setattr(solver_module, "solve_qp", flaky)
+    motion = Solver(human, contacts=False).solve(frames)
+    assert len(motion) == len(frames) and np.all(np.isfinite(motion.q))
+    assert motion.relaxed.sum() == 1
+    assert any("no QP backend" in w for w in motion.warnings)
