@@ -20,16 +20,7 @@ from ikfusion.ik import Frame, Solver
 from ikfusion.model import SENSOR_SEGMENTS, HumanModel
 from ikfusion.rotations import angle_between
 from ikfusion.sim.gait import GaitParameters, generate_gait
-
-
-def frames_of(model: HumanModel, qs: np.ndarray, rate: float) -> list[Frame]:
-    data = model.model.createData()
-    frames = []
-    for k, q in enumerate(qs):
-        pin.framesForwardKinematics(model.model, data, q)
-        frames.append(Frame(k / rate, {s: data.oMf[model.segment_frame_id(s)].rotation.copy()
-                                       for s in SENSOR_SEGMENTS}))
-    return frames
+from ikfusion.sim.truth import orientation_frames
 
 
 def orientation_rms_deg(model: HumanModel, frames: list[Frame], qs: np.ndarray) -> float:
@@ -88,7 +79,7 @@ def main() -> None:
     rate = 60.0
     model = HumanModel.default()
     truth = generate_gait(model, GaitParameters(duration=args.seconds, stand=1.0), rate=rate)
-    frames = frames_of(model, truth.q, rate)
+    frames = orientation_frames(model, truth.q, truth.time, SENSOR_SEGMENTS)
     rows = []
     for backend in ("daqp", "proxqp", "osqp"):
         rows.append((f"ikfusion {backend}", run_ours(model, frames, backend)))

@@ -108,7 +108,10 @@ def _interp_quat(t_out: np.ndarray, t_in: np.ndarray, quat: np.ndarray) -> np.nd
     return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 
-def _phase_slides(P: np.ndarray, contacts: np.ndarray) -> list[float]:
+def phase_slides(P: np.ndarray, contacts: np.ndarray) -> list[float]:
+    """Per contact phase, the largest horizontal distance [m] of the point (N, k, 3) from
+    where it was when the phase (N, k bool) began.
+    """
     slides = []
     for i in range(contacts.shape[1]):
         start = None
@@ -180,7 +183,7 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
     head_err = head - head_true
     contact_names = [str(c) for c in truth["contact_names"]]
     P = np.stack([_interp(t, t_site, sites[c]) for c in contact_names], axis=1)
-    slides = _phase_slides(P, truth["contacts"][span])
+    slides = phase_slides(P, truth["contacts"][span])
     return Evaluation(
         frames=int(span.sum()),
         joint_angle_rms_deg=float(np.sqrt(np.mean(diff**2))),

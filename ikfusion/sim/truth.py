@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from ..ik.frame import Frame
 from ..model.human_model import HumanModel
 from ..rotations import matrix_to_quat_wxyz
 
@@ -62,6 +63,19 @@ def site_positions(model: HumanModel, q: np.ndarray, names: list[str]) -> np.nda
         for i, f in enumerate(ids):
             out[k, i] = data.oMf[f].translation
     return out
+
+
+def orientation_frames(model: HumanModel, q: np.ndarray, time: np.ndarray,
+                       segments: list[str] | tuple[str, ...]) -> list[Frame]:
+    """Solver frames whose targets are the exact segment orientations along ``q`` (N, nq)."""
+    data = model.model.createData()
+    ids = [model.segment_frame_id(s) for s in segments]
+    frames = []
+    for t, qk in zip(time, q):
+        pin.framesForwardKinematics(model.model, data, qk)
+        frames.append(Frame(float(t), {s: data.oMf[f].rotation.copy()
+                                       for s, f in zip(segments, ids)}))
+    return frames
 
 
 def write_truth(path: str | Path, truth: TruthMotion) -> Path:

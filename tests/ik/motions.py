@@ -7,6 +7,7 @@ import pinocchio as pin
 
 from ikfusion.ik import Frame
 from ikfusion.model import SENSOR_SEGMENTS, HumanModel
+from ikfusion.sim.truth import orientation_frames
 
 
 def angle_limits(model: HumanModel) -> tuple[np.ndarray, np.ndarray]:
@@ -43,13 +44,7 @@ def smooth_motion(model: HumanModel, rng: np.random.Generator, frames: int, keys
 
 def frames_from(model: HumanModel, qs: np.ndarray, rate: float = 60.0,
                 segments: tuple[str, ...] = SENSOR_SEGMENTS) -> list[Frame]:
-    data = model.model.createData()
-    frames = []
-    for k, q in enumerate(qs):
-        pin.framesForwardKinematics(model.model, data, q)
-        frames.append(Frame(k / rate, {s: data.oMf[model.segment_frame_id(s)].rotation.copy()
-                                       for s in segments}))
-    return frames
+    return orientation_frames(model, qs, np.arange(len(qs)) / rate, segments)
 
 
 def observable_columns(model: HumanModel,

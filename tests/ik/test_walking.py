@@ -3,40 +3,14 @@
 from __future__ import annotations
 
 import numpy as np
-import pinocchio as pin
 import pytest
 from motions import frames_from
 
+from ikfusion.evaluate import phase_slides
 from ikfusion.ik import Solver
 from ikfusion.model import HumanModel
 from ikfusion.sim.gait import GaitParameters, generate_gait
-
-
-def contact_positions(model: HumanModel, qs: np.ndarray, names: list[str]) -> np.ndarray:
-    data = model.model.createData()
-    ids = [model.site_frame_id(n) for n in names]
-    out = np.empty((len(qs), len(names), 3))
-    for k, q in enumerate(qs):
-        pin.framesForwardKinematics(model.model, data, q)
-        for i, f in enumerate(ids):
-            out[k, i] = data.oMf[f].translation
-    return out
-
-
-def phase_slides(P: np.ndarray, contacts: np.ndarray) -> np.ndarray:
-    """Largest horizontal distance from the touch-down position within each contact phase [m]."""
-    slides = []
-    for i in range(contacts.shape[1]):
-        start = None
-        for k in range(len(contacts) + 1):
-            on = k < len(contacts) and contacts[k, i]
-            if on and start is None:
-                start = k
-            elif not on and start is not None:
-                seg = P[start:k, i, :2]
-                slides.append(np.max(np.linalg.norm(seg - seg[0], axis=1)))
-                start = None
-    return np.array(slides)
+from ikfusion.sim.truth import site_positions
 
 
 def stride_path_length(q: np.ndarray, every: int) -> float:
@@ -55,15 +29,15 @@ def walk(request, human: HumanModel):
 
 def test_truth_walk_is_exact(walk, human: HumanModel) -> None:
     truth, _ = walk
-    P = contact_positions(human, truth.q, truth.contact_names)
-    assert phase_slides(P, truth.contacts).max() <= 1e-4
+    P = site_positions(human, truth.q, truth.contact_names)
+    assert max(phase_slides(P, truth.contacts)) <= 1e-4
     assert P[..., 2].min() >= -1e-3
 
 
 def test_planted_points_do_not_slide(walk, human: HumanModel) -> None:
     truth, motion = walk
-    P = contact_positions(human, motion.q, motion.contact_names)
-    slides = phase_slides(P, motion.contacts)
+    P = site_positions(human, motion.q, motion.contact_names)
+    slides = np.array(phase_slides(P, motion.contacts))
     assert len(slides) >= 20
     assert slides.max() <= 1e-3
 
