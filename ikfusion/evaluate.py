@@ -109,8 +109,10 @@ def _interp_quat(t_out: np.ndarray, t_in: np.ndarray, quat: np.ndarray) -> np.nd
 
 
 def phase_slides(P: np.ndarray, contacts: np.ndarray) -> list[float]:
-    """Per contact phase, the largest horizontal distance [m] of the point (N, k, 3) from
-    where it was when the phase (N, k bool) began.
+    """Per contact phase, the largest horizontal slide [m] of a contact point.
+
+    ``P`` (N, k, 3) are the points' positions, ``contacts`` (N, k) their phases; the slide is
+    the distance from where the point was when its phase began.
     """
     slides = []
     for i in range(contacts.shape[1]):
