@@ -39,12 +39,22 @@ def segment_streams(
 
 def frames_from_recording(recording: ImuRecording, sensor_map: dict[str, str],
                           calibration: Calibration) -> list[Frame]:
-    """One frame per sample: calibrated segment orientations of the valid samples."""
+    """One frame per sample: calibrated segment orientations of the valid samples.
+
+    The feet's angular speeds [rad/s] come along when their sensors recorded gyroscopes.
+    """
     R, valid = segment_streams(recording, sensor_map)
     R_segment = calibration.segment_orientations(R)
+    speeds = {}
+    for sensor, segment in sensor_map.items():
+        gyr = recording.sensors[sensor].gyr
+        if gyr is not None and segment.endswith("Foot"):
+            speeds[segment] = np.linalg.norm(gyr, axis=1)  # |omega| is frame-independent
     frames = []
     for k, t in enumerate(recording.time):
-        frames.append(Frame(float(t), {s: R_segment[s][k] for s in R_segment if valid[s][k]}))
+        frames.append(Frame(float(t), {s: R_segment[s][k] for s in R_segment if valid[s][k]},
+                            angular_speeds={s: float(v[k]) for s, v in speeds.items()
+                                            if np.isfinite(v[k])}))
     return frames
 
 

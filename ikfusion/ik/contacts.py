@@ -54,11 +54,13 @@ class ContactThresholds:
     leave_distance: float = 0.02
     settle_speed: float = 0.2
     tilt_deg: float = 5.0
+    still_rate: float = 0.5
 
 
 def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: ContactThresholds,
                      hints: Mapping[str, bool] | None = None,
-                     foot_pitch: np.ndarray | None = None) -> ContactState:
+                     foot_pitch: np.ndarray | None = None,
+                     foot_rate: np.ndarray | None = None) -> ContactState:
     """Let go of planted points the current frame's sensed pose lifts (run before solving).
 
     Args:
@@ -69,6 +71,9 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         hints: Name -> in contact, overriding the detection for those points.
         foot_pitch: (k,) pitch [rad] of each point's foot (toe down positive), NaN when unknown.
             A foot pitched toe-down cannot stand on its heel, one pitched toe-up not on its toes.
+        foot_rate: (k,) angular speed [rad/s] of each point's foot from its gyroscope, NaN when
+            unknown. A foot turning slower than ``still_rate`` keeps its planted points (sensor
+            noise in the pose cannot lift a foot the gyroscope says is still).
 
     Returns:
         A new state (the same anchors, fewer active points).
@@ -82,6 +87,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     pulled = (drift > th.leave_distance) & (state.age >= other_age)
     tilted = _tilted(state.names, foot_pitch, np.radians(th.tilt_deg))
     leave = active & ((height_rel > th.leave_relative) | pulled | tilted)
+    if foot_rate is not None:
+        leave &= ~(np.nan_to_num(np.asarray(foot_rate, dtype=float), nan=np.inf) < th.still_rate)
     for i, name in enumerate(state.names):
         if hints and name in hints:
             leave[i] = active[i] and not hints[name]

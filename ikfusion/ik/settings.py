@@ -45,6 +45,7 @@ class SolverSettings:
     leave_distance: float = 0.02
     settle_speed: float = 0.2
     tilt_deg: float = 5.0
+    still_rate: float = 0.5
     speed_window: int = 1
     detection_smoothing: float = 0.5
 

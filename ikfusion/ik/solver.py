@@ -93,7 +93,7 @@ class Solver:
             s.max_root_velocity, s.max_root_angular_velocity, s.max_joint_velocity))
         self.thresholds = ContactThresholds(
             s.floor_z, s.enter_height, s.enter_speed, s.enter_relative, s.leave_relative,
-            s.leave_distance, s.settle_speed, s.tilt_deg)
+            s.leave_distance, s.settle_speed, s.tilt_deg, s.still_rate)
         self._site_frames = [model.site_frame_id(n) for n in sites] + [root_frame]
         self._contact_rows = np.array([self._site_index[n] for n in self.contact_names], dtype=int)
         self._kinematics = None
@@ -229,7 +229,8 @@ class Solver:
             self._p_sensed = self._smooth(self._p_sensed, self._contact_positions(sensed))
             self._pitch = self._smooth(self._pitch, self._foot_pitch(self._q, tracked))  # type: ignore[arg-type]
             self._contacts = release_contacts(self._contacts, self._p_sensed, self.thresholds,
-                                              frame.contacts, self._pitch)
+                                              frame.contacts, self._pitch,
+                                              self._foot_rates(frame))
         self.contact_constraint.set_anchors(self._contacts.active, self._contacts.anchors)
         self.floor_limit.enabled = ~self._contacts.active
         flight = not first and not self._contacts.active.any()
@@ -339,6 +340,14 @@ class Solver:
         q = q.copy()
         q[2] += self.settings.floor_z - z.min()
         return q
+
+    def _foot_rates(self, frame: Frame) -> np.ndarray | None:
+        """Angular speed [rad/s] of each contact point's foot from the frame, NaN if unknown."""
+        if not frame.angular_speeds:
+            return None
+        return np.array([frame.angular_speeds.get(
+            f"{'Left' if n.startswith('Left') else 'Right'}Foot", np.nan)
+            for n in self.contact_names], dtype=float)
 
     def _smooth(self, previous: np.ndarray, current: np.ndarray) -> np.ndarray:
         """Exponential smoothing of the contact-detection signals (sensor noise is white)."""

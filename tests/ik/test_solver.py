@@ -125,3 +125,21 @@ def test_a_failing_qp_never_crashes_the_solve(human: HumanModel, rng, monkeypatc
     assert len(motion) == len(frames) and np.all(np.isfinite(motion.q))
     assert motion.relaxed.sum() == 1
     assert any("no QP backend" in w for w in motion.warnings)
+
+
+def test_a_still_foot_keeps_its_contacts(human: HumanModel) -> None:
+    """The sensed pose says the left foot lifted, its gyroscope says it did not move."""
+    solver = Solver(human)
+    q0 = human.neutral()
+    segments = ("Pelvis", "LeftUpperLeg", "LeftLowerLeg", "LeftFoot", "RightUpperLeg",
+                "RightLowerLeg", "RightFoot")
+    still = {s: human.segment_rotation(q0, s) for s in segments}
+    assert all(solver.step(Frame(0.0, still)).contacts.values())
+    lifted_q = human.configuration({"jLeftHip_flex": 40.0, "jLeftKnee_flex": 60.0})
+    lifted = {s: human.segment_rotation(lifted_q, s) for s in segments}
+    held = solver.step(Frame(1 / 60, lifted, angular_speeds={"LeftFoot": 0.1, "RightFoot": 0.1}))
+    assert held.contacts["LeftHeel"]
+    fresh = Solver(human)
+    fresh.step(Frame(0.0, still))
+    released = fresh.step(Frame(1 / 60, lifted))
+    assert not released.contacts["LeftHeel"]
