@@ -10,7 +10,7 @@ motion, since the constraint holds it. Hints given with a frame override the det
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -44,17 +44,26 @@ class ContactState:
 
 @dataclass(frozen=True)
 class ContactThresholds:
-    """Hysteresis thresholds [m, m/s] (see ``configs/solver.yaml``, section contacts)."""
+    """Hysteresis thresholds [m, m/s, deg, rad/s].
 
-    floor_z: float = 0.0
-    enter_height: float = 0.03
-    enter_speed: float = 0.5
-    enter_relative: float = 0.03
-    leave_relative: float = 0.025
-    leave_distance: float = 0.02
-    settle_speed: float = 0.2
-    tilt_deg: float = 5.0
-    still_rate: float = 0.5
+    Their defaults live in ``configs/solver.yaml`` (section contacts) and
+    :class:`ikfusion.ik.SolverSettings`.
+    """
+
+    floor_z: float
+    enter_height: float
+    enter_speed: float
+    enter_relative: float
+    leave_relative: float
+    leave_distance: float
+    settle_speed: float
+    tilt_deg: float
+    still_rate: float
+
+    @classmethod
+    def from_settings(cls, settings: object) -> ContactThresholds:
+        """The thresholds of a :class:`ikfusion.ik.SolverSettings`."""
+        return cls(**{f.name: getattr(settings, f.name) for f in fields(cls)})
 
 
 def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: ContactThresholds,

@@ -91,9 +91,7 @@ class Solver:
         self.joint_limits = JointRangeLimit(model.ball_joints, s.joint_range_margin_deg)
         self.velocity_limit = VelocityLimit(self._tangent_vector(
             s.max_root_velocity, s.max_root_angular_velocity, s.max_joint_velocity))
-        self.thresholds = ContactThresholds(
-            s.floor_z, s.enter_height, s.enter_speed, s.enter_relative, s.leave_relative,
-            s.leave_distance, s.settle_speed, s.tilt_deg, s.still_rate)
+        self.thresholds = ContactThresholds.from_settings(s)
         self._site_frames = [model.site_frame_id(n) for n in sites] + [root_frame]
         self._contact_rows = np.array([self._site_index[n] for n in self.contact_names], dtype=int)
         self._kinematics = None
