@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from ..evaluate import evaluate
 
@@ -21,6 +22,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--json", action="store_true", help="print the metrics as one JSON object")
     p.add_argument("--align", choices=["auto", "start", "none"], default="auto",
                    help="shift the estimate to the true start position (auto: only without UWB)")
+    p.add_argument("--plot", metavar="DIR", nargs="?", const="", default=None,
+                   help="write trajectory.png and joint_angles.png (into DIR, default the "
+                   "result folder); needs matplotlib")
     p.set_defaults(func=run)
 
 
@@ -28,6 +32,11 @@ def run(args: argparse.Namespace) -> int:
     """Run ``ikfusion evaluate``."""
     result = evaluate(args.result, args.truth, align=args.align)
     metrics = result.as_dict()
+    if args.plot is not None:
+        from ..evaluate_plot import plot_evaluation
+
+        for path in plot_evaluation(args.result, args.truth, args.plot or args.result):
+            print(f"wrote {path}", file=sys.stderr)
     if args.json:
         print(json.dumps(metrics, indent=2))
         return 0

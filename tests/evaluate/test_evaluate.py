@@ -72,3 +72,13 @@ def test_cli_json_and_bad_input(walk, tmp_path: Path, capsys) -> None:
     assert "sites.csv" in err and "line 2" in err and "'z'" in err
     with pytest.raises(InputError):
         evaluate(tmp_path / "nowhere", truth_file)
+
+
+def test_plots_are_written(walk, tmp_path: Path, capsys) -> None:
+    pytest.importorskip("matplotlib", reason="plots need the plot extra (matplotlib)")
+    truth_file = write_truth(tmp_path / "truth.npz", walk)
+    result = result_of(walk, walk.q, tmp_path / "result")
+    assert main(["evaluate", str(result), str(truth_file), "--plot", str(tmp_path / "p")]) == 0
+    for name in ("trajectory.png", "joint_angles.png"):
+        data = (tmp_path / "p" / name).read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
