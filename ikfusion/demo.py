@@ -17,7 +17,7 @@ import numpy as np
 
 from .evaluate import Evaluation, evaluate
 from .ik import Motion
-from .io.mtmanager import read_mtmanager
+from .io.reader import read_imu
 from .io.sensor_map import load_sensor_map
 from .model import Body, HumanModel
 from .pipeline import solve_recording
@@ -54,7 +54,7 @@ def run_demo(out_dir: str | Path = "ikfusion-demo", seconds: float = 60.0, seed:
     truth.q[:, 0] += 3.0
     truth.q[:, 1] += 4.0 - 1.5
     capture = write_capture(out / "capture", truth, ImuNoise(), seed)
-    recording = read_mtmanager(capture.imu)
+    recording = read_imu(capture.imu)
     model = HumanModel.from_body(Body.from_yaml(capture.folder / "body.yaml"))
     start = time.perf_counter()
     solved = solve_recording(recording, load_sensor_map(capture.sensor_map), model,

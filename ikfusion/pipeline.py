@@ -7,14 +7,14 @@ are simply not tracked in their frame, and the solver does the rest.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .ik import Frame, Motion, Solver
-from .imu.calibration import Calibration, calibrate
-from .io.mtmanager import ImuRecording
-from .io.sensor_map import check_sensors
+from .imu.calibration import Calibration, calibrate_recording
+from .io.recording import ImuRecording
 from .model.human_model import HumanModel
 
 
@@ -27,32 +27,21 @@ class SolvedRecording:
     warnings: list[str] = field(default_factory=list)
 
 
-def segment_streams(
-        recording: ImuRecording,
-        sensor_map: dict[str, str]) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
-    """``R_world_sensor`` (N, 3, 3) and validity (N,) per mapped segment."""
-    R = {segment: recording.sensors[sensor].R_world_sensor
-         for sensor, segment in sensor_map.items()}
-    valid = {segment: recording.sensors[sensor].valid for sensor, segment in sensor_map.items()}
-    return R, valid
-
-
-def frames_from_recording(recording: ImuRecording, sensor_map: dict[str, str],
+def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str],
                           calibration: Calibration) -> list[Frame]:
     """One frame per sample: calibrated segment orientations of the valid samples.
 
     The feet's angular speeds [rad/s] come along when their sensors recorded gyroscopes.
     """
-    R, valid = segment_streams(recording, sensor_map)
-    R_segment = calibration.segment_orientations(R)
-    speeds = {}
-    for sensor, segment in sensor_map.items():
-        gyr = recording.sensors[sensor].gyr
-        if gyr is not None and segment.endswith("Foot"):
-            speeds[segment] = np.linalg.norm(gyr, axis=1)  # |omega| is frame-independent
+    streams = recording.segment_streams(sensor_map)
+    R_segment = calibration.segment_orientations(
+        {s: st.R_world_sensor for s, st in streams.items()})
+    speeds = {s: np.linalg.norm(st.gyr, axis=1)  # |omega| is frame-independent
+              for s, st in streams.items() if st.gyr is not None and s.endswith("Foot")}
     frames = []
     for k, t in enumerate(recording.time):
-        frames.append(Frame(float(t), {s: R_segment[s][k] for s in R_segment if valid[s][k]},
+        frames.append(Frame(float(t), {s: R_segment[s][k] for s in R_segment
+                                       if streams[s].valid[k]},
                             angular_speeds={s: float(v[k]) for s, v in speeds.items()
                                             if np.isfinite(v[k])}))
     return frames
@@ -73,7 +62,7 @@ def knee_warning(motion: Motion) -> str | None:
     return None
 
 
-def solve_recording(recording: ImuRecording, sensor_map: dict[str, str], model: HumanModel,
+def solve_recording(recording: ImuRecording, sensor_map: Mapping[str, str], model: HumanModel,
                     window: tuple[int, int] | None = None, pose: str = "npose",
                     forward: dict[str, str] | None = None, solver: Solver | None = None,
                     progress: bool = False) -> SolvedRecording:
@@ -81,7 +70,7 @@ def solve_recording(recording: ImuRecording, sensor_map: dict[str, str], model: 
 
     Args:
         recording: The IMU recording.
-        sensor_map: Sensor id -> segment.
+        sensor_map: Sensor id -> segment (a ``SensorMap`` also brings its default mounting).
         model: The human model of the subject.
         window: Calibration window (sample indices); found automatically when omitted.
         pose: ``"npose"`` or ``"tpose"``.
@@ -90,9 +79,10 @@ def solve_recording(recording: ImuRecording, sensor_map: dict[str, str], model: 
         progress: Show a progress bar.
     """
     warnings = list(recording.warnings)
-    warnings += check_sensors(sensor_map, recording.sensors)
-    R, _ = segment_streams(recording, sensor_map)
-    cal = calibrate(R, recording.rate, window=window, forward=forward, pose=pose)
+    warnings += recording.check_sensor_map(sensor_map)
+    window_s = None if window is None else (window[0] / recording.rate,
+                                            window[1] / recording.rate)
+    cal = calibrate_recording(recording, sensor_map, window_s, forward=forward, pose=pose)
     warnings += cal.warnings
     frames = frames_from_recording(recording, sensor_map, cal)
     motion = (solver or Solver(model)).solve(frames, progress=progress, total=len(frames))

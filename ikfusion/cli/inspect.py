@@ -1,15 +1,25 @@
-"""``ikfusion inspect``: what a recording holds."""
+"""``ikfusion inspect``: what a recording holds.
+
+For every sensor: rows received, packets lost inside its PacketCounter span, the rate, the
+channels (column names), the coordinate system of the orientations shown (ENU after reading)
+and the first and last received orientation as (w, x, y, z) quaternions (``w >= 0``). ``--json``
+prints exactly ``{"sensors": {"<id>": {"rows", "lost", "rate", "channels",
+"coordinate_system", "first_quat_wxyz", "last_quat_wxyz"}}}`` (SPEC section 5); warnings go to
+standard error. Without it a table is printed, warnings below it.
+"""
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 from typing import Any
 
 import numpy as np
 
-from ..io.mtmanager import read_mtmanager
-from ..rotations import matrix_to_quat_wxyz
+from ..io.reader import read_imu
+from ..io.recording import ImuRecording, SensorStream
+from ..io.sensor_map import load_sensor_map
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -17,44 +27,93 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "inspect",
         help="what a recording holds (sensors, rows, lost packets, rate, channels)",
-        description="Read MT Manager exports (a trial prefix, a folder or one file) and print, "
-        "per sensor id: rows received, lost packets, rate, channels, coordinate system, and the "
-        "first and last orientation as (w, x, y, z) quaternions.",
+        description="Read an IMU recording (MT Manager exports given by a trial prefix, a "
+        "folder or one file; a generic IMU .csv; an .mvnx) and print, per sensor id: rows "
+        "received, packets lost, rate, channels, coordinate system, and the first and last "
+        "orientation as (w, x, y, z) quaternions.",
     )
     p.add_argument("path", metavar="PATH", help="trial prefix, folder or file")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--json", action="store_true", help="print one JSON object (SPEC layout)")
     p.add_argument("--rate", type=float, metavar="HZ",
-                   help="sample rate when the files have no `// Update Rate:`")
+                   help="sample rate when the files have no `// Update Rate:` line")
+    p.add_argument("--map", metavar="FILE",
+                   help="sensor map YAML: check that its sensors are there, show their segments")
     p.set_defaults(func=run)
 
 
-def _quat(R: np.ndarray, valid: np.ndarray, last: bool) -> list[float] | None:
-    idx = np.nonzero(valid)[0]
+def _quat(stream: SensorStream, last: bool) -> list[float] | None:
+    idx = np.flatnonzero(stream.orientation_valid)
     if not len(idx):
         return None
-    return [round(float(v), 6) for v in matrix_to_quat_wxyz(R[idx[-1] if last else idx[0]])]
+    q = stream.quat_wxyz(int(idx[-1] if last else idx[0]))
+    return [round(float(v), 7) for v in q]
+
+
+def summary(recording: ImuRecording) -> dict[str, Any]:
+    """The JSON object of ``inspect --json`` (SPEC section 5)."""
+    sensors: dict[str, dict[str, Any]] = {}
+    for sid, s in recording.sensors.items():
+        sensors[sid] = {
+            "rows": int(s.rows), "lost": int(s.lost), "rate": float(recording.rate),
+            "channels": list(s.channels), "coordinate_system": recording.coordinate_system,
+            "first_quat_wxyz": _quat(s, last=False), "last_quat_wxyz": _quat(s, last=True),
+        }
+    return {"sensors": sensors}
+
+
+def _channel_groups(stream: SensorStream) -> str:
+    groups = [name for name in ("acc", "free_acc", "gyr", "mag")
+              if getattr(stream, name) is not None]
+    if stream.orientation_source:
+        groups.append(stream.orientation_source.lower())
+    return " ".join(groups) or "-"
+
+
+def _format_quat(q: list[float] | None) -> str:
+    return "-" if q is None else " ".join(f"{v:+.4f}" for v in q)
+
+
+def table(recording: ImuRecording, segments: dict[str, str] | None = None) -> str:
+    """A readable table of the recording."""
+    source = recording.source
+    where = source[0].parent if source else "?"
+    lines = [f"{len(recording.sensors)} sensor(s) from {len(source)} file(s) in {where}",
+             f"{recording.rate:g} Hz, {len(recording)} samples ({recording.duration:.2f} s), "
+             f"world {recording.coordinate_system} (files: {recording.source_coordinate_system})",
+             ""]
+    head = ["sensor", "segment", "rows", "lost", "span [s]", "channels", "first quat (w x y z)",
+            "last quat (w x y z)"]
+    rows = []
+    for sid, s in recording.sensors.items():
+        first, end = s.span
+        span = f"{first / recording.rate:.2f}-{max(end - 1, 0) / recording.rate:.2f}"
+        rows.append([sid, (segments or {}).get(sid, "-"), str(s.rows), str(s.lost), span,
+                     _channel_groups(s), _format_quat(_quat(s, False)),
+                     _format_quat(_quat(s, True))])
+    if segments is None:
+        head.pop(1)
+        for r in rows:
+            r.pop(1)
+    widths = [max(len(h), *(len(r[k]) for r in rows)) for k, h in enumerate(head)]
+    numeric = {"rows", "lost"}
+    for r in [head, *rows]:
+        lines.append("  ".join(v.rjust(w) if head[k] in numeric else v.ljust(w)
+                               for k, (v, w) in enumerate(zip(r, widths))).rstrip())
+    return "\n".join(lines)
 
 
 def run(args: argparse.Namespace) -> int:
     """Run ``ikfusion inspect``."""
-    recording = read_mtmanager(args.path, rate=args.rate)
-    sensors: dict[str, dict[str, Any]] = {}
-    for sid, s in recording.sensors.items():
-        sensors[sid] = {
-            "rows": s.rows, "lost": s.lost, "rate": recording.rate, "channels": s.channels,
-            "coordinate_system": recording.coordinate_system,
-            "first_quat_wxyz": _quat(s.R_world_sensor, s.valid, last=False),
-            "last_quat_wxyz": _quat(s.R_world_sensor, s.valid, last=True),
-        }
+    sensor_map = load_sensor_map(args.map) if args.map else None
+    recording = read_imu(args.path, rate=args.rate, sensor_map=sensor_map)
     if args.json:
-        print(json.dumps({"sensors": sensors}, indent=2))
+        print(json.dumps(summary(recording), indent=2))
+        for warning in recording.warnings:
+            print(f"warning: {warning}", file=sys.stderr)
         return 0
-    print(f"{len(sensors)} sensors at {recording.rate:g} Hz, {recording.time[-1]:.2f} s "
-          f"(files in {recording.source_coordinate_system}, converted to ENU)")
-    for sid, info in sensors.items():
-        orientation = "orientation" if info["first_quat_wxyz"] else "no orientation"
-        print(f"  {sid}: {info['rows']} rows, {info['lost']} lost, {orientation}, "
-              f"{len(info['channels'])} channels")
+    segments = None if sensor_map is None else {
+        sid: seg for sid, seg in sensor_map.items()}
+    print(table(recording, segments))
     for warning in recording.warnings:
         print(f"warning: {warning}")
     return 0

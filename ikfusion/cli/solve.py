@@ -7,7 +7,7 @@ import sys
 
 from ..errors import InputError
 from ..ik import Solver
-from ..io.mtmanager import read_mtmanager
+from ..io.reader import read_imu
 from ..io.sensor_map import load_sensor_map
 from ..model import Body, HumanModel
 from ..pipeline import solve_recording
@@ -25,7 +25,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "sites.csv, contacts.csv, summary.json).",
     )
     p.add_argument("--imu", required=True, metavar="PATH", help="MT Manager trial prefix, "
-                   "folder or file")
+                   "folder or file, an IMU CSV or an MVNX file")
     p.add_argument("--map", required=True, metavar="FILE", help="sensor map YAML")
     body = p.add_mutually_exclusive_group()
     body.add_argument("--body", metavar="FILE", help="body dimensions YAML")
@@ -67,8 +67,8 @@ def run(args: argparse.Namespace) -> int:
     if args.toa or args.readers or args.tags:
         raise InputError("UWB aiding (--toa/--readers/--tags) is not available yet in this "
                          "version; solve from the IMUs alone", field="toa")
-    recording = read_mtmanager(args.imu, rate=args.rate)
     sensor_map = load_sensor_map(args.map)
+    recording = read_imu(args.imu, rate=args.rate, sensor_map=sensor_map)
     if args.body:
         model = HumanModel.from_body(Body.from_yaml(args.body))
     elif args.height is not None:

@@ -1,324 +1,596 @@
 """Xsens MT Manager ASCII exports: one file per sensor, joined on a common time base.
 
-Every variant of SPEC section 4: ``//`` comment lines (old ``// Update Rate: 100.0Hz`` headers
-and the newer ``// General information:`` blocks with ``// Coordinate system: ENU``), a header
-line starting with ``PacketCounter``, tab / comma / semicolon / space delimiters (in
-space-delimited files an empty field is a run of spaces), orientation as ``Quat_q0..3``,
-``Mat[i][j]`` (row i, column j of ``R_world_sensor``) or ``Roll/Pitch/Yaw`` [deg] (preferred in
-that order when a file has several), optional ``Acc_*``, ``FreeAcc_*``, ``Gyr_*``, ``Mag_*``,
-``SampleTimeFine`` and UTC columns, empty fields and ``NaN``.
+Every variant of SPEC section 4 is read:
 
-PacketCounter is 16-bit and wraps; it is unwrapped and every sensor of a trial is placed on the
-common sample index ``counter - first counter``. A gap in the counter is a lost packet: the
-orientation inside the gap is filled by slerp and flagged invalid. Samples outside a sensor's
-span are NaN and invalid. NED and NWU exports are converted to ENU.
+* ``//`` comment lines anywhere: the old header (``// Update Rate: 100.0Hz``) and the newer
+  ``// General information:`` blocks (``//  DeviceId: 00B42D4B``, ``// Coordinate system: ENU``);
+* the header line of column names, which holds ``PacketCounter``;
+* tab, comma, semicolon or space delimiters (in space-delimited files an empty field is a run of
+  spaces), empty fields and ``NaN`` (read as NaN, the rest of the row intact, the sample flagged
+  invalid);
+* the orientation as ``Quat_q0..3`` (w, x, y, z), ``Mat[i][j]`` (row i, column j of
+  ``R_world_sensor``) or ``Roll/Pitch/Yaw`` [deg] (``R = Rz(yaw) Ry(pitch) Rx(roll)``); a file with
+  several uses the quaternion, then the matrix, then the Euler angles, row by row;
+* optional ``Acc_*`` [m/s^2] and ``Gyr_*`` [rad/s] and ``Mag_*`` [a.u.] (sensor frame),
+  ``FreeAcc_*`` [m/s^2] (world frame, columns named after the world axes, e.g. ``FreeAcc_E``),
+  ``SampleTimeFine`` (10 kHz ticks), UTC and other columns (kept in ``channels``).
+
+The time base comes from PacketCounter, a 16-bit counter that wraps at 65536: it is unwrapped
+(``SampleTimeFine``, when present, decides how many wraps a long gap spans and cross-checks the
+rate), and every sensor of a trial is placed at sample ``counter - first counter of the trial``.
+A gap in the counter is a lost packet: reported per sensor, its orientation slerp-filled and
+flagged invalid. Sensors that start late or stop early are NaN and invalid outside their span.
+NED and NWU exports are converted to ENU: ``R_ENU_sensor = R_ENU_NED @ R_NED_sensor`` and the
+free acceleration likewise; acc, gyr and mag stay in the sensor frame.
 """
 
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
-from ..rotations import (
-    R_ENU_NED,
-    R_ENU_NWU,
-    matrix_to_quat_wxyz,
-    quat_wxyz_to_matrix,
-    slerp,
-    xsens_euler_to_matrix,
+from ..rotations import R_ENU_NED, R_ENU_NWU
+from .orientation_columns import OrientationColumns, orientation_from_columns
+from .recording import (
+    ImuRecording,
+    SensorStream,
+    build_stream,
+    check_sensor_ids,
+    gap_summary,
+    normalize_sensor_id,
 )
+from .table import detect_delimiter, fit_fields, parse_block, parse_numeric, split_header
 
-_WRAP = 65536
-_CONVERSIONS = {"ENU": np.eye(3), "NED": R_ENU_NED, "NWU": R_ENU_NWU}
-_VECTORS = {
-    "acc": ("Acc_X", "Acc_Y", "Acc_Z"),
-    "gyr": ("Gyr_X", "Gyr_Y", "Gyr_Z"),
-    "mag": ("Mag_X", "Mag_Y", "Mag_Z"),
-}
-_FREE_ACC = (("FreeAcc_E", "FreeAcc_N", "FreeAcc_U"), ("FreeAcc_X", "FreeAcc_Y", "FreeAcc_Z"))
-_QUAT = ("Quat_q0", "Quat_q1", "Quat_q2", "Quat_q3")
-_MAT = tuple(f"Mat[{i}][{j}]" for i in (1, 2, 3) for j in (1, 2, 3))
-_EULER = ("Roll", "Pitch", "Yaw")
-_ID = re.compile(r"([0-9A-Fa-f]{8})\.txt$")
+__all__ = [
+    "ImuRecording",
+    "MtManagerFile",
+    "SensorStream",
+    "read_mtmanager",
+    "read_mtmanager_file",
+    "trial_files",
+]
+
+_COUNTER_WRAP = 65536
+_FINE_WRAP = 2**32
+_FINE_HZ = 10000.0
+_ID_IN_NAME = re.compile(r"([0-9A-Fa-f]{8})\.txt$", re.IGNORECASE)
+_RATE = re.compile(r"(?:update|sample|output)\s*rate\s*[:=]\s*([0-9]+(?:[.,][0-9]*)?)\s*(k?hz)?",
+                   re.IGNORECASE)
+_SYSTEM = re.compile(r"coordinate\s*system\s*:\s*([A-Za-z]*)", re.IGNORECASE)
+_DEVICE = re.compile(r"device\s*id\s*:\s*([0-9A-Fa-f]{8})\b", re.IGNORECASE)
+_VECTORS = {"acc": "Acc_", "gyr": "Gyr_", "mag": "Mag_"}
+
+
+def world_conversions() -> dict[str, np.ndarray]:
+    """``R_ENU_<system>`` for the coordinate systems MT Manager exports."""
+    return {"ENU": np.eye(3), "NED": R_ENU_NED, "NWU": R_ENU_NWU}
+
+
+def world_axis_letters() -> dict[str, np.ndarray]:
+    """ENU direction of each world-axis letter used in column names (``FreeAcc_E`` ...)."""
+    return {"E": np.array([1.0, 0.0, 0.0]), "W": np.array([-1.0, 0.0, 0.0]),
+            "N": np.array([0.0, 1.0, 0.0]), "S": np.array([0.0, -1.0, 0.0]),
+            "U": np.array([0.0, 0.0, 1.0]), "D": np.array([0.0, 0.0, -1.0])}
 
 
 @dataclass
-class SensorStream:
-    """One sensor on the recording's common time base.
+class MtManagerFile:
+    """One export parsed into columns (no time base yet).
 
     Attributes:
-        sensor_id: Xsens device id (8 hex digits).
-        R_world_sensor: (N, 3, 3) orientation, ENU world; slerp-filled in gaps, NaN outside the
-            sensor's span.
-        valid: (N,) True where the orientation was received and finite.
-        acc: (N, 3) specific force, sensor frame [m/s^2], or None.
-        free_acc: (N, 3) acceleration without gravity, world frame [m/s^2], or None.
-        gyr: (N, 3) angular rate, sensor frame [rad/s], or None.
-        mag: (N, 3) magnetic field, sensor frame [a.u.], or None.
-        rows: Samples received (data lines).
-        lost: Packets missing inside the sensor's PacketCounter span.
-        channels: Column names of the file.
         path: The file.
+        sensor_id: From the file name ``<prefix><id>.txt``, else the header's DeviceId.
+        rate: ``// Update Rate:`` [Hz], or None when the file has none.
+        coordinate_system: ``// Coordinate system:`` (ENU when absent).
+        columns: Column names of the header line.
+        data: (rows, columns) floats, NaN where a field is empty or NaN.
+        line_numbers: (rows,) 1-based line number of each data row.
+        header_line: 1-based line number of the header line.
+        delimiter: The field delimiter.
+        warnings: Remarks made while reading (odd lines, skipped repeated headers, ...).
     """
 
-    sensor_id: str
-    R_world_sensor: np.ndarray
-    valid: np.ndarray
-    acc: np.ndarray | None
-    free_acc: np.ndarray | None
-    gyr: np.ndarray | None
-    mag: np.ndarray | None
-    rows: int
-    lost: int
-    channels: list[str]
-    path: Path
-
-
-@dataclass
-class ImuRecording:
-    """A trial: every sensor on one time base.
-
-    Attributes:
-        time: (N,) [s] from the first sample of the trial.
-        rate: [Hz].
-        sensors: Sensor id -> :class:`SensorStream`.
-        coordinate_system: Always ``"ENU"`` after reading.
-        source_coordinate_system: What the files declared.
-        warnings: Messages for the user.
-    """
-
-    time: np.ndarray
-    rate: float
-    sensors: dict[str, SensorStream]
-    coordinate_system: str = "ENU"
-    source_coordinate_system: str = "ENU"
-    warnings: list[str] = field(default_factory=list)
-
-
-@dataclass
-class _RawFile:
     path: Path
     sensor_id: str
     rate: float | None
     coordinate_system: str
     columns: list[str]
-    data: np.ndarray  # (rows, columns) floats, NaN where empty
-    first_line: int
+    data: np.ndarray
+    line_numbers: np.ndarray
+    header_line: int
+    delimiter: str
+    warnings: list[str] = field(default_factory=list)
+
+    def column(self, name: str) -> np.ndarray | None:
+        """The values of one column (case-insensitive name), or None when absent."""
+        k = self.index(name)
+        return None if k is None else self.data[:, k]
+
+    def index(self, name: str) -> int | None:
+        """Position of a column (case-insensitive name), or None."""
+        lowered = [c.lower() for c in self.columns]
+        return lowered.index(name.lower()) if name.lower() in lowered else None
 
 
-def _sensor_id(path: Path) -> str:
-    match = _ID.search(path.name)
-    return match.group(1).upper() if match else path.stem
+@dataclass
+class _HeaderInfo:
+    """What the ``//`` comment lines say."""
+
+    rate: float | None = None
+    system: str = "ENU"
+    device: str | None = None
 
 
-def _delimiter(header: str) -> str | None:
-    for d in ("\t", ",", ";"):
-        if d in header:
-            return d
-    return " "
-
-
-def _parse_number(text: str, path: Path, line: int, column: str) -> float:
-    t = text.strip()
-    if t == "" or t.lower() == "nan":
-        return float("nan")
+def _read_text(file: Path) -> str:
+    if file.is_dir():
+        raise InputError("is a folder, not an MT Manager export file", path=file)
     try:
-        return float(t)
-    except ValueError:
-        raise InputError(f"not a number: {t!r}", path=path, line=line, field=column) from None
-
-
-def read_mtmanager_file(path: str | Path, rate: float | None = None) -> _RawFile:
-    """Parse one export file into columns (no time base yet)."""
-    file = Path(path)
-    try:
-        lines = file.read_text(errors="replace").splitlines()
+        raw = file.read_bytes()
     except OSError as err:
         raise InputError(f"cannot read: {err.strerror}", path=file) from err
-    if not any(line.strip() for line in lines):
-        raise InputError("empty file (no header line starting with PacketCounter)", path=file,
-                         line=1)
-    file_rate, system, header_index = None, "ENU", None
-    for n, line in enumerate(lines):
-        text = line.strip()
-        if text.startswith("//"):
-            if m := re.search(r"Update Rate:\s*([0-9.]+)", text):
-                file_rate = float(m.group(1))
-            if m := re.search(r"Coordinate system:\s*(\w+)", text):
-                system = m.group(1).upper()
-            continue
-        if not text:
-            continue
-        if not text.startswith("PacketCounter"):
-            raise InputError(f"expected the header line starting with PacketCounter, found "
-                             f"{text[:40]!r}", path=file, line=n + 1, field="PacketCounter")
-        header_index = n
-        break
-    if header_index is None:
-        raise InputError("no header line starting with PacketCounter", path=file,
-                         line=len(lines), field="PacketCounter")
-    if system not in _CONVERSIONS:
-        raise InputError(f"unknown coordinate system {system!r} (ENU, NED or NWU)", path=file,
-                         field="Coordinate system")
-    delimiter = _delimiter(lines[header_index])
-    columns = [c.strip() for c in lines[header_index].rstrip("\r\n").split(delimiter)]
-    while columns and columns[-1] == "":
-        columns.pop()
-    rows = []
-    for n in range(header_index + 1, len(lines)):
-        line = lines[n].rstrip("\r\n")
-        if not line.strip() or line.lstrip().startswith("//"):
-            continue
-        fields = line.split(delimiter)
-        while len(fields) > len(columns) and fields[-1].strip() == "":
-            fields.pop()
-        if len(fields) != len(columns):
-            raise InputError(
-                f"{len(fields)} fields where the header has {len(columns)} (truncated line?)",
-                path=file, line=n + 1, field=columns[min(len(fields), len(columns)) - 1])
-        rows.append([_parse_number(v, file, n + 1, c) for v, c in zip(fields, columns)])
-    data = np.array(rows, dtype=float).reshape(-1, len(columns))
-    if rate is not None:
-        file_rate = float(rate)
-    return _RawFile(file, _sensor_id(file), file_rate, system, columns, data, header_index + 2)
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        text = raw.decode("latin-1")
+    text = text.lstrip("\ufeff")
+    if "\r" in text:
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    return text
 
 
-def _column(raw: _RawFile, names: tuple[str, ...]) -> np.ndarray | None:
-    if not all(n in raw.columns for n in names):
-        return None
-    return raw.data[:, [raw.columns.index(n) for n in names]]
+def _comment_info(text: str, file: Path, number: int, info: _HeaderInfo) -> None:
+    if m := _RATE.search(text):
+        value = float(m.group(1).replace(",", "."))
+        if (m.group(2) or "").lower() == "khz":
+            value *= 1000.0
+        if value <= 0:
+            raise InputError(f"the update rate must be positive, found {value:g} Hz", path=file,
+                             line=number, field="Update Rate")
+        info.rate = value
+    if m := _SYSTEM.search(text):
+        system = m.group(1).upper()
+        if system not in world_conversions():
+            raise InputError(f"unknown coordinate system {m.group(1)!r} (ENU, NED or NWU)",
+                             path=file, line=number, field="Coordinate system")
+        info.system = system
+    if m := _DEVICE.search(text):
+        info.device = m.group(1).upper()
 
 
-def _orientation(raw: _RawFile) -> np.ndarray:
-    """R_world_sensor (rows, 3, 3) in the file's own world frame (NaN when absent)."""
-    quat = _column(raw, _QUAT)
-    if quat is not None:
-        return quat_wxyz_to_matrix(quat)
-    mat = _column(raw, _MAT)
-    if mat is not None:
-        return mat.reshape(-1, 3, 3)
-    euler = _column(raw, _EULER)
-    if euler is not None:
-        return xsens_euler_to_matrix(euler[:, 0], euler[:, 1], euler[:, 2])
-    return np.full((len(raw.data), 3, 3), np.nan)
-
-
-def _unwrap(counter: np.ndarray, path: Path, first_line: int) -> np.ndarray:
-    if not np.isfinite(counter).all():
-        bad = int(np.argmin(np.isfinite(counter)))
-        raise InputError("PacketCounter is empty or not a number", path=path,
-                         line=first_line + bad, field="PacketCounter")
-    c = counter.astype(np.int64)
-    steps = np.diff(c) % _WRAP
-    return np.concatenate([[c[0]], c[0] + np.cumsum(steps)]) if len(c) else c
-
-
-def _files(path: Path) -> list[Path]:
-    if path.is_file():
-        return [path]
-    if path.is_dir():
-        files = sorted(p for p in path.iterdir() if p.suffix == ".txt" and _ID.search(p.name))
-        if not files:
-            raise InputError("no MT Manager exports (<prefix><sensor id>.txt) in the folder",
-                             path=path)
-        return files
-    files = sorted(path.parent.glob(path.name + "*.txt")) if path.parent.is_dir() else []
-    files = [f for f in files if _ID.search(f.name)]
-    if not files:
-        raise InputError("no file, folder or trial prefix with MT Manager exports", path=path)
-    return files
-
-
-def read_mtmanager(path: str | Path, rate: float | None = None) -> ImuRecording:
-    """Read a trial: a trial prefix, a folder or one file.
+def read_mtmanager_file(path: str | Path) -> MtManagerFile:
+    """Parse one export file: comments, header line, numbers (no time base yet).
 
     Args:
-        path: ``folder/`` or ``folder/MT_012005D6_009-001_`` or one ``...00B421E6.txt``.
-        rate: Sample rate [Hz] for files without ``// Update Rate:`` (overrides the files).
-
-    Returns:
-        The :class:`ImuRecording`.
+        path: One ``<prefix><sensor id>.txt`` file.
 
     Raises:
-        InputError: Naming the file, line and column of bad input.
+        InputError: An empty file, no header line with PacketCounter, a truncated line, a field
+            that is not a number (naming file, line and column).
     """
-    raws = [read_mtmanager_file(f, rate) for f in _files(Path(path))]
-    rates = {r.rate for r in raws if r.rate is not None}
-    if not rates:
-        raise InputError("no `// Update Rate:` in the files: give the rate (--rate HZ)",
-                         path=raws[0].path, field="Update Rate")
-    if len(rates) > 1:
-        raise InputError(f"sensors disagree on the rate: {sorted(rates)} Hz", path=raws[0].path,
-                         field="Update Rate")
-    hz = rates.pop()
-    counters = [_unwrap(_column(r, ("PacketCounter",))[:, 0], r.path, r.first_line)  # type: ignore[index]
-                for r in raws]
-    reference = next((c[0] for c in counters if len(c)), 0)
-    aligned = []
-    for c in counters:
-        if len(c):  # the same epoch: start within half a wrap of the reference
-            c = c + _WRAP * np.round((reference - c[0]) / _WRAP).astype(np.int64)
-        aligned.append(c)
-    start = min(int(c.min()) for c in aligned if len(c))
-    end = max(int(c.max()) for c in aligned if len(c))
+    file = Path(path)
+    text = _read_text(file)
+    if not text.strip():
+        raise InputError("empty file: an MT Manager export has `//` comment lines, a header line "
+                         "starting with PacketCounter and data rows", path=file, line=1,
+                         field="PacketCounter")
+    info = _HeaderInfo()
+    header, header_line, body_start = _find_header(text, file, info)
+    delimiter = detect_delimiter(header)
+    columns = split_header(header, delimiter)
+    _check_header(columns, file, header_line)
+    body = text[body_start:].rstrip("\n")
+    data = None
+    if "//" not in body and "\n\n" not in body:
+        data = parse_block(body, delimiter, len(columns))
+    warnings: list[str] = []
+    if data is not None:
+        numbers = header_line + 1 + np.arange(len(data), dtype=np.int64)
+    else:
+        lines, line_list = _data_lines(body, header, header_line, file, info, warnings)
+        lines = fit_fields(lines, line_list, delimiter, columns, file)
+        data = parse_numeric(lines, line_list, delimiter, columns, file)
+        numbers = np.asarray(line_list, dtype=np.int64)
+    sensor_id = _sensor_id(file, info.device, warnings)
+    return MtManagerFile(file, sensor_id, info.rate, info.system, columns, data, numbers,
+                         header_line, delimiter, warnings)
+
+
+def _find_header(text: str, file: Path, info: _HeaderInfo) -> tuple[str, int, int]:
+    """The header line, its 1-based number and where the data start; reads the comments."""
+    pos, number = 0, 0
+    while pos < len(text):
+        end = text.find("\n", pos)
+        end = len(text) if end < 0 else end
+        line = text[pos:end].strip()
+        number += 1
+        if line.startswith("//"):
+            _comment_info(line, file, number, info)
+        elif line:
+            return text[pos:end], number, end + 1
+        pos = end + 1
+    raise InputError("no header line: only comment lines, no line of column names starting "
+                     "with PacketCounter", path=file, line=number, field="PacketCounter")
+
+
+def _check_header(columns: list[str], file: Path, line: int) -> None:
+    lowered = [c.lower() for c in columns]
+    if "packetcounter" not in lowered:
+        raise InputError(f"the header line has no PacketCounter column (found "
+                         f"{', '.join(columns[:6])}{', ...' if len(columns) > 6 else ''}); "
+                         "export with the packet counter so lost packets can be found",
+                         path=file, line=line, field="PacketCounter")
+    twice = sorted({c for c in columns if lowered.count(c.lower()) > 1})
+    if twice:
+        raise InputError(f"columns named twice in the header: {', '.join(twice)}", path=file,
+                         line=line, field=twice[0])
+
+
+def _data_lines(body: str, header: str, header_line: int, file: Path, info: _HeaderInfo,
+                warnings: list[str]) -> tuple[list[str], list[int]]:
+    """Data lines and their numbers, skipping blank and comment lines (line by line)."""
+    lines: list[str] = []
+    numbers: list[int] = []
+    header_key = header.strip()
+    for k, line in enumerate(body.split("\n")):
+        number = header_line + 1 + k
+        text = line.strip()
+        if not text:
+            continue
+        if text.startswith("//"):
+            _comment_info(text, file, number, info)
+            continue
+        if text == header_key:
+            warnings.append(f"{file.name} line {number}: the header line repeated; skipped")
+            continue
+        lines.append(line)
+        numbers.append(number)
+    return lines, numbers
+
+
+def _sensor_id(file: Path, device: str | None, warnings: list[str]) -> str:
+    match = _ID_IN_NAME.search(file.name)
+    if match:
+        sid = match.group(1).upper()
+        if device is not None and device != sid:
+            warnings.append(f"{file.name}: the header says DeviceId {device} but the file name "
+                            f"says {sid}; using {sid}")
+        return sid
+    if device is not None:
+        return device
+    return normalize_sensor_id(file.stem)
+
+
+def trial_files(path: str | Path) -> list[Path]:
+    """The export files of a trial given by one file, a folder or a trial prefix.
+
+    A folder must hold the exports of one trial (``<prefix><8 hex digit id>.txt`` with one
+    prefix); a prefix ``folder/MT_012005D6_009-001_`` selects the files named prefix + id.
+
+    Raises:
+        InputError: Nothing found, or a folder with several trials (listing their prefixes).
+    """
+    p = Path(path)
+    if p.is_file():
+        return [p]
+    if p.is_dir():
+        exports = sorted(f for f in p.iterdir() if f.is_file() and _ID_IN_NAME.search(f.name))
+        if not exports:
+            others = sorted(f.name for f in p.iterdir())[:8]
+            raise InputError("no MT Manager exports (files named <trial prefix><8 hex digit "
+                             f"sensor id>.txt) in the folder; it holds: "
+                             f"{', '.join(others) or 'nothing'}", path=p, field="PATH")
+        prefixes: dict[str, int] = {}
+        for f in exports:
+            prefix = f.name[:-len("00B40000.txt")]
+            prefixes[prefix] = prefixes.get(prefix, 0) + 1
+        if len(prefixes) > 1:
+            listed = ", ".join(f"{k or '(no prefix)'} ({v} file{'s' if v > 1 else ''})"
+                               for k, v in prefixes.items())
+            raise InputError(f"the folder holds the exports of {len(prefixes)} trials: {listed}; "
+                             f"give one trial prefix, e.g. {p / next(iter(prefixes))}",
+                             path=p, field="PATH")
+        return exports
+    parent = p.parent if str(p.parent) else Path(".")
+    if parent.is_dir():
+        exports = sorted(f for f in parent.glob(_glob_escape(p.name) + "*")
+                         if f.is_file() and _ID_IN_NAME.fullmatch(f.name[len(p.name):]))
+        if exports:
+            return exports
+    raise InputError("no file, folder or trial prefix with MT Manager exports "
+                     "(<prefix><8 hex digit sensor id>.txt)", path=p, field="PATH")
+
+
+def _glob_escape(text: str) -> str:
+    return re.sub(r"([*?\[])", r"[\1]", text)
+
+
+@dataclass
+class _Placed:
+    """One file's rows on the trial's counter: unwrapped counters and kept rows."""
+
+    file: MtManagerFile
+    counter: np.ndarray  # (r,) unwrapped counter of the kept rows
+    rows: np.ndarray  # (r,) row indices into file.data (first occurrence of each counter)
+    wraps: bool  # a 16-bit counter (its epoch can shift by whole wraps)
+
+
+def read_mtmanager(path: str | Path, rate: float | None = None,
+                   sensor_map: Mapping[str, str] | None = None) -> ImuRecording:
+    """Read a trial of MT Manager exports: a trial prefix, a folder or one file.
+
+    Args:
+        path: ``folder/``, ``folder/MT_012005D6_009-001_`` (a trial prefix) or one
+            ``...00B421E6.txt``.
+        rate: Sample rate [Hz] for files without ``// Update Rate:`` (the command line's
+            ``--rate``). A file's own rate wins; a disagreement is reported in the warnings.
+            Without either, the rate comes from SampleTimeFine when the files hold it.
+        sensor_map: Sensor id -> segment: every mapped sensor must be in the trial; trial
+            sensors the map does not name are reported in the warnings.
+
+    Returns:
+        The :class:`ImuRecording` (ENU world, time from 0 at the trial's first sample).
+
+    Raises:
+        InputError: Naming the file, line and column of bad input; a rate that cannot be known;
+            files that disagree on the rate; mapped sensors missing from the trial.
+    """
+    files = [read_mtmanager_file(f) for f in trial_files(path)]
+    warnings = [w for f in files for w in f.warnings]
+    hz = _trial_rate(files, rate, warnings)
+    placed = [_place_counter(f, hz, warnings) for f in files]
+    _align_epochs(placed)
+    nonempty = [p for p in placed if len(p.counter)]
+    if not nonempty:
+        raise InputError("no data rows in any file of the trial", path=files[0].path,
+                         line=files[0].header_line + 1)
+    start = min(int(p.counter.min()) for p in nonempty)
+    end = max(int(p.counter.max()) for p in nonempty)
     n = end - start + 1
-    systems = {r.coordinate_system for r in raws}
-    sensors = {}
-    warnings = []
-    for raw, c in zip(raws, aligned):
-        stream = _stream(raw, c - start, n)
+    counter = start + np.arange(n, dtype=np.int64)
+    sensors: dict[str, SensorStream] = {}
+    for p in placed:
+        stream = _stream(p, start, n, counter, warnings)
         if stream.sensor_id in sensors:
-            raise InputError(f"sensor {stream.sensor_id} appears twice", path=raw.path)
+            raise InputError(f"sensor {stream.sensor_id} appears twice in the trial (also in "
+                             f"{sensors[stream.sensor_id].path})", path=p.file.path)
         sensors[stream.sensor_id] = stream
-        if stream.lost:
-            warnings.append(f"{stream.sensor_id}: {stream.lost} lost packets filled by slerp "
-                            "and flagged invalid")
-    return ImuRecording(np.arange(n) / hz, hz, sensors, "ENU", "/".join(sorted(systems)),
-                        warnings)
+        _span_warnings(stream, n, hz, warnings)
+    systems = sorted({f.coordinate_system for f in files})
+    recording = ImuRecording(time=np.arange(n) / hz, rate=hz, sensors=sensors,
+                             coordinate_system="ENU", source_coordinate_system="/".join(systems),
+                             source=[f.path for f in files], warnings=warnings)
+    if sensor_map is not None:
+        recording.warnings += check_sensor_ids(sensor_map, sensors, Path(path))
+    return recording
 
 
-def _stream(raw: _RawFile, index: np.ndarray, n: int) -> SensorStream:
-    W = _CONVERSIONS[raw.coordinate_system]
-    R_file = _orientation(raw)
+def _trial_rate(files: list[MtManagerFile], rate: float | None, warnings: list[str]) -> float:
+    declared = {f.rate for f in files if f.rate is not None}
+    if len(declared) > 1:
+        listed = ", ".join(f"{f.path.name}: {f.rate:g} Hz" for f in files if f.rate is not None)
+        raise InputError(f"the files of the trial disagree on the update rate ({listed})",
+                         path=files[0].path, field="Update Rate")
+    if rate is not None and (not np.isfinite(rate) or rate <= 0):
+        raise InputError(f"the rate must be a positive number of Hz, not {rate!r}",
+                         field="rate")
+    fine = [r for r in (_fine_rate(f) for f in files) if r is not None]
+    if declared:
+        hz = declared.pop()
+        if rate is not None and abs(rate - hz) > 1e-9 * hz:
+            warnings.append(f"the files declare `// Update Rate: {hz:g}Hz`; the rate given "
+                            f"({rate:g} Hz) is not used")
+    elif rate is not None:
+        hz = float(rate)
+    elif fine:
+        hz = float(np.median(fine))
+        warnings.append(f"no `// Update Rate:` in the files: {hz:g} Hz from SampleTimeFine")
+    else:
+        raise InputError("the sample rate is unknown: the files have no `// Update Rate:` line "
+                         "and no SampleTimeFine values; give it (read_mtmanager(..., rate=HZ) "
+                         "or --rate HZ on the command line)", path=files[0].path,
+                         field="Update Rate")
+    for f, r in zip(files, (_fine_rate(f) for f in files)):
+        if r is not None and abs(r - hz) > 0.02 * hz:
+            warnings.append(f"{f.path.name}: SampleTimeFine steps say {r:.4g} Hz but the "
+                            f"recording rate is {hz:g} Hz")
+    return hz
+
+
+def _fine_rate(file: MtManagerFile) -> float | None:
+    """Rate [Hz] from SampleTimeFine ticks (10 kHz) over single PacketCounter steps."""
+    fine = file.column("SampleTimeFine")
+    counter = file.column("PacketCounter")
+    if fine is None or counter is None:
+        return None
+    ok = np.isfinite(fine) & np.isfinite(counter)
+    if ok.sum() < 2:
+        return None
+    f, c = fine[ok], counter[ok]
+    step = np.mod(np.diff(c), _COUNTER_WRAP)
+    ticks = np.mod(np.diff(f), _FINE_WRAP)[step == 1]
+    if not len(ticks):
+        return None
+    median = float(np.median(ticks))
+    if median <= 0:
+        return None
+    close = ticks[np.abs(ticks - median) <= 0.1 * median]
+    rate = _FINE_HZ / float(np.mean(close))
+    return round(rate, 3)
+
+
+def _place_counter(file: MtManagerFile, hz: float, warnings: list[str]) -> _Placed:
+    """Unwrap the file's PacketCounter and drop rows that cannot be placed (with warnings)."""
+    k = file.index("PacketCounter")
+    if k is None:  # read_mtmanager_file guarantees the column; kept for the type checker
+        raise InputError("no PacketCounter column", path=file.path, line=file.header_line,
+                         field="PacketCounter")
+    raw = file.data[:, k]
+    rows = np.flatnonzero(np.isfinite(raw))
+    if len(rows) < len(raw):
+        missing = np.flatnonzero(~np.isfinite(raw))
+        lines = ", ".join(str(int(file.line_numbers[i])) for i in missing[:5])
+        warnings.append(f"{file.path.name}: {len(missing)} row(s) without a PacketCounter "
+                        f"cannot be placed in time and are skipped (line {lines}"
+                        f"{', ...' if len(missing) > 5 else ''})")
+    values = raw[rows]
+    bad = np.flatnonzero((values != np.round(values)) | (values < 0))
+    if len(bad):
+        i = rows[bad[0]]
+        raise InputError(f"PacketCounter must be a whole number >= 0, found {raw[i]!r}",
+                         path=file.path, line=int(file.line_numbers[i]),
+                         field=file.columns[k])
+    counter = values.astype(np.int64)
+    if len(counter) == 0:
+        return _Placed(file, counter, rows, wraps=True)
+    wraps = bool(counter.max() < _COUNTER_WRAP)
+    if not wraps:  # a counter wider than 16 bit: used as it is
+        unwrapped = counter
+    else:
+        unwrapped = _unwrap16(counter, file, rows, hz, warnings)
+    order_kept = _first_occurrences(unwrapped)
+    if len(order_kept) < len(unwrapped):
+        dup = len(unwrapped) - len(order_kept)
+        warnings.append(f"{file.path.name}: {dup} row(s) repeat a PacketCounter already read; "
+                        "the first row of each counter is kept")
+    if np.any(np.diff(unwrapped) < 0):
+        warnings.append(f"{file.path.name}: PacketCounter goes backwards "
+                        f"{int(np.sum(np.diff(unwrapped) < 0))} time(s); rows placed by counter")
+    return _Placed(file, unwrapped[order_kept], rows[order_kept], wraps)
+
+
+def _first_occurrences(values: np.ndarray) -> np.ndarray:
+    """Indices of the first occurrence of each distinct value, in file order."""
+    _, first = np.unique(values, return_index=True)
+    return np.sort(first)
+
+
+def _unwrap16(counter: np.ndarray, file: MtManagerFile, rows: np.ndarray, hz: float,
+              warnings: list[str]) -> np.ndarray:
+    """Unwrap a 16-bit counter; SampleTimeFine decides the wraps of long gaps."""
+    step16 = np.mod(np.diff(counter), _COUNTER_WRAP)
+    steps = np.where(step16 >= _COUNTER_WRAP // 2, step16 - _COUNTER_WRAP, step16)
+    fine = file.column("SampleTimeFine")
+    if fine is not None:
+        f = fine[rows]
+        ticks = np.mod(np.diff(f), _FINE_WRAP)
+        expected = ticks * hz / _FINE_HZ  # packets elapsed according to SampleTimeFine
+        known = np.isfinite(expected)
+        long_gap = known & (expected > _COUNTER_WRAP // 2 - 1024)
+        wraps = np.round((expected[long_gap] - step16[long_gap]) / _COUNTER_WRAP)
+        steps[long_gap] = step16[long_gap] + _COUNTER_WRAP * wraps.astype(np.int64)
+        off = known & (np.abs(expected - steps) > 0.5)
+        if off.any():
+            first = int(file.line_numbers[rows[1:][off][0]])
+            warnings.append(f"{file.path.name}: SampleTimeFine and PacketCounter disagree on "
+                            f"{int(off.sum())} step(s) (first at line {first}); PacketCounter "
+                            "is used")
+    return counter[0] + np.concatenate([[0], np.cumsum(steps)]).astype(np.int64)
+
+
+def _align_epochs(placed: list[_Placed]) -> None:
+    """Shift 16-bit counters by whole wraps to start within half a wrap of the first file's.
+
+    The sensors of one trial share the counter, but a sensor whose first packets were lost
+    across a wrap starts on the other side of it.
+    """
+    reference = next((int(p.counter[0]) for p in placed if len(p.counter)), None)
+    if reference is None:
+        return
+    for p in placed:
+        if len(p.counter) and p.wraps:
+            shift = int(np.round((reference - int(p.counter[0])) / _COUNTER_WRAP))
+            p.counter = p.counter + _COUNTER_WRAP * shift
+
+
+def _stream(p: _Placed, start: int, n: int, counter: np.ndarray,
+            warnings: list[str]) -> SensorStream:
+    file = p.file
+    W = world_conversions()[file.coordinate_system]
+    orientation = OrientationColumns.find(file.columns)
+    for message in orientation.warnings:
+        warnings.append(f"{file.path.name}: {message}")
+    data = file.data[p.rows]
+    R_file, source, notes = orientation_from_columns(orientation, data)
+    for message in notes:
+        warnings.append(f"{file.path.name}: {message}")
     R = W @ R_file
-    R_full = np.full((n, 3, 3), np.nan)
-    R_full[index] = R
-    valid = np.zeros(n, dtype=bool)
-    valid[index] = np.isfinite(R).all(axis=(1, 2))
-    _fill_gaps(R_full, valid, index)
     vectors: dict[str, np.ndarray | None] = {}
-    for name, cols in _VECTORS.items():
-        v = _column(raw, cols)
-        vectors[name] = None if v is None else _place(v, index, n)
-    free = next((_column(raw, cols) for cols in _FREE_ACC if _column(raw, cols) is not None),
-                None)
-    free_acc = None if free is None else _place(free @ W.T, index, n)
-    span = int(index.max() - index.min() + 1) if len(index) else 0
-    return SensorStream(raw.sensor_id, R_full, valid, vectors["acc"], free_acc, vectors["gyr"],
-                        vectors["mag"], len(raw.data), span - len(np.unique(index)),
-                        list(raw.columns), raw.path)
+    for name, prefix in _VECTORS.items():
+        vectors[name] = _sensor_vector(file, data, prefix, warnings)
+    vectors["free_acc"] = _free_acc(file, data, W, warnings)
+    for name, values in list(vectors.items()):
+        if values is not None and len(values) and not np.isfinite(values).any():
+            warnings.append(f"{file.path.name}: the {name} columns are empty in every row; "
+                            "ignored")
+            vectors[name] = None
+    if not orientation.available:
+        warnings.append(f"{file.path.name}: no orientation columns (Quat_q0..3, Mat[i][j] or "
+                        "Roll/Pitch/Yaw); the orientation is NaN and every sample invalid")
+    index = p.counter - start
+    return build_stream(file.sensor_id, index, n, R, vectors, rows=len(file.data),
+                        channels=list(file.columns), packet_counter=counter,
+                        orientation_source=source, path=file.path)
 
 
-def _place(values: np.ndarray, index: np.ndarray, n: int) -> np.ndarray:
-    out = np.full((n, values.shape[1]), np.nan)
-    out[index] = values
+def _sensor_vector(file: MtManagerFile, data: np.ndarray, prefix: str,
+                   warnings: list[str]) -> np.ndarray | None:
+    names = [prefix + a for a in "XYZ"]
+    where = [file.index(c) for c in names]
+    if all(k is None for k in where):
+        return None
+    if any(k is None for k in where):
+        absent = [c for c, k in zip(names, where) if k is None]
+        warnings.append(f"{file.path.name}: column(s) {', '.join(absent)} missing; those "
+                        "components are NaN")
+    return np.column_stack([data[:, k] if k is not None else np.full(len(data), np.nan)
+                            for k in where])
+
+
+def _free_acc(file: MtManagerFile, data: np.ndarray, W: np.ndarray,
+              warnings: list[str]) -> np.ndarray | None:
+    """Free acceleration in the ENU world from ``FreeAcc_<axis>`` columns."""
+    found = [(k, c[len("FreeAcc_"):].upper()) for k, c in enumerate(file.columns)
+             if c.lower().startswith("freeacc_")]
+    if not found:
+        return None
+    letters = world_axis_letters()
+    out = np.zeros((len(data), 3))
+    covered = np.zeros(3)
+    for k, axis in found:
+        if axis in letters:
+            direction = letters[axis]
+        elif axis in ("X", "Y", "Z"):
+            direction = W[:, "XYZ".index(axis)]
+        else:
+            warnings.append(f"{file.path.name}: column {file.columns[k]} names no world axis; "
+                            "ignored")
+            continue
+        out += data[:, k][:, None] * direction[None, :]
+        covered += np.abs(direction)
+    if np.any(covered == 0):
+        warnings.append(f"{file.path.name}: the FreeAcc columns do not cover three world axes; "
+                        "the missing components are NaN")
+        out[:, covered == 0] = np.nan
     return out
 
 
-def _fill_gaps(R: np.ndarray, valid: np.ndarray, index: np.ndarray) -> None:
-    """Slerp the orientation across gaps inside the sensor's span (flags stay invalid)."""
-    good = np.nonzero(valid)[0]
-    if len(good) < 2:
+def _span_warnings(stream: SensorStream, n: int, hz: float, warnings: list[str]) -> None:
+    """Lost packets, late start and early stop of one sensor, for the user."""
+    summary = gap_summary(stream.sensor_id, stream.gaps, hz)
+    if summary:
+        warnings.append(summary)
+    if not stream.received.any():
+        warnings.append(f"sensor {stream.sensor_id}: no data rows")
         return
-    missing = np.setdiff1d(np.arange(good[0], good[-1] + 1), good)
-    if not len(missing):
-        return
-    right = np.searchsorted(good, missing)
-    k0, k1 = good[right - 1], good[right]
-    t = (missing - k0) / (k1 - k0)
-    q = slerp(matrix_to_quat_wxyz(R[k0]), matrix_to_quat_wxyz(R[k1]), t)
-    R[missing] = quat_wxyz_to_matrix(q)
+    first, end = stream.span
+    if first > 0:
+        warnings.append(f"sensor {stream.sensor_id} starts {first / hz:.2f} s ({first} samples) "
+                        "after the trial's first sample; NaN and invalid before")
+    if end < n:
+        warnings.append(f"sensor {stream.sensor_id} stops {(n - end) / hz:.2f} s ({n - end} "
+                        "samples) before the trial's last sample; NaN and invalid after")

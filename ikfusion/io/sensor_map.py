@@ -1,47 +1,158 @@
-"""Sensor maps: which sensor id sits on which body segment (SPEC section 3)."""
+"""Sensor maps: which sensor id sits on which body segment (SPEC section 3).
+
+A sensor map is YAML::
+
+    sensors:
+      00B42279: Pelvis
+      00B4227C: RightUpperLeg
+    forward:            # optional: the sensor axis that points forward in the N-pose,
+      Pelvis: -z        # used only when a recording has too little movement to find it
+
+Every scalar is read as text, so an id such as ``00421234`` is never turned into a number.
+Segment names are the 23 MVN names of SPEC section 2.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from pathlib import Path
+from typing import Any
 
 import yaml
 
-from ..errors import ConfigError, InputError
+from ..errors import ConfigError
 from ..model.joints import SEGMENTS
+from .recording import check_sensor_ids, normalize_sensor_id
+
+__all__ = ["SensorMap", "check_sensors", "load_sensor_map", "parse_axis"]
 
 
-def load_sensor_map(path: str | Path) -> dict[str, str]:
-    """Read ``sensors: {<sensor id>: <segment>}``.
+class SensorMap(dict[str, str]):
+    """Sensor id -> segment, with the optional default mounting of the map.
+
+    Attributes:
+        path: The YAML file, when read from one.
+        forward: Segment -> the sensor axis pointing forward in the N-pose (``"x"``, ``"-z"``
+            ...); the default mounting used when the heading cannot be found from the data.
+    """
+
+    def __init__(self, sensors: Mapping[str, str], path: Path | None = None,
+                 forward: Mapping[str, str] | None = None) -> None:
+        super().__init__(sensors)
+        self.path = path
+        self.forward: dict[str, str] = dict(forward or {})
+
+    @property
+    def segments(self) -> list[str]:
+        """The mapped segments."""
+        return list(self.values())
+
+    def sensor_of(self, segment: str) -> str | None:
+        """The sensor id mapped to a segment, or None."""
+        return next((s for s, seg in self.items() if seg == segment), None)
+
+
+def _text_loader() -> type[yaml.SafeLoader]:
+    """A YAML loader that keeps every plain scalar as text (no ints, floats, bools)."""
+
+    class TextLoader(yaml.SafeLoader):
+        pass
+
+    TextLoader.yaml_implicit_resolvers = {
+        key: [(tag, regex) for tag, regex in resolvers
+              if tag in ("tag:yaml.org,2002:null", "tag:yaml.org,2002:merge")]
+        for key, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
+    }
+    return TextLoader
+
+
+def parse_axis(text: str) -> tuple[int, float]:
+    """``"x"``, ``"+y"``, ``"-z"`` -> (axis index, sign).
 
     Raises:
-        ConfigError: Not YAML, no ``sensors`` mapping, an unknown segment or a segment twice.
+        ValueError: Anything else.
     """
-    file = Path(path)
-    try:
-        doc = yaml.safe_load(file.read_text())
-    except OSError as err:
-        raise ConfigError(f"cannot read sensor map: {err.strerror}", path=file) from err
-    except yaml.YAMLError as err:
-        raise ConfigError(f"not valid YAML: {err}", path=file) from err
+    t = str(text).strip().lower()
+    sign = -1.0 if t.startswith("-") else 1.0
+    letter = t.lstrip("+-")
+    if letter not in ("x", "y", "z") or len(t) - len(letter) > 1:
+        raise ValueError(f"an axis is x, y or z with an optional sign (e.g. -z), not {text!r}")
+    return "xyz".index(letter), sign
+
+
+def sensor_map_from_dict(doc: Any, path: Path | None = None) -> SensorMap:
+    """Validate a parsed sensor-map document.
+
+    Raises:
+        ConfigError: No ``sensors`` mapping, an unknown segment (naming the key and listing the
+            valid names), a segment with two sensors, a bad ``forward`` entry.
+    """
     sensors = doc.get("sensors") if isinstance(doc, dict) else None
     if not isinstance(sensors, dict) or not sensors:
-        raise ConfigError("expected a mapping `sensors: {<sensor id>: <segment>}`", path=file,
+        raise ConfigError("expected a mapping `sensors: {<sensor id>: <segment>}`", path=path,
                           field="sensors")
     out: dict[str, str] = {}
     for sensor, segment in sensors.items():
-        key = str(sensor).upper()
-        if segment not in SEGMENTS:
-            raise ConfigError(f"unknown segment {segment!r}; segments: {', '.join(SEGMENTS)}",
-                              path=file, field=f"sensors.{sensor}")
-        if segment in out.values():
-            raise ConfigError(f"segment {segment} has two sensors", path=file,
+        key = normalize_sensor_id(sensor)
+        if not isinstance(segment, str) or segment not in SEGMENTS:
+            raise ConfigError(f"unknown segment {segment!r} for sensor {sensor}; valid segments: "
+                              f"{', '.join(SEGMENTS)}", path=path, field=f"sensors.{sensor}")
+        if key in out:
+            raise ConfigError(f"sensor {key} is mapped twice", path=path,
                               field=f"sensors.{sensor}")
-        out[key] = str(segment)
-    return out
+        if segment in out.values():
+            other = next(s for s, seg in out.items() if seg == segment)
+            raise ConfigError(f"segment {segment} has two sensors ({other} and {key})",
+                              path=path, field=f"sensors.{sensor}")
+        out[key] = segment
+    forward = doc.get("forward") or {}
+    if not isinstance(forward, dict):
+        raise ConfigError("`forward` must map segments to axes, e.g. `forward: {Pelvis: -z}`",
+                          path=path, field="forward")
+    for segment, axis in forward.items():
+        if segment not in out.values():
+            raise ConfigError(f"`forward` names {segment!r}, which has no sensor in the map "
+                              f"(mapped: {', '.join(out.values())})", path=path,
+                              field=f"forward.{segment}")
+        try:
+            parse_axis(axis)
+        except ValueError as err:
+            raise ConfigError(str(err), path=path, field=f"forward.{segment}") from None
+    unknown = sorted(set(doc) - {"sensors", "forward"})
+    if unknown:
+        raise ConfigError(f"unknown key(s) {', '.join(unknown)}; a sensor map has `sensors` and "
+                          "optionally `forward`", path=path, field=unknown[0])
+    return SensorMap(out, path, {str(k): str(v) for k, v in forward.items()})
 
 
-def check_sensors(sensor_map: dict[str, str], found: Iterable[str],
+def load_sensor_map(path: str | Path) -> SensorMap:
+    """Read a sensor map YAML file.
+
+    Args:
+        path: The YAML file (e.g. ``configs/sensors/lower8.yaml``).
+
+    Returns:
+        The :class:`SensorMap` (a dict sensor id -> segment).
+
+    Raises:
+        ConfigError: Unreadable or not YAML, or an invalid map (see
+            :func:`sensor_map_from_dict`); the message names the file and the key.
+    """
+    file = Path(path)
+    try:
+        text = file.read_text()
+    except OSError as err:
+        raise ConfigError(f"cannot read the sensor map: {err.strerror}", path=file) from err
+    try:
+        doc = yaml.load(text, Loader=_text_loader())  # noqa: S506 - a SafeLoader subclass
+    except yaml.YAMLError as err:
+        mark = getattr(err, "problem_mark", None)
+        raise ConfigError(f"not valid YAML: {getattr(err, 'problem', err)}", path=file,
+                          line=None if mark is None else mark.line + 1) from err
+    return sensor_map_from_dict(doc, file)
+
+
+def check_sensors(sensor_map: Mapping[str, str], found: Iterable[str],
                   source: str | Path | None = None) -> list[str]:
     """Check that every mapped sensor was recorded.
 
@@ -51,10 +162,4 @@ def check_sensors(sensor_map: dict[str, str], found: Iterable[str],
     Raises:
         InputError: Listing the missing ids and the ids found.
     """
-    ids = sorted(str(f).upper() for f in found)
-    missing = sorted(set(sensor_map) - set(ids))
-    if missing:
-        raise InputError(f"mapped sensors not in the recording: {', '.join(missing)}; "
-                         f"sensors found: {', '.join(ids)}", path=source, field="sensors")
-    return [f"sensor {s} is in the recording but not in the sensor map (ignored)"
-            for s in ids if s not in sensor_map]
+    return check_sensor_ids(sensor_map, found, source)

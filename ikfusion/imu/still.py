@@ -1,0 +1,217 @@
+"""Still windows: where every sensor is at rest (for calibration), found or checked.
+
+Two measures, per sensor and window:
+
+* the orientation spread: RMS angle [deg] between the window's orientations and their mean,
+  from the sign-aligned quaternion mean ``m`` (``RMS angle ~= 2 sqrt(1 - |m|^2)`` for small
+  spreads), computed for every window at once with cumulative sums;
+* the mean angular speed [rad/s] from the gyroscope, when it was recorded.
+
+A window is still when no sensor exceeds either threshold. :func:`find_still_window` returns the
+stillest window of 2 s (else 1.5 s, else 1 s) within the first seconds of the recording.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..rotations import matrix_to_quat_wxyz, quat_wxyz_to_matrix
+
+
+@dataclass(frozen=True)
+class StillThresholds:
+    """Largest motion of a still sensor.
+
+    Attributes:
+        spread_deg: RMS orientation spread about the window mean [deg].
+        gyr: Mean angular speed [rad/s] (used when gyroscopes were recorded).
+    """
+
+    spread_deg: float = 3.0
+    gyr: float = 0.25
+
+
+def aligned_quaternions(R_world_sensor: np.ndarray) -> np.ndarray:
+    """(N, 4) quaternions (w, x, y, z) with continuous signs; NaN where the input is NaN.
+
+    Consecutive quaternions are made to lie in the same hemisphere, comparing each one with the
+    last finite one before it.
+    """
+    q = np.full((len(R_world_sensor), 4), np.nan)
+    good = np.isfinite(R_world_sensor).all(axis=(1, 2))
+    if not good.any():
+        return q
+    q[good] = matrix_to_quat_wxyz(R_world_sensor[good])
+    idx = np.flatnonzero(good)
+    dots = np.einsum("ij,ij->i", q[idx[1:]], q[idx[:-1]])
+    signs = np.concatenate([[1.0], np.cumprod(np.where(dots < 0.0, -1.0, 1.0))])
+    q[idx] *= signs[:, None]
+    return q
+
+
+def _window_sums(values: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray]:
+    """Sums of finite rows and counts of finite rows over every window of ``width`` rows."""
+    finite = np.isfinite(values).all(axis=1) if values.ndim == 2 else np.isfinite(values)
+    filled = np.where(finite[:, None] if values.ndim == 2 else finite, values, 0.0)
+    csum = np.concatenate([np.zeros((1,) + filled.shape[1:]), np.cumsum(filled, axis=0)])
+    ccount = np.concatenate([[0], np.cumsum(finite)])
+    return csum[width:] - csum[:-width], ccount[width:] - ccount[:-width]
+
+
+def spread_per_window(R_world_sensor: np.ndarray, width: int) -> np.ndarray:
+    """RMS orientation spread [deg] of every window of ``width`` samples (inf if mostly NaN)."""
+    q = aligned_quaternions(R_world_sensor)
+    sums, counts = _window_sums(q, width)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = sums / counts[:, None]
+        norm2 = np.einsum("ij,ij->i", mean, mean)
+        spread = np.degrees(2.0 * np.sqrt(np.clip(1.0 - norm2, 0.0, None)))
+    spread[counts < 0.8 * width] = np.inf
+    return spread
+
+
+def gyr_per_window(gyr: np.ndarray, width: int) -> np.ndarray:
+    """Mean angular speed [rad/s] of every window of ``width`` samples (inf if mostly NaN)."""
+    speed = np.linalg.norm(gyr, axis=1)
+    sums, counts = _window_sums(speed, width)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = sums / counts
+    mean[counts < 0.8 * width] = np.inf
+    return mean
+
+
+def window_motion(R_world_sensor: Mapping[str, np.ndarray], window: tuple[int, int],
+                  gyr: Mapping[str, np.ndarray | None] | None = None
+                  ) -> dict[str, tuple[float, float | None]]:
+    """Per sensor: (orientation spread [deg], mean angular speed [rad/s] or None) in a window."""
+    start, end = window
+    out: dict[str, tuple[float, float | None]] = {}
+    for name, R in R_world_sensor.items():
+        spread = float(spread_per_window(R[start:end], end - start)[0])
+        g = None if gyr is None else gyr.get(name)
+        speed = None if g is None else float(gyr_per_window(g[start:end], end - start)[0])
+        out[name] = (spread, speed)
+    return out
+
+
+def moved_sensors(motion: Mapping[str, tuple[float, float | None]],
+                  thresholds: StillThresholds) -> list[str]:
+    """Readable list of the sensors above a threshold, e.g. ``RightLowerLeg (12.3 deg)``."""
+    moved = []
+    for name, (spread, speed) in motion.items():
+        parts = []
+        if not np.isfinite(spread):
+            parts.append("no data")
+        elif spread > thresholds.spread_deg:
+            parts.append(f"{spread:.1f} deg RMS")
+        if speed is not None and np.isfinite(speed) and speed > thresholds.gyr:
+            parts.append(f"{np.degrees(speed):.0f} deg/s")
+        if parts:
+            moved.append(f"{name} ({', '.join(parts)})")
+    return moved
+
+
+def check_still(R_world_sensor: Mapping[str, np.ndarray], window: tuple[int, int], rate: float,
+                gyr: Mapping[str, np.ndarray | None] | None = None,
+                thresholds: StillThresholds | None = None) -> dict[str, float]:
+    """Check that every sensor is still in a window.
+
+    Returns:
+        Sensor -> orientation spread [deg].
+
+    Raises:
+        InputError: Naming the sensors that moved (and by how much) or the bad window.
+    """
+    limits = thresholds or StillThresholds()
+    n = min(len(R) for R in R_world_sensor.values())
+    start, end = window
+    if not 0 <= start < end <= n or end - start < 2:
+        raise InputError(f"the calibration window {start / rate:.2f}-{end / rate:.2f} s is not "
+                         f"inside the recording (0-{n / rate:.2f} s) or is shorter than two "
+                         "samples", field="calibrate")
+    motion = window_motion(R_world_sensor, window, gyr)
+    moved = moved_sensors(motion, limits)
+    if moved:
+        raise InputError(f"the calibration window {start / rate:.2f}-{end / rate:.2f} s is not "
+                         f"still: {', '.join(moved)} (a still sensor stays under "
+                         f"{limits.spread_deg:g} deg RMS and {np.degrees(limits.gyr):.0f} "
+                         "deg/s); give a window where the subject stands still",
+                         field="calibrate")
+    return {name: m[0] for name, m in motion.items()}
+
+
+def find_still_window(R_world_sensor: Mapping[str, np.ndarray], rate: float,
+                      gyr: Mapping[str, np.ndarray | None] | None = None,
+                      seconds: tuple[float, ...] = (2.0, 1.5, 1.0), search: float = 10.0,
+                      thresholds: StillThresholds | None = None) -> tuple[int, int]:
+    """The stillest window near the start of a recording.
+
+    Every window of each length in ``seconds`` (longest first) that starts within the first
+    ``search`` seconds is scored by its most moving sensor (spread and angular speed, each
+    divided by its threshold); the first length whose best window is still wins.
+
+    Args:
+        R_world_sensor: Sensor (or segment) -> (N, 3, 3) orientations.
+        rate: Sample rate [Hz].
+        gyr: Sensor -> (N, 3) angular rate [rad/s] (or None), when recorded.
+        seconds: Window lengths to try [s].
+        search: Windows start within this many seconds of the start [s].
+        thresholds: What still means.
+
+    Returns:
+        (start, end) sample indices.
+
+    Raises:
+        InputError: No still window: naming the sensors that moved in the stillest one.
+    """
+    limits = thresholds or StillThresholds()
+    n = min(len(R) for R in R_world_sensor.values())
+    best: tuple[float, int, int] | None = None
+    for length in seconds:
+        width = max(2, int(round(length * rate)))
+        if width > n:
+            continue
+        starts = min(n - width + 1, max(1, int(round(search * rate)) + 1))
+        score = np.zeros(starts)
+        for name, R in R_world_sensor.items():
+            score = np.maximum(score, spread_per_window(R[:starts + width - 1], width)[:starts]
+                               / limits.spread_deg)
+            g = None if gyr is None else gyr.get(name)
+            if g is not None and np.isfinite(g).any():
+                speed = gyr_per_window(g[:starts + width - 1], width)[:starts]
+                score = np.maximum(score, np.where(np.isfinite(speed), speed, 0.0) / limits.gyr)
+        k = int(np.argmin(score))
+        if best is None or score[k] < best[0]:
+            best = (float(score[k]), k, k + width)
+        if score[k] <= 1.0:
+            return k, k + width
+    if best is None:
+        raise InputError(f"the recording ({n} samples) is shorter than a "
+                         f"{min(seconds):g} s calibration window", field="calibrate")
+    window = (best[1], best[2])
+    moved = moved_sensors(window_motion(R_world_sensor, window, gyr), limits)
+    raise InputError(f"no still window of {min(seconds):g} s in the first {search:g} s: in the "
+                     f"stillest one ({window[0] / rate:.2f}-{window[1] / rate:.2f} s) "
+                     f"{', '.join(moved) or 'the sensors'} moved; stand still at the start or "
+                     "give the window (--calibrate T0:T1)", field="calibrate")
+
+
+def mean_rotation(R: np.ndarray) -> np.ndarray:
+    """Quaternion (chordal L2) mean (3, 3) of rotations (k, 3, 3); NaN entries are ignored.
+
+    The mean quaternion is the dominant eigenvector of ``sum q q^T``, which does not depend on
+    the signs of the quaternions.
+
+    Raises:
+        InputError: No finite rotation.
+    """
+    good = np.isfinite(R).all(axis=(1, 2))
+    if not good.any():
+        raise InputError("no finite orientation to average", field="calibrate")
+    q = matrix_to_quat_wxyz(R[good])
+    _, vectors = np.linalg.eigh(q.T @ q)
+    return quat_wxyz_to_matrix(vectors[:, -1])

@@ -1,0 +1,101 @@
+"""Sensor maps: the shipped maps, validation, ids kept as text, the default mounting."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+from ikfusion.errors import ConfigError
+from ikfusion.io import SensorMap, load_sensor_map, read_mtmanager
+from ikfusion.model import SEGMENTS
+from ikfusion.paths import configs_dir
+
+AWINDA16 = dict(zip(
+    ["00B458EE", "00B458F1", "00B458F8", "00B458F4", "00B457D7", "00B458EB", "00B458EF",
+     "00B458EA", "00B458F3", "00B458F0", "00B458EC", "00B458F6", "00B457DC", "00B457D9",
+     "00B458F5", "00B458ED"],
+    ["Pelvis", "LeftUpperLeg", "LeftLowerLeg", "LeftFoot", "RightUpperLeg", "RightLowerLeg",
+     "RightFoot", "LeftShoulder", "LeftUpperArm", "LeftForeArm", "LeftHand", "RightShoulder",
+     "RightUpperArm", "RightForeArm", "RightHand", "Head"]))
+MVN17 = {"Pelvis", "T8", "Head", "RightShoulder", "RightUpperArm", "RightForeArm", "RightHand",
+         "LeftShoulder", "LeftUpperArm", "LeftForeArm", "LeftHand", "RightUpperLeg",
+         "RightLowerLeg", "RightFoot", "LeftUpperLeg", "LeftLowerLeg", "LeftFoot"}
+OPENSIM_TO_MVN = {"pelvis": "Pelvis", "torso": "T8", "femur_r": "RightUpperLeg",
+                  "tibia_r": "RightLowerLeg", "calcn_r": "RightFoot", "femur_l": "LeftUpperLeg",
+                  "tibia_l": "LeftLowerLeg", "calcn_l": "LeftFoot"}
+
+
+def test_shipped_maps() -> None:
+    folder = configs_dir() / "sensors"
+    mvn17 = load_sensor_map(folder / "mvn17.yaml")
+    assert set(mvn17.values()) == MVN17 and len(mvn17) == 17
+    assert all(s.startswith("00B4") and len(s) == 8 for s in mvn17)
+    assert "placeholder" in (folder / "mvn17.yaml").read_text().lower()
+    assert dict(load_sensor_map(folder / "awinda16.yaml")) == AWINDA16
+    lower8 = load_sensor_map(folder / "lower8.yaml")
+    assert set(lower8.values()) == set(OPENSIM_TO_MVN.values())
+    for smap in (mvn17, lower8):
+        assert set(smap.values()) <= set(SEGMENTS)
+        assert set(smap.forward) <= set(smap.values())
+
+
+def test_lower8_matches_the_opensense_trial(shared_data: Path) -> None:
+    folder = shared_data / "xsens/opensense_walk"
+    root = ET.parse(folder / "myIMUMappings.xml").getroot()
+    expected = {}
+    for element in root.iter():
+        name, body = element.findtext("name_in_model"), element.get("name")
+        if name and body and body.startswith("MT_"):
+            expected[body[-8:].upper()] = OPENSIM_TO_MVN[name.replace("_imu", "")]
+    if not expected:  # the mapping file's layout: <ExperimentalSensor name="_00B42268">
+        for element in root.iter("ExperimentalSensor"):
+            sid = element.get("name", "").lstrip("_").upper()
+            expected[sid] = OPENSIM_TO_MVN[element.findtext("name_in_model").replace("_imu", "")]
+    lower8 = load_sensor_map(configs_dir() / "sensors/lower8.yaml")
+    assert dict(lower8) == expected
+    rec = read_mtmanager(folder, sensor_map=lower8)
+    assert not any("not in the sensor map" in w for w in rec.warnings)
+
+
+@pytest.mark.parametrize(
+    ("text", "field", "words"),
+    [
+        ("sensors:\n  00B40001: Pelvis\n  00B40002: Knee\n", "sensors.00B40002",
+         "unknown segment 'Knee' for sensor 00B40002; valid segments: Pelvis, L5"),
+        ("sensors:\n  00B40001: Pelvis\n  00B40002: Pelvis\n", "sensors.00B40002",
+         "segment Pelvis has two sensors (00B40001 and 00B40002)"),
+        ("sensors: []\n", "sensors", "expected a mapping"),
+        ("sensor:\n  00B40001: Pelvis\n", "sensors", "expected a mapping"),
+        ("sensors:\n  00B40001: Pelvis\nforward:\n  Head: z\n", "forward.Head", "no sensor"),
+        ("sensors:\n  00B40001: Pelvis\nforward:\n  Pelvis: w\n", "forward.Pelvis",
+         "x, y or z"),
+        ("sensors:\n  00B40001: Pelvis\nextra: 1\n", "extra", "unknown key"),
+    ],
+)
+def test_bad_maps_name_file_and_key(tmp_path: Path, text: str, field: str, words: str) -> None:
+    path = tmp_path / "map.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as err:
+        load_sensor_map(path)
+    assert err.value.path == path and err.value.field == field
+    assert words in str(err.value)
+
+
+def test_ids_that_look_like_numbers_stay_text(tmp_path: Path) -> None:
+    path = tmp_path / "map.yaml"
+    path.write_text("sensors:\n  00421234: Pelvis\n  1E400000: Head\n  00b4abcd: T8\n"
+                    "forward:\n  Pelvis: -z\n")
+    smap = load_sensor_map(path)
+    assert isinstance(smap, SensorMap) and smap.path == path
+    assert list(smap) == ["00421234", "1E400000", "00B4ABCD"]
+    assert smap.forward == {"Pelvis": "-z"} and smap.sensor_of("T8") == "00B4ABCD"
+
+
+def test_not_yaml(tmp_path: Path) -> None:
+    path = tmp_path / "map.yaml"
+    path.write_text("sensors: {00B40001: Pelvis\n")
+    with pytest.raises(ConfigError, match="not valid YAML") as err:
+        load_sensor_map(path)
+    assert err.value.path == path
