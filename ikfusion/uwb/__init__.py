@@ -6,9 +6,27 @@
 - :mod:`~ikfusion.uwb.locate`: the positioning solver (position + transmit time, NLOS handling);
 - :mod:`~ikfusion.uwb.dop`: dilution of precision at points and as maps;
 - :mod:`~ikfusion.uwb.placement`: choosing reader positions;
-- :mod:`~ikfusion.uwb.plot`: figures (needs matplotlib).
+- :mod:`~ikfusion.uwb.plot`: figures (needs matplotlib);
+- :mod:`~ikfusion.uwb.calibration`: reader positions and clock offsets from a calibration log
+  (:func:`calibrate`), with its first estimate, CasADi problem, frames and simulator in the
+  ``calibration_*`` modules.
 """
 
+from .calibration import (
+    CalibrationError,
+    CalibrationOptions,
+    OutlierReport,
+    UwbCalibration,
+    calibrate,
+    load_heights,
+    load_survey,
+)
+from .calibration_sim import (
+    SimulatedCalibration,
+    hall_constellation,
+    simulate_calibration_log,
+    wand_path,
+)
 from .constellation import (
     DEFAULT_RANGE_SIGMA,
     Constellation,
@@ -59,6 +77,17 @@ from .toa_model import predict_toa, toa_residuals
 
 __all__ = [
     "DEFAULT_RANGE_SIGMA",
+    "CalibrationError",
+    "CalibrationOptions",
+    "OutlierReport",
+    "SimulatedCalibration",
+    "UwbCalibration",
+    "calibrate",
+    "hall_constellation",
+    "load_heights",
+    "load_survey",
+    "simulate_calibration_log",
+    "wand_path",
     "FIX_COLUMNS",
     "TOA_COLUMNS",
     "Constellation",

@@ -15,7 +15,10 @@ than unknowns (4 in 3-D with clock, 3 in 2-D with clock) there is no value (NaN)
 
 Reader positions known only to within a covariance ``C_m`` (from calibration) add, to first
 order, ``u_m^T C_m u_m`` to the variance of range m; the expected position sigma is then
-``sqrt(trace_pos((H^T W H)^-1))`` with ``W = diag(1 / (sigma^2 + u_m^T C_m u_m))``.
+``sqrt(trace_pos((H^T W H)^-1))`` with ``W = diag(1 / (sigma^2 + u_m^T C_m u_m))``. A joint
+covariance of all readers, shape (3M, 3M) (a calibration's posterior, whose readers' errors are
+correlated), gives the full range-error covariance ``Sigma = sigma^2 I + U C U^T`` (``U`` holds
+the ``u_m^T`` block-diagonally) and ``W = Sigma^-1``.
 """
 
 from __future__ import annotations
@@ -113,7 +116,9 @@ def compute_dop(
         clock: Whether the transmit time is unknown (TOA) or known (two-way ranges).
         coverage: Coverage radius [m]; readers farther away do not count. None: unlimited.
         sigma: Range noise [m].
-        reader_covariances: Reader position covariances, shape (M, 3, 3) [m^2], or None.
+        reader_covariances: Reader position covariances [m^2]: one per reader, shape
+            (M, 3, 3), or the joint covariance of all readers, shape (3M, 3M) (order x1, y1,
+            z1, x2, ...), or None.
 
     Returns:
         The DOP values.
@@ -142,10 +147,16 @@ def compute_dop(
         expected = sigma * position
     else:
         cov = np.asarray(reader_covariances, dtype=float)
-        if cov.shape != (readers.shape[0], 3, 3):
-            raise InputError(f"reader covariances must have shape ({readers.shape[0]}, 3, 3)")
-        extra = np.einsum("gmi,mij,gmj->gm", u, cov, u)
-        qw, okw = _covariance(h, in_range / (sigma**2 + extra))
+        m = readers.shape[0]
+        if cov.shape == (3 * m, 3 * m):
+            qw, okw = _correlated_covariance(h, in_range, u, cov, sigma)
+        elif cov.shape == (m, 3, 3):
+            extra = np.einsum("gmi,mij,gmj->gm", u, cov, u)
+            qw, okw = _covariance(h, in_range / (sigma**2 + extra))
+        else:
+            raise InputError(
+                f"reader covariances must have shape ({m}, 3, 3) or ({3 * m}, {3 * m})"
+            )
         okw &= ok
         expected = np.where(
             okw, np.sqrt(np.sum(np.diagonal(qw, axis1=1, axis2=2)[:, :dims], axis=1)), np.nan
@@ -167,8 +178,15 @@ def constellation_dop(
     mode: Mode = "3d",
     clock: bool = True,
     use_reader_covariance: bool = True,
+    reader_covariances: npt.ArrayLike | None = None,
 ) -> Dop:
-    """:func:`compute_dop` with the constellation's readers, coverage, sigma and covariances."""
+    """:func:`compute_dop` with the constellation's readers, coverage, sigma and covariances.
+
+    ``reader_covariances`` (shape (M, 3, 3) or (3M, 3M) [m^2], e.g. a calibration's joint
+    posterior) replaces the constellation's per-reader covariances when given.
+    """
+    if reader_covariances is None and use_reader_covariance:
+        reader_covariances = constellation.position_covariances
     return compute_dop(
         p_world_points,
         constellation.positions,
@@ -176,8 +194,25 @@ def constellation_dop(
         clock=clock,
         coverage=constellation.range,
         sigma=constellation.sigma,
-        reader_covariances=constellation.position_covariances if use_reader_covariance else None,
+        reader_covariances=reader_covariances if use_reader_covariance else None,
     )
+
+
+def _correlated_covariance(
+    h: np.ndarray, in_range: np.ndarray, u: np.ndarray, joint: np.ndarray, sigma: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(H^T Sigma^-1 H)^-1`` per point, shape (G, k, k), and whether it exists.
+
+    ``Sigma = sigma^2 I + U C U^T`` over the readers in range (see the module docstring).
+    """
+    m = u.shape[1]
+    blocks = joint.reshape(m, 3, m, 3)
+    ranges = sigma**2 * np.eye(m) + np.einsum("gmi,minj,gnj->gmn", u, blocks, u)
+    pair = in_range[:, :, None] & in_range[:, None, :]
+    ranges = np.where(pair, ranges, 0.0) + np.where(in_range, 0.0, 1.0)[:, :, None] * np.eye(m)
+    h_in = np.where(in_range[..., None], h, 0.0)
+    weighted = np.linalg.solve(ranges, h_in)
+    return inverse_batched(np.einsum("gmi,gmj->gij", h_in, weighted))
 
 
 def _covariance(h: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -291,6 +326,7 @@ def dop_map(
     step: float | None = None,
     margin: float | None = None,
     use_reader_covariance: bool = True,
+    reader_covariances: npt.ArrayLike | None = None,
 ) -> DopMap:
     """DOP over a grid covering the capture area and the readers, at one tag height.
 
@@ -302,6 +338,8 @@ def dop_map(
         step: Grid spacing [m]; by default about 10 000 points over the area (at least 5 cm).
         margin: Extent around area and readers [m]; by default 5 % of the larger side.
         use_reader_covariance: Propagate the readers' position covariances when present.
+        reader_covariances: Reader covariances replacing the constellation's, shape (M, 3, 3)
+            or the joint (3M, 3M) [m^2] (see :func:`compute_dop`).
 
     Returns:
         The map.
@@ -318,7 +356,12 @@ def dop_map(
     gx, gy = np.meshgrid(x, y)
     pts = np.column_stack([gx.ravel(), gy.ravel(), np.full(gx.size, height)])
     dop = constellation_dop(
-        constellation, pts, mode=mode, clock=clock, use_reader_covariance=use_reader_covariance
+        constellation,
+        pts,
+        mode=mode,
+        clock=clock,
+        use_reader_covariance=use_reader_covariance,
+        reader_covariances=reader_covariances,
     )
     shape = gx.shape
     shaped = Dop(**{name: getattr(dop, name).reshape(shape) for name in dop.__dataclass_fields__})

@@ -17,15 +17,21 @@ from .dop import GOOD_SIGMA, DopMap
 _VMAX_RANGE_CM = (5.0, 50.0)
 
 
-def _matplotlib() -> tuple[Any, Any]:
-    """Figure and canvas classes, with a clear error when matplotlib is missing."""
+def matplotlib_classes(purpose: str = "drawing DOP maps",
+                       instead: str = "pass --no-plot to print the numbers only"
+                       ) -> tuple[Any, Any]:
+    """Figure and Agg canvas classes, with a clear error when matplotlib is missing.
+
+    Args:
+        purpose: What needs the plot, for the message (e.g. ``"drawing DOP maps"``).
+        instead: What the user can do without matplotlib.
+    """
     try:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
     except ImportError as err:  # pragma: no cover - depends on the environment
         raise InputError(
-            "drawing DOP maps needs matplotlib: pip install 'ikfusion[plot]' "
-            "(or pass --no-plot to print the numbers only)"
+            f"{purpose} needs matplotlib: pip install 'ikfusion[plot]' (or {instead})"
         ) from err
     return Figure, FigureCanvasAgg
 
@@ -154,7 +160,7 @@ def plot_dop_map(
     Returns:
         The PNG path.
     """
-    figure_cls, canvas_cls = _matplotlib()
+    figure_cls, canvas_cls = matplotlib_classes()
     size, wide = _layout(dop_map.x[-1] - dop_map.x[0], dop_map.y[-1] - dop_map.y[0], 1)
     fig = figure_cls(figsize=size, layout="constrained")
     ax = fig.add_subplot(1, 1, 1)
@@ -184,7 +190,7 @@ def plot_placement(
     Returns:
         The PNG path.
     """
-    figure_cls, canvas_cls = _matplotlib()
+    figure_cls, canvas_cls = matplotlib_classes()
     size, wide = _layout(naive.x[-1] - naive.x[0], naive.y[-1] - naive.y[0], 2)
     fig = figure_cls(figsize=size, layout="constrained")
     vmax = colour_limit_cm([naive, chosen])

@@ -1,0 +1,130 @@
+"""Input files of a calibration: reader heights and surveyed reader positions (YAML).
+
+- heights (SPEC section 3): ``heights: {<reader id>: <z in metres>, ...}``;
+- survey (for the optional alignment to a user frame): ``points: {<reader id>: [x, y, z], ...}``
+  in metres, in the user's world frame (Z up).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from ..errors import ConfigError
+
+
+def load_heights(path: str | Path) -> dict[str, float]:
+    """Read a heights file ``heights: {<reader id>: <z in metres>, ...}`` (SPEC section 3).
+
+    Raises:
+        ConfigError: Naming the file and the key at fault.
+    """
+    path = Path(path)
+    data = _load_yaml(path)
+    if not isinstance(data, Mapping) or "heights" not in data:
+        raise ConfigError(
+            "expected a mapping 'heights: {<reader id>: <z in metres>}'",
+            path=path,
+            field="heights",
+        )
+    return heights_from_mapping(data["heights"], source=path)
+
+
+def heights_from_mapping(value: object, *, source: Path | None = None) -> dict[str, float]:
+    """Validate ``{reader id: height [m]}``.
+
+    Raises:
+        ConfigError: For a non-mapping, an empty id or a height that is not a finite number.
+    """
+    if not isinstance(value, Mapping) or not value:
+        raise ConfigError(
+            "expected a non-empty mapping {<reader id>: <z in metres>}",
+            path=source,
+            field="heights",
+        )
+    out: dict[str, float] = {}
+    for key, raw in value.items():
+        rid = str(key).strip()
+        if not rid:
+            raise ConfigError("empty reader id", path=source, field="heights")
+        z = _finite(raw)
+        if z is None:
+            raise ConfigError(
+                f"expected a height in metres, found {raw!r}",
+                path=source,
+                field=f"heights.{rid}",
+            )
+        out[rid] = z
+    return out
+
+
+def load_survey(path: str | Path) -> dict[str, np.ndarray]:
+    """Read surveyed reader positions ``points: {<reader id>: [x, y, z], ...}`` [m].
+
+    Raises:
+        ConfigError: Naming the file and the key at fault.
+    """
+    path = Path(path)
+    data = _load_yaml(path)
+    if not isinstance(data, Mapping) or not isinstance(data.get("points"), Mapping):
+        raise ConfigError(
+            "expected a mapping 'points: {<reader id>: [x, y, z]}'", path=path, field="points"
+        )
+    return survey_from_mapping(data["points"], source=path)
+
+
+def survey_from_mapping(value: object, *, source: Path | None = None) -> dict[str, np.ndarray]:
+    """Validate ``{reader id: [x, y, z]}`` [m].
+
+    Raises:
+        ConfigError: For a malformed point.
+    """
+    if not isinstance(value, Mapping):
+        raise ConfigError(
+            "expected a mapping {<reader id>: [x, y, z]}", path=source, field="points"
+        )
+    out: dict[str, np.ndarray] = {}
+    for key, raw in value.items():
+        rid = str(key).strip()
+        values = raw.tolist() if isinstance(raw, np.ndarray) else raw
+        numbers = [_finite(v) for v in values] if isinstance(values, list | tuple) else []
+        if len(numbers) != 3 or any(v is None for v in numbers):
+            raise ConfigError(
+                f"expected [x, y, z] in metres, found {raw!r}",
+                path=source,
+                field=f"points.{rid}",
+            )
+        out[rid] = np.array(numbers, dtype=float)
+    return out
+
+
+def _load_yaml(path: Path) -> object:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as err:
+        raise ConfigError(f"cannot read file: {err.strerror}", path=path) from err
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        mark = getattr(err, "problem_mark", None)
+        raise ConfigError(
+            f"not valid YAML: {err}", path=path, line=None if mark is None else mark.line + 1
+        ) from err
+
+
+def _finite(value: object) -> float | None:
+    """A finite number, also from a string (PyYAML reads ``1e-4`` without a dot as text)."""
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, str):
+        try:
+            value = float(value)
+        except ValueError:
+            return None
+    if not isinstance(value, int | float) or not math.isfinite(value):
+        return None
+    return float(value)
