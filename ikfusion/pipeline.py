@@ -14,6 +14,7 @@ import numpy as np
 
 from .ik import Frame, Motion, Solver
 from .imu.calibration import Calibration, calibrate_recording
+from .imu.stance import StanceThresholds, foot_still
 from .io.recording import ImuRecording
 from .model.human_model import HumanModel
 
@@ -28,22 +29,24 @@ class SolvedRecording:
 
 
 def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str],
-                          calibration: Calibration) -> list[Frame]:
+                          calibration: Calibration,
+                          stance: StanceThresholds | None = None) -> list[Frame]:
     """One frame per sample: calibrated segment orientations of the valid samples.
 
-    The feet's angular speeds [rad/s] come along when their sensors recorded gyroscopes.
+    The feet's stance from their IMUs (gyroscopes when recorded, else orientations) comes
+    along for contact detection.
     """
     streams = recording.segment_streams(sensor_map)
     R_segment = calibration.segment_orientations(
         {s: st.R_world_sensor for s, st in streams.items()})
-    speeds = {s: np.linalg.norm(st.gyr, axis=1)  # |omega| is frame-independent
-              for s, st in streams.items() if st.gyr is not None and s.endswith("Foot")}
+    still = {s: foot_still(st.R_world_sensor, recording.rate, st.gyr, stance)
+             for s, st in streams.items() if s in ("LeftFoot", "RightFoot")}
     frames = []
     for k, t in enumerate(recording.time):
         frames.append(Frame(float(t), {s: R_segment[s][k] for s in R_segment
                                        if streams[s].valid[k]},
-                            angular_speeds={s: float(v[k]) for s, v in speeds.items()
-                                            if np.isfinite(v[k])}))
+                            feet_still={s: bool(v[k]) for s, v in still.items()
+                                        if np.isfinite(v[k])}))
     return frames
 
 
@@ -84,8 +87,11 @@ def solve_recording(recording: ImuRecording, sensor_map: Mapping[str, str], mode
                                             window[1] / recording.rate)
     cal = calibrate_recording(recording, sensor_map, window_s, forward=forward, pose=pose)
     warnings += cal.warnings
-    frames = frames_from_recording(recording, sensor_map, cal)
-    motion = (solver or Solver(model)).solve(frames, progress=progress, total=len(frames))
+    solver = solver or Solver(model)
+    st = solver.settings
+    frames = frames_from_recording(recording, sensor_map, cal,
+                                   StanceThresholds(st.still_rate, st.still_duration))
+    motion = solver.solve(frames, progress=progress, total=len(frames))
     motion.warnings = warnings + motion.warnings
     knee = knee_warning(motion)
     if knee:

@@ -5,6 +5,12 @@ the lowest points of the body. It leaves when the *sensed* pose (every joint bet
 segments set from the targets, before the no-slip constraints bend anything) lifts it above the
 lowest point or pulls it away from its anchor: a planted point cannot reveal lift-off by its own
 motion, since the constraint holds it. Hints given with a frame override the detection.
+
+When the feet carry IMUs, their stance (:mod:`ikfusion.imu.stance`) is stronger evidence than
+the kinematics: a still foot keeps its planted points, a still foot near the floor is planted at
+once where the sensed pose puts it relative to the points planted so far, and a moving foot lets
+go as soon as the other foot stands still (the body is handed over to the still foot, so a
+kinematic threshold missed by a few centimetres cannot hold a swinging foot on the floor).
 """
 
 from __future__ import annotations
@@ -58,7 +64,7 @@ class ContactThresholds:
     leave_distance: float
     settle_speed: float
     tilt_deg: float
-    still_rate: float
+    still_relative: float
 
     @classmethod
     def from_settings(cls, settings: object) -> ContactThresholds:
@@ -69,8 +75,11 @@ class ContactThresholds:
 def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: ContactThresholds,
                      hints: Mapping[str, bool] | None = None,
                      foot_pitch: np.ndarray | None = None,
-                     foot_rate: np.ndarray | None = None) -> ContactState:
+                     foot_still: np.ndarray | None = None,
+                     p_solved: np.ndarray | None = None) -> ContactState:
     """Let go of planted points the current frame's sensed pose lifts (run before solving).
+
+    With ``foot_still``, also plant the points of still feet and hand the body over to them.
 
     Args:
         state: Current state.
@@ -80,32 +89,83 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         hints: Name -> in contact, overriding the detection for those points.
         foot_pitch: (k,) pitch [rad] of each point's foot (toe down positive), NaN when unknown.
             A foot pitched toe-down cannot stand on its heel, one pitched toe-up not on its toes.
-        foot_rate: (k,) angular speed [rad/s] of each point's foot from its gyroscope, NaN when
-            unknown. A foot turning slower than ``still_rate`` keeps its planted points (sensor
-            noise in the pose cannot lift a foot the gyroscope says is still).
+        foot_still: (k,) 1 where each point's foot stands still by its IMU, 0 where it moves,
+            NaN when unknown. Sensor noise in the pose cannot lift a still foot.
+        p_solved: (k, 3) contact point positions of the last solved pose [m]: where points
+            planted by stance are anchored (on or above the floor; anchors settle down).
 
     Returns:
-        A new state (the same anchors, fewer active points).
+        A new state: the same anchors for the points that stay, fewer active points, and
+        anchors for the points planted by stance.
     """
     th = thresholds
     active = state.active.copy()
     height_rel = p_sensed[:, 2] - p_sensed[:, 2].min()
-    drift, other_age = _drift_from_other_foot(state.names, active, state.anchors, p_sensed,
-                                              state.age)
-    # Two planted feet that disagree: the foot planted earlier lets go (toe-off).
-    pulled = (drift > th.leave_distance) & (state.age >= other_age)
     tilted = _tilted(state.names, foot_pitch, np.radians(th.tilt_deg))
-    leave = active & ((height_rel > th.leave_relative) | pulled | tilted)
-    if foot_rate is not None:
-        leave &= ~(np.nan_to_num(np.asarray(foot_rate, dtype=float), nan=np.inf) < th.still_rate)
+    still = np.zeros(len(active), dtype=bool)
+    handed_over = np.zeros(len(active), dtype=bool)
+    plant = np.zeros(len(active), dtype=bool)
+    if foot_still is not None:
+        still = np.asarray(foot_still, dtype=float) == 1.0
+        moving = np.asarray(foot_still, dtype=float) == 0.0
+        # A moving foot lets go once the other foot stands planted and still; a still foot
+        # low in the sensed pose is planted while the other foot holds the body (after a
+        # flight the usual touch-down, near the floor and slow, plants the landing feet).
+        handed_over = active & moving & _other_foot(state.names, active & still)
+        plant = (~active & still & (height_rel < th.still_relative) & ~tilted
+                 & _other_foot(state.names, active))
+        handed_over |= active & moving & _other_foot(state.names, plant)
+    staying = active & ~handed_over
+    drift, other_age = _drift_from_other_foot(state.names, staying, state.anchors, p_sensed,
+                                              state.age)
+    # Two planted feet that disagree: the foot planted earlier lets go (toe-off), even a
+    # still one (its anchor is out of date); a still foot ignores the sensed height and pitch.
+    pulled = (drift > th.leave_distance) & (state.age >= other_age)
+    lifted = ((height_rel > th.leave_relative) | tilted) & ~still
+    leave = handed_over | (staying & (lifted | pulled))
     for i, name in enumerate(state.names):
         if hints and name in hints:
             leave[i] = active[i] and not hints[name]
-    if active.any() and not (active & ~leave).any() and not hints:
+            plant[i] = not active[i] and bool(hints[name]) and plant[i]
+    if active.any() and not (active & ~leave).any() and not plant.any() and not hints:
         # Without a flight hint the lowest planted point of the sensed pose keeps the body down.
         candidates = np.where(active, p_sensed[:, 2], np.inf)
         leave[int(np.argmin(candidates))] = False
-    return ContactState(state.names, active & ~leave, state.anchors.copy(), state.age.copy())
+    anchors, age = state.anchors.copy(), state.age.copy()
+    if plant.any():
+        if p_solved is not None:
+            anchors[plant] = p_solved[plant]
+        else:
+            reference = active & ~leave if (active & ~leave).any() else active
+            reference &= ~_same_foot_mask(state.names, plant)
+            anchors[plant] = _anchor_from_sensed(p_sensed, anchors, reference, plant)
+        anchors[plant, 2] = np.maximum(anchors[plant, 2], th.floor_z)
+        age[plant] = 0.0
+    return ContactState(state.names, (active & ~leave) | plant, anchors, age)
+
+
+def _same_foot_mask(names: Sequence[str], mask: np.ndarray) -> np.ndarray:
+    """Per point: does its own foot have a point in ``mask``?"""
+    feet = np.array([_foot_of(n) for n in names])
+    return np.array([bool((mask & (feet == f)).any()) for f in feet])
+
+
+def _other_foot(names: Sequence[str], mask: np.ndarray) -> np.ndarray:
+    """Per point: does the *other* foot have a point in ``mask``?"""
+    feet = np.array([_foot_of(n) for n in names])
+    return np.array([bool((mask & (feet != f)).any()) for f in feet])
+
+
+def _anchor_from_sensed(p_sensed: np.ndarray, anchors: np.ndarray, reference: np.ndarray,
+                        plant: np.ndarray) -> np.ndarray:
+    """Anchors [m] for the ``plant`` points.
+
+    The sensed pose is shifted onto the ``reference`` points' anchors (where sensed when there
+    is no reference point).
+    """
+    offset = (np.mean(anchors[reference] - p_sensed[reference], axis=0) if reference.any()
+              else np.zeros(3))
+    return p_sensed[plant] + offset
 
 
 def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.ndarray,

@@ -23,8 +23,9 @@ class Frame:
         position_weights: Site name -> scalar weight [1/m^2] or (3, 3) information matrix.
         root_position: Optional target for the pelvis origin ``p_world_pelvis`` [m] (a planner's
             or a ballistic path), with weight ``root_position_weight`` [1/m^2].
-        angular_speeds: Segment name -> angular speed [rad/s] from its gyroscope, when the
-            recording has one (contact detection uses the feet's).
+        feet_still: Foot segment (``LeftFoot``/``RightFoot``) -> its IMU says it stands still
+            (:func:`ikfusion.imu.stance.foot_still`); absent when unknown. Contact detection
+            keeps a still foot planted and hands the body over to it.
     """
 
     time: float
@@ -35,4 +36,4 @@ class Frame:
     position_weights: Mapping[str, float | np.ndarray] = field(default_factory=dict)
     root_position: np.ndarray | None = None
     root_position_weight: float = 1.0
-    angular_speeds: Mapping[str, float] = field(default_factory=dict)
+    feet_still: Mapping[str, bool] = field(default_factory=dict)

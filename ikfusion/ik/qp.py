@@ -110,6 +110,10 @@ def _call(backend: str, H: np.ndarray, c: np.ndarray, G: np.ndarray | None, h: n
     return np.asarray(x)
 
 
+#: Backends that solve these small dense QPs exactly (OSQP is approximate at its defaults).
+_EXACT_BACKENDS = ("daqp", "proxqp")
+
+
 def solve_qp(problem: QpProblem, backend: str = DEFAULT_BACKEND,
              slack_weight: float = 1e8) -> QpSolution:
     """Solve the step; fall back to the penalised-slack relaxation when it is infeasible.
@@ -126,6 +130,13 @@ def solve_qp(problem: QpProblem, backend: str = DEFAULT_BACKEND,
     x = _call(backend, p.H, p.c, G, h, A, b, p.lb, p.ub)
     if x is not None:
         return QpSolution(x)
+    # A numerical failure on a degenerate but feasible step (a limit active exactly where a
+    # planted point holds) is not infeasibility: another exact backend first.
+    for other in _EXACT_BACKENDS:
+        if other != backend and other in qpsolvers.available_solvers:
+            x = _call(other, p.H, p.c, G, h, A, b, p.lb, p.ub)
+            if x is not None:
+                return QpSolution(x)
     # Infeasible (or a numerical failure): relax, with a milder penalty and another backend
     # before giving up, since a heavy penalty makes the relaxed problem ill-conditioned.
     attempts = [(backend, slack_weight), (backend, slack_weight * 1e-4)]

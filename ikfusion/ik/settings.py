@@ -45,7 +45,9 @@ class SolverSettings:
     leave_distance: float = 0.02
     settle_speed: float = 0.2
     tilt_deg: float = 5.0
-    still_rate: float = 0.5
+    still_relative: float = 0.06
+    still_rate: float = 0.6
+    still_duration: float = 0.1
     speed_window: int = 1
     detection_smoothing: float = 0.5
 

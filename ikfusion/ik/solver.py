@@ -228,7 +228,7 @@ class Solver:
             self._pitch = self._smooth(self._pitch, self._foot_pitch(self._q, tracked))  # type: ignore[arg-type]
             self._contacts = release_contacts(self._contacts, self._p_sensed, self.thresholds,
                                               frame.contacts, self._pitch,
-                                              self._foot_rates(frame))
+                                              self._feet_still(frame), self._history[-1][1])
         self.contact_constraint.set_anchors(self._contacts.active, self._contacts.anchors)
         self.floor_limit.enabled = ~self._contacts.active
         flight = not first and not self._contacts.active.any()
@@ -339,13 +339,16 @@ class Solver:
         q[2] += self.settings.floor_z - z.min()
         return q
 
-    def _foot_rates(self, frame: Frame) -> np.ndarray | None:
-        """Angular speed [rad/s] of each contact point's foot from the frame, NaN if unknown."""
-        if not frame.angular_speeds:
+    def _feet_still(self, frame: Frame) -> np.ndarray | None:
+        """1 where each contact point's foot stands still by its IMU, 0 moving, NaN unknown."""
+        if not frame.feet_still:
             return None
-        return np.array([frame.angular_speeds.get(
-            f"{'Left' if n.startswith('Left') else 'Right'}Foot", np.nan)
-            for n in self.contact_names], dtype=float)
+        out = np.full(len(self.contact_names), np.nan)
+        for i, name in enumerate(self.contact_names):
+            still = frame.feet_still.get(f"{'Left' if name.startswith('Left') else 'Right'}Foot")
+            if still is not None:
+                out[i] = float(still)
+        return out
 
     def _smooth(self, previous: np.ndarray, current: np.ndarray) -> np.ndarray:
         """Exponential smoothing of the contact-detection signals (sensor noise is white)."""

@@ -128,7 +128,8 @@ def test_a_failing_qp_never_crashes_the_solve(human: HumanModel, rng, monkeypatc
 
 
 def test_a_still_foot_keeps_its_contacts(human: HumanModel) -> None:
-    """The sensed pose says the left foot lifted, its gyroscope says it did not move."""
+    """The sensed pose says the left foot lifted, its IMU says it stands still (and the right
+    foot moves): the left foot keeps its contacts and the right one lets go."""
     solver = Solver(human)
     q0 = human.neutral()
     segments = ("Pelvis", "LeftUpperLeg", "LeftLowerLeg", "LeftFoot", "RightUpperLeg",
@@ -137,8 +138,9 @@ def test_a_still_foot_keeps_its_contacts(human: HumanModel) -> None:
     assert all(solver.step(Frame(0.0, still)).contacts.values())
     lifted_q = human.configuration({"jLeftHip_flex": 40.0, "jLeftKnee_flex": 60.0})
     lifted = {s: human.segment_rotation(lifted_q, s) for s in segments}
-    held = solver.step(Frame(1 / 60, lifted, angular_speeds={"LeftFoot": 0.1, "RightFoot": 0.1}))
-    assert held.contacts["LeftHeel"]
+    held = solver.step(Frame(1 / 60, lifted, feet_still={"LeftFoot": True, "RightFoot": False}))
+    assert held.contacts["LeftHeel"] and held.contacts["LeftToe"]
+    assert not held.contacts["RightHeel"] and not held.contacts["RightToe"]
     fresh = Solver(human)
     fresh.step(Frame(0.0, still))
     released = fresh.step(Frame(1 / 60, lifted))

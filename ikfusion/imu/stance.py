@@ -1,0 +1,106 @@
+"""Stance of a foot from its IMU: the foot is flat on the floor while its sensor does not turn.
+
+In walking and running a foot in stance is still for a tenth of a second or more, while a swinging
+foot turns at several rad/s (it passes through low rates only for an instant). A foot is
+therefore *still* where its angular speed stays below a threshold for at least a minimum
+duration. The angular speed comes from the gyroscope when recorded (it is the same in every
+frame, so no calibration is needed); otherwise from successive orientations, which is only as
+good as the orientation output is smooth.
+
+This is what pedestrian dead reckoning calls a zero-velocity detector; the solver uses it to keep
+a still foot planted and to hand the body over to it from a foot that moves (see
+:mod:`ikfusion.ik.contacts`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..rotations import log_so3
+
+
+@dataclass(frozen=True)
+class StanceThresholds:
+    """What a still foot means.
+
+    Attributes:
+        max_rate: Angular speed below which the foot may be still [rad/s].
+        min_duration: Shortest still stretch that counts [s] (a swinging foot passes through
+            low rates only for an instant).
+        window: Width of the running maximum taken over the angular speed [s].
+    """
+
+    max_rate: float = 0.6
+    min_duration: float = 0.1
+    window: float = 0.05
+
+
+def angular_speed(R_world_sensor: np.ndarray, rate: float, gyr: np.ndarray | None = None
+                  ) -> np.ndarray:
+    """|omega| [rad/s] per sample, from the gyroscope when given, else from the orientations.
+
+    Args:
+        R_world_sensor: (N, 3, 3) orientations (NaN where missing).
+        rate: Sample rate [Hz].
+        gyr: (N, 3) angular rate in the sensor frame [rad/s], or None.
+
+    Returns:
+        (N,) angular speed, NaN where unknown.
+    """
+    if gyr is not None:
+        return np.linalg.norm(np.asarray(gyr, dtype=float), axis=1)
+    n = len(R_world_sensor)
+    speed = np.full(n, np.nan)
+    if n < 2:
+        return speed
+    R = np.asarray(R_world_sensor, dtype=float)
+    good = np.isfinite(R).all(axis=(1, 2))
+    pair = good[:-1] & good[1:]
+    step = np.full(n - 1, np.nan)
+    relative = np.swapaxes(R[:-1][pair], -1, -2) @ R[1:][pair]
+    step[pair] = np.linalg.norm(log_so3(relative), axis=-1) * rate
+    speed[1:-1] = np.fmax(step[:-1], step[1:])  # the larger neighbour: never hides a turn
+    speed[0], speed[-1] = step[0], step[-1]
+    return speed
+
+
+def _running_max(x: np.ndarray, width: int) -> np.ndarray:
+    """Centred running maximum over ``width`` samples; NaN counts as large."""
+    padded = np.pad(np.nan_to_num(x, nan=np.inf), width // 2, mode="edge")
+    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * (width // 2) + 1)
+    return windows.max(axis=1)[: len(x)]
+
+
+def _drop_short_runs(mask: np.ndarray, min_length: int) -> np.ndarray:
+    """``mask`` without its True runs shorter than ``min_length`` samples."""
+    out = mask.copy()
+    edges = np.diff(np.r_[0, mask.astype(np.int8), 0])
+    for start, end in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+        if end - start < min_length:
+            out[start:end] = False
+    return out
+
+
+def foot_still(R_world_sensor: np.ndarray, rate: float, gyr: np.ndarray | None = None,
+               thresholds: StanceThresholds | None = None) -> np.ndarray:
+    """Where a foot IMU says the foot stands still (offline: looks ahead ``min_duration``).
+
+    Args:
+        R_world_sensor: (N, 3, 3) the foot sensor's orientations (ENU world).
+        rate: Sample rate [Hz].
+        gyr: (N, 3) its angular rate [rad/s] in the sensor frame, when recorded.
+        thresholds: What still means.
+
+    Returns:
+        (N,) 1.0 still, 0.0 moving, NaN unknown (no valid sample there).
+    """
+    th = thresholds or StanceThresholds()
+    speed = angular_speed(R_world_sensor, rate, gyr)
+    width = max(1, int(round(th.window * rate)))
+    calm = _running_max(speed, width) < th.max_rate
+    still = _drop_short_runs(calm, max(1, int(round(th.min_duration * rate))))
+    out = still.astype(float)
+    out[~np.isfinite(speed)] = np.nan
+    return out
