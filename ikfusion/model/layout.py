@@ -34,6 +34,10 @@ TAG_SITES: tuple[str, ...] = ("HeadTop", "LeftFootTop", "RightFootTop")
 #: Foot contact points.
 CONTACT_SITES: tuple[str, ...] = ("LeftHeel", "LeftToe", "RightHeel", "RightToe")
 
+#: The heel lies behind the ankle joint by this fraction of the foot length (the toe tip lies
+#: ahead of it by the rest); BVH skeletons, which have no heel, are scaled with the same rule.
+HEEL_BEHIND_ANKLE = 0.22
+
 # de Leva (1996) male: mass fraction, CoM fraction from the proximal joint toward the distal
 # point, radii of gyration / length about the segment's X (antero-posterior), Y (medio-lateral)
 # and Z (longitudinal) axes.
@@ -160,7 +164,7 @@ def _skeleton_points(body: Body) -> tuple[dict[str, np.ndarray], dict[str, np.nd
         hip = np.array([0.0, y, hip_z])
         knee = hip - [0.0, 0.0, d("upper_leg")]
         ankle = np.array([0.0, y, d("ankle_height")])
-        heel_x = -0.22 * d("foot_length")
+        heel_x = -HEEL_BEHIND_ANKLE * d("foot_length")
         ball = np.array([heel_x + 0.72 * d("foot_length"), y, 0.012 * H])
         p[f"{side_name}UpperLeg"], tip[f"{side_name}UpperLeg"] = hip, knee
         p[f"{side_name}LowerLeg"], tip[f"{side_name}LowerLeg"] = knee, ankle

@@ -64,9 +64,10 @@ centres, ``ankle_height`` the ankle above the lowest point of the rest foot, ``h
 ankle height + lower + upper leg (legs straight), ``shoulder_height`` and ``height`` from the hip
 joints up the rest trunk to the shoulder joints and to the top of the head (the head's End Site,
 else its joint). ``foot_length`` is the ankle -> toe-tip distance along the rest foot's heading
-divided by 0.85: a BVH foot has no heel point, and in MVN's foot model the heel lies behind the
-ankle by 15 % of the foot length. Marker-based skeletons (CMU, SFU) put the toe End Site at the
-toe marker above the floor, so their ``ankle_height`` is a few centimetres short.
+divided by ``1 - HEEL_BEHIND_ANKLE``: a BVH foot has no heel point, and the model puts the heel
+behind the ankle by that fraction of the foot length (so the model's own BVH maps back exactly).
+Marker-based skeletons (CMU, SFU) put the toe End Site at the toe marker above the floor, so
+their ``ankle_height`` is a few centimetres short.
 """
 
 from __future__ import annotations
@@ -80,6 +81,7 @@ import numpy.typing as npt
 
 from ..errors import InputError
 from ..io.bvh import BvhMotion, Up, guess_bvh_scale, rotation_world_file
+from ..model.layout import HEEL_BEHIND_ANKLE
 from ..rotations import (
     exp_so3,
     log_so3,
@@ -866,7 +868,8 @@ def _body_dims(
             if points.size:
                 rel = points - rest[foot]
                 horizontal = rel - np.outer(rel @ up, up)
-                feet.append(float(np.max(np.linalg.norm(horizontal, axis=1))) / 0.85)
+                feet.append(float(np.max(np.linalg.norm(horizontal, axis=1)))
+                             / (1.0 - HEEL_BEHIND_ANKLE))
                 ankles.append(float(-np.min(rel @ up)))
     dims["hand"] = float(np.mean(hands)) if hands and max(hands) > 0 else None
     dims["foot_length"] = float(np.mean(feet)) if feet and max(feet) > 0 else None

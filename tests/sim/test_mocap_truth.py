@@ -56,3 +56,27 @@ def test_truth_file_has_the_documented_keys(sfu_walk, tmp_path: Path) -> None:
             assert key in npz.files
         assert npz["p_world_site"].shape == (len(sfu_walk.time), 24, 3)
         assert npz["joint_angles"].shape == (len(sfu_walk.time), 66)
+
+
+def test_bvh_to_model_to_bvh_keeps_positions_within_a_millimetre(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """The model's own BVH, mapped back onto a body scaled to it and written again, lands on the
+    same joint and End Site positions (the body dimensions are recovered from the skeleton)."""
+    from ikfusion.io.bvh import read_bvh
+    from ikfusion.model import HumanModel
+    from ikfusion.results.bvh_export import write_motion_bvh
+    from ikfusion.sim.gait import GaitParameters, generate_gait
+    from ikfusion.sim.mocap import motion_from_bvh
+
+    model = HumanModel.default()
+    walk = generate_gait(model, GaitParameters(duration=2.5), rate=60.0)
+    write_motion_bvh(tmp_path / "first.bvh", model, walk.q, 1.0 / 60.0)
+    back = motion_from_bvh(tmp_path / "first.bvh", rate=60.0)
+    assert len(back.q) == len(walk.q)
+    write_motion_bvh(tmp_path / "second.bvh", back.model, back.q, 1.0 / 60.0)
+    first, second = read_bvh(tmp_path / "first.bvh"), read_bvh(tmp_path / "second.bvh")
+    assert first.skeleton().joint_names == second.skeleton().joint_names
+    a, b = first.world_poses(up="z"), second.world_poses(up="z")
+    joints = np.linalg.norm(a.p_world_joint - b.p_world_joint, axis=2)
+    ends = np.linalg.norm(a.p_world_end_site - b.p_world_end_site, axis=2)
+    assert joints.max() < 1e-3, joints.max()
+    assert ends.max() < 1e-3, ends.max()

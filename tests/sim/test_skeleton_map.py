@@ -10,6 +10,7 @@ import pytest
 
 from ikfusion.errors import InputError
 from ikfusion.io.bvh import BvhSkeleton, read_bvh, write_bvh
+from ikfusion.model.layout import HEEL_BEHIND_ANKLE
 from ikfusion.rotations import (
     angle_between,
     axis_rotation,
@@ -120,7 +121,7 @@ def test_tpose_and_npose_closed_form(tmp_path: Path, up: str) -> None:
     assert dims["hip_width"] == pytest.approx(0.18)
     assert dims["shoulder_width"] == pytest.approx(2 * 0.17)
     assert dims["ankle_height"] == pytest.approx(0.06)
-    assert dims["foot_length"] == pytest.approx(0.20 / 0.85)
+    assert dims["foot_length"] == pytest.approx(0.20 / (1.0 - HEEL_BEHIND_ANKLE))
     assert dims["hip_height"] == pytest.approx(0.06 + 0.41 + 0.42)
     # Hips 5 cm above the hip joints; head top 0.1+0.12+0.12+0.15+0.1+0.18 above the hips.
     assert dims["height"] == pytest.approx(0.89 + 0.05 + 0.77)
