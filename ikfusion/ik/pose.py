@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,9 +20,9 @@ class Pose:
         contacts: Contact point name -> in contact.
         solve_time: Wall time of the solve [s].
         iterations: Gauss-Newton steps taken.
-        residuals: Task name -> residual summary (orientation errors [deg], position [m],
-            contact slide [m]).
         relaxed: True when constraints had to be relaxed this frame.
+        residual_source: Computes :attr:`residuals` when first asked for (so a solve that does
+            not look at them does not pay for them).
     """
 
     model: HumanModel
@@ -31,8 +31,21 @@ class Pose:
     contacts: dict[str, bool]
     solve_time: float
     iterations: int
-    residuals: dict[str, dict[str, float]] = field(default_factory=dict)
     relaxed: bool = False
+    residual_source: Callable[[], dict[str, dict[str, float]]] | None = field(default=None,
+                                                                              repr=False)
+    _residuals: dict[str, dict[str, float]] | None = field(default=None, init=False, repr=False)
+
+    @property
+    def residuals(self) -> dict[str, dict[str, float]]:
+        """Task name -> residual summary.
+
+        Orientation errors [deg] per tracked segment, position errors [m] per targeted site,
+        slide [m] of each planted contact point from its anchor.
+        """
+        if self._residuals is None:
+            self._residuals = self.residual_source() if self.residual_source else {}
+        return self._residuals
 
     def segment_rotation(self, name: str) -> np.ndarray:
         """``R_world_segment``."""

@@ -13,9 +13,10 @@ Global translation without aiding comes from chaining contacts: the planted foot
 
 from __future__ import annotations
 
+import copy
 import time
 from collections import deque
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import replace
 from typing import Any
 
@@ -255,10 +256,8 @@ class Solver:
                 break
             relaxed = relaxed or solution.relaxed
             conf.update(conf.integrate(solution.dq))
-            slide = self.contact_constraint.slide_m(conf)
-            held = not np.any(slide[np.isfinite(slide)] > s.constraint_tolerance)
-            if np.max(np.abs(solution.dq)) < s.step_tolerance and held:
-                break
+            if np.max(np.abs(solution.dq)) < s.step_tolerance:
+                break  # planted points are then held exactly by the projection below
         relaxed = self._project_on_constraints(conf) or relaxed
         q = conf.q.copy()
         if first:
@@ -303,16 +302,27 @@ class Solver:
         """Remove the linearisation residual of the contacts with minimum-norm steps.
 
         The Gauss-Newton loop may stop while large steps (a target out of reach) still leave a
-        second-order error on planted points; a few QPs with only the constraints and
-        ``1/2 |dq|^2`` bring it under ``constraint_tolerance`` so planted feet never slide.
+        second-order error on planted points; a few minimum-norm steps on the contact rows (or,
+        if those do not converge, QPs with only the constraints and ``1/2 |dq|^2``) bring it
+        under ``constraint_tolerance`` so planted feet never slide.
 
         Returns:
             True when a step had to be relaxed.
         """
         s = self.settings
         nv = self.model.model.nv
+        q_start = conf.q.copy()
+        for _ in range(max_steps):  # the residual is second order: minimum-norm steps suffice
+            slide = self.contact_constraint.slide_m(conf)
+            if not np.any(slide[np.isfinite(slide)] > s.constraint_tolerance):
+                if self._above_floor(conf):
+                    return False
+                break
+            A, b = self.contact_constraint.equality(conf)
+            conf.update(conf.integrate(np.linalg.lstsq(A, b, rcond=None)[0]))
+        conf.update(q_start)
         relaxed = False
-        for _ in range(max_steps):
+        for _ in range(max_steps):  # ... unless they fail: the QP with the limits
             slide = self.contact_constraint.slide_m(conf)
             if not np.any(slide[np.isfinite(slide)] > s.constraint_tolerance):
                 break
@@ -327,6 +337,13 @@ class Solver:
             relaxed = relaxed or solution.relaxed
             conf.update(conf.integrate(solution.dq))
         return relaxed
+
+    def _above_floor(self, conf: Configuration) -> bool:
+        """No contact point below the floor (beyond the constraint tolerance)."""
+        if not self._contact_ids:
+            return True
+        z = conf.positions(self._contact_ids)[:, 2]
+        return bool(np.all(z >= self.settings.floor_z - self.settings.constraint_tolerance))
 
     def _place_on_floor(self, q: np.ndarray) -> np.ndarray:
         """First frame: lift or lower the body so its lowest contact point is on the floor."""
@@ -383,7 +400,6 @@ class Solver:
         conf = self._configuration
         p_contacts = conf.positions(self._contact_ids)
         contacts_now = self._contacts.as_dict()
-        slide = self.contact_constraint.slide_m(conf)
         if self._contact_ids:
             if first:
                 self._p_sensed = self._contact_positions(self._sensed_configuration(q, tracked))
@@ -399,14 +415,32 @@ class Solver:
             self._root_velocity = (q[:3] - self._q[:3]) / dt  # type: ignore[index]
         self._q = q
         self._time = frame.time
-        residuals = {
-            "orientation_deg": self.orientation_task.errors_deg(conf),
-            "position_m": self.position_task.errors_m(conf),
-            "contact_slide_m": {n: float(d) for n, d in zip(self.contact_names, slide)
-                                if np.isfinite(d)},
-        }
         return Pose(self.model, float(frame.time), q, contacts_now,
-                    time.perf_counter() - start, iterations, residuals, relaxed)
+                    time.perf_counter() - start, iterations, relaxed,
+                    self._residual_source(q))
+
+    def _residual_source(self, q: np.ndarray) -> Callable[[], dict[str, dict[str, float]]]:
+        """The residuals of the pose ``q`` against this frame's targets, computed on demand.
+
+        The tasks replace (never modify) their target arrays, so the tasks copied here keep
+        this frame's targets.
+        """
+        orientation, position = copy.copy(self.orientation_task), copy.copy(self.position_task)
+        contact = copy.copy(self.contact_constraint)
+        model = self.model.model
+        names = self.contact_names
+
+        def residuals() -> dict[str, dict[str, float]]:
+            conf = Configuration(model, q)
+            slide = contact.slide_m(conf)
+            return {
+                "orientation_deg": orientation.errors_deg(conf),
+                "position_m": position.errors_m(conf),
+                "contact_slide_m": {n: float(d) for n, d in zip(names, slide)
+                                    if np.isfinite(d)},
+            }
+
+        return residuals
 
     def solve(self, frames: Iterable[Frame], progress: bool = False,
               total: int | None = None) -> Motion:
