@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -12,6 +12,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..ik.frame import Frame
+from ..imu.stance import foot_still
 from ..model.human_model import HumanModel
 from ..rotations import matrix_to_quat_wxyz
 
@@ -115,3 +116,18 @@ def write_truth(path: str | Path, truth: TruthMotion) -> Path:
         Path(tmp).unlink(missing_ok=True)
         raise
     return target
+
+
+def with_feet_still(frames: list[Frame], rate: float) -> list[Frame]:
+    """The frames with the feet's stance added.
+
+    Stance comes from the feet's orientations (:func:`ikfusion.imu.stance.foot_still`), as the
+    pipeline finds it from foot IMUs.
+    """
+    out = list(frames)
+    for foot in ("LeftFoot", "RightFoot"):
+        R = np.array([f.orientations.get(foot, np.full((3, 3), np.nan)) for f in frames])
+        still = foot_still(R, rate)
+        out = [replace(f, feet_still={**f.feet_still, foot: bool(s)}) if np.isfinite(s) else f
+               for f, s in zip(out, still)]
+    return out

@@ -7,7 +7,7 @@ import pinocchio as pin
 
 from ikfusion.ik import Frame
 from ikfusion.model import SENSOR_SEGMENTS, HumanModel
-from ikfusion.sim.truth import orientation_frames
+from ikfusion.sim.truth import orientation_frames, with_feet_still
 
 
 def angle_limits(model: HumanModel) -> tuple[np.ndarray, np.ndarray]:
@@ -43,8 +43,11 @@ def smooth_motion(model: HumanModel, rng: np.random.Generator, frames: int, keys
 
 
 def frames_from(model: HumanModel, qs: np.ndarray, rate: float = 60.0,
-                segments: tuple[str, ...] = SENSOR_SEGMENTS) -> list[Frame]:
-    return orientation_frames(model, qs, np.arange(len(qs)) / rate, segments)
+                segments: tuple[str, ...] = SENSOR_SEGMENTS, stance: bool = False
+                ) -> list[Frame]:
+    """Exact orientation targets; with ``stance``, also the feet's stance from them."""
+    frames = orientation_frames(model, qs, np.arange(len(qs)) / rate, segments)
+    return with_feet_still(frames, rate) if stance else frames
 
 
 def observable_columns(model: HumanModel,

@@ -23,7 +23,7 @@ def stride_path_length(q: np.ndarray, every: int) -> float:
 def walk(request, human: HumanModel):
     params = GaitParameters(path=request.param, duration=9.0, stand=1.0)
     truth = generate_gait(human, params, rate=60.0)
-    motion = Solver(human).solve(frames_from(human, truth.q))
+    motion = Solver(human).solve(frames_from(human, truth.q, stance=True))
     return truth, motion
 
 
