@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .correction import DriftCorrection
 from .ik import Frame, Motion, Solver
 from .imu.calibration import Calibration, calibrate_recording
 from .imu.stance import StanceThresholds, foot_still
@@ -68,7 +69,9 @@ def knee_warning(motion: Motion) -> str | None:
 def solve_recording(recording: ImuRecording, sensor_map: Mapping[str, str], model: HumanModel,
                     window: tuple[int, int] | None = None, pose: str = "npose",
                     forward: dict[str, str] | None = None, solver: Solver | None = None,
-                    progress: bool = False) -> SolvedRecording:
+                    progress: bool = False,
+                    correction: DriftCorrection | None = None,
+                    calibration: Calibration | None = None) -> SolvedRecording:
     """Calibrate on the still pose at the start and solve every frame.
 
     Args:
@@ -80,18 +83,23 @@ def solve_recording(recording: ImuRecording, sensor_map: Mapping[str, str], mode
         forward: ``{segment: axis}`` override of the body heading (see calibration).
         solver: A configured solver (default settings when omitted).
         progress: Show a progress bar.
+        correction: Absolute tag positions (UWB) and how they correct the drift.
+        calibration: A calibration already made (``window``, ``pose`` and ``forward`` are then
+            not used).
     """
     warnings = list(recording.warnings)
     warnings += recording.check_sensor_map(sensor_map)
     window_s = None if window is None else (window[0] / recording.rate,
                                             window[1] / recording.rate)
-    cal = calibrate_recording(recording, sensor_map, window_s, forward=forward, pose=pose)
+    cal = calibration or calibrate_recording(recording, sensor_map, window_s, forward=forward,
+                                             pose=pose)
     warnings += cal.warnings
     solver = solver or Solver(model)
     st = solver.settings
     frames = frames_from_recording(recording, sensor_map, cal,
                                    StanceThresholds(st.still_rate, st.still_duration))
-    motion = solver.solve(frames, progress=progress, total=len(frames))
+    motion = solver.solve(frames, progress=progress, total=len(frames),
+                          after_step=correction.after_frame if correction else None)
     motion.warnings = warnings + motion.warnings
     knee = knee_warning(motion)
     if knee:

@@ -7,6 +7,7 @@ import argparse
 from ..errors import InputError
 from ..sim.capture import truth_motion, write_capture
 from ..sim.imu import ImuNoise
+from ..uwb.constellation import load_constellation
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -34,15 +35,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``ikfusion simulate``."""
-    if args.readers:
-        raise InputError("UWB capture simulation (--readers) is not available yet in this "
-                         "version", field="readers")
     if args.rate <= 0 or args.seconds <= 2.5:
         raise InputError("--rate must be positive and --seconds above 2.5 (2 s of N-pose "
                          "come first)", field="seconds")
     truth = truth_motion(args.motion, args.seconds, args.rate, progress=not args.quiet)
     noise = ImuNoise() if args.noise == "default" else ImuNoise.none()
-    capture = write_capture(args.out, truth, noise, args.seed)
+    constellation = load_constellation(args.readers) if args.readers else None
+    capture = write_capture(args.out, truth, noise, args.seed, constellation=constellation)
     print(f"wrote {capture.folder}: {len(truth.time)} samples at {truth.rate:g} Hz from "
           f"{truth.source}")
     return 0

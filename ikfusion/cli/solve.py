@@ -4,14 +4,20 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
+import numpy as np
+
+from ..correction import DriftCorrection
 from ..errors import InputError
 from ..ik import Solver
+from ..imu.calibration import calibrate_recording
 from ..io.reader import read_imu
 from ..io.sensor_map import load_sensor_map
 from ..model import Body, HumanModel
 from ..pipeline import solve_recording
 from ..results import write_result_folder
+from ..uwb_aiding import UwbInputs, drift_correction, track_recording_tags, uwb_summary
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -62,11 +68,27 @@ def _window(text: str, rate: float) -> tuple[tuple[int, int] | None, str]:
     return (int(round(t0 * rate)), int(round(t1 * rate))), "npose"
 
 
+def _uwb_files(args: argparse.Namespace) -> UwbInputs | None:
+    given = [args.toa, args.readers, args.tags]
+    if not any(given):
+        return None
+    if not all(given):
+        raise InputError("UWB aiding needs all of --toa, --readers and --tags", field="toa")
+    return UwbInputs(Path(args.toa), Path(args.readers), Path(args.tags))
+
+
+def _forward(text: str | None) -> dict[str, str] | None:
+    if not text:
+        return None
+    if ":" not in text:
+        raise InputError("--forward must be SEGMENT:AXIS, e.g. Pelvis:-z", field="forward")
+    segment, axis = text.split(":", 1)
+    return {segment: axis}
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``ikfusion solve``."""
-    if args.toa or args.readers or args.tags:
-        raise InputError("UWB aiding (--toa/--readers/--tags) is not available yet in this "
-                         "version; solve from the IMUs alone", field="toa")
+    files = _uwb_files(args)
     sensor_map = load_sensor_map(args.map)
     recording = read_imu(args.imu, rate=args.rate, sensor_map=sensor_map)
     if args.body:
@@ -76,20 +98,28 @@ def run(args: argparse.Namespace) -> int:
     else:
         model = HumanModel.default()
     window, pose = _window(args.calibrate, recording.rate)
-    forward = None
-    if args.forward:
-        if ":" not in args.forward:
-            raise InputError("--forward must be SEGMENT:AXIS, e.g. Pelvis:-z", field="forward")
-        segment, axis = args.forward.split(":", 1)
-        forward = {segment: axis}
-    result = solve_recording(recording, sensor_map, model, window=window, pose=pose,
-                             forward=forward, solver=Solver(model), progress=not args.quiet)
-    cal = result.calibration
+    window_s = None if window is None else (window[0] / recording.rate,
+                                            window[1] / recording.rate)
+    cal = calibrate_recording(recording, sensor_map, window_s, forward=_forward(args.forward),
+                              pose=pose)
+    correction: DriftCorrection | None = None
+    uwb: dict[str, object] = {"used": False}
+    if files is not None:
+        tags, tracks = track_recording_tags(recording, sensor_map, model, cal, files)
+        correction = drift_correction(tags, tracks, recording.time,
+                                      args.correction or "no-slide")
+    elif args.correction:
+        print("warning: --correction has no effect without UWB (--toa/--readers/--tags)",
+              file=sys.stderr)
+    result = solve_recording(recording, sensor_map, model, solver=Solver(model),
+                             progress=not args.quiet, correction=correction, calibration=cal)
+    if files is not None and correction is not None:
+        uwb = uwb_summary(tracks, correction)
     write_result_folder(result.motion, args.out, bvh_up=args.bvh_up, extra_summary={
-        "calibration": {"method": cal.method, "heading_deg": float(cal.heading * 57.29577951308232),
+        "calibration": {"method": cal.method, "heading_deg": float(np.degrees(cal.heading)),
                         "window_s": [cal.window[0] / recording.rate,
                                      cal.window[1] / recording.rate]},
-        "uwb": {"used": False},
+        "uwb": uwb,
     })
     for warning in result.motion.warnings:
         print(f"warning: {warning}", file=sys.stderr)

@@ -128,6 +128,55 @@ class Solver:
         self._p_sensed = np.zeros((len(self.contact_names), 3))
         self._pitch = np.zeros(len(self.contact_names))
         self._root_velocity = np.zeros(3)
+        self._touchdown_offset = np.zeros(3)
+
+    # ------------------------------------------------------------------ position corrections
+    def shift_anchors(self, delta: np.ndarray) -> None:
+        """Move every planted point by ``delta`` (3,) [m], horizontal part only.
+
+        The body follows its feet, which slide: the ``slide`` correction of a drifting position.
+        """
+        d = np.array([float(delta[0]), float(delta[1]), 0.0])
+        anchors = self._contacts.anchors.copy()
+        anchors[self._contacts.active] += d
+        self._contacts = replace(self._contacts, anchors=anchors)
+
+    def translate(self, delta: np.ndarray) -> None:
+        """Move the whole solved state by ``delta`` (3,) [m], horizontal part only.
+
+        Body, anchors and contact history move together, e.g. to place the body where the first
+        absolute fix says.
+        """
+        d = np.array([float(delta[0]), float(delta[1]), 0.0])
+        if self._q is not None:
+            self._q = self._q.copy()
+            self._q[:3] += d
+        self._contacts = replace(self._contacts, anchors=self._contacts.anchors + d)
+        self._history = deque(((t, p + d) for t, p in self._history),
+                              maxlen=self._history.maxlen)
+
+    def set_touchdown_offset(self, offset: np.ndarray) -> None:
+        """Plant points that touch down from now on ``offset`` (3,) [m] away from where they land.
+
+        Horizontal part only. Planted points never move, and the body moves toward the corrected
+        position one step at a time: the ``no-slide`` correction.
+        """
+        self._touchdown_offset = np.array([float(offset[0]), float(offset[1]), 0.0])
+
+    def _offset_new_anchors(self, before: np.ndarray) -> None:
+        """Apply the touch-down offset, once, to points of a foot that landed this frame.
+
+        Only a foot coming down from a swing is offset; the next offset comes from the
+        correction after the body has moved.
+        """
+        feet = {n.startswith("Left") for n, b in zip(self.contact_names, before) if b}
+        new = self._contacts.active & ~before
+        new &= np.array([n.startswith("Left") not in feet for n in self.contact_names])
+        if new.any() and np.any(self._touchdown_offset):
+            anchors = self._contacts.anchors.copy()
+            anchors[new] += self._touchdown_offset
+            self._contacts = replace(self._contacts, anchors=anchors)
+            self._touchdown_offset = np.zeros(3)
 
     @property
     def contacts(self) -> ContactState:
@@ -406,9 +455,12 @@ class Solver:
                 self._pitch = self._foot_pitch(q, tracked)
             self._history.append((frame.time, p_contacts))
             t_old, p_old = self._history[0]
+            before = self._contacts.active.copy()
             self._contacts = touch_down(self._contacts, p_contacts, p_old, self._p_sensed,
                                         frame.time - t_old, self.thresholds, frame.contacts,
                                         self._pitch)
+            if not first:
+                self._offset_new_anchors(before)
             if first:
                 contacts_now = self._contacts.as_dict()
         if not first and dt > 0:
@@ -443,21 +495,30 @@ class Solver:
         return residuals
 
     def solve(self, frames: Iterable[Frame], progress: bool = False,
-              total: int | None = None) -> Motion:
+              total: int | None = None,
+              after_step: Callable[[Solver, Pose, int, float], None] | None = None) -> Motion:
         """Solve a sequence of frames from scratch.
 
         Args:
             frames: Frames in time order.
             progress: Show a progress bar (tqdm).
             total: Number of frames, for the progress bar.
+            after_step: Called as ``after_step(solver, pose, k, dt)`` after frame ``k`` (e.g.
+                :meth:`ikfusion.correction.DriftCorrection.after_frame`).
 
         Returns:
             The :class:`Motion`.
         """
         self.reset()
         poses: list[Pose] = []
-        for frame in tqdm(frames, total=total, disable=not progress, unit="frame"):
+        previous = None
+        for k, frame in enumerate(tqdm(frames, total=total, disable=not progress,
+                                       unit="frame")):
             poses.append(self.step(frame))
+            if after_step is not None:
+                dt = 0.0 if previous is None else float(frame.time - previous)
+                after_step(self, poses[-1], k, dt)
+            previous = frame.time
         warnings = []
         if self._failures:
             warnings.append(f"{len(self._failures)} frame(s) where no QP backend could solve a "

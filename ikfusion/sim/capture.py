@@ -17,10 +17,12 @@ import yaml
 from ..io.mtmanager_writer import write_mtmanager
 from ..model import SENSOR_SEGMENTS
 from ..results.atomic import atomic_folder
+from ..uwb.constellation import Constellation
 from .gait import GaitParameters, generate_gait
 from .imu import ImuNoise, simulate_imus
 from .mocap import lead_in, motion_from_bvh
 from .truth import TruthMotion, write_truth
+from .uwb_capture import UwbCaptureOptions, simulate_uwb, smooth_truth, write_uwb_files
 
 #: Trial prefix of simulated MT Manager files.
 PREFIX = "SIM_"
@@ -42,6 +44,11 @@ class Capture:
     def sensor_map(self) -> Path:
         """The sensor map."""
         return self.folder / "sensors.yaml"
+
+    @property
+    def has_uwb(self) -> bool:
+        """Whether UWB files were simulated (``toa.csv``, ``readers.yaml``, ``tags.yaml``)."""
+        return (self.folder / "toa.csv").is_file()
 
 
 def sensor_ids(segments: list[str]) -> dict[str, str]:
@@ -66,10 +73,20 @@ def truth_motion(motion: str, seconds: float, rate: float, progress: bool = Fals
 
 
 def write_capture(folder: str | Path, truth: TruthMotion, noise: ImuNoise | None, seed: int,
-                  segments: list[str] | None = None) -> Capture:
-    """Simulate the sensors on ``truth`` and write the capture folder atomically."""
+                  segments: list[str] | None = None,
+                  constellation: Constellation | None = None,
+                  uwb: UwbCaptureOptions | None = None) -> Capture:
+    """Simulate the sensors on ``truth`` and write the capture folder atomically.
+
+    With a ``constellation``, tags on HeadTop, LeftFootTop and RightFootTop are simulated too
+    (``toa.csv``, ``readers.yaml``, ``tags.yaml``); the truth is then low-pass filtered first
+    (:func:`ikfusion.sim.uwb_capture.smooth_truth`), so that its accelerations, which the
+    inertial part of the UWB filter integrates, carry no frame-to-frame IK jitter.
+    """
     segs = list(segments or SENSOR_SEGMENTS)
     rng = np.random.default_rng(seed)
+    if constellation is not None:
+        truth = smooth_truth(truth)
     imus = simulate_imus(truth.model, truth.time, truth.q, segs, rng, noise)
     ids = sensor_ids(segs)
     counter = 1000 + np.arange(len(truth.time))
@@ -83,4 +100,6 @@ def write_capture(folder: str | Path, truth: TruthMotion, noise: ImuNoise | None
         (tmp / "body.yaml").write_text(yaml.safe_dump(
             {k: round(float(v), 4) for k, v in body.items()}, sort_keys=False))
         write_truth(tmp / "truth.npz", truth)
+        if constellation is not None:
+            write_uwb_files(tmp, simulate_uwb(truth, constellation, rng, uwb))
     return Capture(Path(folder), truth)

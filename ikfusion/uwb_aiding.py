@@ -1,0 +1,89 @@
+"""UWB aiding of a solve: one IMU + UWB filter per tag, its positions as drift correction.
+
+Each tag is tracked by the tightly coupled filter of its IMU unit
+(:func:`ikfusion.uwb.tracking.track_tags`, raw TOAs, NLOS gating); the tracked positions and
+covariances, on the IMU timeline, become the :class:`ikfusion.correction.DriftCorrection` of the
+solve. The TOA log's ``time`` column must be on the recording's timeline (seconds from its first
+sample); the IMU world frame and the constellation frame are taken to be the same (ENU).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .correction import DriftCorrection, SiteFixes
+from .imu.calibration import Calibration
+from .io.recording import ImuRecording
+from .model.human_model import HumanModel
+from .sim.uwb_capture import imu_units_from_recording
+from .uwb.constellation import load_constellation
+from .uwb.ekf import UnitTrack
+from .uwb.toa_log import read_toa_csv
+from .uwb.tracking import TagInfo, load_tags, track_tags
+
+
+@dataclass
+class UwbInputs:
+    """The UWB files of a session (SPEC sections 3-4)."""
+
+    toa: Path
+    readers: Path
+    tags: Path
+
+
+def track_recording_tags(recording: ImuRecording, sensor_map: Mapping[str, str],
+                         model: HumanModel, calibration: Calibration,
+                         files: UwbInputs) -> tuple[dict[str, TagInfo], dict[str, UnitTrack]]:
+    """Track every tag of the session with the IMU of the segment it sits on.
+
+    Raises:
+        InputError: Bad files (naming file, line and field), a tag without a sensor.
+    """
+    tags = load_tags(files.tags)
+    constellation = load_constellation(files.readers)
+    log = read_toa_csv(files.toa)
+    mounting = {s: R.T for s, R in calibration.R_sensor_segment.items()}
+    units = imu_units_from_recording(recording, sensor_map, tags, model, mounting)
+    return tags, track_tags(log, constellation, tags, units)
+
+
+def drift_correction(tags: Mapping[str, TagInfo], tracks: Mapping[str, UnitTrack],
+                     time: np.ndarray, mode: str) -> DriftCorrection:
+    """The correction of a solve on ``time`` from the tag tracks (interpolated when needed)."""
+    fixes = []
+    for tag_id, track in tracks.items():
+        if len(track.time) == len(time) and np.allclose(track.time, time):
+            p, cov = track.p_world_tag, track.cov
+        else:
+            p = np.stack([np.interp(time, track.time, track.p_world_tag[:, i],
+                                    left=np.nan, right=np.nan) for i in range(3)], axis=1)
+            index = np.clip(np.searchsorted(track.time, time), 0, len(track.time) - 1)
+            cov = track.cov[index]
+        fixes.append(SiteFixes(tags[tag_id].site, p, cov))
+    return DriftCorrection(fixes, mode=mode)
+
+
+def uwb_summary(tracks: Mapping[str, UnitTrack],
+                correction: DriftCorrection) -> dict[str, object]:
+    """What ``summary.json`` reports about UWB.
+
+    Per tag: transmissions and TOAs used and rejected, time without UWB; and the remaining
+    horizontal gap of the correction.
+    """
+    per_tag = {}
+    for tag_id, track in tracks.items():
+        t = track.totals
+        per_tag[tag_id] = {
+            "transmissions": int(t.transmissions), "transmissions_used": int(t.transmissions_used),
+            "toas": int(t.toas), "toas_used": int(t.toas_used),
+            "toas_rejected": int(t.toas_rejected), "resets": int(t.resets),
+            "seconds_without_uwb": float(t.seconds_without_uwb),
+        }
+    gap = correction.gap[np.isfinite(correction.gap)]
+    return {"used": True, "correction": correction.mode, "tags": per_tag,
+            "gap_mean_m": float(gap.mean()) if gap.size else None,
+            "gap_max_m": float(gap.max()) if gap.size else None}
