@@ -47,6 +47,7 @@ from .dop import (
     min_readers,
     summarize,
 )
+from .ekf import EkfOptions, UnitTrack, UwbTotals
 from .locate import (
     FIX_COLUMNS,
     Fixes,
@@ -74,8 +75,17 @@ from .toa_log import (
     write_toa_csv,
 )
 from .toa_model import predict_toa, toa_residuals
+from .tracking import ImuUnit, TagInfo, load_tags, save_tags, track_tags
 
 __all__ = [
+    "EkfOptions",
+    "ImuUnit",
+    "TagInfo",
+    "UnitTrack",
+    "UwbTotals",
+    "load_tags",
+    "save_tags",
+    "track_tags",
     "DEFAULT_RANGE_SIGMA",
     "CalibrationError",
     "CalibrationOptions",
