@@ -186,11 +186,14 @@ def world_acceleration(R_world_sensor: np.ndarray, acc: np.ndarray | None = None
 
 
 def walking_heading(acc_world: np.ndarray, window: tuple[int, int], rate: float,
-                    seconds: float = 6.0, min_speed: float = 0.3) -> tuple[float, float] | None:
+                    seconds: float = 6.0, min_speed: float = 0.3,
+                    min_straightness: float = 0.8) -> tuple[float, float] | None:
     """Heading [rad] and mean speed [m/s] of the horizontal walk right after a still window.
 
     The acceleration is de-biased with its mean in the still window, integrated from rest and
-    the horizontal velocity averaged over ``seconds``; None below ``min_speed``.
+    the horizontal velocity averaged over ``seconds``; None below ``min_speed``, and None when
+    the mean velocity is shorter than ``min_straightness`` times the mean speed along the path
+    (the walk turns, so it has no single direction).
     """
     start, end = window
     stop = min(len(acc_world), end + int(round(seconds * rate)))
@@ -203,4 +206,7 @@ def walking_heading(acc_world: np.ndarray, window: tuple[int, int], rate: float,
     speed = float(np.linalg.norm(mean))
     if not np.isfinite(speed) or speed < min_speed:
         return None
+    path_speed = float(np.mean(np.linalg.norm(velocity[:, :2], axis=1)))
+    if speed < min_straightness * path_speed:
+        return None  # the path turns (a circle, a turn on the spot): no single direction
     return float(np.arctan2(mean[1], mean[0])), speed
