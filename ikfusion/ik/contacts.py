@@ -15,6 +15,7 @@ kinematic threshold missed by a few centimetres cannot hold a swinging foot on t
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
 
@@ -144,16 +145,28 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     return ContactState(state.names, (active & ~leave) | plant, anchors, age)
 
 
+@functools.lru_cache(maxsize=16)
+def _layout(names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(k, k) same-foot matrix, (k,) heel mask and (k,) toe mask of the contact points."""
+    feet = np.array([_foot_of(n) for n in names])
+    same = feet[:, None] == feet[None, :]
+    heel = np.array(["Heel" in n for n in names])
+    toe = np.array(["Toe" in n for n in names])
+    for a in (same, heel, toe):
+        a.setflags(write=False)
+    return same, heel, toe
+
+
 def _same_foot_mask(names: Sequence[str], mask: np.ndarray) -> np.ndarray:
     """Per point: does its own foot have a point in ``mask``?"""
-    feet = np.array([_foot_of(n) for n in names])
-    return np.array([bool((mask & (feet == f)).any()) for f in feet])
+    same = _layout(tuple(names))[0]
+    return np.asarray((same & mask[None, :]).any(axis=1))
 
 
 def _other_foot(names: Sequence[str], mask: np.ndarray) -> np.ndarray:
     """Per point: does the *other* foot have a point in ``mask``?"""
-    feet = np.array([_foot_of(n) for n in names])
-    return np.array([bool((mask & (feet != f)).any()) for f in feet])
+    same = _layout(tuple(names))[0]
+    return np.asarray((~same & mask[None, :]).any(axis=1))
 
 
 def _anchor_from_sensed(p_sensed: np.ndarray, anchors: np.ndarray, reference: np.ndarray,
@@ -217,8 +230,7 @@ def _tilted(names: Sequence[str], foot_pitch: np.ndarray | None, limit: float) -
     """Points whose foot pitch rules them out: heels when toe-down, toes when toe-up."""
     if foot_pitch is None:
         return np.zeros(len(names), dtype=bool)
-    heel = np.array(["Heel" in n for n in names])
-    toe = np.array(["Toe" in n for n in names])
+    _, heel, toe = _layout(tuple(names))
     pitch = np.nan_to_num(np.asarray(foot_pitch, dtype=float), nan=0.0)
     return (heel & (pitch > limit)) | (toe & (pitch < -limit))
 
@@ -236,11 +248,11 @@ def _drift_from_other_foot(names: Sequence[str], active: np.ndarray, anchors: np
     the other foot has no planted point). Also returns the longest contact age of the other
     foot's planted points [s] (+inf when none).
     """
-    feet = [_foot_of(n) for n in names]
+    same = _layout(tuple(names))[0]
     drift = np.zeros(len(names))
     other_age = np.full(len(names), np.inf)
-    for i, foot in enumerate(feet):
-        others = active & np.array([f != foot for f in feet])
+    for i in range(len(names)):
+        others = active & ~same[i]
         if not active[i] or not others.any():
             continue
         offset = np.mean(anchors[others] - p_sensed[others], axis=0)
