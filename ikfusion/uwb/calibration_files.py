@@ -7,7 +7,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -15,6 +14,7 @@ import numpy as np
 import yaml
 
 from ..errors import ConfigError
+from .constellation import finite_number
 
 
 def load_heights(path: str | Path) -> dict[str, float]:
@@ -51,7 +51,7 @@ def heights_from_mapping(value: object, *, source: Path | None = None) -> dict[s
         rid = str(key).strip()
         if not rid:
             raise ConfigError("empty reader id", path=source, field="heights")
-        z = _finite(raw)
+        z = finite_number(raw)
         if z is None:
             raise ConfigError(
                 f"expected a height in metres, found {raw!r}",
@@ -91,7 +91,7 @@ def survey_from_mapping(value: object, *, source: Path | None = None) -> dict[st
     for key, raw in value.items():
         rid = str(key).strip()
         values = raw.tolist() if isinstance(raw, np.ndarray) else raw
-        numbers = [_finite(v) for v in values] if isinstance(values, list | tuple) else []
+        numbers = [finite_number(v) for v in values] if isinstance(values, list | tuple) else []
         if len(numbers) != 3 or any(v is None for v in numbers):
             raise ConfigError(
                 f"expected [x, y, z] in metres, found {raw!r}",
@@ -114,17 +114,3 @@ def _load_yaml(path: Path) -> object:
         raise ConfigError(
             f"not valid YAML: {err}", path=path, line=None if mark is None else mark.line + 1
         ) from err
-
-
-def _finite(value: object) -> float | None:
-    """A finite number, also from a string (PyYAML reads ``1e-4`` without a dot as text)."""
-    if isinstance(value, bool):
-        return None
-    if isinstance(value, str):
-        try:
-            value = float(value)
-        except ValueError:
-            return None
-    if not isinstance(value, int | float) or not math.isfinite(value):
-        return None
-    return float(value)

@@ -332,7 +332,7 @@ def _parse_reader(entry: object, i: int, source: Path | None) -> Reader:
         raise ConfigError("missing position [x, y, z]", path=source, field=f"{where}.position")
     pos = _vector(entry["position"], 3, f"{where}.position", source)
     offset = entry.get("clock_offset", 0.0)
-    offset_m = _number(offset)
+    offset_m = finite_number(offset)
     if offset_m is None:
         raise ConfigError(
             f"expected a finite number of metres, found {offset!r}",
@@ -352,7 +352,7 @@ def _vector(value: object, n: int, key: str, source: Path | None) -> np.ndarray:
         )
     out = []
     for v in value:
-        number = _number(v)
+        number = finite_number(v)
         if number is None:
             raise ConfigError(
                 f"expected {n} finite numbers, found {value!r}", path=source, field=key
@@ -372,7 +372,7 @@ def _covariance(value: object, key: str, source: Path | None) -> np.ndarray:
     return cov
 
 
-def _number(value: object) -> float | None:
+def finite_number(value: object) -> float | None:
     """A finite number, also from a string (PyYAML reads ``1e-4`` without a dot as text)."""
     if isinstance(value, bool):
         return None
@@ -387,7 +387,7 @@ def _number(value: object) -> float | None:
 
 
 def _positive(value: object, key: str, source: Path | None) -> float:
-    number = _number(value)
+    number = finite_number(value)
     if number is None or number <= 0:
         raise ConfigError(
             f"expected a positive number of metres, found {value!r}", path=source, field=key
