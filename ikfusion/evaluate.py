@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .rotations import angle_between, quat_wxyz_to_matrix
+from .rotations import angle_between, continuous_quaternions, quat_wxyz_to_matrix
 
 
 @dataclass
@@ -101,10 +101,7 @@ def _interp(t_out: np.ndarray, t_in: np.ndarray, values: np.ndarray) -> np.ndarr
 
 
 def _interp_quat(t_out: np.ndarray, t_in: np.ndarray, quat: np.ndarray) -> np.ndarray:
-    q = quat.copy()
-    flip = np.sum(q[1:] * q[:-1], axis=1) < 0  # continuous sign
-    q[1:][np.cumsum(flip) % 2 == 1] *= -1.0
-    out = _interp(t_out, t_in, q)
+    out = _interp(t_out, t_in, continuous_quaternions(quat))
     return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 

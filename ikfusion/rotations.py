@@ -168,6 +168,22 @@ def matrix_to_quat_wxyz(R: npt.ArrayLike) -> np.ndarray:
     return np.where(q[..., :1] < 0.0, -q, q)
 
 
+def continuous_quaternions(quat: npt.ArrayLike) -> np.ndarray:
+    """A sequence of quaternions (N, 4) (either component order) with continuous signs.
+
+    ``q`` and ``-q`` are one rotation; each quaternion is flipped, where needed, into the
+    hemisphere of the last finite one before it, so that averaging or interpolating along the
+    sequence is meaningful. Rows with NaN stay NaN.
+    """
+    q = np.array(quat, dtype=float)
+    idx = np.flatnonzero(np.isfinite(q).all(axis=1))
+    if len(idx) > 1:
+        dots = np.einsum("ij,ij->i", q[idx[1:]], q[idx[:-1]])
+        signs = np.concatenate([[1.0], np.cumprod(np.where(dots < 0.0, -1.0, 1.0))])
+        q[idx] *= signs[:, None]
+    return q
+
+
 def wxyz_to_xyzw(quat_wxyz: npt.ArrayLike) -> np.ndarray:
     """Reorder (w, x, y, z) to Pinocchio's (x, y, z, w)."""
     q = np.asarray(quat_wxyz, dtype=float)

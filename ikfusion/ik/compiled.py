@@ -11,14 +11,21 @@ spherical joint by ``R exp(w)``, a revolute joint by adding to its angle. Only f
 at ``dq = 0`` are needed, so the graph uses the first-order forms ``R (I + [w]x)``, which have the
 same value and Jacobian there.
 
-Outputs (``k`` tracked segments, ``j`` ball joints, ``m`` sites), all in the world frame:
+Inputs besides ``q``, the targets and the geometry: per-row weights of the orientation
+residuals ``w_orient`` (3k) and of the posture residuals ``w_posture`` (3j) [1/rad^2]. Outputs
+(``k`` tracked segments, ``j`` ball joints, ``m`` sites), all in the world frame:
 
-* ``e_orient`` (3k): ``log(R_world_segment R_world_target^T)`` [rad];
-  ``J_orient`` (3k, nv) = ``Jl^-1(e) J_angular``;
-* ``e_posture`` (3j): ``log(R_parent_child)`` [rad]; ``B_posture`` (3j, 3) = ``Jr^-1(e)`` blocks;
+* ``H`` (nv, nv) and ``c`` (nv): the Gauss-Newton objective ``1/2 dq^T H dq + c^T dq`` of the
+  orientation and posture tasks, ``H = sum J^T W J`` and ``c = sum J^T W e``, with
+  ``e_orient = log(R_world_segment R_world_target^T)``, ``J_orient = Jl^-1(e) J_angular``,
+  ``e_posture = log(R_parent_child)`` and ``J_posture`` = ``Jr^-1(e)`` on each joint's columns;
+* ``e_orient`` (3k) [rad];
 * ``angles`` (3j): anatomical angles [rad] in sequence order; ``E_inv`` (3j, 3): their rates
   per unit joint tangent step;
 * ``p_sites`` (3m) [m] and ``J_sites`` (3m, nv).
+
+Summing ``J^T W J`` inside the graph uses the Jacobians' sparsity (a segment's rows touch only
+the joints that carry it) and removes the per-step NumPy work of assembling the objective.
 
 The graph holds the model's *structure* only; joint and frame placements are an input, so bodies
 of every size share one function. When a C compiler is on the machine the function is compiled
@@ -35,6 +42,7 @@ import shutil
 import subprocess
 import tempfile
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import casadi as ca
@@ -60,6 +68,25 @@ def _quat_xyzw_to_matrix(q: ca.SX) -> ca.SX:
         ca.horzcat(s * (x * y + w * z), 1 - s * (x * x + z * z), s * (y * z - w * x)),
         ca.horzcat(s * (x * z - w * y), s * (y * z + w * x), 1 - s * (x * x + y * y)),
     )
+
+
+def _matrix_to_quat_xyzw(R: ca.SX) -> ca.SX:
+    """Unit quaternion (x, y, z, w) with ``w >= 0`` of a rotation matrix.
+
+    Of the four algebraic forms, the one built on the largest of 4w^2, 4x^2, 4y^2, 4z^2 is
+    taken (numerically stable for every rotation).
+    """
+    t = [1 + R[0, 0] + R[1, 1] + R[2, 2], 1 + R[0, 0] - R[1, 1] - R[2, 2],
+         1 - R[0, 0] + R[1, 1] - R[2, 2], 1 - R[0, 0] - R[1, 1] + R[2, 2]]
+    a, b, c = R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]
+    d, e, f = R[0, 1] + R[1, 0], R[0, 2] + R[2, 0], R[1, 2] + R[2, 1]
+    forms = [ca.vertcat(a, b, c, t[0]), ca.vertcat(t[1], d, e, a), ca.vertcat(d, t[2], f, b),
+             ca.vertcat(e, f, t[3], c)]  # each (x, y, z, w) times 4 * its largest component
+    quat = ca.if_else(t[2] >= t[3], forms[2], forms[3])
+    quat = ca.if_else(t[1] >= ca.fmax(t[2], t[3]), forms[1], quat)
+    quat = ca.if_else(t[0] >= ca.fmax(t[1], ca.fmax(t[2], t[3])), forms[0], quat)
+    quat = quat / ca.norm_2(quat)
+    return ca.if_else(quat[3] < 0, -quat, quat)
 
 
 def _axis_rotation(axis: np.ndarray, angle: ca.SX) -> ca.SX:
@@ -100,6 +127,32 @@ def _euler(sequence: str, R: ca.SX) -> ca.SX:
     return ca.vertcat(first, middle, last)
 
 
+@dataclass(frozen=True)
+class SensedPoseSpec:
+    """The pose the sensors say: which joint rotations come straight from the targets.
+
+    Indices refer to the list of tracked segments (the targets). A joint takes its rotation from
+    the targets only where the ``tracked`` input (0/1 per target) says both sides are sensed.
+
+    Attributes:
+        root: ``(free-flyer joint id, target index)``: the root's rotation is that target's.
+        joints: ``(joint id, parent target, child target)``: ``R_parent^T R_child``.
+        toes: ``(joint id, foot target, toe target, flexion axis, lower, upper [rad])``: for the
+            points, an unsensed toe under a sensed foot flexes by the foot's toe-down pitch
+            (clipped to its range), so the toes stay flat on heel-off. The sensed
+            configuration itself keeps the toes of ``q`` (the posture prior decides them).
+        points: Frame ids whose world positions [m] at the sensed pose are returned.
+
+    Quaternions taken from the targets keep the sign of those in ``q`` (``q`` and ``-q`` are one
+    rotation), so configurations stay continuous from frame to frame.
+    """
+
+    root: tuple[int, int] | None
+    joints: tuple[tuple[int, int, int], ...]
+    toes: tuple[tuple[int, int, int, tuple[float, float, float], float, float], ...]
+    points: tuple[int, ...]
+
+
 class CompiledKinematics:
     """The residuals of one IK step for a fixed set of segments, ball joints and sites.
 
@@ -108,23 +161,29 @@ class CompiledKinematics:
         segment_frames: Frame ids whose orientations are tracked (targets are inputs).
         ball_joints: Ball joints for the posture prior and the ranges of motion.
         site_frames: Frame ids whose positions are needed (sites, contact points, the root).
+        sensed: Also build :attr:`sensed_function` (the sensed configuration and positions of
+            points there).
 
     Raises:
         NotImplementedError: For joint types the graph does not cover.
     """
 
     def __init__(self, model: pin.Model, segment_frames: Sequence[int],
-                 ball_joints: Sequence[BallJoint], site_frames: Sequence[int]) -> None:
+                 ball_joints: Sequence[BallJoint], site_frames: Sequence[int],
+                 sensed: SensedPoseSpec | None = None) -> None:
         self.nv = model.nv
         self.segment_frames = list(segment_frames)
         self.site_frames = list(site_frames)
         q = ca.SX.sym("q", model.nq)
         targets = ca.SX.sym("R_world_target", 9 * len(segment_frames))
-        frames = sorted(set(self.segment_frames) | set(self.site_frames))
+        frames = sorted(set(self.segment_frames) | set(self.site_frames)
+                        | set(sensed.points if sensed else ()))
         geometry = ca.SX.sym("geometry", 12 * (model.njoints - 1 + len(frames)))
         self._geometry_frames = frames
         placements = self._placements(geometry, model.njoints - 1, frames)
         rotations, translations, axes = self._forward(model, q, placements)
+        self.sensed_function = (None if sensed is None else
+                                self._sensed(model, sensed, q, targets, geometry, placements))
 
         e_orient, J_orient = [], []
         for n, fid in enumerate(segment_frames):
@@ -135,13 +194,15 @@ class CompiledKinematics:
             e_orient.append(e)
             J_orient.append(_jl_inverse(e, theta) @ J_angular)
 
-        e_post, B_post, angles, E_inv = [], [], [], []
+        e_post, J_post, angles, E_inv = [], [], [], []
         for joint in ball_joints:
             iq = joint.idx_q
             R_joint = _quat_xyzw_to_matrix(q[iq:iq + 4])
             e, theta = _log(R_joint)
             e_post.append(e)
-            B_post.append(_jl_inverse(-e, theta))
+            block = ca.SX(3, model.nv)
+            block[:, joint.idx_v:joint.idx_v + 3] = _jl_inverse(-e, theta)
+            J_post.append(block)
             w = ca.SX.sym("w", 3)
             signs = ca.DM(joint.spec.signs)
             a = _euler(joint.spec.sequence, R_joint @ (ca.DM.eye(3) + _skew(w))) * signs
@@ -157,14 +218,72 @@ class CompiledKinematics:
         def stack(parts: list[ca.SX], cols: int) -> ca.SX:
             return ca.vertcat(*parts) if parts else ca.SX(0, cols)
 
+        w_orient = ca.SX.sym("w_orient", 3 * len(segment_frames))
+        w_posture = ca.SX.sym("w_posture", 3 * len(ball_joints))
+        H = ca.SX(model.nv, model.nv)
+        c = ca.SX(model.nv, 1)
+        for e_all, J_all, weights in ((stack(e_orient, 1), stack(J_orient, model.nv), w_orient),
+                                      (stack(e_post, 1), stack(J_post, model.nv), w_posture)):
+            WJ = ca.diag(weights) @ J_all
+            H += J_all.T @ WJ
+            c += WJ.T @ e_all
+
         self.function = ca.Function(
-            "ik_step_residuals", [q, targets, geometry],
-            [stack(e_orient, 1), stack(J_orient, model.nv), stack(e_post, 1), stack(B_post, 3),
-             stack(angles, 1), stack(E_inv, 3), stack(p_sites, 1), stack(J_sites, model.nv)],
-            ["q", "R_world_target", "geometry"],
-            ["e_orient", "J_orient", "e_posture", "B_posture", "angles", "E_inv", "p_sites",
-             "J_sites"],
+            "ik_step_objective", [q, targets, geometry, w_orient, w_posture],
+            [H, c, stack(e_orient, 1), stack(angles, 1), stack(E_inv, 3), stack(p_sites, 1),
+             stack(J_sites, model.nv)],
+            ["q", "R_world_target", "geometry", "w_orient", "w_posture"],
+            ["H", "c", "e_orient", "angles", "E_inv", "p_sites", "J_sites"],
         )
+
+    def _sensed(self, model: pin.Model, spec: SensedPoseSpec, q: ca.SX, targets: ca.SX,
+                geometry: ca.SX, placements: dict) -> ca.Function:
+        """``sensed(q, R_world_target, geometry, tracked) -> (q_sensed, p_points (3n) [m])``.
+
+        ``q_sensed`` keeps the toes of ``q``; the points are those of ``q_sensed`` with level toes.
+        """
+        tracked = ca.SX.sym("tracked", len(self.segment_frames))
+
+        def target(n: int) -> ca.SX:
+            return ca.reshape(targets[9 * n:9 * n + 9], 3, 3)
+
+        def quaternion_start(j: int) -> int:
+            return model.idx_qs[j] + (3 if model.joints[j].shortname() == "JointModelFreeFlyer"
+                                      else 0)
+
+        choices: dict[int, tuple[ca.SX, ca.SX]] = {}  # joint -> (use the targets, R_local)
+        toes: dict[int, tuple[ca.SX, ca.SX]] = {}
+        if spec.root is not None:
+            j, n = spec.root
+            choices[j] = (tracked[n] > 0.5, target(n))
+        for j, parent, child in spec.joints:
+            choices[j] = (tracked[parent] * tracked[child] > 0.5,
+                          target(parent).T @ target(child))
+        for j, foot, toe, axis, lower, upper in spec.toes:
+            forward = target(foot)[:, 0]
+            pitch = ca.atan2(-forward[2], ca.sqrt(forward[0] ** 2 + forward[1] ** 2))
+            angle = ca.fmin(ca.fmax(ca.fmax(pitch, 0.0), lower), upper)
+            level = _axis_rotation(np.asarray(axis, dtype=float), angle)
+            use = tracked[foot] * (1.0 - tracked[toe]) > 0.5
+            toes[j] = (use, level)
+
+        def replace(q_in: ca.SX, rotations: dict[int, tuple[ca.SX, ca.SX]]) -> ca.SX:
+            q_out = ca.SX(q_in)
+            for j, (use, R) in rotations.items():
+                iq = quaternion_start(j)
+                quat, previous = _matrix_to_quat_xyzw(R), q_in[iq:iq + 4]
+                quat = ca.if_else(ca.dot(quat, previous) < 0, -quat, quat)  # keep q's hemisphere
+                q_out[iq:iq + 4] = ca.if_else(use, quat, previous)
+            return q_out
+
+        q_sensed = replace(q, choices)
+        rotations, translations, _ = self._forward(model, replace(q_sensed, toes), placements)
+        points = [self._frame(model, f, rotations, translations, placements)[1]
+                  for f in spec.points]
+        return ca.Function("ik_sensed_pose", [q, targets, geometry, tracked],
+                           [q_sensed, ca.vertcat(*points) if points else ca.SX(0, 1)],
+                           ["q", "R_world_target", "geometry", "tracked"],
+                           ["q_sensed", "p_points"])
 
     @staticmethod
     def _placements(geometry: ca.SX, n_joints: int, frames: list[int]) -> dict:
@@ -265,16 +384,50 @@ class CompiledKinematics:
         R_M, p_M = placements[("frame", fid)]
         return rotations[j] @ R_M, translations[j] + rotations[j] @ p_M
 
-    def _bind(self) -> None:
-        """Preallocate NumPy inputs, the nonzeros of each output, and dense output arrays."""
-        f = self.function
-        self._buffer, self._evaluate = f.buffer()
-        self._inputs = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
+    def __call__(self, q: np.ndarray, R_world_target: np.ndarray, geometry: np.ndarray,
+                 w_orient: np.ndarray, w_posture: np.ndarray) -> list[np.ndarray]:
+        """Evaluate at ``q`` with targets (k, 3, 3) and per-row weights (3k,) and (3j,).
+
+        Returns:
+            The outputs as dense arrays, overwritten by the next call (copy to keep them).
+        """
+        if not hasattr(self, "_step"):
+            self._step = _Bound(self.function)
+        return self._step(q, _column_major(R_world_target), geometry, w_orient, w_posture)
+
+    def sensed_pose(self, q: np.ndarray, R_world_target: np.ndarray, geometry: np.ndarray,
+                    tracked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The sensed configuration and its points' world positions (points, 3) [m].
+
+        See :class:`SensedPoseSpec`; ``tracked`` is 0/1 per target.
+
+        Raises:
+            ValueError: When built without a sensed-pose spec.
+        """
+        if self.sensed_function is None:
+            raise ValueError("built without a SensedPoseSpec")
+        if not hasattr(self, "_sensed_call"):
+            self._sensed_call = _Bound(self.sensed_function)
+        q_sensed, points = self._sensed_call(q, _column_major(R_world_target), geometry, tracked)
+        return q_sensed[:, 0].copy(), points.reshape(-1, 3).copy()
+
+
+def _column_major(R: np.ndarray) -> np.ndarray:
+    """Stacked rotations (k, 3, 3) as CasADi's column-major vector (9k,)."""
+    return np.swapaxes(R, 1, 2).reshape(-1)
+
+
+class _Bound:
+    """A CasADi function evaluated on preallocated NumPy buffers (no per-call allocation)."""
+
+    def __init__(self, function: ca.Function) -> None:
+        self._buffer, self._evaluate = function.buffer()
+        self._inputs = [np.zeros(function.nnz_in(i)) for i in range(function.n_in())]
         for i, arr in enumerate(self._inputs):
             self._buffer.set_arg(i, memoryview(arr))  # type: ignore[arg-type,call-arg]
         self._nonzeros, self._dense, self._flat = [], [], []
-        for i in range(f.n_out()):
-            sp = f.sparsity_out(i)
+        for i in range(function.n_out()):
+            sp = function.sparsity_out(i)
             nz = np.zeros(sp.nnz())
             self._buffer.set_res(i, memoryview(nz))  # type: ignore[arg-type,call-arg]
             rows, cols = (np.array(v, dtype=int) for v in sp.get_triplet())
@@ -282,18 +435,9 @@ class CompiledKinematics:
             self._dense.append(np.zeros((sp.size1(), sp.size2())))
             self._flat.append(rows * sp.size2() + cols)
 
-    def __call__(self, q: np.ndarray, R_world_target: np.ndarray,
-                 geometry: np.ndarray) -> list[np.ndarray]:
-        """Evaluate at ``q`` with targets (k, 3, 3).
-
-        Returns:
-            The outputs as dense arrays, overwritten by the next call (copy to keep them).
-        """
-        if not hasattr(self, "_buffer"):
-            self._bind()
-        self._inputs[0][:] = q
-        self._inputs[1][:] = np.swapaxes(R_world_target, 1, 2).reshape(-1)  # column-major
-        self._inputs[2][:] = geometry
+    def __call__(self, *inputs: np.ndarray) -> list[np.ndarray]:
+        for buffer, value in zip(self._inputs, inputs):
+            buffer[:] = value
         self._evaluate()
         for dense, flat, nz in zip(self._dense, self._flat, self._nonzeros):
             dense.put(flat, nz)
@@ -301,9 +445,12 @@ class CompiledKinematics:
 
 
 def structure_key(model: pin.Model, segment_frames: Sequence[int],
-                  ball_joints: Sequence[BallJoint], site_frames: Sequence[int]) -> str:
+                  ball_joints: Sequence[BallJoint], site_frames: Sequence[int],
+                  sensed: SensedPoseSpec | None = None) -> str:
     """A string identifying the compiled structure (not the geometry) of a step function."""
     parts = [
+        "objective-v5",
+        repr(sensed),
         ",".join(model.joints[j].shortname() for j in range(1, model.njoints)),
         ",".join(str(p) for p in model.parents),
         ",".join(str(model.frames[f].parentJoint) for f in (*segment_frames, *site_frames)),
@@ -320,16 +467,21 @@ _BUILT: dict[str, CompiledKinematics] = {}
 
 
 def compiled_kinematics(model: pin.Model, segment_frames: Sequence[int],
-                        ball_joints: Sequence[BallJoint],
-                        site_frames: Sequence[int]) -> CompiledKinematics:
+                        ball_joints: Sequence[BallJoint], site_frames: Sequence[int],
+                        sensed: SensedPoseSpec | None = None) -> CompiledKinematics:
     """A (cached) :class:`CompiledKinematics`, natively compiled when a C compiler exists."""
-    key = structure_key(model, segment_frames, ball_joints, site_frames)
+    key = structure_key(model, segment_frames, ball_joints, site_frames, sensed)
     built = _BUILT.get(key)
     if built is None:
-        built = CompiledKinematics(model, segment_frames, ball_joints, site_frames)
-        native = _native(built.function, key)
+        built = CompiledKinematics(model, segment_frames, ball_joints, site_frames, sensed)
+        functions = [built.function]
+        if built.sensed_function is not None:
+            functions.append(built.sensed_function)
+        native = _native(functions, key)
         if native is not None:
-            built.function = native
+            built.function = native[0]
+            if built.sensed_function is not None:
+                built.sensed_function = native[1]
         _BUILT[key] = built
     return built
 
@@ -343,8 +495,11 @@ def cache_dir() -> Path:
     return (Path(xdg) if xdg else Path.home() / ".cache") / "ikfusion"
 
 
-def _native(function: ca.Function, key: str) -> ca.Function | None:
-    """The function compiled to a shared library (cached on disk), or None without a compiler."""
+def _native(functions: Sequence[ca.Function], key: str) -> list[ca.Function] | None:
+    """The functions compiled to one shared library (cached on disk).
+
+    Returns None without a C compiler.
+    """
     if os.environ.get("IKFUSION_NO_COMPILE"):
         return None
     compiler = shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
@@ -358,13 +513,14 @@ def _native(function: ca.Function, key: str) -> ca.Function | None:
             with tempfile.TemporaryDirectory(dir=folder) as tmp:
                 source = Path(tmp) / "ik_step.c"
                 generator = ca.CodeGenerator(source.name, {"with_header": False})
-                generator.add(function)
+                for function in functions:
+                    generator.add(function)
                 generator.generate(f"{tmp}{os.sep}")
                 built = Path(tmp) / library.name
                 subprocess.run([compiler, "-O1", "-shared", "-fPIC", str(source), "-o",
                                 str(built), "-lm"], check=True, capture_output=True,
                                timeout=600)
                 os.replace(built, library)
-        return ca.external(function.name(), str(library))
+        return [ca.external(f.name(), str(library)) for f in functions]
     except (OSError, subprocess.SubprocessError, RuntimeError):
         return None

@@ -75,7 +75,7 @@ def assemble_qp(H: np.ndarray, c: np.ndarray, inequalities: Sequence[Inequality]
                 damping: float = 1e-8) -> QpProblem:
     """A :class:`QpProblem` from an accumulated objective and constraint blocks."""
     nv = H.shape[0]
-    H[np.diag_indices(nv)] += damping
+    H.flat[::nv + 1] += damping  # the diagonal
     ineq = [i for i in inequalities if len(i.h)]
     eq = [e for e in equalities if len(e.b)]
     G = np.vstack([i.G for i in ineq]) if ineq else np.zeros((0, nv))
@@ -100,12 +100,48 @@ def _call(backend: str, H: np.ndarray, c: np.ndarray, G: np.ndarray | None, h: n
         raise SolverError(
             f"QP backend {backend!r} is not installed; available: "
             f"{', '.join(qpsolvers.available_solvers)}")
+    if backend == "daqp":
+        return _call_daqp(H, c, G, h, A, b, lb, ub)
     try:
         x = qpsolvers.solve_qp(H, c, G, h, A, b, lb, ub, solver=backend,
                                **_solver_options(backend))
     except (ValueError, qpsolvers.QPError):
         return None
     if x is None or not np.all(np.isfinite(x)):
+        return None
+    return np.asarray(x)
+
+
+def _call_daqp(H: np.ndarray, c: np.ndarray, G: np.ndarray | None, h: np.ndarray | None,
+               A: np.ndarray | None, b: np.ndarray | None, lb: np.ndarray | None,
+               ub: np.ndarray | None) -> np.ndarray | None:
+    """DAQP called directly (the same problem qpsolvers would pass, without its checks).
+
+    DAQP takes simple bounds as the first rows of ``blower <= (dq, A_rows dq) <= bupper`` and
+    marks equality rows with sense 5.
+    """
+    import daqp  # the default backend; imported here so that the others work without it
+
+    nv = len(c)
+    n_box = nv if lb is not None or ub is not None else 0
+    n_in = 0 if h is None else len(h)
+    n_eq = 0 if b is None else len(b)
+    upper = np.empty(n_box + n_in + n_eq)
+    lower = np.full(n_box + n_in + n_eq, -1e30)
+    if n_box:
+        upper[:nv] = 1e30 if ub is None else ub
+        lower[:nv] = -1e30 if lb is None else lb
+    if n_in:
+        upper[n_box:n_box + n_in] = h
+    if n_eq:
+        upper[n_box + n_in:] = b
+        lower[n_box + n_in:] = b
+    rows = [m for m in (G, A) if m is not None]
+    A_all = np.vstack(rows) if rows else np.zeros((0, nv))
+    sense = np.zeros(len(upper), dtype=np.intc)
+    sense[n_box + n_in:] = 5
+    x, _, exitflag, _ = daqp.solve(H, c, A_all, upper, lower, sense)
+    if exitflag <= 0 or not np.all(np.isfinite(x)):
         return None
     return np.asarray(x)
 

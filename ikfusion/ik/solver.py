@@ -27,7 +27,7 @@ from tqdm import tqdm
 from ..errors import SolverError
 from ..model.human_model import HumanModel
 from ..rotations import matrix_to_quat_wxyz, wxyz_to_xyzw
-from .compiled import compiled_kinematics
+from .compiled import SensedPoseSpec, compiled_kinematics
 from .configuration import Configuration
 from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
 from .frame import Frame
@@ -95,19 +95,49 @@ class Solver:
         self.thresholds = ContactThresholds.from_settings(s)
         self._site_frames = [model.site_frame_id(n) for n in sites] + [root_frame]
         self._contact_rows = np.array([self._site_index[n] for n in self.contact_names], dtype=int)
+        self._contact_ids = contact_ids
         self._kinematics = None
         if s.compiled:
             try:
                 self._kinematics = compiled_kinematics(
                     model.model, self.orientation_task.frame_ids,
-                    list(model.ball_joints.values()), self._site_frames)
+                    list(model.ball_joints.values()), self._site_frames, self._sensed_spec())
                 self._geometry = self._kinematics.geometry(model.model)
             except NotImplementedError:
                 self._kinematics = None
         self._configuration = Configuration(model.model, model.neutral())
         self._sensed_data = model.model.createData()
-        self._contact_ids = contact_ids
         self.reset()
+
+    def _sensed_spec(self) -> SensedPoseSpec:
+        """What :meth:`_sensed_configuration` does, for the compiled sensed-pose function."""
+        model = self.model.model
+        root_joint = model.frames[self.orientation_task.frame_ids[0]].parentJoint
+        joints = list(self.model.ball_joints.values())
+        toes = []
+        for k, foot in self._toe_joints:
+            axis, lower, upper = self._toe_flexion[k]
+            x, y, z = (float(a) for a in axis)
+            toes.append((joints[k].joint_id, foot, int(self._joint_child[k]), (x, y, z),
+                         float(lower), float(upper)))
+        return SensedPoseSpec(
+            root=(root_joint, 0),
+            joints=tuple((j.joint_id, int(p), int(c)) for j, p, c in
+                         zip(joints, self._joint_parent, self._joint_child)),
+            toes=tuple(toes), points=tuple(self._contact_ids))
+
+    def _sensed_pose(self, q: np.ndarray, tracked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The sensed configuration at ``q`` and its contact points (c, 3) [m].
+
+        The configuration keeps the toes of ``q``; the points are those with level toes (see
+        :meth:`_sensed_configuration`).
+        """
+        kin = self._kinematics
+        if kin is not None and kin.sensed_function is not None:
+            return kin.sensed_pose(q, self.orientation_task.targets, self._geometry,
+                                   tracked.astype(float))
+        return (self._sensed_configuration(q, tracked, level_toes=False),
+                self._contact_positions(self._sensed_configuration(q, tracked)))
 
     def _tangent_vector(self, root_linear: float, root_angular: float,
                         joints: float) -> np.ndarray:
@@ -211,12 +241,15 @@ class Solver:
         self.position_task.set_targets(p, info)
         both = tracked[self._joint_parent] & tracked[self._joint_child]
         self.posture_task.weights = np.where(both, 0.0, self._posture_weights)
+        self._row_weights = (self.orientation_task.row_weights(), self.posture_task.row_weights())
         return tracked
 
-    def _sensed_configuration(self, q: np.ndarray, tracked: np.ndarray) -> np.ndarray:
+    def _sensed_configuration(self, q: np.ndarray, tracked: np.ndarray,
+                              level_toes: bool = True) -> np.ndarray:
         """``q`` with the root and every joint between two tracked segments set from targets.
 
-        This is the pose the sensors say, before the constraints bend anything.
+        This is the pose the sensors say, before the constraints bend anything; with
+        ``level_toes``, unsensed toes under a sensed foot lie flat on heel-off.
         """
         qs = q.copy()
         T = self.orientation_task.targets
@@ -226,9 +259,13 @@ class Solver:
         if both.any():
             R = np.swapaxes(T[self._joint_parent[both]], 1, 2) @ T[self._joint_child[both]]
             qs[self._joint_q_cols[both]] = wxyz_to_xyzw(matrix_to_quat_wxyz(R))
-        for joint, foot in self._toe_joints:
+        for joint, foot in self._toe_joints if level_toes else ():
             if tracked[foot] and not tracked[self._joint_child[joint]]:
                 qs[self._joint_q_cols[joint]] = self._level_toe(T[foot], joint)
+        # q and -q are one rotation: keep the hemisphere of q, so that q stays continuous
+        blocks = np.vstack([np.arange(3, 7)[None], self._joint_q_cols])
+        flip = np.einsum("ij,ij->i", qs[blocks], q[blocks]) < 0.0
+        qs[blocks[flip]] *= -1.0
         return qs
 
     def _level_toe(self, R_world_foot: np.ndarray, joint: int) -> np.ndarray:
@@ -268,20 +305,25 @@ class Solver:
             self.damping_task.set_reference(None)
             self.velocity_limit.set_previous(None, 0.0)
         else:
-            q = self._q.copy()  # type: ignore[union-attr]
+            # Warm start at the sensed pose: joints between two sensed segments already where
+            # the targets put them, so one Gauss-Newton step is usually enough.
+            q, p_sensed = self._sensed_pose(self._q, tracked)  # type: ignore[arg-type]
             iterations = s.max_iterations
             self.damping_task.set_reference(self._q)
             self.velocity_limit.set_previous(self._q, dt)
         if not first and self._contact_ids:
-            sensed = self._sensed_configuration(self._q, tracked)  # type: ignore[arg-type]
-            self._p_sensed = self._smooth(self._p_sensed, self._contact_positions(sensed))
+            self._p_sensed = self._smooth(self._p_sensed, p_sensed)
             self._pitch = self._smooth(self._pitch, self._foot_pitch(self._q, tracked))  # type: ignore[arg-type]
             self._contacts = release_contacts(self._contacts, self._p_sensed, self.thresholds,
                                               frame.contacts, self._pitch,
                                               self._feet_still(frame), self._history[-1][1])
         self.contact_constraint.set_anchors(self._contacts.active, self._contacts.anchors)
+        if not first and self._contacts.active.any():
+            # ... and translated so that its planted points sit on their anchors on average.
+            active = self._contacts.active
+            q[:3] += np.mean(self._contacts.anchors[active] - p_sensed[active], axis=0)
         self.floor_limit.enabled = ~self._contacts.active
-        flight = not first and not self._contacts.active.any()
+        flight = not first and bool(self._contact_ids) and not self._contacts.active.any()
         tasks: list[Task] = [self.orientation_task, self.position_task, self.posture_task,
                              self.damping_task]
         if frame.root_position is not None:
@@ -318,28 +360,25 @@ class Solver:
     def _problem(self, conf: Configuration, tasks: list[Task]) -> QpProblem:
         """The QP of one Gauss-Newton step (compiled residuals when available)."""
         s = self.settings
-        bounds = self.velocity_limit.bounds(conf)
+        previous = self.velocity_limit.q_previous  # also the damping task's reference
+        moved = None if previous is None else conf.difference(previous)
+        bounds = self.velocity_limit.bounds(conf, moved)
         if self._kinematics is None:
             return build_qp(
                 conf, tasks,
                 [self.joint_limits.inequality(conf), self.floor_limit.inequality(conf)],
                 [self.contact_constraint.equality(conf)], bounds, s.levenberg_marquardt)
         nv = self.model.model.nv
-        e_or, J_or, e_post, B_post, angles, E_inv, p_sites, J_sites = self._kinematics(
-            conf.q, self.orientation_task.targets, self._geometry)
-        H = np.zeros((nv, nv))
-        c = np.zeros(nv)
-        w = self.orientation_task.row_weights()
-        WJ = w[:, None] * J_or
-        H += J_or.T @ WJ
-        c += WJ.T @ e_or[:, 0]
-        self.posture_task.add_blocks(e_post.reshape(-1, 3), B_post.reshape(-1, 3, 3), H, c)
+        H, c, _, angles, E_inv, p_sites, J_sites = self._kinematics(
+            conf.q, self.orientation_task.targets, self._geometry, *self._row_weights)
+        H, c = H.copy(), c[:, 0].copy()
         P = p_sites.reshape(-1, 3)
         J = J_sites.reshape(-1, 3, nv)
         self.position_task.add_rows(P[:-1], J[:-1], H, c)
         if self.root_task in tasks:
             self.root_task.add_rows(P[-1:], J[-1:], H, c)
-        self.damping_task.add_objective(conf, H, c)
+        same = self.damping_task.q_reference is previous
+        self.damping_task.add_objective(conf, H, c, moved if same else None)
         Pc, Jc = P[self._contact_rows], J[self._contact_rows]
         return assemble_qp(
             H, c,
@@ -451,7 +490,7 @@ class Solver:
         contacts_now = self._contacts.as_dict()
         if self._contact_ids:
             if first:
-                self._p_sensed = self._contact_positions(self._sensed_configuration(q, tracked))
+                self._p_sensed = self._sensed_pose(q, tracked)[1]
                 self._pitch = self._foot_pitch(q, tracked)
             self._history.append((frame.time, p_contacts))
             t_old, p_old = self._history[0]

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..rotations import matrix_to_quat_wxyz, quat_wxyz_to_matrix
+from ..rotations import continuous_quaternions, matrix_to_quat_wxyz, quat_wxyz_to_matrix
 
 
 @dataclass(frozen=True)
@@ -43,14 +43,9 @@ def aligned_quaternions(R_world_sensor: np.ndarray) -> np.ndarray:
     """
     q = np.full((len(R_world_sensor), 4), np.nan)
     good = np.isfinite(R_world_sensor).all(axis=(1, 2))
-    if not good.any():
-        return q
-    q[good] = matrix_to_quat_wxyz(R_world_sensor[good])
-    idx = np.flatnonzero(good)
-    dots = np.einsum("ij,ij->i", q[idx[1:]], q[idx[:-1]])
-    signs = np.concatenate([[1.0], np.cumprod(np.where(dots < 0.0, -1.0, 1.0))])
-    q[idx] *= signs[:, None]
-    return q
+    if good.any():
+        q[good] = matrix_to_quat_wxyz(R_world_sensor[good])
+    return continuous_quaternions(q)
 
 
 def _window_sums(values: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray]:

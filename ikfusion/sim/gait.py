@@ -299,7 +299,7 @@ def generate_gait(model: HumanModel, parameters: GaitParameters | None = None,
     """
     p = parameters or GaitParameters()
     planner = GaitPlanner(model, p)
-    solver = Solver(model, max_iterations=8)
+    solver = Solver(model, max_iterations=8, step_tolerance=1e-3)  # converged truth
     times = np.arange(0.0, p.duration, 1.0 / rate)
     qs, contacts = [], []
     for t in tqdm(times, disable=not progress, unit="frame", desc="gait"):

@@ -92,7 +92,7 @@ def motion_from_bvh(path: str | Path, rate: float = 60.0,
     mapped = map_motion(bvh, frames=frames)
     body, dropped = body_from_dims(mapped.body_dims)
     model = HumanModel.from_body(body)
-    solver = Solver(model, contacts=False, max_iterations=8)
+    solver = Solver(model, contacts=False, max_iterations=8, step_tolerance=1e-3)
     time = np.arange(len(frames)) * step / bvh.frame_rate
     qs = []
     for k in tqdm(range(len(frames)), disable=not progress, unit="frame", desc="mocap"):

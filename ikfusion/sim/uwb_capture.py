@@ -27,6 +27,7 @@ import pinocchio as pin
 from ..errors import InputError
 from ..io.recording import ImuRecording
 from ..model.human_model import HumanModel
+from ..rotations import continuous_quaternions
 from ..uwb.constellation import Constellation, save_constellation
 from ..uwb.simulate import simulate_toa
 from ..uwb.toa_log import ToaLog, write_toa_csv
@@ -311,14 +312,17 @@ def smooth_truth(truth: TruthMotion, sigma_seconds: float = 0.05) -> TruthMotion
     offsets = np.arange(-half, half + 1)
     kernel = np.exp(-0.5 * (offsets / sigma) ** 2)
     kernel /= kernel.sum()
-    padded = np.pad(truth.q, ((half, half), (0, 0)), mode="edge")
-    q = np.stack([np.convolve(padded[:, j], kernel, mode="valid")
-                  for j in range(truth.q.shape[1])], axis=1)
     model = truth.model.model
-    for joint in model.joints[1:]:
-        start = joint.idx_q + (3 if joint.nq == 7 else 0)
-        if joint.nq in (4, 7):
-            block = q[:, start:start + 4]
-            block /= np.linalg.norm(block, axis=1, keepdims=True)
+    blocks = [joint.idx_q + (3 if joint.nq == 7 else 0) for joint in model.joints[1:]
+              if joint.nq in (4, 7)]
+    q = truth.q.copy()
+    for start in blocks:  # q and -q are one rotation: average along one continuous hemisphere
+        q[:, start:start + 4] = continuous_quaternions(q[:, start:start + 4])
+    padded = np.pad(q, ((half, half), (0, 0)), mode="edge")
+    q = np.stack([np.convolve(padded[:, j], kernel, mode="valid")
+                  for j in range(q.shape[1])], axis=1)
+    for start in blocks:
+        block = q[:, start:start + 4]
+        block /= np.linalg.norm(block, axis=1, keepdims=True)
     return TruthMotion(truth.model, truth.time.copy(), q, list(truth.contact_names),
                        truth.contacts.copy(), truth.source, dict(truth.info))

@@ -48,6 +48,10 @@ class JointRangeLimit:
         self.parity = np.where((j - i) % 3 == 1, 1.0, -1.0)
         self.margin = np.radians(margin_deg)
         self._q_cols = self.idx_q[:, None] + np.arange(4)
+        n = len(self.idx_v)  # where each E^-1 entry goes in the rows of all angles
+        self._rows = np.repeat(np.arange(3 * n), 3)
+        self._cols = (self.idx_v[:, None, None] + np.zeros((1, 3, 1), dtype=int)
+                      + np.arange(3)).reshape(-1)
 
     def angles(self, q: np.ndarray) -> np.ndarray:
         """Anatomical angles (joints, 3) [rad] in sequence order."""
@@ -87,17 +91,14 @@ class JointRangeLimit:
         ``rate_matrices`` (``E^-1``, joints x 3 x 3) are computed when not given.
         """
         a = angles
-        near_up = a > self.upper - self.margin
-        near_lo = a < self.lower + self.margin
+        near_up = (a > self.upper - self.margin).reshape(-1)
+        near_lo = (a < self.lower + self.margin).reshape(-1)
         if not (near_up.any() or near_lo.any()):
             return Inequality(np.zeros((0, nv)), np.zeros(0))
         Einv = self.rate_matrices(a) if rate_matrices is None else rate_matrices
-        rows, h = [], []
-        for mask, sign, bound in ((near_up, 1.0, self.upper), (near_lo, -1.0, self.lower)):
-            jn, m = np.nonzero(mask)
-            G = np.zeros((len(jn), nv))
-            cols = self.idx_v[jn, None] + np.arange(3)
-            G[np.arange(len(jn))[:, None], cols] = sign * Einv[jn, m]
-            rows.append(G)
-            h.append(sign * (bound[jn, m] - a[jn, m]))
-        return Inequality(np.vstack(rows), np.concatenate(h))
+        G_all = np.zeros((a.size, nv))  # row 3j + m: angle m of joint j per unit tangent step
+        G_all[self._rows, self._cols] = Einv.reshape(-1)
+        G = np.concatenate([G_all[near_up], -G_all[near_lo]])
+        h = np.concatenate([(self.upper - a).reshape(-1)[near_up],
+                            (a - self.lower).reshape(-1)[near_lo]])
+        return Inequality(G, h)

@@ -25,11 +25,16 @@ class VelocityLimit:
         self.q_previous = None if q_previous is None else np.asarray(q_previous, dtype=float)
         self.dt = float(dt)
 
-    def bounds(self, configuration: Configuration) -> tuple[np.ndarray, np.ndarray] | None:
-        """``(lb, ub)`` on ``dq``, or None when there is no previous frame."""
+    def bounds(self, configuration: Configuration,
+               moved: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(lb, ub)`` on ``dq``, or None when there is no previous frame.
+
+        ``moved`` is ``q ⊖ q_previous`` when the caller has it already.
+        """
         if self.q_previous is None or self.dt <= 0.0:
             return None
-        moved = configuration.difference(self.q_previous)
+        if moved is None:
+            moved = configuration.difference(self.q_previous)
         span = self.max_velocity * self.dt
         lb = np.minimum(-span - moved, 0.0)
         ub = np.maximum(span - moved, 0.0)

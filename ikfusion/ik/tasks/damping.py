@@ -40,9 +40,10 @@ class DampingTask(Task):
         """Identity (nv, nv)."""
         return np.eye(configuration.model.nv)
 
-    def add_objective(self, configuration: Configuration, H: np.ndarray, c: np.ndarray) -> None:
-        """Diagonal assembly."""
+    def add_objective(self, configuration: Configuration, H: np.ndarray, c: np.ndarray,
+                      error: np.ndarray | None = None) -> None:
+        """Diagonal assembly; ``error`` is ``q ⊖ q_ref`` when the caller has it already."""
         if self.q_reference is None:
             return
-        H[np.diag_indices_from(H)] += self.weights
-        c += self.weights * self.compute_error(configuration)
+        H.flat[::H.shape[0] + 1] += self.weights  # the diagonal
+        c += self.weights * (self.compute_error(configuration) if error is None else error)
