@@ -35,18 +35,24 @@ class Configuration:
         return self._q
 
     def update(self, q: npt.ArrayLike) -> None:
-        """Set ``q`` and run forward kinematics and joint Jacobians once."""
+        """Set ``q``; forward kinematics and joint Jacobians run once, when first needed."""
         qq = np.array(q, dtype=float)
         qq.setflags(write=False)
         self._q = qq
-        pin.computeJointJacobians(self.model, self.data, qq)
+        self._kinematics_done = False
         self._placements.clear()
         self._jacobians.clear()
+
+    def _kinematics(self) -> None:
+        if not self._kinematics_done:
+            pin.computeJointJacobians(self.model, self.data, self._q)
+            self._kinematics_done = True
 
     def placement(self, frame_id: int) -> pin.SE3:
         """``T_world_frame`` of one frame."""
         T = self._placements.get(frame_id)
         if T is None:
+            self._kinematics()
             T = pin.updateFramePlacement(self.model, self.data, frame_id)
             self._placements[frame_id] = T
         return T
@@ -55,6 +61,7 @@ class Configuration:
         """Frame Jacobian (6, nv), LOCAL_WORLD_ALIGNED (linear rows first)."""
         J = self._jacobians.get(frame_id)
         if J is None:
+            self._kinematics()
             J = pin.getFrameJacobian(self.model, self.data, frame_id, pin.LOCAL_WORLD_ALIGNED)
             self._jacobians[frame_id] = J
         return J

@@ -231,7 +231,7 @@ def _tilted(names: Sequence[str], foot_pitch: np.ndarray | None, limit: float) -
     if foot_pitch is None:
         return np.zeros(len(names), dtype=bool)
     _, heel, toe = _layout(tuple(names))
-    pitch = np.nan_to_num(np.asarray(foot_pitch, dtype=float), nan=0.0)
+    pitch = np.asarray(foot_pitch, dtype=float)  # NaN (unknown) compares False: not tilted
     return (heel & (pitch > limit)) | (toe & (pitch < -limit))
 
 
@@ -249,13 +249,10 @@ def _drift_from_other_foot(names: Sequence[str], active: np.ndarray, anchors: np
     foot's planted points [s] (+inf when none).
     """
     same = _layout(tuple(names))[0]
-    drift = np.zeros(len(names))
-    other_age = np.full(len(names), np.inf)
-    for i in range(len(names)):
-        others = active & ~same[i]
-        if not active[i] or not others.any():
-            continue
-        offset = np.mean(anchors[others] - p_sensed[others], axis=0)
-        drift[i] = np.linalg.norm((p_sensed[i] + offset - anchors[i])[:2])
-        other_age[i] = age[others].max()
+    others = active[:, None] & active[None, :] & ~same  # row i: the other foot's planted points
+    count = others.sum(axis=1)
+    has = count > 0
+    offset = (others @ (anchors - p_sensed)) / np.maximum(count, 1)[:, None]
+    drift = np.where(has, np.linalg.norm((p_sensed + offset - anchors)[:, :2], axis=1), 0.0)
+    other_age = np.where(has, np.where(others, age[None, :], -np.inf).max(axis=1), np.inf)
     return drift, other_age

@@ -32,7 +32,7 @@ class SolverSettings:
     smoothness_root_rotation: float = 1e-6
     smoothness_joints: float = 1e-6
     ballistic: float = 1e3
-    joint_range_margin_deg: float = 25.0
+    joint_range_margin_deg: float = 5.0
     max_joint_velocity: float = 30.0
     max_root_velocity: float = 15.0
     max_root_angular_velocity: float = 30.0

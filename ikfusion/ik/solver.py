@@ -17,7 +17,7 @@ import copy
 import time
 from collections import deque
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -31,13 +31,25 @@ from .compiled import SensedPoseSpec, compiled_kinematics
 from .configuration import Configuration
 from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
 from .frame import Frame
-from .limits import ContactConstraint, FloorLimit, JointRangeLimit, VelocityLimit
+from .limits import ContactConstraint, FloorLimit, Inequality, JointRangeLimit, VelocityLimit
+from .limits.joint_range import LinearisedRanges
 from .pose import Motion, Pose
-from .qp import QpProblem, assemble_qp, build_qp, solve_qp
+from .qp import QpProblem, QpSolution, assemble_qp, build_qp, solve_qp
 from .settings import SolverSettings
 from .tasks import DampingTask, OrientationTask, PositionTask, PostureTask, Task
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
+
+
+@dataclass
+class _LazyRows:
+    """What a step's QP left out, to add if the step needs it."""
+
+    ranges: LinearisedRanges
+    up: np.ndarray      # upper limits in the QP
+    down: np.ndarray    # lower limits in the QP
+    floor: Inequality   # the floor rows (always in the QP, kept to rebuild it)
+    bounds: tuple[np.ndarray, np.ndarray] | None
 
 
 class Solver:
@@ -107,6 +119,11 @@ class Solver:
                 self._kinematics = None
         self._configuration = Configuration(model.model, model.neutral())
         self._sensed_data = model.model.createData()
+        self._identities = np.tile(np.eye(3), (len(segments), 1, 1))
+        self._positions_set = True  # the position task starts without targets: clear it once
+        self._contact_feet = np.array([self._segment_index.get(
+            f"{'Left' if n.startswith('Left') else 'Right'}Foot", -1) for n in self.contact_names],
+            dtype=int)
         self.reset()
 
     def _sensed_spec(self) -> SensedPoseSpec:
@@ -129,8 +146,8 @@ class Solver:
     def _sensed_pose(self, q: np.ndarray, tracked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The sensed configuration at ``q`` and its contact points (c, 3) [m].
 
-        The configuration keeps the toes of ``q``; the points are those with level toes (see
-        :meth:`_sensed_configuration`).
+        The configuration keeps the toes of ``q`` (the posture prior decides them); the points
+        are those with level toes (see :meth:`_sensed_configuration`).
         """
         kin = self._kinematics
         if kin is not None and kin.sensed_function is not None:
@@ -217,7 +234,7 @@ class Solver:
     def _set_targets(self, frame: Frame) -> np.ndarray:
         """Load a frame's targets into the tasks; returns the tracked-segment mask."""
         n = len(self._segment_index)
-        R = np.tile(np.eye(3), (n, 1, 1))
+        R = self._identities.copy()
         w = np.zeros(n)
         for name, R_target in frame.orientations.items():
             i = self._segment_index.get(name)
@@ -228,6 +245,16 @@ class Solver:
             w[i] = frame.orientation_weights.get(name, 1.0)
         self.orientation_task.set_targets(R, w)
         tracked = self.orientation_task.weights > 0
+        if frame.positions or self._positions_set:
+            self._set_position_targets(frame)
+        self._positions_set = bool(frame.positions)
+        both = tracked[self._joint_parent] & tracked[self._joint_child]
+        self.posture_task.weights = np.where(both, 0.0, self._posture_weights)
+        self._row_weights = (self.orientation_task.row_weights(), self.posture_task.row_weights())
+        return tracked
+
+    def _set_position_targets(self, frame: Frame) -> None:
+        """Load a frame's site position targets (sites without one get zero information)."""
         m = len(self._site_index)
         p = np.zeros((m, 3))
         info = np.zeros((m, 3, 3))
@@ -239,10 +266,6 @@ class Solver:
             weight = np.asarray(frame.position_weights.get(name, 1.0), dtype=float)
             info[i] = weight * np.eye(3) if weight.ndim == 0 else weight
         self.position_task.set_targets(p, info)
-        both = tracked[self._joint_parent] & tracked[self._joint_child]
-        self.posture_task.weights = np.where(both, 0.0, self._posture_weights)
-        self._row_weights = (self.orientation_task.row_weights(), self.posture_task.row_weights())
-        return tracked
 
     def _sensed_configuration(self, q: np.ndarray, tracked: np.ndarray,
                               level_toes: bool = True) -> np.ndarray:
@@ -340,7 +363,7 @@ class Solver:
         for done in range(1, iterations + 1):  # noqa: B007 - `done` is reported after the loop
             problem = self._problem(conf, tasks)
             try:
-                solution = solve_qp(problem, s.backend)
+                solution = self._solve_step(problem)
             except SolverError as err:
                 self._failures.append(f"t = {frame.time:.3f} s: {err}; kept the last step")
                 relaxed = True
@@ -363,12 +386,14 @@ class Solver:
         previous = self.velocity_limit.q_previous  # also the damping task's reference
         moved = None if previous is None else conf.difference(previous)
         bounds = self.velocity_limit.bounds(conf, moved)
-        if self._kinematics is None:
-            return build_qp(
-                conf, tasks,
-                [self.joint_limits.inequality(conf), self.floor_limit.inequality(conf)],
-                [self.contact_constraint.equality(conf)], bounds, s.levenberg_marquardt)
         nv = self.model.model.nv
+        if self._kinematics is None:
+            ranges = self.joint_limits.linearise(self.joint_limits.angles(conf.q), None, nv)
+            up, down = ranges.near(self.joint_limits.margin)
+            floor = self.floor_limit.inequality(conf)
+            self._lazy = _LazyRows(ranges, up, down, floor, bounds)
+            return build_qp(conf, tasks, [ranges.inequality(up, down), floor],
+                            [self.contact_constraint.equality(conf)], None, s.levenberg_marquardt)
         H, c, _, angles, E_inv, p_sites, J_sites = self._kinematics(
             conf.q, self.orientation_task.targets, self._geometry, *self._row_weights)
         H, c = H.copy(), c[:, 0].copy()
@@ -380,11 +405,47 @@ class Solver:
         same = self.damping_task.q_reference is previous
         self.damping_task.add_objective(conf, H, c, moved if same else None)
         Pc, Jc = P[self._contact_rows], J[self._contact_rows]
-        return assemble_qp(
-            H, c,
-            [self.joint_limits.rows(angles.reshape(-1, 3), E_inv.reshape(-1, 3, 3), nv),
-             self.floor_limit.rows(Pc, Jc)],
-            [self.contact_constraint.rows(Pc, Jc)], bounds, s.levenberg_marquardt)
+        ranges = self.joint_limits.linearise(angles.reshape(-1, 3), E_inv.reshape(-1, 3, 3), nv)
+        up, down = ranges.near(self.joint_limits.margin)
+        floor = self.floor_limit.rows(Pc, Jc)
+        self._lazy = _LazyRows(ranges, up, down, floor, bounds)
+        return assemble_qp(H, c, [ranges.inequality(up, down), floor],
+                           [self.contact_constraint.rows(Pc, Jc)], None, s.levenberg_marquardt)
+
+    def _solve_step(self, problem: QpProblem) -> QpSolution:
+        """Solve a step's QP, adding the rows it left out only when the step needs them.
+
+        The problem holds the limits of angles near a limit and no velocity bounds
+        (few are ever active, and every row costs the QP solver time); a step that would cross
+        another limit or a bound is solved again with those rows. A relaxed step is solved
+        again with every row.
+        """
+        backend = self.settings.backend
+        solution = solve_qp(problem, backend)
+        lazy = self._lazy
+        lb, ub = lazy.bounds if lazy.bounds is not None else (None, None)
+        for _ in range(4):
+            if solution.relaxed:
+                lazy.up[:], lazy.down[:] = True, True
+            crossed_up, crossed_down = lazy.ranges.crossed(solution.dq, 1e-9)
+            crossed_up &= ~lazy.up
+            crossed_down &= ~lazy.down
+            outside = lb is not None and ub is not None and problem.lb is None and bool(
+                np.any(solution.dq < lb - 1e-9) or np.any(solution.dq > ub + 1e-9))
+            if not (solution.relaxed or outside or crossed_up.any() or crossed_down.any()):
+                return solution
+            lazy.up |= crossed_up
+            lazy.down |= crossed_down
+            ranges = lazy.ranges.inequality(lazy.up, lazy.down)
+            problem.G = np.vstack([ranges.G, lazy.floor.G])
+            problem.h = np.concatenate([ranges.h, lazy.floor.h])
+            if outside or solution.relaxed:
+                problem.lb, problem.ub = lb, ub
+            relaxed_before = solution.relaxed
+            solution = solve_qp(problem, backend)
+            if relaxed_before:
+                return solution
+        return solution
 
     def _project_on_constraints(self, conf: Configuration, max_steps: int = 4) -> bool:
         """Remove the linearisation residual of the contacts with minimum-norm steps.
@@ -401,9 +462,10 @@ class Solver:
         nv = self.model.model.nv
         q_start = conf.q.copy()
         for _ in range(max_steps):  # the residual is second order: minimum-norm steps suffice
-            slide = self.contact_constraint.slide_m(conf)
+            P = conf.positions(self._contact_ids)
+            slide = self.contact_constraint.slide_m(conf, P)
             if not np.any(slide[np.isfinite(slide)] > s.constraint_tolerance):
-                if self._above_floor(conf):
+                if self._above_floor(P):
                     return False
                 break
             A, b = self.contact_constraint.equality(conf)
@@ -426,11 +488,9 @@ class Solver:
             conf.update(conf.integrate(solution.dq))
         return relaxed
 
-    def _above_floor(self, conf: Configuration) -> bool:
-        """No contact point below the floor (beyond the constraint tolerance)."""
-        if not self._contact_ids:
-            return True
-        z = conf.positions(self._contact_ids)[:, 2]
+    def _above_floor(self, p_contacts: np.ndarray) -> bool:
+        """No contact point (c, 3) [m] below the floor (beyond the constraint tolerance)."""
+        z = p_contacts[:, 2]
         return bool(np.all(z >= self.settings.floor_z - self.settings.constraint_tolerance))
 
     def _place_on_floor(self, q: np.ndarray) -> np.ndarray:
@@ -463,19 +523,17 @@ class Solver:
     def _foot_pitch(self, q: np.ndarray, tracked: np.ndarray) -> np.ndarray:
         """Pitch [rad] (toe down positive) of the foot of each contact point.
 
-        From the foot's target when tracked, else from the solved pose.
+        From the foot's target when tracked, else from the solved pose; NaN without a foot.
         """
-        out = np.full(len(self.contact_names), np.nan)
-        for i, name in enumerate(self.contact_names):
-            foot = f"{'Left' if name.startswith('Left') else 'Right'}Foot"
-            k = self._segment_index.get(foot)
-            if k is None:
+        feet = self._contact_feet
+        forward = np.full((len(feet), 3), np.nan)
+        for i, k in enumerate(feet):
+            if k < 0:
                 continue
             R = (self.orientation_task.targets[k] if tracked[k]
-                 else self.model.segment_rotation(q, foot))
-            forward = R[:, 0]
-            out[i] = np.arctan2(-forward[2], np.hypot(forward[0], forward[1]))
-        return out
+                 else self.model.segment_rotation(q, self.model.segment_names[k]))
+            forward[i] = R[:, 0]
+        return np.arctan2(-forward[:, 2], np.hypot(forward[:, 0], forward[:, 1]))
 
     def _contact_positions(self, q: np.ndarray) -> np.ndarray:
         data = self._sensed_data
@@ -513,20 +571,27 @@ class Solver:
     def _residual_source(self, q: np.ndarray) -> Callable[[], dict[str, dict[str, float]]]:
         """The residuals of the pose ``q`` against this frame's targets, computed on demand.
 
-        The tasks replace (never modify) their target arrays, so the tasks copied here keep
-        this frame's targets.
+        The tasks replace (never modify) their target arrays, so keeping the arrays of this
+        frame keeps its targets.
         """
-        orientation, position = copy.copy(self.orientation_task), copy.copy(self.position_task)
-        contact = copy.copy(self.contact_constraint)
+        orientation, position = self.orientation_task, self.position_task
+        targets = (orientation.targets, orientation.weights, position.targets,
+                   position.information, self.contact_constraint.active,
+                   self.contact_constraint.anchors)
         model = self.model.model
         names = self.contact_names
 
         def residuals() -> dict[str, dict[str, float]]:
+            R, w, p, info, active, anchors = targets
+            o, pos = copy.copy(orientation), copy.copy(position)
+            o.targets, o.weights, pos.targets, pos.information = R, w, p, info
+            contact = copy.copy(self.contact_constraint)
+            contact.set_anchors(active, anchors)
             conf = Configuration(model, q)
             slide = contact.slide_m(conf)
             return {
-                "orientation_deg": orientation.errors_deg(conf),
-                "position_m": position.errors_m(conf),
+                "orientation_deg": o.errors_deg(conf),
+                "position_m": pos.errors_m(conf),
                 "contact_slide_m": {n: float(d) for n, d in zip(names, slide)
                                     if np.isfinite(d)},
             }

@@ -45,9 +45,13 @@ class ContactConstraint:
         b = (self.anchors[self.active] - p_world[self.active]).reshape(-1)
         return Equality(J, b)
 
-    def slide_m(self, configuration: Configuration) -> np.ndarray:
-        """Distance of each point from its anchor (k,) [m]; NaN for points not in contact."""
-        p = configuration.positions(self.frame_ids)
+    def slide_m(self, configuration: Configuration,
+                p_world: np.ndarray | None = None) -> np.ndarray:
+        """Distance of each point from its anchor (k,) [m]; NaN for points not in contact.
+
+        ``p_world`` (k, 3) [m] are the points' positions when the caller has them.
+        """
+        p = configuration.positions(self.frame_ids) if p_world is None else p_world
         d = np.linalg.norm(p - self.anchors, axis=1)
         return np.where(self.active, d, np.nan)
 

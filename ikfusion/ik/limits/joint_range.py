@@ -14,6 +14,7 @@ middle angle stays away from +-90 deg, which the ranges guarantee.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -86,19 +87,47 @@ class JointRangeLimit:
         return self.rows(a, None, configuration.model.nv)
 
     def rows(self, angles: np.ndarray, rate_matrices: np.ndarray | None, nv: int) -> Inequality:
-        """Rows ``G dq <= h`` from the current angles (joints, 3) [rad].
+        """Rows ``G dq <= h`` for the angles (joints, 3) [rad] within the margin of a limit.
 
         ``rate_matrices`` (``E^-1``, joints x 3 x 3) are computed when not given.
         """
+        linear = self.linearise(angles, rate_matrices, nv)
+        return linear.inequality(*linear.near(self.margin))
+
+    def linearise(self, angles: np.ndarray, rate_matrices: np.ndarray | None,
+                  nv: int) -> LinearisedRanges:
+        """Every angle's rate per tangent step and its room to both limits."""
         a = angles
-        near_up = (a > self.upper - self.margin).reshape(-1)
-        near_lo = (a < self.lower + self.margin).reshape(-1)
-        if not (near_up.any() or near_lo.any()):
-            return Inequality(np.zeros((0, nv)), np.zeros(0))
         Einv = self.rate_matrices(a) if rate_matrices is None else rate_matrices
-        G_all = np.zeros((a.size, nv))  # row 3j + m: angle m of joint j per unit tangent step
-        G_all[self._rows, self._cols] = Einv.reshape(-1)
-        G = np.concatenate([G_all[near_up], -G_all[near_lo]])
-        h = np.concatenate([(self.upper - a).reshape(-1)[near_up],
-                            (a - self.lower).reshape(-1)[near_lo]])
-        return Inequality(G, h)
+        G = np.zeros((a.size, nv))  # row 3j + m: angle m of joint j per unit tangent step
+        G[self._rows, self._cols] = Einv.reshape(-1)
+        return LinearisedRanges(G, (self.upper - a).reshape(-1), (a - self.lower).reshape(-1))
+
+
+@dataclass
+class LinearisedRanges:
+    """The ranges of motion linearised at one configuration.
+
+    Attributes:
+        G: (angles, nv) rate of each anatomical angle per unit tangent step.
+        room_up: (angles,) ``upper - a`` [rad] (negative beyond the limit).
+        room_down: (angles,) ``a - lower`` [rad].
+    """
+
+    G: np.ndarray
+    room_up: np.ndarray
+    room_down: np.ndarray
+
+    def near(self, margin: float) -> tuple[np.ndarray, np.ndarray]:
+        """Masks of the angles within ``margin`` [rad] of their upper and lower limits."""
+        return self.room_up < margin, self.room_down < margin
+
+    def inequality(self, up: np.ndarray, down: np.ndarray) -> Inequality:
+        """Rows ``G dq <= h`` for the upper limits in ``up`` and the lower ones in ``down``."""
+        return Inequality(np.concatenate([self.G[up], -self.G[down]]),
+                          np.concatenate([self.room_up[up], self.room_down[down]]))
+
+    def crossed(self, dq: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+        """Masks of the limits (upper, lower) that the step ``dq`` would cross."""
+        rate = self.G @ dq
+        return rate > self.room_up + tolerance, -rate > self.room_down + tolerance
