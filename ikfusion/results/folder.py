@@ -3,7 +3,9 @@
 Files: ``joint_angles.csv`` (time, then ``<joint>_flex/_abd/_rot`` [deg]), ``segments.csv``
 (``time,segment,px,py,pz,qw,qx,qy,qz``; world frame, Z up, metres), ``sites.csv``
 (``time,site,x,y,z``), ``contacts.csv`` (``time,LeftHeel,LeftToe,RightHeel,RightToe`` as 0/1),
-``motion.bvh`` and ``summary.json`` (frames, rate, solve time per frame, warnings).
+``motion.bvh``, ``motion.mot`` (OpenSim coordinates of the Rajagopal 2015 model, degrees and
+metres, Y up; mapping in ``configs/opensim.yaml``, see :mod:`.opensim_export`) and
+``summary.json`` (frames, rate, solve time per frame, warnings).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from ..ik.pose import Motion
 from ..rotations import matrix_to_quat_wxyz
 from .atomic import atomic_folder
 from .bvh_export import write_motion_bvh
+from .opensim_export import write_motion_mot
 
 SEGMENT_COLUMNS = ("time", "segment", "px", "py", "pz", "qw", "qx", "qy", "qz")
 SITE_COLUMNS = ("time", "site", "x", "y", "z")
@@ -101,5 +104,6 @@ def write_result_folder(motion: Motion, out_dir: str | Path, bvh_up: str = "z",
                    header=",".join(["time", *motion.contact_names]), comments="")
         frame_time = 1.0 / motion.rate if motion.rate > 0 else 1.0 / 60.0
         write_motion_bvh(tmp / "motion.bvh", model, motion.q, frame_time, up=bvh_up)
+        write_motion_mot(tmp / "motion.mot", motion)
         (tmp / "summary.json").write_text(json.dumps(summary(motion, extra_summary), indent=2))
     return Path(out_dir)
