@@ -204,7 +204,7 @@ class GaitPlanner:
             if f < 1.0 / 6.0 and k >= 0:  # heel rocker
                 pitch = hs * (1.0 - _smoothstep(6.0 * f))
                 R, pa = self._pose_about(self.heel_local, p_flat, yaw, float(pitch))
-                return R, pa, R, True, f > 0.12
+                return R, pa, R, True, False  # the toes touch down when the foot is flat
             if f < 0.75 or standing_start:
                 return R_toe, p_flat, R_toe, True, True
             pitch = to * _smoothstep((f - 0.75) / 0.25)  # heel-off about the ball
@@ -256,7 +256,7 @@ class GaitPlanner:
                     @ axis_rotation("y", np.radians(3.0 * walking)))
         lateral = np.array([-np.sin(heading), np.cos(heading)])
         sway = 0.02 * walking * np.sin(phase)
-        z = self.pelvis_height - walking * (0.055 - 0.012 * np.cos(2.0 * phase))
+        z = self.pelvis_height - walking * (0.075 - 0.012 * np.cos(2.0 * phase))
         xy = c + sway * lateral
         return self.model.configuration(angles, p_world_pelvis=[xy[0], xy[1], z],
                                         R_world_pelvis=R_pelvis)
@@ -299,7 +299,10 @@ def generate_gait(model: HumanModel, parameters: GaitParameters | None = None,
     """
     p = parameters or GaitParameters()
     planner = GaitPlanner(model, p)
-    solver = Solver(model, max_iterations=8, step_tolerance=1e-3)  # converged truth
+    # Converged truth; knees that move like the hinges they nearly are (ball joints otherwise
+    # take up the foot placement with knee rotation and valgus no real knee shows).
+    solver = Solver(model, max_iterations=8, step_tolerance=1e-3,
+                    posture_axes={f"j{s}Knee": [100.0, 1.0, 100.0] for s in ("Left", "Right")})
     times = np.arange(0.0, p.duration, 1.0 / rate)
     qs, contacts = [], []
     for t in tqdm(times, disable=not progress, unit="frame", desc="gait"):
