@@ -88,4 +88,6 @@ def table(result: DemoResult) -> str:
     lines = [f"{name:<{width}}  {value}" for name, value in rows]
     lines.append(f"results in {result.out_dir}/result, capture and truth in "
                  f"{result.out_dir}/capture")
+    lines.append(f"see it: ikfusion view {result.out_dir}/result --truth "
+                 f"{result.out_dir}/capture/truth.npz")
     return "\n".join(lines)

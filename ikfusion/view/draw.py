@@ -1,0 +1,320 @@
+"""Draw a :class:`~ikfusion.view.scene.Scene` into a Rerun recording.
+
+Entity layout (world frame Z up, metres; one duration timeline ``time`` in seconds):
+
+- ``world/floor``: a grid on z = 0; ``world/readers``: UWB readers with their ids;
+- ``world/<actor>/bones``: a line from each segment origin to each child's origin (leaf segments
+  end at their tip site, e.g. Head -> HeadTop), ``world/<actor>/joints``: segment origins,
+  ``world/<actor>/axes``: short X/Y/Z (red/green/blue) arrows of each segment frame,
+  ``world/<actor>/contacts``: contact points, large and yellow while in contact,
+  ``world/<actor>/tags/<site>``: tag site now, ``world/<actor>/paths/<site>``: its whole path;
+- ``plots/<actor>/angles/<column>`` [deg], ``plots/<actor>/contacts/<point>`` (phases stacked:
+  point i is drawn at i + 0.8 while in contact, at i otherwise), ``plots/<actor>/solve_time_ms``.
+
+Rerun is optional (the ``view`` extra); :func:`require_rerun` imports it with a clear message.
+"""
+
+from __future__ import annotations
+
+import re
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from .scene import Actor, Readers, Scene
+
+#: Name of the one timeline that drives the 3-D view and the plots.
+TIMELINE = "time"
+
+#: Joint-angle curves shown by default (the rest are one click away in the viewer).
+DEFAULT_CURVES: tuple[str, ...] = (
+    "jRightHip_flex", "jRightKnee_flex", "jRightAnkle_flex",
+    "jLeftHip_flex", "jLeftKnee_flex", "jLeftAnkle_flex",
+)
+
+_ACTOR_COLORS = ((66, 135, 245), (245, 130, 48), (60, 180, 75), (145, 30, 180), (70, 240, 240))
+_GHOST_COLOR = (200, 200, 200, 110)
+_AXIS_COLORS = np.array([[230, 40, 40], [40, 200, 40], [40, 90, 240]], dtype=np.uint8)
+_CONTACT_ON = (255, 220, 0)
+_CONTACT_OFF = (90, 90, 90)
+_AXIS_LENGTH = 0.08  # [m]
+_LEAF_STUB = 0.08  # [m] bone of a leaf segment without a tip site, along its -Z axis
+
+
+class ViewerUnavailable(InputError):
+    """The optional viewer library is missing; the message says which extra to install."""
+
+
+def require_rerun() -> ModuleType:
+    """Import ``rerun`` (package ``rerun-sdk``) or explain how to install it."""
+    try:
+        import rerun
+    except ImportError as err:
+        raise ViewerUnavailable(
+            "ikfusion view needs the optional package rerun-sdk: install it with "
+            "pip install 'ikfusion[view]' (or pip install rerun-sdk)") from err
+    return rerun
+
+
+def entity_name(name: str) -> str:
+    """A name usable as one Rerun entity path part (letters, digits, ``_`` and ``-``)."""
+    return re.sub(r"[^A-Za-z0-9_-]", "_", name) or "_"
+
+
+def actor_color(index: int, actor: Actor) -> tuple[int, ...]:
+    """RGB(A) colour of an actor: a palette colour, or faint grey for a ghost."""
+    return _GHOST_COLOR if actor.ghost else _ACTOR_COLORS[index % len(_ACTOR_COLORS)]
+
+
+def log_scene(rec: Any, scene: Scene) -> None:
+    """Log the whole scene into the recording stream ``rec`` (a ``rerun.RecordingStream``)."""
+    rr = require_rerun()
+    rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    log_floor(rec, scene)
+    if scene.readers is not None and len(scene.readers.ids):
+        log_readers(rec, scene.readers)
+    if scene.notes:
+        rec.log("notes", rr.TextDocument("\n\n".join(scene.notes)), static=True)
+    for i, actor in enumerate(scene.actors):
+        color = actor_color(i, actor)
+        log_actor_curves(rec, actor, color)  # first: whole columns, quick to show
+        log_actor_paths(rec, actor, scene.tag_sites, color)
+        log_actor_frames(rec, actor, scene.tag_sites, color)
+
+
+def floor_lines(scene: Scene, spacing: float = 0.5, margin: float = 1.0) -> list[np.ndarray]:
+    """Grid lines on z = 0 covering every actor's path with a margin, each (2, 3) [m]."""
+    points = [a.p_world_segment[:, 0, :2] for a in scene.actors if a.frames]
+    if scene.readers is not None and len(scene.readers.ids):
+        points.append(scene.readers.p_world_reader[:, :2])
+    xy = np.concatenate([p[np.all(np.isfinite(p), axis=1)] for p in points]) if points else \
+        np.zeros((1, 2))
+    if not len(xy):
+        xy = np.zeros((1, 2))
+    lo = np.floor((xy.min(axis=0) - margin) / spacing) * spacing
+    hi = np.ceil((xy.max(axis=0) + margin) / spacing) * spacing
+    lines = [np.array([[x, lo[1], 0.0], [x, hi[1], 0.0]])
+             for x in np.arange(lo[0], hi[0] + spacing / 2, spacing)]
+    lines += [np.array([[lo[0], y, 0.0], [hi[0], y, 0.0]])
+              for y in np.arange(lo[1], hi[1] + spacing / 2, spacing)]
+    return lines
+
+
+def log_floor(rec: Any, scene: Scene) -> None:
+    """The floor grid (static)."""
+    rr = require_rerun()
+    rec.log("world/floor", rr.LineStrips3D(floor_lines(scene), radii=0.003,
+                                           colors=(120, 120, 120)), static=True)
+
+
+def log_readers(rec: Any, readers: Readers) -> None:
+    """UWB readers as labelled points on poles down to the floor (static)."""
+    rr = require_rerun()
+    p = readers.p_world_reader
+    rec.log("world/readers", rr.Points3D(p, radii=0.06, colors=(220, 60, 200),
+                                         labels=list(readers.ids)), static=True)
+    poles = [np.array([q, [q[0], q[1], 0.0]]) for q in p]
+    rec.log("world/readers/poles", rr.LineStrips3D(poles, radii=0.005, colors=(220, 60, 200)),
+            static=True)
+
+
+def segment_rotations(actor: Actor) -> np.ndarray | None:
+    """``R_world_segment`` of every frame and segment, shape (N, S, 3, 3), or None."""
+    if actor.quat_wxyz_world_segment is None:
+        return None
+    return quat_wxyz_to_matrix(actor.quat_wxyz_world_segment)
+
+
+def quat_wxyz_to_matrix(quat_wxyz: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) of quaternions (..., 4) in (w, x, y, z) order."""
+    q = quat_wxyz / np.linalg.norm(quat_wxyz, axis=-1, keepdims=True)
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+    ], -2)
+
+
+def bone_strips(actor: Actor) -> np.ndarray:
+    """Bones of every frame as 2-point strips, shape (N, B, 2, 3) [m].
+
+    A bone joins each segment origin to each child's origin. A leaf segment ends at its tip
+    site when it has one, else in a short stub along its -Z axis (distal in the N-pose) when its
+    orientation is known.
+    """
+    P = actor.p_world_segment
+    R = segment_rotations(actor)
+    starts = [P[:, int(p)] for p in actor.segment_parents if p >= 0]
+    ends = [P[:, c] for c, p in enumerate(actor.segment_parents) if p >= 0]
+    for s, name in enumerate(actor.segment_names):
+        if actor.children(s):
+            continue
+        tip = actor.segment_tips.get(name)
+        j = actor.site_index(tip) if tip else None
+        if j is not None:
+            starts.append(P[:, s])
+            ends.append(actor.p_world_site[:, j])
+        elif R is not None:
+            starts.append(P[:, s])
+            ends.append(P[:, s] - _LEAF_STUB * R[:, s, :, 2])
+    if not starts:
+        return np.zeros((actor.frames, 0, 2, 3))
+    return np.stack([np.stack(starts, axis=1), np.stack(ends, axis=1)], axis=2)
+
+
+def segment_axes(actor: Actor, R_world_segment: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Arrows of the segment frames: origins and vectors, each (N, 3S, 3) [m].
+
+    Per segment, three arrows along its X, Y and Z axes (columns of ``R_world_segment``).
+    """
+    n, s = R_world_segment.shape[:2]
+    origins = np.repeat(actor.p_world_segment, 3, axis=1)
+    vectors = _AXIS_LENGTH * np.swapaxes(R_world_segment, 2, 3).reshape(n, 3 * s, 3)
+    return origins, vectors
+
+
+def log_actor_paths(rec: Any, actor: Actor, tag_sites: tuple[str, ...],
+                    color: tuple[int, ...]) -> None:
+    """Whole paths of the actor's tag sites (static)."""
+    rr = require_rerun()
+    base = f"world/{entity_name(actor.name)}"
+    for site in tag_sites:
+        j = actor.site_index(site)
+        if j is None:
+            continue
+        path = actor.p_world_site[:, j]
+        path = path[np.all(np.isfinite(path), axis=1)]
+        if len(path) > 1:
+            rec.log(f"{base}/paths/{site}",
+                    rr.LineStrips3D([path], radii=0.004, colors=path_color(color)), static=True)
+
+
+def path_color(color: tuple[int, ...]) -> tuple[int, ...]:
+    """A paler shade of an actor's colour for its tag paths (the body keeps the full one)."""
+    return tuple(int(c + 0.5 * (255 - c)) for c in color[:3]) + tuple(color[3:])
+
+
+def log_actor_frames(rec: Any, actor: Actor, tag_sites: tuple[str, ...],
+                     color: tuple[int, ...]) -> None:
+    """Body, segment axes, contact points and tag sites at every frame (sent as columns)."""
+    rr = require_rerun()
+    base = f"world/{entity_name(actor.name)}"
+    n = actor.frames
+    index = [rr.TimeColumn(TIMELINE, duration=actor.time)]
+
+    def send(path: str, archetype: Any, per_frame: int, style: Any, **columns: Any) -> None:
+        rec.log(path, style, static=True)
+        rec.send_columns(path, indexes=index, columns=archetype.columns(**columns).partition(
+            lengths=np.full(n, per_frame)))
+
+    radius = 0.012 if actor.ghost else 0.02
+    bones = bone_strips(actor)
+    send(f"{base}/bones", rr.LineStrips3D, bones.shape[1],
+         rr.LineStrips3D.from_fields(radii=radius, colors=color),
+         strips=bones.reshape(-1, 2, 3))
+    S = len(actor.segment_names)
+    send(f"{base}/joints", rr.Points3D, S,
+         rr.Points3D.from_fields(radii=1.3 * radius, colors=color),
+         positions=actor.p_world_segment.reshape(-1, 3))
+    R = segment_rotations(actor)
+    if R is not None and not actor.ghost:
+        origins, vectors = segment_axes(actor, R)
+        send(f"{base}/axes", rr.Arrows3D, 3 * S,
+             rr.Arrows3D.from_fields(radii=0.004, colors=np.tile(_AXIS_COLORS, (S, 1))),
+             origins=origins.reshape(-1, 3), vectors=vectors.reshape(-1, 3))
+    sites = [actor.site_index(c) for c in actor.contact_names]
+    if actor.contact_names and all(j is not None for j in sites):
+        on = actor.contacts.reshape(-1)
+        send(f"{base}/contacts", rr.Points3D, len(sites),
+             rr.Points3D.from_fields(labels=list(actor.contact_names), show_labels=False),
+             positions=actor.p_world_site[:, [int(j) for j in sites if j is not None]]
+             .reshape(-1, 3),
+             radii=np.where(on, 0.035, 0.015),
+             colors=np.where(on[:, None], _CONTACT_ON, _CONTACT_OFF).astype(np.uint8))
+    for site in tag_sites:
+        j = actor.site_index(site)
+        if j is not None:
+            send(f"{base}/tags/{site}", rr.Points3D, 1,
+                 rr.Points3D.from_fields(radii=0.03, colors=color),
+                 positions=actor.p_world_site[:, j])
+
+
+def log_actor_curves(rec: Any, actor: Actor, color: tuple[int, ...]) -> None:
+    """Joint angles [deg], stacked contact phases and solve time [ms] on the timeline."""
+    rr = require_rerun()
+    base = f"plots/{entity_name(actor.name)}"
+    index = [rr.TimeColumn(TIMELINE, duration=actor.time)]
+
+    def series(path: str, name: str, values: np.ndarray, rgb: tuple[int, ...]) -> None:
+        rec.log(path, rr.SeriesLines(names=name, colors=rgb[:3], widths=1.5), static=True)
+        rec.send_columns(path, indexes=index,
+                         columns=rr.Scalars.columns(scalars=np.asarray(values, dtype=float)))
+
+    for j, column in enumerate(actor.angle_names):
+        series(f"{base}/angles/{column}", f"{actor.name} {column}",
+               actor.joint_angles_deg[:, j], curve_color(column, color, actor.ghost))
+    for j, point in enumerate(actor.contact_names):
+        series(f"{base}/contacts/{point}", f"{actor.name} {point}",
+               j + 0.8 * actor.contacts[:, j], color)
+    if actor.solve_time_ms is not None:
+        series(f"{base}/solve_time_ms", f"{actor.name} solve time [ms]", actor.solve_time_ms,
+               color)
+
+
+def curve_color(column: str, color: tuple[int, ...], ghost: bool) -> tuple[int, ...]:
+    """Colour of a joint-angle curve: right side darker than left, ghosts grey."""
+    if ghost:
+        return (150, 150, 150)
+    scale = 0.6 if "Right" in column else 1.0
+    return tuple(int(c * scale) for c in color[:3])
+
+
+def camera(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+    """Eye position and look target [m]: a side view (from -Y) of the main actor's path."""
+    pelvis = scene.main.p_world_segment[:, 0]
+    pelvis = pelvis[np.all(np.isfinite(pelvis), axis=1)]
+    centre = pelvis.mean(axis=0) if len(pelvis) else np.zeros(3)
+    span = float(np.ptp(pelvis[:, :2], axis=0).max()) if len(pelvis) else 0.0
+    target = np.array([centre[0], centre[1], 0.9])
+    distance = 2.4 + 0.5 * span
+    return target + np.array([0.35, -1.0, 0.3]) * distance, target
+
+
+def make_blueprint(scene: Scene) -> Any:
+    """The viewer layout: 3-D view left; joint angles, contacts, solve time right; paused."""
+    require_rerun()
+    import rerun.blueprint as rrb
+
+    plots: list[Any] = []
+    curves = [f"/plots/{entity_name(a.name)}/angles/{c}" for a in scene.actors
+              for c in DEFAULT_CURVES if c in a.angle_names]
+    if curves:
+        plots.append(rrb.TimeSeriesView(name="Joint angles [deg]", origin="/plots",
+                                        contents=curves, plot_legend=rrb.PlotLegend(
+                                            visible=False)))
+    phases = [f"/plots/{entity_name(a.name)}/contacts/{c}" for a in scene.actors
+              for c in a.contact_names]
+    if phases:
+        plots.append(rrb.TimeSeriesView(name="Contact phases", origin="/plots",
+                                        contents=phases, plot_legend=rrb.PlotLegend(
+                                            visible=False)))
+    timing = [f"/plots/{entity_name(a.name)}/solve_time_ms" for a in scene.actors
+              if a.solve_time_ms is not None]
+    if timing:
+        plots.append(rrb.TimeSeriesView(name="Solve time [ms]", origin="/plots",
+                                        contents=timing))
+    if scene.notes:
+        plots.append(rrb.TextDocumentView(name="Summary", origin="/notes"))
+    eye, target = camera(scene)
+    body = rrb.Spatial3DView(name="Body", origin="/world", eye_controls=rrb.EyeControls3D(
+        position=eye, look_target=target, eye_up=[0.0, 0.0, 1.0]))
+    main = rrb.Horizontal(body, rrb.Vertical(*plots), column_shares=[3, 2]) if plots else body
+    return rrb.Blueprint(
+        main,
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(timeline=TIMELINE, play_state="paused", loop_mode="all"),
+    )
