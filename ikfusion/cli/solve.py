@@ -53,7 +53,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _window(text: str, rate: float) -> tuple[tuple[int, int] | None, str]:
+def parse_calibrate(text: str, rate: float) -> tuple[tuple[int, int] | None, str]:
+    """``--calibrate`` as (sample window or None for automatic, pose ``npose``/``tpose``).
+
+    Raises:
+        InputError: Not ``auto``, ``npose``, ``tpose`` or ``T0:T1`` [s] with 0 <= T0 < T1.
+    """
     if text in ("auto", "npose"):
         return None, "npose"
     if text == "tpose":
@@ -77,7 +82,12 @@ def _uwb_files(args: argparse.Namespace) -> UwbInputs | None:
     return UwbInputs(Path(args.toa), Path(args.readers), Path(args.tags))
 
 
-def _forward(text: str | None) -> dict[str, str] | None:
+def parse_forward(text: str | None) -> dict[str, str] | None:
+    """``--forward SEGMENT:AXIS`` as ``{segment: axis}`` (None when not given).
+
+    Raises:
+        InputError: Not of the form ``SEGMENT:AXIS``.
+    """
     if not text:
         return None
     if ":" not in text:
@@ -97,11 +107,11 @@ def run(args: argparse.Namespace) -> int:
         model = HumanModel.from_body(Body.from_height(args.height))
     else:
         model = HumanModel.default()
-    window, pose = _window(args.calibrate, recording.rate)
+    window, pose = parse_calibrate(args.calibrate, recording.rate)
     window_s = None if window is None else (window[0] / recording.rate,
                                             window[1] / recording.rate)
-    cal = calibrate_recording(recording, sensor_map, window_s, forward=_forward(args.forward),
-                              pose=pose)
+    cal = calibrate_recording(recording, sensor_map, window_s,
+                              forward=parse_forward(args.forward), pose=pose)
     correction: DriftCorrection | None = None
     uwb: dict[str, object] = {"used": False}
     if files is not None:

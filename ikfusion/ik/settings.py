@@ -20,7 +20,7 @@ class SolverSettings:
     compiled: bool = True
     max_iterations: int = 3
     first_frame_iterations: int = 40
-    step_tolerance: float = 3e-2
+    step_tolerance: float = 0.1
     constraint_tolerance: float = 2e-5
     levenberg_marquardt: float = 1e-9
     orientation: float = 1.0

@@ -1,0 +1,372 @@
+"""Run a batch on Dask: one output folder per input, resumable, interruptible.
+
+The client (this process) expands the inputs, names their output folders, skips those already
+finished with the same fingerprint and submits the rest, one Dask task each, to a
+``LocalCluster`` (N worker processes, one thread each) or to a running scheduler. A task writes
+into a partial folder that is renamed on success (:func:`ikfusion.results.atomic.atomic_folder`),
+so an output folder is whole or absent. On Ctrl-C the pending tasks are cancelled, the cluster
+is closed, partial folders are removed and the report lists what finished.
+
+The workers must see the inputs and the output folder under the same paths (one machine, or a
+shared file system). One batch at a time per output folder.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import logging
+import re
+import shutil
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ..errors import InputError
+from ..results.atomic import atomic_folder
+from .fingerprint import fingerprint, is_complete, read_stamp, write_stamp
+from .kinds import BatchInput, JobKind, JobOutput, RunFn
+from .report import REPORT_NAME, JobResult, exit_code, write_report
+
+#: Leftovers of :func:`atomic_folder` in an output folder (``.NAME.partial-XXXX``, ``.old-PID``).
+_LEFTOVER = re.compile(r"^\..*\.(partial|old)-[^/]*$")
+
+
+@dataclass(frozen=True)
+class PlannedJob:
+    """One input with its output folder and fingerprint."""
+
+    item: BatchInput
+    name: str
+    fingerprint: str
+
+
+@dataclass(frozen=True)
+class BatchOutcome:
+    """The results of a batch run, in input order, and where its report is."""
+
+    results: list[JobResult]
+    report: Path
+    interrupted: bool = False
+
+    @property
+    def exit_code(self) -> int:
+        """0 all ok or skipped, 2 some bad input, 1 some internal error."""
+        return exit_code(self.results)
+
+
+def _safe(text: str) -> str:
+    """A folder-name-safe version of ``text`` (no separators, not hidden)."""
+    cleaned = re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("._-")
+    return cleaned or "input"
+
+
+def output_names(items: Sequence[BatchInput]) -> list[str]:
+    """Unique output folder names: the stem, prefixed by parent folders until names differ.
+
+    ``a/imu/SIM_`` and ``b/imu/SIM_`` become ``a-imu-SIM`` and ``b-imu-SIM``; inputs that still
+    collide get a short hash of their absolute path.
+    """
+    parents = [[_safe(p.name) for p in Path(it.label).resolve().parents if p.name]
+               for it in items]
+    stems = [_safe(it.stem) for it in items]
+    depth = [len(p) for p in parents]
+
+    def name(i: int) -> str:
+        return "-".join([*reversed(parents[i][:depth[i]]), stems[i]])
+
+    def clashing() -> set[int]:
+        groups: dict[str, list[int]] = {}
+        for i in range(len(items)):
+            groups.setdefault(name(i), []).append(i)
+        return {i for g in groups.values() if len(g) > 1 for i in g}
+
+    hopeless = clashing()  # same folder and stem: parents cannot tell them apart
+    depth = [0] * len(items)
+    while True:
+        growable = [i for i in clashing() - hopeless if depth[i] < len(parents[i])]
+        if not growable:
+            break
+        for i in growable:
+            depth[i] += 1
+    names = [name(i) for i in range(len(items))]
+    seen: dict[str, int] = {}
+    for n in names:
+        seen[n] = seen.get(n, 0) + 1
+    for i, n in enumerate(names):
+        if seen[n] > 1:
+            tag = hashlib.sha1(str(Path(items[i].label).resolve()).encode()).hexdigest()[:8]
+            names[i] = f"{n}-{tag}"
+    return names
+
+
+def remove_leftovers(out_dir: Path) -> list[Path]:
+    """Remove partial folders a killed or interrupted run left in ``out_dir``; return them."""
+    removed = []
+    if out_dir.is_dir():
+        for entry in out_dir.iterdir():
+            if _LEFTOVER.match(entry.name):
+                if entry.is_dir():
+                    shutil.rmtree(entry, ignore_errors=True)
+                else:
+                    entry.unlink(missing_ok=True)
+                removed.append(entry)
+    return removed
+
+
+def plan_jobs(kind: JobKind, items: Sequence[BatchInput], options: Mapping[str, Any],
+              version: str) -> list[PlannedJob]:
+    """Name every input's output folder and fingerprint it."""
+    names = output_names(items)
+    return [PlannedJob(it, n, fingerprint(kind.name, version, options, it.files))
+            for it, n in zip(items, names)]
+
+
+def _frames_in(folder: Path) -> int:
+    """Frames of a finished output, from its ``batch.json`` (0 when unknown)."""
+    stamp = read_stamp(folder) or {}
+    try:
+        return int(stamp.get("frames", 0))
+    except (TypeError, ValueError):
+        return 0
+
+
+def _frames_from_summary(folder: Path) -> int:
+    """Frames from ``summary.json`` when a kind's ``run`` returned nothing."""
+    import json
+
+    try:
+        return int(json.loads((folder / "summary.json").read_text()).get("frames", 0))
+    except (OSError, ValueError, TypeError, AttributeError):
+        return 0
+
+
+def _as_output(value: JobOutput | int | None, folder: Path) -> JobOutput:
+    """Normalise what a kind's ``run`` returned."""
+    if isinstance(value, JobOutput):
+        return value
+    if isinstance(value, int) and not isinstance(value, bool):
+        return JobOutput(frames=value)
+    return JobOutput(frames=_frames_from_summary(folder))
+
+
+def process_input(run: RunFn, kind_name: str, job: PlannedJob, out_dir: str,
+                  options: Mapping[str, Any], version: str) -> JobResult:
+    """Process one input into ``out_dir/job.name`` with ``run`` (on a Dask worker).
+
+    The output is written in a partial folder renamed on success, with ``batch.json``. Errors
+    become a failed :class:`JobResult` (bad input or internal), never an exception, so one bad
+    input does not stop the batch.
+    """
+    final = Path(out_dir) / job.name
+    start = time.perf_counter()
+    try:
+        with atomic_folder(final) as partial:
+            output = _as_output(run(job.item.source, partial, options), partial)
+            seconds = time.perf_counter() - start
+            write_stamp(partial, {
+                "kind": kind_name, "input": job.item.label, "fingerprint": job.fingerprint,
+                "ikfusion_version": version, "options": dict(options),
+                "files": [str(p) for p in job.item.files], "frames": output.frames,
+                "seconds": round(seconds, 3), "warnings": list(output.warnings),
+                "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+            })
+    except InputError as err:
+        return JobResult(job.item.label, job.name, "failed", str(err), 0,
+                         time.perf_counter() - start, bad_input=True)
+    except Exception as err:  # noqa: BLE001 - reported in batch_report.csv, exit code 1
+        return JobResult(job.item.label, job.name, "failed", f"{type(err).__name__}: {err}", 0,
+                         time.perf_counter() - start)
+    return JobResult(job.item.label, job.name, "ok", "", output.frames, seconds)
+
+
+@contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """Ignore SIGINT while worker processes start, so that they inherit ignoring it.
+
+    A terminal's Ctrl-C goes to every process of the foreground group: without this, each
+    local worker would die with its own traceback instead of being stopped by the client.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextlib.contextmanager
+def dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
+    """A Dask client: on ``scheduler`` when given, else on a local cluster of ``workers``.
+
+    The local cluster has one single-threaded worker process per ``workers``, listens on the
+    loopback interface only and has no dashboard. Closing it stops the workers (and their tasks).
+    """
+    from distributed import Client, LocalCluster
+
+    if scheduler:
+        try:
+            client = Client(scheduler, timeout="20s")
+        except (OSError, TimeoutError) as err:
+            raise InputError(f"cannot reach the Dask scheduler at {scheduler}: {err}; start "
+                             "one with `dask scheduler` or leave --scheduler out for a local "
+                             "cluster", field="scheduler") from None
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    if workers < 1:
+        raise InputError(f"--workers must be at least 1, not {workers}", field="workers")
+    with _sigint_ignored():  # Ctrl-C reaches the client only; it stops the workers itself
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               host="127.0.0.1", dashboard_address=None,
+                               silence_logs=logging.ERROR)
+    try:
+        client = Client(cluster)
+        try:
+            yield client
+        finally:
+            client.close()
+    finally:
+        cluster.close()
+
+
+class _Progress:
+    """Progress bar: inputs done, frames per second, time left (tqdm)."""
+
+    def __init__(self, total: int, done: int, enabled: bool) -> None:
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=total, initial=done, unit="input", disable=not enabled,
+                        dynamic_ncols=True)
+        self.start = time.perf_counter()
+        self.frames = 0
+
+    def update(self, result: JobResult) -> None:
+        """Count one finished input."""
+        self.frames += result.frames if result.status == "ok" else 0
+        elapsed = max(time.perf_counter() - self.start, 1e-9)
+        self.bar.set_postfix_str(f"{self.frames / elapsed:.0f} frames/s", refresh=False)
+        self.bar.update(1)
+
+    def close(self) -> None:
+        """Leave the final state on screen."""
+        self.bar.close()
+
+
+def _skipped(job: PlannedJob, out_dir: Path) -> JobResult:
+    """The result of an input already finished with the same fingerprint."""
+    return JobResult(job.item.label, job.name, "skipped", "", _frames_in(out_dir / job.name))
+
+
+def _finished_unseen(job: PlannedJob, out_dir: Path) -> JobResult:
+    """An input a worker finished after an interrupt, before the cluster stopped."""
+    stamp = read_stamp(out_dir / job.name) or {}
+    return JobResult(job.item.label, job.name, "ok", "", _frames_in(out_dir / job.name),
+                     float(stamp.get("seconds", 0.0)))
+
+
+def _run_on_dask(client: Any, kind: JobKind, jobs: Sequence[PlannedJob], out_dir: Path,
+                 options: Mapping[str, Any], version: str, progress: _Progress,
+                 done: dict[str, JobResult],
+                 on_result: Callable[[JobResult], None] | None) -> None:
+    """Submit ``jobs`` and collect results into ``done`` (keyed by name) as they finish.
+
+    On KeyboardInterrupt the pending futures are cancelled before it propagates.
+    """
+    from distributed import as_completed
+
+    futures = [client.submit(process_input, kind.run, kind.name, job, str(out_dir), dict(options),
+                             version, key=f"ikfusion-batch-{job.name}-{job.fingerprint[:16]}",
+                             pure=False)
+               for job in jobs]
+    by_key = {f.key: job for f, job in zip(futures, jobs)}
+    try:
+        for future in as_completed(futures):
+            job = by_key[future.key]
+            try:
+                result = future.result()
+            except Exception as err:  # noqa: BLE001 - a worker died: report, go on
+                result = JobResult(job.item.label, job.name, "failed",
+                                   f"{type(err).__name__}: {err}")
+            done[job.name] = result
+            progress.update(result)
+            if on_result is not None:
+                on_result(result)
+    except BaseException:
+        client.cancel(futures, force=True)
+        raise
+
+
+def _inside(path: Path, folder: Path) -> bool:
+    """Whether ``path`` is ``folder`` or under it (a glob that also matched the outputs)."""
+    resolved = path.resolve()
+    return resolved == folder or folder in resolved.parents
+
+
+def run_batch(kind: JobKind, inputs: Sequence[str], out_dir: str | Path,
+              options: Mapping[str, Any], workers: int = 1, scheduler: str | None = None,
+              progress: bool = True,
+              on_result: Callable[[JobResult], None] | None = None) -> BatchOutcome:
+    """Process every input of ``inputs`` with ``kind`` into ``out_dir``, in parallel on Dask.
+
+    Args:
+        kind: The job kind.
+        inputs: Paths and globs, as on the command line.
+        out_dir: The batch output folder (one folder per input, ``batch_report.csv``).
+        options: The kind's options (JSON-serialisable; they enter the fingerprint).
+        workers: Local worker processes (when no ``scheduler``).
+        scheduler: A Dask scheduler address, ``tcp://HOST:PORT``.
+        progress: Show a progress bar on standard error.
+        on_result: Called in this process with every finished input's result.
+
+    Returns:
+        The results in input order. On KeyboardInterrupt the report of what finished is
+        written, partial folders are removed, and the interrupt propagates.
+
+    Raises:
+        InputError: INPUTS or options that cannot work (before anything runs).
+    """
+    from .. import __version__
+
+    out = Path(out_dir).resolve()
+    items = [it for it in kind.expand(inputs, options) if not _inside(Path(it.label), out)]
+    if not items:
+        raise InputError("no inputs to process", field="INPUTS")
+    out.mkdir(parents=True, exist_ok=True)
+    remove_leftovers(out)
+    jobs = plan_jobs(kind, items, options, __version__)
+    done: dict[str, JobResult] = {}
+    todo = []
+    for job in jobs:
+        if is_complete(out / job.name, job.fingerprint):
+            done[job.name] = _skipped(job, out)
+        else:
+            todo.append(job)
+    bar = _Progress(len(jobs), len(done), progress)
+    interrupted = False
+    try:
+        if todo:
+            with dask_client(workers, scheduler) as client:
+                _run_on_dask(client, kind, todo, out, options, __version__, bar, done,
+                             on_result)
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        bar.close()
+        remove_leftovers(out)
+        for job in jobs:
+            if job.name not in done and is_complete(out / job.name, job.fingerprint):
+                done[job.name] = _finished_unseen(job, out)
+        results = [done[j.name] for j in jobs if j.name in done]
+        report = write_report(out / REPORT_NAME, results)
+    if interrupted:
+        raise KeyboardInterrupt
+    return BatchOutcome(results, report)
