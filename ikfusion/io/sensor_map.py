@@ -22,6 +22,7 @@ import yaml
 
 from ..errors import ConfigError
 from ..model.joints import SEGMENTS
+from ..yaml_files import read_yaml
 from .recording import check_sensor_ids, normalize_sensor_id
 
 __all__ = ["SensorMap", "check_sensors", "load_sensor_map", "parse_axis"]
@@ -139,16 +140,7 @@ def load_sensor_map(path: str | Path) -> SensorMap:
             :func:`sensor_map_from_dict`); the message names the file and the key.
     """
     file = Path(path)
-    try:
-        text = file.read_text()
-    except OSError as err:
-        raise ConfigError(f"cannot read the sensor map: {err.strerror}", path=file) from err
-    try:
-        doc = yaml.load(text, Loader=_text_loader())  # noqa: S506 - a SafeLoader subclass
-    except yaml.YAMLError as err:
-        mark = getattr(err, "problem_mark", None)
-        raise ConfigError(f"not valid YAML: {getattr(err, 'problem', err)}", path=file,
-                          line=None if mark is None else mark.line + 1) from err
+    doc = read_yaml(file, "the sensor map", loader=_text_loader())
     return sensor_map_from_dict(doc, file)
 
 

@@ -16,9 +16,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, fields
 from pathlib import Path
 
-import yaml
-
 from ..errors import ConfigError
+from ..yaml_files import read_yaml
 
 #: Default dimension / body height ratios (Winter 2009, Fig. 4.1; see module docstring).
 HEIGHT_FRACTIONS: dict[str, float] = {
@@ -132,12 +131,7 @@ class Body:
     def from_yaml(cls, path: str | Path) -> Body:
         """Read a body file (YAML mapping of SPEC section 2 keys)."""
         file = Path(path)
-        try:
-            doc = yaml.safe_load(file.read_text())
-        except OSError as err:
-            raise ConfigError(f"cannot read body file: {err.strerror}", path=file) from err
-        except yaml.YAMLError as err:
-            raise ConfigError(f"not valid YAML: {err}", path=file) from err
+        doc = read_yaml(file, "body file")
         if not isinstance(doc, dict):
             raise ConfigError("expected a mapping of body dimensions", path=file)
         return cls.from_dict(doc, source=file)

@@ -11,11 +11,11 @@ from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
-import yaml
 
 from ..errors import ConfigError
 from ..paths import shipped_config
 from ..rotations import euler_to_matrix, matrix_to_euler
+from ..yaml_files import read_yaml
 
 #: The 23 segments in model order (SPEC section 2), parents before children.
 SEGMENTS: tuple[str, ...] = (
@@ -109,10 +109,7 @@ def load_joint_specs(path: str | Path | None = None) -> dict[str, JointSpec]:
         ConfigError: A missing joint, an unknown segment, a bad axis, sign or range.
     """
     file = Path(path) if path is not None else shipped_config("joints.yaml")
-    try:
-        doc = yaml.safe_load(file.read_text())
-    except yaml.YAMLError as err:
-        raise ConfigError(f"not valid YAML: {err}", path=file) from err
+    doc = read_yaml(file, "joints file")
     if not isinstance(doc, dict) or not isinstance(doc.get("joints"), dict):
         raise ConfigError("expected a mapping with key 'joints'", path=file, field="joints")
     entries = doc["joints"]

@@ -17,12 +17,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from ..errors import ConfigError
 from ..ik.pose import Motion
 from ..paths import shipped_config
 from ..rotations import matrix_to_euler
+from ..yaml_files import read_yaml
 
 #: ``R_opensim_ours``: our axes (X forward, Y left, Z up) to OpenSim's (X forward, Y up, Z right).
 C_OPENSIM_OURS = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
@@ -84,10 +84,7 @@ def load_opensim_mapping(path: str | Path | None = None) -> OpenSimMapping:
         ConfigError: Not YAML, no ``coordinates`` mapping, or a row that is not one valid rule.
     """
     file = Path(path) if path is not None else shipped_config("opensim.yaml")
-    try:
-        doc = yaml.safe_load(file.read_text())
-    except yaml.YAMLError as err:
-        raise ConfigError(f"not valid YAML: {err}", path=file) from err
+    doc = read_yaml(file, "OpenSim mapping")
     if not isinstance(doc, dict) or not isinstance(doc.get("coordinates"), dict):
         raise ConfigError("expected a mapping with key 'coordinates'", path=file,
                           field="coordinates")

@@ -11,9 +11,9 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from ..errors import ConfigError
+from ..yaml_files import read_yaml
 from .constellation import finite_number
 
 
@@ -24,7 +24,7 @@ def load_heights(path: str | Path) -> dict[str, float]:
         ConfigError: Naming the file and the key at fault.
     """
     path = Path(path)
-    data = _load_yaml(path)
+    data = read_yaml(path)
     if not isinstance(data, Mapping) or "heights" not in data:
         raise ConfigError(
             "expected a mapping 'heights: {<reader id>: <z in metres>}'",
@@ -69,7 +69,7 @@ def load_survey(path: str | Path) -> dict[str, np.ndarray]:
         ConfigError: Naming the file and the key at fault.
     """
     path = Path(path)
-    data = _load_yaml(path)
+    data = read_yaml(path)
     if not isinstance(data, Mapping) or not isinstance(data.get("points"), Mapping):
         raise ConfigError(
             "expected a mapping 'points: {<reader id>: [x, y, z]}'", path=path, field="points"
@@ -100,17 +100,3 @@ def survey_from_mapping(value: object, *, source: Path | None = None) -> dict[st
             )
         out[rid] = np.array(numbers, dtype=float)
     return out
-
-
-def _load_yaml(path: Path) -> object:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise ConfigError(f"cannot read file: {err.strerror}", path=path) from err
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        mark = getattr(err, "problem_mark", None)
-        raise ConfigError(
-            f"not valid YAML: {err}", path=path, line=None if mark is None else mark.line + 1
-        ) from err

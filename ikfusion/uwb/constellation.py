@@ -30,6 +30,7 @@ import numpy.typing as npt
 import yaml
 
 from ..errors import ConfigError
+from ..yaml_files import read_yaml
 from ._atomic import atomic_write_text
 
 #: Range noise used when a file does not give ``sigma`` [m].
@@ -226,16 +227,7 @@ def load_constellation(path: str | Path, *, allow_empty: bool = False) -> Conste
         ConfigError: Naming the file and the key at fault.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise ConfigError(f"cannot read constellation file: {err.strerror}", path=path) from err
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as err:
-        mark = getattr(err, "problem_mark", None)
-        line = None if mark is None else mark.line + 1
-        raise ConfigError(f"not valid YAML: {err}", path=path, line=line) from err
+    data = read_yaml(path, "constellation file")
     return constellation_from_dict(data, source=path, allow_empty=allow_empty)
 
 

@@ -20,6 +20,7 @@ import numpy as np
 import yaml
 
 from ..errors import ConfigError, InputError
+from ..yaml_files import read_yaml
 from ._atomic import atomic_write_text
 from .constellation import Constellation
 from .ekf import (
@@ -86,15 +87,7 @@ def load_tags(path: str | Path) -> dict[str, TagInfo]:
         ConfigError: Naming the file and the key at fault.
     """
     path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except OSError as err:
-        raise ConfigError(f"cannot read tags file: {err.strerror}", path=path) from err
-    except yaml.YAMLError as err:
-        mark = getattr(err, "problem_mark", None)
-        raise ConfigError(f"not valid YAML: {err}", path=path,
-                          line=None if mark is None else mark.line + 1) from err
-    return tags_from_dict(data, source=path)
+    return tags_from_dict(read_yaml(path, "tags file"), source=path)
 
 
 def tags_from_dict(data: object, *, source: Path | None = None) -> dict[str, TagInfo]:

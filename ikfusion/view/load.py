@@ -23,21 +23,11 @@ import numpy as np
 
 from ..errors import InputError
 from ..model.layout import CONTACT_SITES, TAG_SITES
+from ..sim.skeleton_map import SEGMENT_PARENTS
 from .scene import Actor, Readers, Scene
 
 #: Parent of each segment of the 23-segment model (the Pelvis is the root).
-MODEL_SEGMENT_PARENTS: dict[str, str | None] = {
-    "Pelvis": None, "L5": "Pelvis", "L3": "L5", "T12": "L3", "T8": "T12", "Neck": "T8",
-    "Head": "Neck",
-    "RightShoulder": "T8", "RightUpperArm": "RightShoulder", "RightForeArm": "RightUpperArm",
-    "RightHand": "RightForeArm",
-    "LeftShoulder": "T8", "LeftUpperArm": "LeftShoulder", "LeftForeArm": "LeftUpperArm",
-    "LeftHand": "LeftForeArm",
-    "RightUpperLeg": "Pelvis", "RightLowerLeg": "RightUpperLeg", "RightFoot": "RightLowerLeg",
-    "RightToe": "RightFoot",
-    "LeftUpperLeg": "Pelvis", "LeftLowerLeg": "LeftUpperLeg", "LeftFoot": "LeftLowerLeg",
-    "LeftToe": "LeftFoot",
-}
+MODEL_SEGMENT_PARENTS = SEGMENT_PARENTS
 
 #: Leaf segments whose bone ends at a site (the toe tip is the ``*Toe`` contact point).
 MODEL_SEGMENT_TIPS: dict[str, str] = {
