@@ -20,6 +20,7 @@ from ikfusion.results.opensim_export import (
     write_motion_mot,
 )
 from ikfusion.rotations import axis_rotation, matrix_to_quat_wxyz, wxyz_to_xyzw
+from ikfusion.sim.gait import GaitParameters, generate_gait
 
 RAJAGOPAL_COLUMNS = [
     "pelvis_tilt", "pelvis_list", "pelvis_rotation", "pelvis_tx", "pelvis_ty", "pelvis_tz",
@@ -195,8 +196,20 @@ print(json.dumps({"labels": labels, "rows": table.getNumRows(), "knee": knee,
 """
 
 
-def test_opensim_reads_the_file(written: tuple[Motion, Path]) -> None:
-    """OpenSim's own reader, in a separate process.
+@pytest.fixture(scope="module")
+def walk(human: HumanModel) -> Motion:
+    """A simulated walk (the gait generator's truth) as a Motion."""
+    truth = generate_gait(human, GaitParameters(path="straight", duration=3.0, stand=0.5))
+    n = len(truth.time)
+    return Motion(human, truth.time, truth.q, list(CONTACT_SITES), np.zeros((n, 4), dtype=bool),
+                  np.full(n, 1e-3), np.full(n, 1), np.zeros(n, dtype=bool))
+
+
+@pytest.mark.parametrize("source", ["random", "walk"])
+def test_opensim_reads_the_file(source: str, written: tuple[Motion, Path], walk: Motion,
+                                tmp_path: Path) -> None:
+    """OpenSim's own reader, in a separate process, on random poses and on a simulated walk;
+    its ``knee_angle_r`` (Rajagopal: flexion positive) is our ``jRightKnee_flex``.
 
     The ``opensim`` wheel bundles its own ``libcasadi.so.3.7``, built apart from the ``casadi``
     package ikfusion imports; both have the same soname, so whichever loads second fails with
@@ -205,8 +218,8 @@ def test_opensim_reads_the_file(written: tuple[Motion, Path]) -> None:
     if importlib.util.find_spec("opensim") is None:
         pytest.skip("opensim is not installed: it is the test-only extra "
                     "(pip install 'ikfusion[opensim]' or pip install opensim)")
-    motion, path = written
-    _, labels, table, _ = read_mot(path)
+    motion, path = written if source == "random" else (
+        walk, write_motion_mot(tmp_path / "walk.mot", walk))
     result = subprocess.run([sys.executable, "-c", _OPENSIM_READER, str(path)],
                             capture_output=True, text=True, timeout=300, check=False)
     assert result.returncode == 0, result.stderr[-2000:]
@@ -214,4 +227,7 @@ def test_opensim_reads_the_file(written: tuple[Motion, Path]) -> None:
     assert out["labels"] == RAJAGOPAL_COLUMNS
     assert out["rows"] == len(motion)
     assert out["inDegrees"] == "yes"
-    np.testing.assert_allclose(out["knee"], column(labels, table, "knee_angle_r"), atol=1e-9)
+    ours = motion.joint_angles()[:, motion.model.angle_columns.index("jRightKnee_flex")]
+    np.testing.assert_allclose(out["knee"], ours, atol=0.1)
+    if source == "walk":
+        assert np.ptp(ours) > 30.0  # the knee swings
