@@ -4,8 +4,9 @@ Files: ``joint_angles.csv`` (time, then ``<joint>_flex/_abd/_rot`` [deg]), ``seg
 (``time,segment,px,py,pz,qw,qx,qy,qz``; world frame, Z up, metres), ``sites.csv``
 (``time,site,x,y,z``), ``contacts.csv`` (``time,LeftHeel,LeftToe,RightHeel,RightToe`` as 0/1),
 ``motion.bvh``, ``motion.mot`` (OpenSim coordinates of the Rajagopal 2015 model, degrees and
-metres, Y up; mapping in ``configs/opensim.yaml``, see :mod:`.opensim_export`) and
-``summary.json`` (frames, rate, solve time per frame, warnings).
+metres, Y up; mapping in ``configs/opensim.yaml``, see :mod:`.opensim_export`),
+``solve_time.csv`` (``time,solve_time_ms,gauss_newton_steps`` per frame; beyond SPEC section 6,
+for the viewer's timeline) and ``summary.json`` (frames, rate, solve time per frame, warnings).
 """
 
 from __future__ import annotations
@@ -102,6 +103,10 @@ def write_result_folder(motion: Motion, out_dir: str | Path, bvh_up: str = "z",
         np.savetxt(tmp / "contacts.csv", contacts, delimiter=",",
                    fmt=["%.6f"] + ["%d"] * len(motion.contact_names),
                    header=",".join(["time", *motion.contact_names]), comments="")
+        np.savetxt(tmp / "solve_time.csv",
+                   np.column_stack([motion.time, 1e3 * motion.solve_time, motion.iterations]),
+                   delimiter=",", fmt=["%.6f", "%.4f", "%d"],
+                   header="time,solve_time_ms,gauss_newton_steps", comments="")
         frame_time = 1.0 / motion.rate if motion.rate > 0 else 1.0 / 60.0
         write_motion_bvh(tmp / "motion.bvh", model, motion.q, frame_time, up=bvh_up)
         write_motion_mot(tmp / "motion.mot", motion)

@@ -33,7 +33,7 @@ def test_files_and_columns(human: HumanModel, rng, tmp_path: Path) -> None:
     out = write_result_folder(motion, tmp_path / "result")
     names = sorted(p.name for p in out.iterdir())
     assert names == ["contacts.csv", "joint_angles.csv", "motion.bvh", "motion.mot", "segments.csv",
-                     "sites.csv", "summary.json"]
+                     "sites.csv", "solve_time.csv", "summary.json"]
     with (out / "joint_angles.csv").open() as f:
         rows = list(csv.reader(f))
     assert rows[0] == ["time", *human.angle_columns]
