@@ -18,7 +18,7 @@ from typing import Any
 from ..errors import InputError
 
 #: Modules under ``ikfusion.batch.jobs`` that define a job kind, in the order ``--help`` lists.
-KIND_MODULES: tuple[str, ...] = ("solve",)
+KIND_MODULES: tuple[str, ...] = ("solve", "retarget")
 
 
 @dataclass(frozen=True)

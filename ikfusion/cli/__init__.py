@@ -17,7 +17,7 @@ from ..errors import InputError
 #: Command modules in the order ``ikfusion --help`` lists them.
 COMMAND_MODULES: tuple[str, ...] = (
     "demo", "inspect", "simulate", "solve", "evaluate", "model", "locate", "plan",
-    "calibrate_uwb", "view", "batch",
+    "calibrate_uwb", "view", "batch", "retarget",
 )
 
 

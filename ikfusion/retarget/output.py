@@ -1,0 +1,106 @@
+"""What a retarget writes (SPEC section 5) and the metrics it reports.
+
+``robot_motion.npz``: ``fps``, ``root_pos`` (N, 3) [m], ``root_quat_wxyz`` (N, 4), ``dof_pos``
+(N, n) [rad], ``dof_names``, ``contacts`` (N, k) bool, ``contact_frames``; ``robot_motion.csv``
+(one row a frame); ``summary.json`` (the metrics); with ``gmr`` also ``robot_motion.pkl``, the
+layout RL tracking pipelines read (``fps``, ``root_pos``, ``root_rot`` as x, y, z, w,
+``dof_pos``). The folder appears whole or not at all.
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..evaluate import phase_slides
+from ..ik.limits import JointRangeLimit
+from ..ik.pose import Motion
+from ..results.atomic import atomic_folder
+from ..rotations import angle_between, wxyz_to_xyzw, xyzw_to_wxyz
+from ..sim.truth import site_positions
+from .source import HumanMotion
+
+
+@dataclass
+class RobotMotion:
+    """A retargeted motion in the robot-motion layout (see the module docstring)."""
+
+    fps: float
+    root_pos: np.ndarray
+    root_quat_wxyz: np.ndarray
+    dof_pos: np.ndarray
+    dof_names: list[str]
+    contacts: np.ndarray
+    contact_frames: list[str]
+
+
+def human_robot_motion(motion: Motion) -> RobotMotion:
+    """A motion of the human model in the robot layout.
+
+    Its dofs are the URDF's revolute joints, whose positions are the anatomical angles
+    (``<joint>_flex/_abd/_rot``) [rad].
+    """
+    return RobotMotion(motion.rate, motion.q[:, :3].copy(), xyzw_to_wxyz(motion.q[:, 3:7]),
+                       np.radians(motion.joint_angles()), list(motion.model.angle_columns),
+                       motion.contacts.astype(bool), list(motion.contact_names))
+
+
+def human_metrics(motion: Motion, source: HumanMotion, seconds: float,
+                  max_joint_velocity: float) -> dict[str, Any]:
+    """Limits, velocities, foot slide, floor penetration and tracking of a human target."""
+    model = motion.model
+    limits = JointRangeLimit(model.ball_joints)
+    over = np.array([limits.violation_deg(q).max() for q in motion.q])
+    rates = np.abs(np.diff(np.radians(motion.joint_angles()), axis=0)) * motion.rate
+    points = site_positions(model, motion.q, list(source.contact_names))
+    slides = 1e3 * np.array(phase_slides(points, source.contacts)) if source.contacts.any() \
+        else np.zeros(1)
+    index = {s: i for i, s in enumerate(source.segments)}
+    tracking = {}
+    for s in model.segment_names:
+        if s in index:
+            R = np.array([model.segment_rotation(q, s) for q in motion.q])
+            err = np.degrees(angle_between(R, source.R_world_segment[:, index[s]]))
+            tracking[s] = float(np.sqrt(np.mean(err ** 2)))
+    return {
+        "frames": len(motion), "fps": motion.rate,
+        "frames_per_second": len(motion) / seconds if seconds > 0 else None,
+        "joint_limit_violations": int((over > 1e-3).sum()),  # beyond QP round-off [deg]
+        "joint_limit_worst_deg": float(over.max()),
+        "velocity_limit_violations": int((rates > max_joint_velocity).sum()),
+        "velocity_worst_rad_s": float(rates.max()) if rates.size else 0.0,
+        "foot_slide_mm_mean": float(slides.mean()), "foot_slide_mm_max": float(slides.max()),
+        "floor_penetration_mm_max": float(max(0.0, -1e3 * points[..., 2].min())),
+        "self_collision_min_distance_m": None,
+        "tracking_orientation_rms_deg": tracking,
+        "relaxed_frames": int(motion.relaxed.sum()), "warnings": list(motion.warnings),
+    }
+
+
+def write_robot_motion(out_dir: str | Path, robot: RobotMotion, summary: dict[str, Any],
+                       gmr: bool = False) -> Path:
+    """Write the output folder (replaced if it exists)."""
+    with atomic_folder(out_dir) as tmp:
+        np.savez(tmp / "robot_motion.npz", fps=robot.fps, root_pos=robot.root_pos,
+                 root_quat_wxyz=robot.root_quat_wxyz, dof_pos=robot.dof_pos,
+                 dof_names=np.array(robot.dof_names), contacts=robot.contacts,
+                 contact_frames=np.array(robot.contact_frames))
+        n = len(robot.root_pos)
+        header = (["frame", "time", "root_x", "root_y", "root_z", "root_qw", "root_qx",
+                   "root_qy", "root_qz"] + robot.dof_names + robot.contact_frames)
+        table = np.column_stack([np.arange(n), np.arange(n) / robot.fps, robot.root_pos,
+                                 robot.root_quat_wxyz, robot.dof_pos, robot.contacts])
+        np.savetxt(tmp / "robot_motion.csv", table, delimiter=",", fmt="%.6f",
+                   header=",".join(header), comments="")
+        if gmr:
+            with (tmp / "robot_motion.pkl").open("wb") as f:
+                pickle.dump({"fps": robot.fps, "root_pos": robot.root_pos,
+                             "root_rot": wxyz_to_xyzw(robot.root_quat_wxyz),
+                             "dof_pos": robot.dof_pos}, f)
+        (tmp / "summary.json").write_text(json.dumps(summary, indent=2))
+    return Path(out_dir)

@@ -1,0 +1,156 @@
+"""Motion sources for retargeting: segment world poses and contact phases over time.
+
+A ``solve`` result folder (``segments.csv``, ``contacts.csv``) or a BVH clip (mapped onto the
+human model, contacts from its kinematics) becomes a :class:`HumanMotion`: per segment its world
+rotation ``R_world_segment`` (MVN segment convention, SPEC section 1) and origin [m], world
+frame Z up.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from ..errors import InputError
+from ..model.layout import CONTACT_SITES
+from ..rotations import quat_wxyz_to_matrix
+
+
+@dataclass
+class HumanMotion:
+    """Segment poses and contact phases of a human over time.
+
+    Attributes:
+        time: (N,) [s].
+        segments: Segment names (columns of the pose arrays).
+        p_world_segment: (N, S, 3) segment origins [m].
+        R_world_segment: (N, S, 3, 3) segment rotations.
+        contact_names: Contact points (columns of ``contacts``).
+        contacts: (N, k) planted or not.
+        hip_height: Standing height of the hip joints above the floor [m] (for scaling).
+        source: Where it came from.
+    """
+
+    time: np.ndarray
+    segments: list[str]
+    p_world_segment: np.ndarray
+    R_world_segment: np.ndarray
+    contact_names: list[str]
+    contacts: np.ndarray
+    hip_height: float
+    source: str
+
+    @property
+    def rate(self) -> float:
+        """Frame rate [Hz]."""
+        return float(1.0 / np.median(np.diff(self.time))) if len(self.time) > 1 else 0.0
+
+    def __len__(self) -> int:
+        return len(self.time)
+
+
+def load_source(path: str | Path) -> HumanMotion:
+    """A ``solve`` result folder or a BVH file as a :class:`HumanMotion`.
+
+    Raises:
+        InputError: Not a result folder or BVH, or a malformed file (file, line and field).
+    """
+    p = Path(path)
+    if p.is_dir() and (p / "segments.csv").is_file():
+        return _from_result_folder(p)
+    if p.is_file() and p.suffix.lower() == ".bvh":
+        return _from_bvh(p)
+    raise InputError("expected a solve result folder (with segments.csv) or a .bvh file",
+                     path=p)
+
+
+def _read_rows(path: Path, columns: tuple[str, ...]) -> list[list[str]]:
+    """Rows of a CSV whose header must start with ``columns``."""
+    if not path.is_file():
+        raise InputError("missing file", path=path)
+    with path.open(newline="") as f:
+        rows = list(csv.reader(f))
+    if not rows or tuple(rows[0][:len(columns)]) != columns:
+        raise InputError(f"expected the header {','.join(columns)}", path=path, line=1)
+    return rows
+
+
+def _number(path: Path, line: int, field: str, text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise InputError(f"not a number: {text!r}", path=path, line=line, field=field) from None
+    if not np.isfinite(value):
+        raise InputError("not a finite number", path=path, line=line, field=field)
+    return value
+
+
+def _from_result_folder(folder: Path) -> HumanMotion:
+    path = folder / "segments.csv"
+    header = ("time", "segment", "px", "py", "pz", "qw", "qx", "qy", "qz")
+    rows = _read_rows(path, header)
+    times: dict[float, int] = {}
+    segments: list[str] = []
+    values: dict[tuple[int, str], list[float]] = {}
+    for n, row in enumerate(rows[1:], start=2):
+        if len(row) != len(header):
+            raise InputError(f"expected {len(header)} fields, found {len(row)}", path=path,
+                             line=n)
+        t = _number(path, n, "time", row[0])
+        k = times.setdefault(t, len(times))
+        if row[1] not in segments:
+            segments.append(row[1])
+        values[(k, row[1])] = [_number(path, n, name, v) for name, v in zip(header[2:], row[2:])]
+    N, S = len(times), len(segments)
+    data = np.full((N, S, 7), np.nan)
+    for (k, seg), v in values.items():
+        data[k, segments.index(seg)] = v
+    if np.isnan(data).any():
+        raise InputError("some frames lack some segments", path=path)
+    crows = _read_rows(folder / "contacts.csv", ("time",))
+    names = crows[0][1:]
+    contacts = np.array([[_number(folder / "contacts.csv", n, c, v) > 0.5
+                          for c, v in zip(names, row[1:])]
+                         for n, row in enumerate(crows[1:], start=2)], dtype=bool)
+    if len(contacts) != N:
+        raise InputError(f"{len(contacts)} rows, but segments.csv has {N} frames",
+                         path=folder / "contacts.csv")
+    time = np.array(sorted(times, key=times.__getitem__))
+    R = quat_wxyz_to_matrix(data[..., 3:])
+    p = data[..., :3]
+    return HumanMotion(time, segments, p, R, list(names), contacts,
+                       _standing_hip_height(segments, p), str(folder))
+
+
+def _standing_hip_height(segments: list[str], p_world_segment: np.ndarray) -> float:
+    """Height of the hip joints above the floor (z = 0) in the first frame [m]."""
+    hips = [segments.index(s) for s in ("RightUpperLeg", "LeftUpperLeg") if s in segments]
+    if not hips:
+        raise InputError("the source has no thighs (RightUpperLeg, LeftUpperLeg) to scale from")
+    return float(np.mean(p_world_segment[0, hips, 2]))
+
+
+def _from_bvh(path: Path) -> HumanMotion:
+    from ..sim.mocap import motion_from_bvh
+
+    truth = motion_from_bvh(path)
+    model = truth.model
+    data = model.model.createData()
+
+    segments = list(model.segment_names)
+    ids = [model.segment_frame_id(s) for s in segments]
+    N = len(truth.time)
+    p = np.empty((N, len(ids), 3))
+    R = np.empty((N, len(ids), 3, 3))
+    for k, q in enumerate(truth.q):
+        pin.framesForwardKinematics(model.model, data, q)
+        for i, f in enumerate(ids):
+            p[k, i] = data.oMf[f].translation
+            R[k, i] = data.oMf[f].rotation
+    names = list(truth.contact_names) or list(CONTACT_SITES)
+    return HumanMotion(truth.time, segments, p, R, names, truth.contacts.astype(bool),
+                       _standing_hip_height(segments, p), str(path))
