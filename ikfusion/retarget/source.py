@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 
 from ..errors import InputError
 from ..model.layout import CONTACT_SITES
@@ -136,21 +135,11 @@ def _standing_hip_height(segments: list[str], p_world_segment: np.ndarray) -> fl
 
 def _from_bvh(path: Path) -> HumanMotion:
     from ..sim.mocap import motion_from_bvh
+    from ..sim.truth import segment_poses
 
     truth = motion_from_bvh(path)
-    model = truth.model
-    data = model.model.createData()
-
-    segments = list(model.segment_names)
-    ids = [model.segment_frame_id(s) for s in segments]
-    N = len(truth.time)
-    p = np.empty((N, len(ids), 3))
-    R = np.empty((N, len(ids), 3, 3))
-    for k, q in enumerate(truth.q):
-        pin.framesForwardKinematics(model.model, data, q)
-        for i, f in enumerate(ids):
-            p[k, i] = data.oMf[f].translation
-            R[k, i] = data.oMf[f].rotation
+    segments = list(truth.model.segment_names)
+    p, R = segment_poses(truth.model, truth.q)
     names = list(truth.contact_names) or list(CONTACT_SITES)
     return HumanMotion(truth.time, segments, p, R, names, truth.contacts.astype(bool),
                        _standing_hip_height(segments, p), str(path))

@@ -54,6 +54,22 @@ def contact_phases(model: HumanModel, q: np.ndarray, time: np.ndarray,
     return (P[..., 2] < height) & (v < speed)
 
 
+def segment_poses(model: HumanModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every segment's world origin (N, S, 3) [m] and rotation (N, S, 3, 3) along ``q``.
+
+    Segments in ``model.segment_names`` order; ``q`` is (N, nq).
+    """
+    data = model.model.createData()
+    ids = [model.segment_frame_id(s) for s in model.segment_names]
+    p = np.empty((len(q), len(ids), 3))
+    R = np.empty((len(q), len(ids), 3, 3))
+    for k, qk in enumerate(q):
+        pin.framesForwardKinematics(model.model, data, qk)
+        for i, f in enumerate(ids):
+            p[k, i], R[k, i] = data.oMf[f].translation, data.oMf[f].rotation
+    return p, R
+
+
 def site_positions(model: HumanModel, q: np.ndarray, names: list[str]) -> np.ndarray:
     """World positions (N, k, 3) [m] of sites along configurations (N, nq)."""
     data = model.model.createData()
@@ -90,15 +106,7 @@ def write_truth(path: str | Path, truth: TruthMotion) -> Path:
     model = truth.model
     segments = model.segment_names
     sites = model.site_names
-    data = model.model.createData()
-    n = len(truth.time)
-    p_seg = np.empty((n, len(segments), 3))
-    R_seg = np.empty((n, len(segments), 3, 3))
-    for k, q in enumerate(truth.q):
-        pin.framesForwardKinematics(model.model, data, q)
-        for i, s in enumerate(segments):
-            M = data.oMf[model.segment_frame_id(s)]
-            p_seg[k, i], R_seg[k, i] = M.translation, M.rotation
+    p_seg, R_seg = segment_poses(model, truth.q)
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".npz")
