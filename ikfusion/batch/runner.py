@@ -226,7 +226,7 @@ def dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
         raise InputError(f"--workers must be at least 1, not {workers}", field="workers")
     with _sigint_ignored():  # Ctrl-C reaches the client only; it stops the workers itself
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               host="127.0.0.1", dashboard_address=None,
+                               host="127.0.0.1", dashboard_address=":0",  # any free port
                                silence_logs=logging.ERROR)
     try:
         client = Client(cluster)
