@@ -74,6 +74,66 @@ def lead_in(truth: TruthMotion, npose_seconds: float = 2.0,
                        {**truth.info, "lead_in_s": npose_seconds + transition_seconds})
 
 
+#: Lowest contact points slower than this stand on the floor [m/s] ...
+FLOOR_SPEED = 0.25
+#: ... unless this far above the floor plane fitted to them [m].
+FLOOR_OUTLIER = 0.02
+#: A fitted floor steeper than this is not trusted (the floor is then taken level) [deg].
+FLOOR_MAX_TILT_DEG = 5.0
+
+
+def floor_plane(points: np.ndarray, time: np.ndarray) -> tuple[np.ndarray, float]:
+    """The floor under a motion: unit normal (3,) and height along it [m].
+
+    Args:
+        points: Contact points' world positions (N, k, 3) [m].
+        time: (N,) [s].
+
+    Each frame's lowest point, when nearly still, stands on the floor; a plane is fitted to
+    those by least squares, twice dropping points far above it (a foot resting on something).
+    Mocap halls are not always level with their capture volume (CMU clips rise by 2 %).
+    Without enough standing points spread over a metre, the floor is level at the height of
+    the lowest points.
+    """
+    dt = float(np.mean(np.diff(time))) if len(time) > 1 else 1.0
+    speed = np.linalg.norm(np.gradient(points, dt, axis=0), axis=2) if len(time) > 1 \
+        else np.zeros(points.shape[:2])
+    low = points[np.arange(len(points)), points[..., 2].argmin(axis=1)]
+    slow = speed[np.arange(len(points)), points[..., 2].argmin(axis=1)] < FLOOR_SPEED
+    level = np.array([0.0, 0.0, 1.0])
+    fallback = float(np.percentile(low[:, 2], 2))
+    sample = low[slow]
+    if len(sample) < 20 or np.ptp(sample[:, :2], axis=0).max() < 1.0:
+        return level, fallback if len(sample) < 5 else float(np.median(sample[:, 2]))
+    keep = np.ones(len(sample), dtype=bool)
+    for _ in range(3):
+        A = np.column_stack([np.ones(keep.sum()), sample[keep, :2]])
+        coef = np.linalg.lstsq(A, sample[keep, 2], rcond=None)[0]
+        residual = sample[:, 2] - (coef[0] + sample[:, :2] @ coef[1:])
+        keep = residual < FLOOR_OUTLIER
+        if keep.sum() < 10:
+            return level, fallback
+    normal = np.array([-coef[1], -coef[2], 1.0])
+    normal /= np.linalg.norm(normal)
+    if np.degrees(np.arccos(normal[2])) > FLOOR_MAX_TILT_DEG:
+        return level, float(np.median(sample[:, 2]))
+    return normal, float(coef[0] * normal[2])
+
+
+def level_on_floor(q: np.ndarray, points: np.ndarray, time: np.ndarray) -> np.ndarray:
+    """Configurations (N, nq) turned and lifted so the floor (:func:`floor_plane`) is z = 0."""
+    normal, height = floor_plane(points, time)
+    axis = np.cross(normal, [0.0, 0.0, 1.0])
+    angle = np.arcsin(min(1.0, float(np.linalg.norm(axis))))
+    R = pin.exp3(axis / np.linalg.norm(axis) * angle) if angle > 1e-9 else np.eye(3)
+    out = q.copy()
+    out[:, :3] = q[:, :3] @ R.T
+    for k in range(len(q)):
+        out[k, 3:7] = pin.Quaternion(R @ pin.Quaternion(q[k, 3:7]).matrix()).coeffs()
+    out[:, 2] -= height
+    return out
+
+
 def motion_from_bvh(path: str | Path, rate: float = 60.0,
                     progress: bool = False) -> TruthMotion:
     """Solve a BVH clip into a ground-truth motion of a body scaled to it.
@@ -102,8 +162,7 @@ def motion_from_bvh(path: str | Path, rate: float = 60.0,
         qs.append(solver.step(frame).q)
     q = np.array(qs)
     contacts = model.sites_of_kind("contact")
-    floor = np.percentile(site_positions(model, q, contacts)[..., 2].min(axis=1), 2)
-    q[:, 2] -= floor
+    q = level_on_floor(q, site_positions(model, q, contacts), time)
     phases = contact_phases(model, q, time, contacts)
     return TruthMotion(model, time, q, contacts, phases, str(path), {
         "bvh_rate": bvh.frame_rate, "step": step, "missing_segments": list(mapped.missing),

@@ -48,9 +48,18 @@ class TruthMotion:
 def contact_phases(model: HumanModel, q: np.ndarray, time: np.ndarray,
                    names: list[str], height: float = 0.03, speed: float = 0.3) -> np.ndarray:
     """Contact phases from kinematics: a point near the floor (z = 0) that is nearly still."""
-    P = site_positions(model, q, names)
-    dt = float(np.mean(np.diff(time))) if len(time) > 1 else 1.0
-    v = np.linalg.norm(np.gradient(P, dt, axis=0), axis=2)
+    return contact_phases_from_points(site_positions(model, q, names), time, height, speed)
+
+
+def contact_phases_from_points(P: np.ndarray, time: np.ndarray, height: float = 0.03,
+                               speed: float = 0.3) -> np.ndarray:
+    """(N, k) contact phases of points (N, k, 3) [m].
+
+    A point is in contact below ``height`` [m] and slower than ``speed`` [m/s].
+    """
+    if len(time) < 2:
+        return P[..., 2] < height
+    v = np.linalg.norm(np.gradient(P, float(np.mean(np.diff(time))), axis=0), axis=2)
     return (P[..., 2] < height) & (v < speed)
 
 
