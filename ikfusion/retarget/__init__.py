@@ -1,7 +1,8 @@
 """Retargeting human motion (a solve result, a BVH clip) onto other bodies.
 
-Today's targets: the human model at another body size (``robot="human"``). Humanoid robots
-from URDFs (Unitree G1, Talos, iCub, Romeo) come with their configs under ``configs/retarget/``.
+Targets: the human model at another body size (``robot="human"``), the humanoid robots of
+``example-robot-data`` with a shipped config under ``configs/retarget/`` (Unitree G1, Talos,
+iCub, Romeo), and any humanoid URDF given by path with a config of the same keys.
 """
 
 from __future__ import annotations
@@ -13,44 +14,65 @@ from typing import Any
 from ..errors import InputError
 from ..ik.settings import SolverSettings
 from .human import retarget_human
-from .output import RobotMotion, human_metrics, human_robot_motion, write_robot_motion
+from .output import (
+    RobotMotion,
+    human_metrics,
+    human_robot_motion,
+    robot_metrics,
+    robot_robot_motion,
+    write_robot_motion,
+)
+from .robot import RobotRetargeter
+from .robot_config import SHIPPED_ROBOTS, load_retarget_config
+from .robot_model import RobotModel
 from .source import HumanMotion, load_source
 
-#: Targets ``retarget`` knows.
-ROBOTS = ("human",)
+#: Targets ``retarget`` knows by name (any ``.urdf`` path with a config works too).
+ROBOTS = ("human", *SHIPPED_ROBOTS)
 
 
 def retarget(source: str | Path | HumanMotion, robot: str = "human", height: float | None = None,
-             out: str | Path | None = None, gmr: bool = False,
+             out: str | Path | None = None, gmr: bool = False, config: str | Path | None = None,
              progress: bool = False) -> tuple[RobotMotion, dict[str, Any]]:
     """Retarget a motion onto ``robot``; write the output folder when ``out`` is given.
 
     Args:
         source: A ``solve`` result folder, a BVH file, or a loaded :class:`HumanMotion`.
-        robot: The target (see :data:`ROBOTS`).
+        robot: ``human``, a shipped robot (see :data:`ROBOTS`) or a ``.urdf`` path.
         height: Body height of a ``human`` target [m].
         out: Output folder (``robot_motion.npz``, ``.csv``, ``summary.json``).
         gmr: Also write the pickle layout of RL tracking pipelines.
+        config: A retarget config replacing the shipped one (needed for a URDF path).
         progress: Show a progress bar.
 
     Returns:
         The robot motion and the metrics.
 
     Raises:
-        InputError: An unknown robot, a missing height, or a bad source (file, line, field).
+        InputError: An unknown robot, a missing height, a bad config or a bad source (file,
+            line, field).
     """
-    if robot not in ROBOTS:
-        raise InputError(f"unknown robot {robot!r}; available: {', '.join(ROBOTS)}",
-                         field="robot")
-    if height is None or not 0.5 < height < 2.5:
-        raise InputError("a human target needs --height in metres (0.5-2.5)", field="height")
+    if robot == "human":
+        if height is None or not 0.5 < height < 2.5:
+            raise InputError("a human target needs --height in metres (0.5-2.5)",
+                             field="height")
+        robot_config = None
+    else:
+        robot_config = load_retarget_config(robot, config)
     motion_in = source if isinstance(source, HumanMotion) else load_source(source)
     start = time.perf_counter()
-    motion = retarget_human(motion_in, height, progress=progress)
-    seconds = time.perf_counter() - start
-    metrics = human_metrics(motion, motion_in, seconds, SolverSettings.load().max_joint_velocity)
-    metrics.update({"robot": robot, "height_m": height, "source": motion_in.source})
-    robot_motion = human_robot_motion(motion)
+    if robot_config is None:
+        motion = retarget_human(motion_in, height or 0.0, progress=progress)
+        seconds = time.perf_counter() - start
+        metrics = human_metrics(motion, motion_in, seconds,
+                                SolverSettings.load().max_joint_velocity)
+        metrics.update({"robot": robot, "height_m": height})
+        robot_motion = human_robot_motion(motion)
+    else:
+        trajectory = RobotRetargeter(RobotModel(robot_config)).solve(motion_in, progress)
+        metrics = robot_metrics(trajectory, time.perf_counter() - start)
+        robot_motion = robot_robot_motion(trajectory)
+    metrics["source"] = motion_in.source
     if out is not None:
         write_robot_motion(out, robot_motion, metrics, gmr=gmr)
     return robot_motion, metrics

@@ -18,11 +18,14 @@ from typing import Any
 import numpy as np
 
 from ..evaluate import phase_slides
+from ..ik.configuration import Configuration
 from ..ik.limits import JointRangeLimit
 from ..ik.pose import Motion
 from ..results.atomic import atomic_folder
 from ..rotations import angle_between, wxyz_to_xyzw, xyzw_to_wxyz
 from ..sim.truth import site_positions
+from .capsules import CapsulePairs
+from .robot import RobotTrajectory
 from .source import HumanMotion
 
 
@@ -79,6 +82,65 @@ def human_metrics(motion: Motion, source: HumanMotion, seconds: float,
         "self_collision_min_distance_m": None,
         "tracking_orientation_rms_deg": tracking,
         "relaxed_frames": int(motion.relaxed.sum()), "warnings": list(motion.warnings),
+    }
+
+
+def robot_robot_motion(trajectory: RobotTrajectory) -> RobotMotion:
+    """A robot trajectory in the robot layout (contacts: the two feet's links, planted)."""
+    q = trajectory.q
+    return RobotMotion(trajectory.rate, q[:, :3].copy(), xyzw_to_wxyz(q[:, 3:7]),
+                       q[:, 7:].copy(), list(trajectory.robot.dof_names),
+                       trajectory.planted.copy(),
+                       [trajectory.robot.config.feet[s].link for s in ("left", "right")])
+
+
+def robot_metrics(trajectory: RobotTrajectory, seconds: float) -> dict[str, Any]:
+    """Limits, velocities, foot slide, floor penetration, self-collision and tracking.
+
+    Foot slide is measured on the sole corners over the robot's planted phases; velocities
+    are frame-to-frame joint differences times the frame rate [rad/s].
+    """
+    robot = trajectory.robot
+    model = robot.model
+    dofs = trajectory.q[:, 7:]
+    over = np.maximum(robot.lower - dofs, dofs - robot.upper)
+    rates = np.abs(np.diff(dofs, axis=0)) * trajectory.rate
+    too_fast = rates - robot.max_velocity
+    configuration = Configuration(model, trajectory.q[0])
+    pairs = CapsulePairs(robot.config.capsules, robot.config.collision_pairs, robot.frame_ids)
+    corners, distances = [], []
+    orientation_err: dict[str, list[float]] = {n: [] for n in trajectory.link_targets}
+    position_err: dict[str, list[float]] = {n: [] for n in trajectory.position_targets}
+    for k, q in enumerate(trajectory.q):
+        configuration.update(q)
+        corners.append(robot.sole_corners(q).reshape(-1, 3))
+        distances.append(pairs.distances(configuration))
+        for n, R in trajectory.link_targets.items():
+            T = configuration.placement(robot.frame_ids[n.split("->")[1]])
+            orientation_err[n].append(float(angle_between(T.rotation, R[k])))
+        for n, p in trajectory.position_targets.items():
+            T = configuration.placement(robot.frame_ids[n.split("->")[1]])
+            position_err[n].append(float(np.linalg.norm(T.translation - p[k])))
+    points = np.array(corners)
+    planted = np.repeat(trajectory.planted, 4, axis=1)
+    slides = 1e3 * np.array(phase_slides(points, planted) or [0.0])
+    gaps = np.array(distances)
+    return {
+        "robot": robot.name, "dofs": len(robot.dof_names), "scale": trajectory.scale,
+        "frames": len(trajectory.q), "fps": trajectory.rate,
+        "frames_per_second": len(trajectory.q) / seconds if seconds > 0 else None,
+        "joint_limit_violations": int((over > 1e-6).sum()),  # beyond QP round-off [rad]
+        "joint_limit_worst_rad": float(max(0.0, over.max())),
+        "velocity_limit_violations": int((too_fast > 1e-6).sum()),
+        "velocity_worst_rad_s": float(rates.max()) if rates.size else 0.0,
+        "foot_slide_mm_mean": float(slides.mean()), "foot_slide_mm_max": float(slides.max()),
+        "floor_penetration_mm_max": float(max(0.0, -1e3 * points[..., 2].min())),
+        "self_collision_min_distance_m": float(gaps.min()) if gaps.size else None,
+        "tracking_orientation_rms_deg": {n: float(np.degrees(np.sqrt(np.mean(np.square(e)))))
+                                         for n, e in orientation_err.items()},
+        "tracking_position_rms_cm": {n: float(100 * np.sqrt(np.mean(np.square(e))))
+                                     for n, e in position_err.items()},
+        "relaxed_frames": int(trajectory.relaxed.sum()),
     }
 
 

@@ -1,9 +1,10 @@
 """Motion sources for retargeting: segment world poses and contact phases over time.
 
-A ``solve`` result folder (``segments.csv``, ``contacts.csv``) or a BVH clip (mapped onto the
-human model, contacts from its kinematics) becomes a :class:`HumanMotion`: per segment its world
-rotation ``R_world_segment`` (MVN segment convention, SPEC section 1) and origin [m], world
-frame Z up.
+A ``solve`` result folder (``segments.csv``, ``contacts.csv``), a BVH clip (mapped onto the
+human model, contacts from its kinematics) or an MVNX file of Xsens MVN (segment poses and the
+foot contacts MVN detected, lifted so that the soles stand on z = 0) becomes a
+:class:`HumanMotion`: per segment its world rotation ``R_world_segment`` (MVN segment
+convention, SPEC section 1) and origin [m], world frame Z up.
 """
 
 from __future__ import annotations
@@ -53,18 +54,21 @@ class HumanMotion:
 
 
 def load_source(path: str | Path) -> HumanMotion:
-    """A ``solve`` result folder or a BVH file as a :class:`HumanMotion`.
+    """A ``solve`` result folder, a BVH file or an MVNX file as a :class:`HumanMotion`.
 
     Raises:
-        InputError: Not a result folder or BVH, or a malformed file (file, line and field).
+        InputError: Not a result folder, BVH or MVNX, or a malformed file (file, line and
+            field).
     """
     p = Path(path)
     if p.is_dir() and (p / "segments.csv").is_file():
         return _from_result_folder(p)
     if p.is_file() and p.suffix.lower() == ".bvh":
         return _from_bvh(p)
-    raise InputError("expected a solve result folder (with segments.csv) or a .bvh file",
-                     path=p)
+    if p.is_file() and p.suffix.lower() == ".mvnx":
+        return _from_mvnx(p)
+    raise InputError("expected a solve result folder (with segments.csv), a .bvh or an .mvnx "
+                     "file", path=p)
 
 
 def _read_rows(path: Path, columns: tuple[str, ...]) -> list[list[str]]:
@@ -143,3 +147,49 @@ def _from_bvh(path: Path) -> HumanMotion:
     names = list(truth.contact_names) or list(CONTACT_SITES)
     return HumanMotion(truth.time, segments, p, R, names, truth.contacts.astype(bool),
                        _standing_hip_height(segments, p), str(path))
+
+
+#: MVN's foot contact labels -> our contact points.
+_MVN_CONTACTS = {"LeftFoot_Heel": "LeftHeel", "LeftFoot_Toe": "LeftToe",
+                 "RightFoot_Heel": "RightHeel", "RightFoot_Toe": "RightToe"}
+
+
+def _from_mvnx(path: Path) -> HumanMotion:
+    from ..io.mvnx import read_mvnx
+    from ..sim.truth import contact_phases_from_points
+
+    rec = read_mvnx(path)
+    segments = list(rec.segments)
+    R = np.stack([rec.R_world_segment(s) for s in segments], axis=1)
+    p = rec.p_world_segment.copy()
+    soles = _mvn_sole_points(rec.segment_points, segments, R, p)
+    p[..., 2] -= float(np.percentile(soles[..., 2].min(axis=1), 2))  # soles on z = 0
+    soles[..., 2] -= float(np.percentile(soles[..., 2].min(axis=1), 2))
+    names = list(CONTACT_SITES)
+    if rec.contacts and all(c in _MVN_CONTACTS for c in rec.contacts) and len(rec.foot_contacts):
+        by_name = {_MVN_CONTACTS[c]: rec.foot_contacts[:, k] for k, c in enumerate(rec.contacts)}
+        contacts = np.column_stack([by_name[n] for n in names]).astype(bool)
+    else:  # no contacts exported: from the kinematics of the sole points
+        contacts = contact_phases_from_points(soles, rec.time)
+    return HumanMotion(rec.time, segments, p, R, names, contacts,
+                       _standing_hip_height(segments, p), str(path))
+
+
+def _mvn_sole_points(points: dict[str, dict[str, np.ndarray]], segments: list[str],
+                     R: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """World positions (N, 4, 3) [m] of heels and toe tips, in ``CONTACT_SITES`` order.
+
+    From MVN's segment points ``p<Side>HeelFoot`` and ``p<Side>Toe`` when the file has them,
+    else the foot and toe segment origins.
+    """
+    out = []
+    for name in CONTACT_SITES:
+        side = "Left" if name.startswith("Left") else "Right"
+        segment, point = ((f"{side}Foot", f"p{side}HeelFoot") if name.endswith("Heel")
+                          else (f"{side}Toe", f"p{side}Toe"))
+        if segment not in segments:
+            raise InputError(f"the MVNX has no {segment} segment to stand on")
+        k = segments.index(segment)
+        local = points.get(segment, {}).get(point, np.zeros(3))
+        out.append(p[:, k] + R[:, k] @ local)
+    return np.stack(out, axis=1)

@@ -58,6 +58,20 @@ class OrientationTask(Task):
         Jw = configuration.angular_jacobians(self.frame_ids)
         return (left_jacobian_inverse(e) @ Jw).reshape(-1, configuration.model.nv)
 
+    def add_objective(self, configuration: Configuration, H: np.ndarray, c: np.ndarray) -> None:
+        """Accumulate ``J^T W J`` and ``J^T W e`` over the weighted frames, errors taken once."""
+        on = np.flatnonzero(self.weights > 0.0)
+        if not len(on):
+            return
+        ids = [self.frame_ids[i] for i in on]
+        R = configuration.rotations(ids)
+        e = log_so3(R @ np.swapaxes(self.targets[on], 1, 2))
+        J = left_jacobian_inverse(e) @ configuration.angular_jacobians(ids)
+        w = self.weight * self.weights[on]
+        WJ = w[:, None, None] * J
+        H += np.einsum("kin,kim->nm", J, WJ)
+        c += np.einsum("kin,ki->n", WJ, e)
+
     def errors_deg(self, configuration: Configuration) -> dict[str, float]:
         """Angle of each tracked frame's error [deg] (for reports)."""
         e = self.compute_error(configuration).reshape(-1, 3)

@@ -1,0 +1,432 @@
+"""Retargeting human motion onto a humanoid robot, frame by frame, as the solver's QP.
+
+Per frame, warm started from the previous one, a few Gauss-Newton steps, each one QP in the
+robot's tangent space:
+
+* costs: mapped links follow their human segments' orientations (times the rest-pose offset
+  ``R_link = R_segment @ R_offset``), scaled positions of pelvis, hands and feet, smoothness
+  toward the previous frame and a faint pull toward the rest pose for redundant joints;
+* hard constraints: joint position limits and joint velocity limits at the source frame rate
+  (one box on ``dq``), planted feet fixed in position and orientation, sole corners above the
+  floor, capsule pairs apart (linearised distance rows).
+
+A foot is planted while the source's foot is in contact and the robot's sole has come down
+(lowest corner within :data:`PLANT_HEIGHT` of the floor, or :data:`PLANT_WAIT` s after the
+source's touch-down); until then, a foot whose source is in contact is pulled flat onto the
+floor under the source foot's heading. Frames the constraints cannot all satisfy are solved
+with penalised slack and counted, never dropped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+from tqdm import tqdm
+
+from ..ik.configuration import Configuration
+from ..ik.limits.base import Equality, Inequality
+from ..ik.qp import assemble_qp, solve_qp
+from ..ik.tasks import DampingTask, OrientationTask, PositionTask
+from ..model.body import Body
+from ..model.human_model import HumanModel
+from ..rotations import axis_rotation, euler_to_matrix, log_so3
+from .capsules import CapsulePairs
+from .human import hip_height
+from .robot_config import RetargetConfig
+from .robot_model import RobotModel
+from .source import HumanMotion
+
+#: Weight of each mapped link's orientation [1/rad^2].
+ORIENTATION_WEIGHT = 1.0
+#: Weight pulling a foot whose source foot is in contact flat onto the floor [1/rad^2, 1/m^2].
+FLAT_FOOT_WEIGHT = 20.0
+#: Smoothness toward the previous frame (root and joints) [1/m^2, 1/rad^2].
+SMOOTHNESS = 1e-3
+#: Pull toward the rest pose, for joints the tasks leave open [1/rad^2].
+REST_PULL = 1e-4
+#: A foot plants once its lowest sole corner is this close to the floor [m] ...
+PLANT_HEIGHT = 0.01
+#: ... or this long after its source foot touched down [s].
+PLANT_WAIT = 0.1
+#: Gauss-Newton steps per frame at most (the first frame: :data:`FIRST_FRAME_STEPS`).
+MAX_STEPS = 8
+FIRST_FRAME_STEPS = 30
+#: A frame is done after a step whose largest component is below this [rad or m] ...
+STEP_TOLERANCE = 1e-2
+#: ... with planted feet held this well [m, rad].
+HOLD_TOLERANCE = 2e-5
+#: Largest joint step while capsule rows are active [rad], in a frame's first steps.
+TRUST_STEP = 0.15
+TRUSTED_STEPS = 3
+#: Root speed bounds per frame [m/s, rad/s].
+MAX_ROOT_VELOCITY, MAX_ROOT_ANGULAR_VELOCITY = 15.0, 30.0
+#: Sides: robot foot key -> source segment prefix.
+SIDES = {"left": "Left", "right": "Right"}
+
+
+@dataclass
+class RobotTrajectory:
+    """A retargeted motion on a robot.
+
+    Attributes:
+        robot: The robot.
+        time: (N,) [s].
+        q: (N, nq) configurations.
+        planted: (N, 2) left/right foot planted.
+        relaxed: (N,) frames solved with slack.
+        link_targets: ``segment->link`` -> (N, 3, 3) orientation targets of the link.
+        position_targets: ``segment->link`` -> (N, 3) position targets of the link [m].
+        scale: The human-to-robot length scale used.
+    """
+
+    robot: RobotModel
+    time: np.ndarray
+    q: np.ndarray
+    planted: np.ndarray
+    relaxed: np.ndarray
+    link_targets: dict[str, np.ndarray]
+    position_targets: dict[str, np.ndarray]
+    scale: float
+
+    @property
+    def rate(self) -> float:
+        """Frame rate [Hz]."""
+        return float(1.0 / np.median(np.diff(self.time))) if len(self.time) > 1 else 0.0
+
+
+@dataclass
+class _Targets:
+    """Per frame targets of one source motion on one robot."""
+
+    orientations: dict[str, np.ndarray]   # segment -> (N, 3, 3) of its link
+    positions: dict[str, np.ndarray]      # segment -> (N, 3) [m] of its link (feet: sole link)
+    in_contact: np.ndarray                # (N, 2) the source's feet, left first
+    scale: float
+
+
+def _human_rest(source: HumanMotion) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """The source body's N-pose: segment rotations and positions relative to the pelvis [m].
+
+    The body is the default one scaled so that its hips stand as high as the source's.
+    """
+    model = HumanModel.default()
+    height = 1.75 * source.hip_height / hip_height(model)
+    model = HumanModel.from_body(Body.from_height(float(np.clip(height, 0.6, 2.4))))
+    q = model.neutral()
+    base = model.segment_position(q, "Pelvis") * [1.0, 1.0, 0.0]
+    R = {s: model.segment_rotation(q, s) for s in source.segments}
+    p = {s: model.segment_position(q, s) - base for s in source.segments}
+    return R, p
+
+
+def _robot_rest(robot: RobotModel) -> tuple[dict[str, pin.SE3], np.ndarray]:
+    """Link placements in the rest pose with the root above the origin, and the root xy."""
+    links = set(robot.config.links.values()) | {f.link for f in robot.config.feet.values()}
+    return {link: robot.placement(robot.rest, link) for link in links}, robot.rest[:2].copy()
+
+
+def build_targets(source: HumanMotion, robot: RobotModel) -> _Targets:
+    """Orientation and scaled position targets of the robot's links, and the source's contacts.
+
+    A link's position target is ``scale * p_segment + R_segment @ o``, with the offset ``o``
+    fixed in the segment frame so that both rest poses coincide; its orientation target is
+    ``R_segment @ R_offset`` with ``R_offset`` from the two rest poses (or the config).
+    """
+    config = robot.config
+    scale = config.scale or robot.hip_height() / source.hip_height
+    R_rest, p_rest = _human_rest(source)
+    links_rest, root_xy = _robot_rest(robot)
+    index = {s: i for i, s in enumerate(source.segments)}
+    orientations, positions = {}, {}
+    for segment, link in config.links.items():
+        if segment not in index:
+            continue
+        R_seg = source.R_world_segment[:, index[segment]]
+        if segment in config.orientation_offsets_deg:
+            roll, pitch, yaw = np.radians(config.orientation_offsets_deg[segment])
+            R_offset = euler_to_matrix("ZYX", [yaw, pitch, roll])
+        else:
+            R_offset = R_rest[segment].T @ links_rest[link].rotation
+        orientations[segment] = R_seg @ R_offset
+    for segment, weight in config.position_weights.items():
+        tracked = _position_link(config, segment)
+        if segment not in index or tracked is None or weight <= 0:
+            continue
+        robot_rest = links_rest[tracked].translation - [*root_xy, 0.0]
+        offset = R_rest[segment].T @ (robot_rest - scale * p_rest[segment])
+        positions[segment] = (scale * source.p_world_segment[:, index[segment]]
+                           + source.R_world_segment[:, index[segment]] @ offset)
+    in_contact = np.zeros((len(source), 2), dtype=bool)
+    for i, prefix in enumerate(SIDES.values()):
+        cols = [k for k, n in enumerate(source.contact_names) if n.startswith(prefix)]
+        if cols:
+            in_contact[:, i] = source.contacts[:, cols].any(axis=1)
+    return _Targets(orientations, positions, in_contact, float(scale))
+
+
+def _position_link(config: RetargetConfig, segment: str) -> str | None:
+    """The robot link whose origin tracks ``segment``'s scaled position (feet: the sole's link)."""
+    for side, prefix in SIDES.items():
+        if segment == f"{prefix}Foot":
+            return config.feet[side].link
+    return config.links.get(segment)
+
+
+def _heading(R: np.ndarray) -> float:
+    """Yaw of a world rotation [rad] (its x axis's direction on the floor)."""
+    return float(np.arctan2(R[1, 0], R[0, 0]))
+
+
+class RobotRetargeter:
+    """Solves a source motion onto one robot (see the module docstring).
+
+    Args:
+        robot: The robot model with its config.
+        backend: QP backend (qpsolvers name).
+    """
+
+    def __init__(self, robot: RobotModel, backend: str = "daqp") -> None:
+        self.robot = robot
+        self.backend = backend
+        config = robot.config
+        model = robot.model
+        self.segments = list(config.links)
+        self.orientation_task = OrientationTask(
+            [robot.frame_ids[config.links[n]] for n in self.segments], self.segments,
+            ORIENTATION_WEIGHT)
+        self.feet = [config.feet[side] for side in SIDES]
+        self._foot_ids = [robot.frame_ids[f.link] for f in self.feet]
+        self.flat_task = OrientationTask(self._foot_ids, [f.link for f in self.feet],
+                                         FLAT_FOOT_WEIGHT)
+        self.capsules = CapsulePairs(config.capsules, config.collision_pairs, robot.frame_ids)
+        n = model.nv - 6
+        self.smoothness = DampingTask(np.full(model.nv, SMOOTHNESS))
+        self.rest_pull = DampingTask(np.concatenate([np.zeros(6), np.full(n, REST_PULL)]))
+        self.rest_pull.set_reference(robot.rest)
+        self._max_velocity = np.concatenate([np.full(3, MAX_ROOT_VELOCITY),
+                                             np.full(3, MAX_ROOT_ANGULAR_VELOCITY),
+                                             robot.max_velocity])
+        rest_feet = [robot.placement(robot.rest, f.link) for f in self.feet]
+        self._rest_feet = [T.rotation for T in rest_feet]
+        self._rest_feet_z = [float(T.translation[2]) for T in rest_feet]
+        self._configuration = Configuration(model, robot.rest)
+
+    def solve(self, source: HumanMotion, progress: bool = False) -> RobotTrajectory:
+        """Retarget every frame of ``source``."""
+        config = self.robot.config
+        targets = build_targets(source, self.robot)
+        tracked = list(targets.positions)
+        self.position_task = PositionTask(
+            [self.robot.frame_ids[_position_link(config, s) or ""] for s in tracked], tracked)
+        self._position_weights = np.array([config.position_weights[s] for s in tracked])
+        N = len(source)
+        dt = 1.0 / source.rate if source.rate > 0 else 0.0
+        q_all = np.zeros((N, self.robot.model.nq))
+        planted = np.zeros((N, 2), dtype=bool)
+        relaxed = np.zeros(N, dtype=bool)
+        anchors: list[pin.SE3 | None] = [None, None]
+        waited = np.zeros(2)
+        q = self._initial(targets)
+        for k in tqdm(range(N), disable=not progress, desc="retarget", unit="frame"):
+            self._set_targets(targets, k, anchors)
+            first = k == 0
+            if k >= 2:  # warm start: the previous frame moved on at the same velocity
+                q = self._extrapolate(q_all[k - 2], q_all[k - 1])
+            q, relaxed[k] = self._solve_frame(q, None if first else q_all[k - 1], dt, anchors,
+                                              FIRST_FRAME_STEPS if first else MAX_STEPS)
+            q_all[k] = q
+            self._update_plants(targets.in_contact[k], q, anchors, waited, dt)
+            planted[k] = [a is not None for a in anchors]
+        return RobotTrajectory(
+            self.robot, source.time.copy(), q_all, planted, relaxed,
+            {f"{s}->{config.links[s]}": R for s, R in targets.orientations.items()},
+            {f"{s}->{_position_link(config, s)}": p for s, p in targets.positions.items()},
+            targets.scale)
+
+    def _extrapolate(self, q_before: np.ndarray, q_last: np.ndarray) -> np.ndarray:
+        """``q_last`` moved on by the last frame's motion, joints kept in their limits."""
+        model = self.robot.model
+        q = pin.integrate(model, q_last, pin.difference(model, q_before, q_last))
+        q[7:] = np.clip(q[7:], self.robot.lower, self.robot.upper)
+        return q
+
+    def _initial(self, targets: _Targets) -> np.ndarray:
+        """The rest pose, moved under the first frame's pelvis target."""
+        q = self.robot.rest.copy()
+        if "Pelvis" in targets.positions:
+            q[:2] = targets.positions["Pelvis"][0, :2]
+        return q
+
+    def _set_targets(self, targets: _Targets, k: int, anchors: list[pin.SE3 | None]) -> None:
+        """This frame's targets; a foot coming down is pulled flat onto the floor."""
+        R = np.array([targets.orientations[s][k] if s in targets.orientations
+                      else np.full((3, 3), np.nan) for s in self.segments])
+        self.orientation_task.set_targets(R, np.ones(len(self.segments)))
+        tracked = self.position_task.names
+        p = np.array([targets.positions[s][k] for s in tracked]).reshape(-1, 3)
+        flat = np.full((2, 3, 3), np.nan)
+        for i, prefix in enumerate(SIDES.values()):
+            segment = f"{prefix}Foot"
+            if not targets.in_contact[k, i] or anchors[i] is not None:
+                continue
+            if segment in targets.orientations:
+                yaw = _heading(targets.orientations[segment][k] @ self._rest_feet[i].T)
+                flat[i] = axis_rotation("z", yaw) @ self._rest_feet[i]
+            if segment in tracked:  # onto the floor: its rest height
+                p[tracked.index(segment), 2] = self._rest_feet_z[i]
+        self.flat_task.set_targets(flat, np.ones(2))
+        self.position_task.set_targets(p, self._position_weights)
+
+    def _solve_frame(self, q: np.ndarray, q_previous: np.ndarray | None, dt: float,
+                     anchors: list[pin.SE3 | None], steps: int) -> tuple[np.ndarray, bool]:
+        """Gauss-Newton steps from ``q``; returns the configuration and whether it relaxed.
+
+        It stops after a small step that leaves planted feet held, capsules apart and soles
+        above the floor (up to the linearisation's round-off).
+        """
+        conf = self._configuration
+        conf.update(q)
+        self.smoothness.set_reference(q_previous)
+        nv = self.robot.model.nv
+        relaxed = False
+        previous: np.ndarray | None = None
+        factor = 1.0
+        for step in range(steps):
+            H, c = np.zeros((nv, nv)), np.zeros(nv)
+            for task in (self.orientation_task, self.flat_task, self.position_task,
+                         self.smoothness, self.rest_pull):
+                task.add_objective(conf, H, c)
+            near = self.capsules.inequality(conf)
+            rows = ([self._floor_rows(conf, anchors), near], [self._plant_rows(conf, anchors)])
+            moving = np.flatnonzero(np.any(near.G[:, 6:] != 0.0, axis=0)) + 6 \
+                if step < TRUSTED_STEPS else np.zeros(0, dtype=int)
+            box = self._box(q, q_previous, dt, moving)
+            solution = solve_qp(assemble_qp(H.copy(), c, *rows, box, damping=1e-9),
+                                self.backend)
+            if solution.relaxed and len(moving):  # the trust region was too tight
+                solution = solve_qp(assemble_qp(H, c, *rows, self._box(q, q_previous, dt),
+                                                damping=1e-9), self.backend)
+            relaxed |= solution.relaxed
+            factor = self._damped(solution.dq, previous, factor)
+            dq = previous = factor * solution.dq
+            q = conf.integrate(dq)
+            conf.update(q)
+            if np.max(np.abs(dq)) < STEP_TOLERANCE and self._settled(conf, anchors):
+                break
+        return q, relaxed
+
+    def _damped(self, dq: np.ndarray, previous: np.ndarray | None, factor: float) -> float:
+        """The step scale for ``dq``: halved each time a step turns back on the previous one.
+
+        Linearised capsule distances overestimate the true ones (a distance is a minimum over
+        the capsules' points), so full steps can overshoot back and forth between two poses;
+        shrinking the steps once that starts makes them settle between the two.
+        """
+        if previous is not None and float(dq @ previous) < -0.5 * float(
+                np.linalg.norm(dq) * np.linalg.norm(previous)):
+            return 0.5 * factor
+        return factor
+
+    def _settled(self, conf: Configuration, anchors: list[pin.SE3 | None]) -> bool:
+        """Planted feet held, soles above the floor and capsule pairs apart at ``conf``."""
+        return self._violation(conf, anchors, margin=0.0) <= HOLD_TOLERANCE
+
+    def _violation(self, conf: Configuration, anchors: list[pin.SE3 | None],
+                   margin: float | None = None) -> float:
+        """How far ``conf`` breaks the constraints [m] (0 when it keeps them all).
+
+        Planted feet off their anchors, soles below the floor, capsule pairs closer than
+        ``margin`` (the rows' margin when None).
+        """
+        worst = 0.0
+        for fid, anchor in zip(self._foot_ids, anchors):
+            if anchor is not None:
+                worst = max(worst, float(np.linalg.norm(conf.placement(fid).translation
+                                                        - anchor.translation)))
+        floor = self._floor_rows(conf, anchors).h
+        if len(floor):
+            worst = max(worst, -float(floor.min()))
+        gaps = self.capsules.distances(conf)
+        if len(gaps):
+            keep = self.capsules.margin if margin is None else margin
+            worst = max(worst, keep - float(gaps.min()))
+        return worst
+
+    def _box(self, q: np.ndarray, q_previous: np.ndarray | None, dt: float,
+             trusted: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Joint limits and velocity limits as bounds on ``dq``.
+
+        The ``trusted`` tangent coordinates (joints that move a capsule near another) also
+        move at most :data:`TRUST_STEP` in this step, so that the linearised distances stay
+        close to the true ones.
+        """
+        model = self.robot.model
+        lb = np.full(model.nv, -np.inf)
+        ub = np.full(model.nv, np.inf)
+        if trusted is not None and len(trusted):
+            lb[trusted], ub[trusted] = -TRUST_STEP, TRUST_STEP
+        lb[6:] = np.maximum(lb[6:], self.robot.lower - q[7:])
+        ub[6:] = np.minimum(ub[6:], self.robot.upper - q[7:])
+        if q_previous is not None and dt > 0:
+            moved = pin.difference(model, q_previous, q)
+            span = self._max_velocity * dt
+            lb = np.maximum(lb, -span - moved)
+            ub = np.minimum(ub, span - moved)
+        return np.minimum(lb, 0.0), np.maximum(ub, 0.0)
+
+    def _floor_rows(self, conf: Configuration, anchors: list[pin.SE3 | None]) -> Inequality:
+        """Sole corners of feet in the air stay above the floor: ``-J_z dq <= z``.
+
+        A planted foot has none: its anchor is on or above the floor, and rows that repeat
+        its equality rows would make the QP degenerate.
+        """
+        G: list[np.ndarray] = []
+        h: list[float] = []
+        for foot, fid, anchor in zip(self.feet, self._foot_ids, anchors):
+            if anchor is not None:
+                continue
+            T = conf.placement(fid)
+            J = conf.jacobian(fid)
+            for corner in foot.corners:
+                r = T.rotation @ corner
+                G.append(-(J[2] + r[1] * J[3] - r[0] * J[4]))  # z row of J_lin - [r]x J_ang
+                h.append(T.translation[2] + r[2])
+        return Inequality(np.array(G).reshape(-1, conf.model.nv), np.array(h))
+
+    def _plant_rows(self, conf: Configuration, anchors: list[pin.SE3 | None]) -> Equality:
+        """Planted feet keep their anchor placement: 6 rows per foot."""
+        rows, b = [], []
+        for fid, anchor in zip(self._foot_ids, anchors):
+            if anchor is None:
+                continue
+            T = conf.placement(fid)
+            J = conf.jacobian(fid)
+            rows.append(J)
+            b.append(np.concatenate([anchor.translation - T.translation,
+                                     log_so3(anchor.rotation @ T.rotation.T)]))
+        nv = self.robot.model.nv
+        if not rows:
+            return Equality(np.zeros((0, nv)), np.zeros(0))
+        return Equality(np.vstack(rows), np.concatenate(b))
+
+    def _update_plants(self, in_contact: np.ndarray, q: np.ndarray,
+                       anchors: list[pin.SE3 | None], waited: np.ndarray, dt: float) -> None:
+        """Plant feet whose source foot is down and whose sole reached the floor; lift others."""
+        self._configuration.update(q)
+        for i, (foot, fid) in enumerate(zip(self.feet, self._foot_ids)):
+            if not in_contact[i]:
+                anchors[i] = None
+                waited[i] = 0.0
+                continue
+            if anchors[i] is not None:
+                continue
+            waited[i] += dt
+            T = self._configuration.placement(fid)
+            lowest = float(np.min((foot.corners @ T.rotation.T + T.translation)[:, 2]))
+            if lowest <= PLANT_HEIGHT or waited[i] >= PLANT_WAIT:
+                anchor = T.copy()
+                if 0.0 < lowest <= PLANT_HEIGHT:  # set it down on the floor
+                    anchor.translation = T.translation - [0.0, 0.0, lowest]
+                anchors[i] = anchor
