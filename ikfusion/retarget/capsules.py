@@ -83,17 +83,32 @@ class CapsulePairs:
         o = [configuration.positions(f) for f in self._frames]
         a = [np.einsum("kij,kj->ki", R[i], self._a[i]) + o[i] for i in range(2)]
         b = [np.einsum("kij,kj->ki", R[i], self._b[i]) + o[i] for i in range(2)]
-        first = (np.stack([a[0], a[0], b[0], a[0], a[0]], axis=1).reshape(-1, 3),
-                 np.stack([b[0], a[0], b[0], b[0], b[0]], axis=1).reshape(-1, 3))
-        second = (np.stack([a[1], a[1], a[1], a[1], b[1]], axis=1).reshape(-1, 3),
-                  np.stack([b[1], b[1], b[1], a[1], b[1]], axis=1).reshape(-1, 3))
-        p, q = closest_points(first[0], first[1], second[0], second[1])
-        d = np.linalg.norm(p - q, axis=1) - np.repeat(self._radius, 5)
+        # Pairs surely farther apart than ``activation`` keep a lower bound as their distance.
+        mid = [(a[i] + b[i]) / 2 for i in range(2)]
+        half = [np.linalg.norm(b[i] - a[i], axis=1) / 2 for i in range(2)]
+        bound = np.linalg.norm(mid[0] - mid[1], axis=1) - half[0] - half[1] - self._radius
+        p = np.repeat(mid[0], 5, axis=0)
+        q = np.repeat(mid[1], 5, axis=0)
+        d = np.repeat(bound, 5)
+        near = np.flatnonzero(bound < self.activation)
+        if len(near):
+            a0, b0, a1, b1 = a[0][near], b[0][near], a[1][near], b[1][near]
+            first = (np.stack([a0, a0, b0, a0, a0], axis=1).reshape(-1, 3),
+                     np.stack([b0, a0, b0, b0, b0], axis=1).reshape(-1, 3))
+            second = (np.stack([a1, a1, a1, a1, b1], axis=1).reshape(-1, 3),
+                      np.stack([b1, b1, b1, a1, b1], axis=1).reshape(-1, 3))
+            rows = (5 * near[:, None] + np.arange(5)).reshape(-1)
+            p[rows], q[rows] = closest_points(first[0], first[1], second[0], second[1])
+            d[rows] = np.linalg.norm(p[rows] - q[rows], axis=1) - np.repeat(self._radius[near], 5)
         self._cached_q, self._cached = configuration.q, (p, q, d)
         return p, q, d
 
     def distances(self, configuration: Configuration) -> np.ndarray:
-        """Distance of each pair (k,) [m] (negative when they overlap)."""
+        """Distance of each pair (k,) [m] (negative when they overlap).
+
+        Exact below ``activation``; above it a lower bound (exact everywhere with an infinite
+        ``activation``).
+        """
         if not self.pairs:
             return np.zeros(0)
         return self._witnesses(configuration)[2].reshape(-1, 5).min(axis=1)

@@ -107,7 +107,8 @@ def robot_metrics(trajectory: RobotTrajectory, seconds: float) -> dict[str, Any]
     rates = np.abs(np.diff(dofs, axis=0)) * trajectory.rate
     too_fast = rates - robot.max_velocity
     configuration = Configuration(model, trajectory.q[0])
-    pairs = CapsulePairs(robot.config.capsules, robot.config.collision_pairs, robot.frame_ids)
+    pairs = CapsulePairs(robot.config.capsules, robot.config.collision_pairs, robot.frame_ids,
+                         activation=np.inf)
     corners, distances = [], []
     orientation_err: dict[str, list[float]] = {n: [] for n in trajectory.link_targets}
     position_err: dict[str, list[float]] = {n: [] for n in trajectory.position_targets}

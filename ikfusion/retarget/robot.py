@@ -20,6 +20,7 @@ with penalised slack and counted, never dropped.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import pinocchio as pin
@@ -29,7 +30,6 @@ from ..ik.configuration import Configuration
 from ..ik.limits.base import Equality, Inequality
 from ..ik.qp import assemble_qp, solve_qp
 from ..ik.tasks import DampingTask, OrientationTask, PositionTask
-from ..model.body import Body
 from ..model.human_model import HumanModel
 from ..rotations import axis_rotation, euler_to_matrix, log_so3
 from .capsules import CapsulePairs
@@ -53,8 +53,10 @@ PLANT_WAIT = 0.1
 #: Gauss-Newton steps per frame at most (the first frame: :data:`FIRST_FRAME_STEPS`).
 MAX_STEPS = 8
 FIRST_FRAME_STEPS = 30
+#: The first frame is solved from the rest pose and from this many minus one random poses.
+FIRST_FRAME_STARTS = 8
 #: A frame is done after a step whose largest component is below this [rad or m] ...
-STEP_TOLERANCE = 1e-2
+STEP_TOLERANCE = 5e-2
 #: ... with planted feet held this well [m, rad].
 HOLD_TOLERANCE = 2e-5
 #: Largest joint step while capsule rows are active [rad], in a frame's first steps.
@@ -106,19 +108,28 @@ class _Targets:
     scale: float
 
 
+@lru_cache(maxsize=1)
+def _default_rest() -> tuple[dict[str, np.ndarray], dict[str, np.ndarray], float]:
+    """The default body's N-pose and hip height [m].
+
+    Segment rotations, and positions relative to the point of the floor under the pelvis.
+    """
+    model = HumanModel.default()
+    q = model.neutral()
+    base = model.segment_position(q, "Pelvis") * [1.0, 1.0, 0.0]
+    R = {s: model.segment_rotation(q, s) for s in model.segment_names}
+    p = {s: model.segment_position(q, s) - base for s in model.segment_names}
+    return R, p, hip_height(model)
+
+
 def _human_rest(source: HumanMotion) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """The source body's N-pose: segment rotations and positions relative to the pelvis [m].
 
-    The body is the default one scaled so that its hips stand as high as the source's.
+    The default body scaled so that its hips stand as high as the source's.
     """
-    model = HumanModel.default()
-    height = 1.75 * source.hip_height / hip_height(model)
-    model = HumanModel.from_body(Body.from_height(float(np.clip(height, 0.6, 2.4))))
-    q = model.neutral()
-    base = model.segment_position(q, "Pelvis") * [1.0, 1.0, 0.0]
-    R = {s: model.segment_rotation(q, s) for s in source.segments}
-    p = {s: model.segment_position(q, s) - base for s in source.segments}
-    return R, p
+    R, p, hips = _default_rest()
+    scale = source.hip_height / hips
+    return R, {s: scale * v for s, v in p.items()}
 
 
 def _robot_rest(robot: RobotModel) -> tuple[dict[str, pin.SE3], np.ndarray]:
@@ -232,6 +243,8 @@ class RobotRetargeter:
         for k in tqdm(range(N), disable=not progress, desc="retarget", unit="frame"):
             self._set_targets(targets, k, anchors)
             first = k == 0
+            if first:
+                q = self._first_pose(q, dt, anchors)
             if k >= 2:  # warm start: the previous frame moved on at the same velocity
                 q = self._extrapolate(q_all[k - 2], q_all[k - 1])
             q, relaxed[k] = self._solve_frame(q, None if first else q_all[k - 1], dt, anchors,
@@ -244,6 +257,55 @@ class RobotRetargeter:
             {f"{s}->{config.links[s]}": R for s, R in targets.orientations.items()},
             {f"{s}->{_position_link(config, s)}": p for s, p in targets.positions.items()},
             targets.scale)
+
+    def _first_pose(self, q_rest: np.ndarray, dt: float,
+                    anchors: list[pin.SE3 | None]) -> np.ndarray:
+        """The first frame, solved from several starts; the best one.
+
+        The starts: the rest pose, and :data:`FIRST_FRAME_STARTS` - 1 poses with random arms
+        within their ranges (seeded).
+
+        Orientation targets alone have local minima far from the answer (an arm raised with
+        its elbow bent 140 deg is met from the hanging rest pose with the elbow straight);
+        later frames start from the previous one and stay in the basin found here.
+        """
+        rng = np.random.default_rng(0)
+        arms = self._arm_dofs()
+        best, best_cost = q_rest, np.inf
+        for start in range(FIRST_FRAME_STARTS):
+            q = q_rest.copy()
+            if start:
+                q[7 + arms] = rng.uniform(self.robot.lower[arms], self.robot.upper[arms])
+            q, _ = self._solve_frame(q, None, dt, anchors, FIRST_FRAME_STEPS)
+            cost = self._cost(q)
+            if cost < best_cost:
+                best, best_cost = q, cost
+        return best
+
+    def _arm_dofs(self) -> np.ndarray:
+        """Indices into ``q[7:]`` of the joints between the trunk link and the hand links."""
+        model, links = self.robot.model, self.robot.config.links
+        def chain(link: str) -> set[int]:
+            joint = model.frames[self.robot.frame_ids[link]].parentJoint
+            out = set()
+            while joint > 1:
+                out.add(joint)
+                joint = model.parents[joint]
+            return out
+        trunk = chain(links["T8"]) if "T8" in links else set()
+        hands = set().union(*(chain(links[h]) for h in ("LeftHand", "RightHand") if h in links))
+        return np.array(sorted(model.joints[j].idx_q - 7 for j in hands - trunk), dtype=int)
+
+    def _cost(self, q: np.ndarray) -> float:
+        """The tracking objective at ``q`` (orientations and positions)."""
+        conf = self._configuration
+        conf.update(q)
+        total = 0.0
+        for task in (self.orientation_task, self.flat_task, self.position_task):
+            if task.is_active():
+                e = task.compute_error(conf)
+                total += float(np.sum(task.row_weights() * e * e))
+        return total
 
     def _extrapolate(self, q_before: np.ndarray, q_last: np.ndarray) -> np.ndarray:
         """``q_last`` moved on by the last frame's motion, joints kept in their limits."""

@@ -21,7 +21,7 @@ from ..paths import configs_dir
 from ..yaml_files import read_yaml
 
 #: Robots with a shipped config, by the name ``--robot`` takes.
-SHIPPED_ROBOTS = ("g1", "talos", "icub", "romeo")
+SHIPPED_ROBOTS = ("g1", "talos", "icub")
 
 #: Where ``example-robot-data`` installs its robots, below a ``site-packages`` folder.
 _EXAMPLE_ROBOT_DATA = Path("cmeel.prefix", "share", "example-robot-data", "robots")
@@ -64,6 +64,9 @@ class RetargetConfig:
         collision_pairs: Capsule pairs that must keep apart.
         locked_joints: Joint -> fixed value [rad] (removed from the model).
         rest_pose: Joint -> value [rad] of the pose matching the human N-pose (others 0).
+        joint_ranges: Joint -> (lower, upper) [rad] narrower than the URDF's, where the URDF
+            allows what a human-like motion should not use (G1's elbows bend 30 deg past
+            straight).
         scale: Human-to-robot length scale; None: robot hip height / human hip height.
         orientation_offsets_deg: Segment -> (roll, pitch, yaw) [deg] replacing the offset
             computed from the two rest poses (``R_link = R_segment @ R_offset``).
@@ -78,6 +81,7 @@ class RetargetConfig:
     collision_pairs: list[tuple[str, str]] = field(default_factory=list)
     locked_joints: dict[str, float] = field(default_factory=dict)
     rest_pose: dict[str, float] = field(default_factory=dict)
+    joint_ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
     scale: float | None = None
     orientation_offsets_deg: dict[str, tuple[float, float, float]] = field(default_factory=dict)
     source: Path | None = None
@@ -106,7 +110,7 @@ def load_retarget_config(robot: str | Path, config: str | Path | None = None) ->
     """The config for ``robot``: a shipped name, or a URDF path with ``config`` given.
 
     Args:
-        robot: ``g1``, ``talos``, ``icub``, ``romeo`` or a ``.urdf`` path.
+        robot: ``g1``, ``talos``, ``icub`` or a ``.urdf`` path.
         config: A config file; overrides the shipped one (its ``urdf`` key may be left out
             when ``robot`` is a URDF path).
 
@@ -167,6 +171,8 @@ def _parse(data: dict[str, Any], path: Path, urdf: Path | None) -> RetargetConfi
         feet=feet, capsules=capsules, collision_pairs=pairs,
         locked_joints={str(k): float(v) for k, v in (data.get("locked_joints") or {}).items()},
         rest_pose={str(k): float(v) for k, v in (data.get("rest_pose") or {}).items()},
+        joint_ranges={str(k): _range(v, path, f"joint_ranges.{k}")
+                      for k, v in (data.get("joint_ranges") or {}).items()},
         scale=None if scale is None else _positive(scale, path, "scale"),
         orientation_offsets_deg=offsets,  # type: ignore[arg-type]
         source=path)
@@ -201,6 +207,14 @@ def _array(value: Any, shape: tuple[int, ...], path: Path, name: str) -> np.ndar
         raise ConfigError(f"expected {' x '.join(map(str, shape))} numbers, found {value!r}",
                           path=path, field=name)
     return a
+
+
+def _range(value: Any, path: Path, name: str) -> tuple[float, float]:
+    lower, upper = _array(value, (2,), path, name)
+    if not lower < upper:
+        raise ConfigError(f"expected [lower, upper] with lower < upper, found {value!r}",
+                          path=path, field=name)
+    return float(lower), float(upper)
 
 
 def _positive(value: Any, path: Path, name: str) -> float:

@@ -22,8 +22,9 @@ class RobotModel:
     Attributes:
         model: Pinocchio model (free-flyer root).
         dof_names: The actuated joints, in ``q[7:]`` order.
-        rest: The rest configuration (rest pose, standing with its soles on the floor).
-        lower, upper: Joint position limits (n,) [rad].
+        rest: The rest configuration: the rest pose standing with its soles on the floor,
+            facing +x (some URDFs face -x, e.g. iCub).
+        lower, upper: Joint position limits (n,) [rad]: the URDF's, narrowed by the config.
         max_velocity: Joint velocity limits (n,) [rad/s] (inf where the URDF gives none).
     """
 
@@ -47,9 +48,24 @@ class RobotModel:
         self.dof_names = list(self.model.names[2:])
         self.lower = self.model.lowerPositionLimit[7:].copy()
         self.upper = self.model.upperPositionLimit[7:].copy()
+        self._narrow_ranges()
         v = self.model.velocityLimit[6:].copy()
         self.max_velocity = np.where(v > 0, v, np.inf)
         self.rest = self._rest_configuration()
+
+    def _narrow_ranges(self) -> None:
+        """Apply the config's ``joint_ranges`` (only ever narrower than the URDF's)."""
+        for joint, (lower, upper) in self.config.joint_ranges.items():
+            key = f"joint_ranges.{joint}"
+            if joint not in self.dof_names:
+                raise ConfigError(f"no joint {joint!r} in the URDF", path=self.config.source,
+                                  field=key)
+            i = self.dof_names.index(joint)
+            if lower < self.lower[i] - 1e-9 or upper > self.upper[i] + 1e-9:
+                raise ConfigError(f"[{lower}, {upper}] is wider than the URDF's "
+                                  f"[{self.lower[i]:.4f}, {self.upper[i]:.4f}]",
+                                  path=self.config.source, field=key)
+            self.lower[i], self.upper[i] = lower, upper
 
     @property
     def name(self) -> str:
@@ -64,6 +80,11 @@ class RobotModel:
                                   field=f"rest_pose.{joint}")
             q[self.model.joints[self.model.getJointId(joint)].idx_q] = value
         q[7:] = np.clip(q[7:], self.lower, self.upper)
+        corners = self.sole_corners(q)
+        left_of = corners[0].mean(axis=0) - corners[1].mean(axis=0)
+        facing = np.arctan2(-left_of[0], left_of[1])  # heading of forward = left x up
+        turn = pin.Quaternion(pin.utils.rpyToMatrix(0.0, 0.0, -facing))
+        q[3:7] = (turn * pin.Quaternion(q[3:7])).coeffs()  # facing +x, as the human's N-pose
         q[2] -= self.sole_corners(q)[..., 2].min()  # soles on the floor
         return q
 

@@ -88,7 +88,7 @@ def test_bvh_to_model_to_bvh_keeps_positions_within_a_millimetre(tmp_path) -> No
     from ikfusion.model import HumanModel
     from ikfusion.results.bvh_export import write_motion_bvh
     from ikfusion.sim.gait import GaitParameters, generate_gait
-    from ikfusion.sim.mocap import floor_plane, level_on_floor, motion_from_bvh
+    from ikfusion.sim.mocap import motion_from_bvh
 
     model = HumanModel.default()
     walk = generate_gait(model, GaitParameters(duration=2.5), rate=60.0)
