@@ -69,7 +69,9 @@ def retarget(source: str | Path | HumanMotion, robot: str = "human", height: flo
         metrics.update({"robot": robot, "height_m": height})
         robot_motion = human_robot_motion(motion)
     else:
-        trajectory = RobotRetargeter(RobotModel(robot_config)).solve(motion_in, progress)
+        retargeter = RobotRetargeter(RobotModel(robot_config))
+        start = time.perf_counter()  # frames per second of the solve, not of reading a URDF
+        trajectory = retargeter.solve(motion_in, progress)
         metrics = robot_metrics(trajectory, time.perf_counter() - start)
         robot_motion = robot_robot_motion(trajectory)
     metrics["source"] = motion_in.source

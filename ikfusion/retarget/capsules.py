@@ -60,6 +60,9 @@ class CapsulePairs:
         first = [capsules[a] for a, _ in pairs]
         second = [capsules[b] for _, b in pairs]
         self._frames = [[frame_ids[x.link] for x in first], [frame_ids[x.link] for x in second]]
+        self._links = sorted(set(self._frames[0]) | set(self._frames[1]))
+        self._slots = [np.array([self._links.index(f) for f in side], dtype=int)
+                       for side in self._frames]
         self._a = np.array([[x.a for x in first], [x.a for x in second]]).reshape(2, -1, 3)
         self._b = np.array([[x.b for x in first], [x.b for x in second]]).reshape(2, -1, 3)
         self._radius = np.array([x.radius for x in first]) + np.array([x.radius for x in second])
@@ -79,8 +82,10 @@ class CapsulePairs:
         """
         if self._cached_q is configuration.q:  # the same configuration as last time
             return self._cached
-        R = [configuration.rotations(f) for f in self._frames]
-        o = [configuration.positions(f) for f in self._frames]
+        R_links = configuration.rotations(self._links)
+        o_links = configuration.positions(self._links)
+        R = [R_links[slot] for slot in self._slots]
+        o = [o_links[slot] for slot in self._slots]
         a = [np.einsum("kij,kj->ki", R[i], self._a[i]) + o[i] for i in range(2)]
         b = [np.einsum("kij,kj->ki", R[i], self._b[i]) + o[i] for i in range(2)]
         # Pairs surely farther apart than ``activation`` keep a lower bound as their distance.
@@ -102,6 +107,12 @@ class CapsulePairs:
             d[rows] = np.linalg.norm(p[rows] - q[rows], axis=1) - np.repeat(self._radius[near], 5)
         self._cached_q, self._cached = configuration.q, (p, q, d)
         return p, q, d
+
+    @property
+    def last_min_distance(self) -> float:
+        """The smallest distance (or lower bound) of the last configuration looked at [m]."""
+        return float(self._cached[2].min()) if len(self._cached) and len(self._cached[2]) \
+            else np.inf
 
     def distances(self, configuration: Configuration) -> np.ndarray:
         """Distance of each pair (k,) [m] (negative when they overlap).

@@ -114,7 +114,10 @@ def robot_metrics(trajectory: RobotTrajectory, seconds: float) -> dict[str, Any]
     position_err: dict[str, list[float]] = {n: [] for n in trajectory.position_targets}
     for k, q in enumerate(trajectory.q):
         configuration.update(q)
-        corners.append(robot.sole_corners(q).reshape(-1, 3))
+        corners.append(np.concatenate([
+            foot.corners @ configuration.placement(robot.frame_ids[foot.link]).rotation.T
+            + configuration.placement(robot.frame_ids[foot.link]).translation
+            for foot in (robot.config.feet["left"], robot.config.feet["right"])]))
         distances.append(pairs.distances(configuration))
         for n, R in trajectory.link_targets.items():
             T = configuration.placement(robot.frame_ids[n.split("->")[1]])

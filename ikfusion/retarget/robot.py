@@ -62,6 +62,9 @@ HOLD_TOLERANCE = 2e-5
 #: Largest joint step while capsule rows are active [rad], in a frame's first steps.
 TRUST_STEP = 0.15
 TRUSTED_STEPS = 3
+#: Capsule pairs this far apart [m] are taken not to touch after one small step (at most
+#: :data:`STEP_TOLERANCE` per joint, a few centimetres at a hand); nearer pairs have rows.
+CAPSULES_FAR = 0.06
 #: Root speed bounds per frame [m/s, rad/s].
 MAX_ROOT_VELOCITY, MAX_ROOT_ANGULAR_VELOCITY = 15.0, 30.0
 #: Sides: robot foot key -> source segment prefix.
@@ -375,7 +378,8 @@ class RobotRetargeter:
             dq = previous = factor * solution.dq
             q = conf.integrate(dq)
             conf.update(q)
-            if np.max(np.abs(dq)) < STEP_TOLERANCE and self._settled(conf, anchors):
+            far = self.capsules.last_min_distance > CAPSULES_FAR  # at the pose stepped from
+            if np.max(np.abs(dq)) < STEP_TOLERANCE and self._settled(conf, anchors, not far):
                 break
         return q, relaxed
 
@@ -391,12 +395,17 @@ class RobotRetargeter:
             return 0.5 * factor
         return factor
 
-    def _settled(self, conf: Configuration, anchors: list[pin.SE3 | None]) -> bool:
-        """Planted feet held, soles above the floor and capsule pairs apart at ``conf``."""
-        return self._violation(conf, anchors, margin=0.0) <= HOLD_TOLERANCE
+    def _settled(self, conf: Configuration, anchors: list[pin.SE3 | None],
+                 capsules: bool = True) -> bool:
+        """Planted feet held, soles above the floor and capsule pairs apart at ``conf``.
+
+        ``capsules=False`` skips the pairs: after a small step from a pose where every pair
+        was :data:`CAPSULES_FAR` apart none can touch.
+        """
+        return self._violation(conf, anchors, 0.0, capsules) <= HOLD_TOLERANCE
 
     def _violation(self, conf: Configuration, anchors: list[pin.SE3 | None],
-                   margin: float | None = None) -> float:
+                   margin: float | None = None, capsules: bool = True) -> float:
         """How far ``conf`` breaks the constraints [m] (0 when it keeps them all).
 
         Planted feet off their anchors, soles below the floor, capsule pairs closer than
@@ -410,7 +419,7 @@ class RobotRetargeter:
         floor = self._floor_rows(conf, anchors).h
         if len(floor):
             worst = max(worst, -float(floor.min()))
-        gaps = self.capsules.distances(conf)
+        gaps = self.capsules.distances(conf) if capsules else np.zeros(0)
         if len(gaps):
             keep = self.capsules.margin if margin is None else margin
             worst = max(worst, keep - float(gaps.min()))
@@ -444,18 +453,16 @@ class RobotRetargeter:
         A planted foot has none: its anchor is on or above the floor, and rows that repeat
         its equality rows would make the QP degenerate.
         """
-        G: list[np.ndarray] = []
-        h: list[float] = []
+        G, h = [np.zeros((0, conf.model.nv))], [np.zeros(0)]
         for foot, fid, anchor in zip(self.feet, self._foot_ids, anchors):
             if anchor is not None:
                 continue
             T = conf.placement(fid)
             J = conf.jacobian(fid)
-            for corner in foot.corners:
-                r = T.rotation @ corner
-                G.append(-(J[2] + r[1] * J[3] - r[0] * J[4]))  # z row of J_lin - [r]x J_ang
-                h.append(T.translation[2] + r[2])
-        return Inequality(np.array(G).reshape(-1, conf.model.nv), np.array(h))
+            r = foot.corners @ T.rotation.T  # corners from the link origin, world axes
+            G.append(-(J[2] + r[:, 1:2] * J[3] - r[:, 0:1] * J[4]))  # z rows of J_lin - [r]x J_ang
+            h.append(T.translation[2] + r[:, 2])
+        return Inequality(np.vstack(G), np.concatenate(h))
 
     def _plant_rows(self, conf: Configuration, anchors: list[pin.SE3 | None]) -> Equality:
         """Planted feet keep their anchor placement: 6 rows per foot."""
