@@ -13,7 +13,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "retarget",
         help="retarget a solve result or a BVH onto a humanoid robot or another body size",
         description="Retarget a `solve` result folder or a BVH clip onto a humanoid robot "
-        "(g1, talos, icub from example-robot-data, or any URDF with --config) or onto "
+        "(g1, talos, icub, romeo from example-robot-data, or any URDF with --config) or onto "
         "the human model at --height: mapped links follow the segments' orientations, pelvis, "
         "hands and feet the positions scaled by the ratio of hip heights; joint and velocity "
         "limits, planted feet, the floor and self-collision capsules are hard constraints. "

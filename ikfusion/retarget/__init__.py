@@ -2,7 +2,7 @@
 
 Targets: the human model at another body size (``robot="human"``), the humanoid robots of
 ``example-robot-data`` with a shipped config under ``configs/retarget/`` (Unitree G1, Talos,
-iCub), and any humanoid URDF given by path with a config of the same keys.
+iCub, Romeo), and any humanoid URDF given by path with a config of the same keys.
 """
 
 from __future__ import annotations

@@ -371,11 +371,12 @@ class RobotRetargeter:
             solution = solve_qp(assemble_qp(H.copy(), c, *rows, box, damping=1e-9),
                                 self.backend)
             if solution.relaxed and len(moving):  # the trust region was too tight
-                solution = solve_qp(assemble_qp(H, c, *rows, self._box(q, q_previous, dt),
-                                                damping=1e-9), self.backend)
+                box = self._box(q, q_previous, dt)
+                solution = solve_qp(assemble_qp(H, c, *rows, box, damping=1e-9), self.backend)
             relaxed |= solution.relaxed
             factor = self._damped(solution.dq, previous, factor)
-            dq = previous = factor * solution.dq
+            # The box holds to the QP's tolerance; clipped, limits hold exactly.
+            dq = previous = factor * np.clip(solution.dq, *box)
             q = conf.integrate(dq)
             conf.update(q)
             far = self.capsules.last_min_distance > CAPSULES_FAR  # at the pose stepped from

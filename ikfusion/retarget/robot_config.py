@@ -21,7 +21,7 @@ from ..paths import configs_dir
 from ..yaml_files import read_yaml
 
 #: Robots with a shipped config, by the name ``--robot`` takes.
-SHIPPED_ROBOTS = ("g1", "talos", "icub")
+SHIPPED_ROBOTS = ("g1", "talos", "icub", "romeo")
 
 #: Where ``example-robot-data`` installs its robots, below a ``site-packages`` folder.
 _EXAMPLE_ROBOT_DATA = Path("cmeel.prefix", "share", "example-robot-data", "robots")
@@ -110,7 +110,7 @@ def load_retarget_config(robot: str | Path, config: str | Path | None = None) ->
     """The config for ``robot``: a shipped name, or a URDF path with ``config`` given.
 
     Args:
-        robot: ``g1``, ``talos``, ``icub`` or a ``.urdf`` path.
+        robot: ``g1``, ``talos``, ``icub``, ``romeo`` or a ``.urdf`` path.
         config: A config file; overrides the shipped one (its ``urdf`` key may be left out
             when ``robot`` is a URDF path).
 

@@ -104,7 +104,7 @@ def test_a_walk_onto_any_urdf_given_with_a_config(tmp_path: Path, human_as_robot
 
 @needs_shared
 @needs_robots
-@pytest.mark.parametrize("robot", ["g1", "talos", "icub"])
+@pytest.mark.parametrize("robot", ["g1", "talos", "icub", "romeo"])
 def test_every_clip_onto_the_shipped_robots(tmp_path: Path, robot: str) -> None:
     config = load_retarget_config(robot)
     for clip in CLIPS:
@@ -118,7 +118,7 @@ def test_every_clip_onto_the_shipped_robots(tmp_path: Path, robot: str) -> None:
 
 @needs_robots
 def test_unknown_robots_and_urdfs_without_config_are_refused(tmp_path: Path) -> None:
-    with pytest.raises(ConfigError, match="g1, talos, icub"):
+    with pytest.raises(ConfigError, match="g1, talos, icub, romeo"):
         load_retarget_config("asimo")
     with pytest.raises(ConfigError, match="--config"):
         load_retarget_config(robots_dir() / "human.urdf")
