@@ -73,6 +73,8 @@ def retarget(source: str | Path | HumanMotion, robot: str = "human", height: flo
         start = time.perf_counter()  # frames per second of the solve, not of reading a URDF
         trajectory = retargeter.solve(motion_in, progress)
         metrics = robot_metrics(trajectory, time.perf_counter() - start)
+        metrics.update({"robot": str(robot), "urdf": str(robot_config.urdf),
+                        "config": str(robot_config.source)})
         robot_motion = robot_robot_motion(trajectory)
     metrics["source"] = motion_in.source
     if out is not None:

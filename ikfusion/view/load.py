@@ -7,6 +7,8 @@ PATH can be:
   ``solve_time.csv`` (``time,solve_time_ms``, per-frame solve time, drawn when present);
 - a folder whose sub-folders are result folders: one actor per sub-folder, drawn together;
 - a ``simulate`` capture folder (``truth.npz``, optionally ``readers.yaml``);
+- a ``retarget`` output folder (``robot_motion.npz``, ``summary.json``): the robot from its
+  URDF (or the resized human model) with its planted soles lit;
 - a BVH file: its own skeleton, scaled to metres and turned Z-up.
 
 All positions are in the world frame (Z up) in metres, times in seconds.
@@ -24,6 +26,7 @@ import numpy as np
 from ..errors import InputError
 from ..model.layout import CONTACT_SITES, TAG_SITES
 from ..sim.skeleton_map import SEGMENT_PARENTS
+from .robot import is_retarget_folder, load_retarget_actor
 from .scene import Actor, Readers, Scene
 
 #: Parent of each segment of the 23-segment model (the Pelvis is the root).
@@ -78,6 +81,8 @@ def _folder_actors(folder: Path) -> tuple[list[Actor], list[str]]:
     if is_result_folder(folder):
         actor = load_result_actor(folder, name="subject")
         return [actor], _summary_notes(folder)
+    if is_retarget_folder(folder):
+        return [load_retarget_actor(folder)], _summary_notes(folder)
     subs = sorted(p for p in folder.iterdir() if p.is_dir() and is_result_folder(p))
     if subs:
         actors = [load_result_actor(p, name=p.name) for p in subs]
@@ -85,7 +90,8 @@ def _folder_actors(folder: Path) -> tuple[list[Actor], list[str]]:
     if (folder / "truth.npz").is_file():
         return [load_truth_actor(folder / "truth.npz", name="truth", ghost=False)], []
     raise InputError("found neither segments.csv (a solve result), sub-folders holding one, "
-                     "nor truth.npz (a simulate capture)", path=folder)
+                     "robot_motion.npz (a retarget output) nor truth.npz (a simulate capture)",
+                     path=folder)
 
 
 def is_result_folder(folder: Path) -> bool:
@@ -293,7 +299,12 @@ def _summary_notes(folder: Path, prefix: str = "") -> list[str]:
         raise InputError(f"invalid JSON: {err.msg}", path=file, line=err.lineno) from None
     notes = []
     if "frames" in summary:
-        notes.append(f"{prefix}{summary['frames']} frames at {summary.get('rate', 0):.1f} Hz")
+        rate = summary.get("rate", summary.get("fps", 0.0))
+        notes.append(f"{prefix}{summary['frames']} frames at {rate:.1f} Hz")
+    if "joint_limit_violations" in summary:  # a retarget output
+        notes.append(f"{prefix}{summary.get('robot')}: joint-limit violations "
+                     f"{summary['joint_limit_violations']}, foot slide "
+                     f"{summary.get('foot_slide_mm_max', float('nan')):.2f} mm max")
     if "solve_time_ms_mean" in summary:
         notes.append(f"{prefix}solve time per frame: mean "
                      f"{summary['solve_time_ms_mean']:.2f} ms, p95 "
