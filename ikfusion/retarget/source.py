@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..model.layout import CONTACT_SITES
-from ..rotations import angle_between, quat_wxyz_to_matrix
+from ..rotations import quat_wxyz_to_matrix
 
 
 @dataclass
@@ -137,11 +137,6 @@ def _standing_hip_height(segments: list[str], p_world_segment: np.ndarray) -> fl
     return float(np.mean(p_world_segment[0, hips, 2]))
 
 
-#: A first frame whose segments turn more than this before the second [deg] is a reference
-#: pose (CMU's BVH clips start with one), not motion.
-REFERENCE_FRAME_JUMP_DEG = 90.0
-
-
 def _from_bvh(path: Path) -> HumanMotion:
     from ..sim.mocap import motion_from_bvh
     from ..sim.truth import segment_poses
@@ -150,10 +145,7 @@ def _from_bvh(path: Path) -> HumanMotion:
     segments = list(truth.model.segment_names)
     p, R = segment_poses(truth.model, truth.q)
     names = list(truth.contact_names) or list(CONTACT_SITES)
-    time, contacts = truth.time, truth.contacts.astype(bool)
-    if len(time) > 2 and np.degrees(angle_between(R[1], R[0])).max() > REFERENCE_FRAME_JUMP_DEG:
-        time, p, R, contacts = time[1:] - time[1], p[1:], R[1:], contacts[1:]
-    return HumanMotion(time, segments, p, R, names, contacts,
+    return HumanMotion(truth.time, segments, p, R, names, truth.contacts.astype(bool),
                        _standing_hip_height(segments, p), str(path))
 
 

@@ -22,6 +22,7 @@ from ..ik.solver import Solver
 from ..io.bvh import read_bvh
 from ..model.body import Body
 from ..model.human_model import HumanModel
+from ..rotations import angle_between
 from .skeleton_map import map_motion
 from .truth import TruthMotion, contact_phases, site_positions
 
@@ -134,6 +135,17 @@ def level_on_floor(q: np.ndarray, points: np.ndarray, time: np.ndarray) -> np.nd
     return out
 
 
+#: A first frame whose segments turn more than this before the next one [deg] is a reference
+#: pose (CMU's clips start with one), not motion: it is dropped.
+REFERENCE_FRAME_JUMP_DEG = 90.0
+
+
+def _starts_with_reference_pose(R_world_segment: dict[str, np.ndarray]) -> bool:
+    """Whether a segment turns more than :data:`REFERENCE_FRAME_JUMP_DEG` in the first step."""
+    return any(np.degrees(angle_between(R[0], R[1])) > REFERENCE_FRAME_JUMP_DEG
+               for R in R_world_segment.values())
+
+
 def motion_from_bvh(path: str | Path, rate: float = 60.0,
                     progress: bool = False) -> TruthMotion:
     """Solve a BVH clip into a ground-truth motion of a body scaled to it.
@@ -150,6 +162,9 @@ def motion_from_bvh(path: str | Path, rate: float = 60.0,
     step = max(1, int(round(bvh.frame_rate / rate)))
     frames = np.arange(0, bvh.num_frames, step)
     mapped = map_motion(bvh, frames=frames)
+    if len(frames) > 2 and _starts_with_reference_pose(mapped.R_world_segment):
+        frames = frames[1:]
+        mapped = map_motion(bvh, frames=frames)
     body, dropped = body_from_dims(mapped.body_dims)
     model = HumanModel.from_body(body)
     solver = Solver(model, contacts=False, max_iterations=8, step_tolerance=1e-3)
