@@ -10,8 +10,10 @@ positions (horizontal error, weighted by the measurements' covariances) and acts
   correction (at most ``max_step`` per touch-down), so the body walks into place step by step.
 * ``off``: tags are only reported.
 
-The first fix places the body in the tag frame at once (there is nothing to slide yet). Heights
-come from the floor, so only the horizontal error is corrected.
+The first fix places the body in the tag frame at once (there is nothing to slide yet); the
+frames solved before it are moved by the same offset afterwards (:meth:`DriftCorrection.
+place_start`), so the whole motion is in the tag frame. Heights come from the floor, so only
+the horizontal error is corrected.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .ik.pose import Pose
+from .ik.pose import Motion, Pose
 from .ik.solver import Solver
 
 #: Correction modes.
@@ -60,6 +62,7 @@ class DriftCorrection:
     max_step: float = 0.05
     gap: np.ndarray = field(default_factory=lambda: np.zeros(0))
     _placed: bool = False
+    _placement: tuple[int, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -94,9 +97,23 @@ class DriftCorrection:
         if not self._placed:
             solver.translate(delta)
             self._placed = True
+            self._placement = (k, delta)
         elif self.mode == "slide":
             solver.shift_anchors(delta * min(1.0, dt / self.time_constant))
         else:
             norm = float(np.linalg.norm(delta))
             scale = min(1.0, self.max_step / norm) if norm > 0 else 0.0
             solver.set_touchdown_offset(delta * scale)
+
+    def place_start(self, motion: Motion) -> None:
+        """Move the frames solved before the first fix by its offset (in place).
+
+        Until a tag is first heard the body stands in the inertial frame; the first fix moves
+        it into the tag frame (:meth:`after_frame`), and this moves the frames before, and the
+        fix's own frame, along, so the motion does not start with a jump.
+        """
+        if self._placement is None:
+            return
+        k, delta = self._placement
+        motion.q[:k + 1, :2] += delta[:2]
+        self.gap[:k + 1] = np.nan  # measured before the placement

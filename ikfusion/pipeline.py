@@ -100,6 +100,8 @@ def solve_recording(recording: ImuRecording, sensor_map: Mapping[str, str], mode
                                    StanceThresholds(st.still_rate, st.still_duration))
     motion = solver.solve(frames, progress=progress, total=len(frames),
                           after_step=correction.after_frame if correction else None)
+    if correction is not None:
+        correction.place_start(motion)
     motion.warnings = warnings + motion.warnings
     knee = knee_warning(motion)
     if knee:

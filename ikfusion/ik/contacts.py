@@ -135,11 +135,16 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     anchors, age = state.anchors.copy(), state.age.copy()
     if plant.any():
         if p_solved is not None:
-            anchors[plant] = p_solved[plant]
+            anchors[plant] = _landing_anchors(state.names, active & ~leave, anchors, p_solved,
+                                              plant)
         else:
             reference = active & ~leave if (active & ~leave).any() else active
-            reference &= ~_same_foot_mask(state.names, plant)
-            anchors[plant] = _anchor_from_sensed(p_sensed, anchors, reference, plant)
+            same = _layout(tuple(state.names))[0]
+            for j in np.flatnonzero(plant):
+                # the point's own foot, when planted, keeps that foot's anchors in shape
+                own = reference & same[j]
+                ref = own if own.any() else reference & ~same[j]
+                anchors[j] = p_sensed[j] + _sensed_offset(p_sensed, anchors, ref)
         anchors[plant, 2] = np.maximum(anchors[plant, 2], th.floor_z)
         age[plant] = 0.0
     return ContactState(state.names, (active & ~leave) | plant, anchors, age)
@@ -169,16 +174,15 @@ def _other_foot(names: Sequence[str], mask: np.ndarray) -> np.ndarray:
     return np.asarray((~same & mask[None, :]).any(axis=1))
 
 
-def _anchor_from_sensed(p_sensed: np.ndarray, anchors: np.ndarray, reference: np.ndarray,
-                        plant: np.ndarray) -> np.ndarray:
-    """Anchors [m] for the ``plant`` points.
+def _sensed_offset(p_sensed: np.ndarray, anchors: np.ndarray, reference: np.ndarray
+                   ) -> np.ndarray:
+    """The shift (3,) [m] putting the sensed pose onto the ``reference`` anchors on average.
 
-    The sensed pose is shifted onto the ``reference`` points' anchors (where sensed when there
-    is no reference point).
+    Zero without a reference point.
     """
-    offset = (np.mean(anchors[reference] - p_sensed[reference], axis=0) if reference.any()
-              else np.zeros(3))
-    return p_sensed[plant] + offset
+    if not reference.any():
+        return np.zeros(3)
+    return np.asarray(np.mean(anchors[reference] - p_sensed[reference], axis=0))
 
 
 def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.ndarray,
@@ -217,13 +221,31 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
             enter[i] = (not active[i]) and bool(hints[name])
     if not active.any() and not enter.any() and not hints:
         enter[int(np.argmin(p_sensed[:, 2]))] = True
+    anchors[enter] = _landing_anchors(state.names, active, anchors, p_solved, enter)
     active |= enter
-    anchors[enter] = p_solved[enter]
     anchors[enter, 2] = np.maximum(anchors[enter, 2], th.floor_z)
     anchors[:, 2] = np.maximum(anchors[:, 2] - th.settle_speed * max(dt, 0.0), th.floor_z)
     age = np.where(active, state.age + max(dt, 0.0), 0.0)
     age[enter] = 0.0
     return ContactState(state.names, active, anchors, age)
+
+
+def _landing_anchors(names: Sequence[str], active: np.ndarray, anchors: np.ndarray,
+                     p_solved: np.ndarray, enter: np.ndarray) -> np.ndarray:
+    """Anchors [m] of the ``enter`` points: where they were solved, shifted with their foot.
+
+    A point that lands while another point of its foot is planted is anchored consistently
+    with that foot's anchors (where it was solved plus the foot's mean anchor - solved
+    offset), so the foot's anchors keep its shape even when the planted points were not held
+    exactly (a relaxed frame, a touch-down offset of the drift correction).
+    """
+    same = _layout(tuple(names))[0]
+    out = p_solved[enter].copy()
+    for row, i in enumerate(np.flatnonzero(enter)):
+        planted = same[i] & active
+        if planted.any():
+            out[row] += np.mean(anchors[planted] - p_solved[planted], axis=0)
+    return out
 
 
 def _tilted(names: Sequence[str], foot_pitch: np.ndarray | None, limit: float) -> np.ndarray:
