@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .correction import DriftCorrection, SiteFixes
+from .errors import InputError
 from .imu.calibration import Calibration
 from .io.recording import ImuRecording
 from .model.human_model import HumanModel
@@ -37,13 +38,21 @@ class UwbInputs:
 
 def track_recording_tags(recording: ImuRecording, sensor_map: Mapping[str, str],
                          model: HumanModel, calibration: Calibration,
-                         files: UwbInputs) -> tuple[dict[str, TagInfo], dict[str, UnitTrack]]:
-    """Track every tag of the session with the IMU of the segment it sits on.
+                         files: UwbInputs, actor: str | None = None
+                         ) -> tuple[dict[str, TagInfo], dict[str, UnitTrack]]:
+    """Track the tags of one actor with the IMU of the segment each sits on.
+
+    ``actor`` None tracks every tag of the file.
 
     Raises:
-        InputError: Bad files (naming file, line and field), a tag without a sensor.
+        InputError: Bad files (naming file, line and field), a tag without a sensor, an actor
+            without tags.
     """
     tags = load_tags(files.tags)
+    if actor is not None:
+        tags = {k: t for k, t in tags.items() if t.actor == actor}
+        if not tags:
+            raise InputError(f"no tag of actor {actor!r}", path=files.tags, field="actor")
     constellation = load_constellation(files.readers)
     log = read_toa_csv(files.toa)
     mounting = {s: R.T for s, R in calibration.R_sensor_segment.items()}

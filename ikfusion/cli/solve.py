@@ -1,4 +1,4 @@
-"""``ikfusion solve``: an IMU recording to the result folder of SPEC section 6."""
+"""``ikfusion solve``: an IMU recording (or a session of actors) to result folders (SPEC 6)."""
 
 from __future__ import annotations
 
@@ -6,18 +6,9 @@ import argparse
 import sys
 from pathlib import Path
 
-import numpy as np
-
-from ..correction import DriftCorrection
 from ..errors import InputError
-from ..ik import Solver
-from ..imu.calibration import calibrate_recording
-from ..io.reader import read_imu
-from ..io.sensor_map import load_sensor_map
-from ..model import Body, HumanModel
-from ..pipeline import solve_recording
-from ..results import write_result_folder
-from ..uwb_aiding import UwbInputs, drift_correction, track_recording_tags, uwb_summary
+from ..session import ActorInputs, load_session, solve_actor, solve_session
+from ..uwb_aiding import UwbInputs
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -30,9 +21,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "frame, and write the result folder (motion.bvh, joint_angles.csv, segments.csv, "
         "sites.csv, contacts.csv, summary.json).",
     )
-    p.add_argument("--imu", required=True, metavar="PATH", help="MT Manager trial prefix, "
+    p.add_argument("--imu", metavar="PATH", help="MT Manager trial prefix, "
                    "folder or file, an IMU CSV or an MVNX file")
-    p.add_argument("--map", required=True, metavar="FILE", help="sensor map YAML")
+    p.add_argument("--map", metavar="FILE", help="sensor map YAML")
+    p.add_argument("--session", metavar="FILE", help="several actors in one world frame: a "
+                   "YAML naming each actor's recording, map and body and the shared UWB files "
+                   "(instead of --imu/--map); one result folder per actor under --out")
     body = p.add_mutually_exclusive_group()
     body.add_argument("--body", metavar="FILE", help="body dimensions YAML")
     body.add_argument("--height", type=float, metavar="M", help="body height [m]")
@@ -48,13 +42,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--correction", choices=["off", "slide", "no-slide"], default=None,
                    help="how UWB corrects drift")
     p.add_argument("--bvh-up", choices=["z", "y"], default="z", help="up axis of motion.bvh")
-    p.add_argument("--out", required=True, metavar="DIR", help="result folder")
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="result folder (with --session: the folder of the actors' folders)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
 
-def parse_calibrate(text: str, rate: float) -> tuple[tuple[int, int] | None, str]:
-    """``--calibrate`` as (sample window or None for automatic, pose ``npose``/``tpose``).
+def parse_calibrate(text: str) -> tuple[tuple[float, float] | None, str]:
+    """``--calibrate`` as (window [s] or None for automatic, pose ``npose``/``tpose``).
 
     Raises:
         InputError: Not ``auto``, ``npose``, ``tpose`` or ``T0:T1`` [s] with 0 <= T0 < T1.
@@ -70,7 +65,7 @@ def parse_calibrate(text: str, rate: float) -> tuple[tuple[int, int] | None, str
                          f"{text!r}", field="calibrate") from None
     if not 0 <= t0 < t1:
         raise InputError("--calibrate T0:T1 needs 0 <= T0 < T1", field="calibrate")
-    return (int(round(t0 * rate)), int(round(t1 * rate))), "npose"
+    return (t0, t1), "npose"
 
 
 def _uwb_files(args: argparse.Namespace) -> UwbInputs | None:
@@ -98,40 +93,38 @@ def parse_forward(text: str | None) -> dict[str, str] | None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``ikfusion solve``."""
+    if args.session:
+        return _run_session(args)
+    if not args.imu or not args.map:
+        raise InputError("give --imu and --map (or --session FILE)", field="imu")
     files = _uwb_files(args)
-    sensor_map = load_sensor_map(args.map)
-    recording = read_imu(args.imu, rate=args.rate, sensor_map=sensor_map)
-    if args.body:
-        model = HumanModel.from_body(Body.from_yaml(args.body))
-    elif args.height is not None:
-        model = HumanModel.from_body(Body.from_height(args.height))
-    else:
-        model = HumanModel.default()
-    window, pose = parse_calibrate(args.calibrate, recording.rate)
-    window_s = None if window is None else (window[0] / recording.rate,
-                                            window[1] / recording.rate)
-    cal = calibrate_recording(recording, sensor_map, window_s,
-                              forward=parse_forward(args.forward), pose=pose)
-    correction: DriftCorrection | None = None
-    uwb: dict[str, object] = {"used": False}
-    if files is not None:
-        tags, tracks = track_recording_tags(recording, sensor_map, model, cal, files)
-        correction = drift_correction(tags, tracks, recording.time,
-                                      args.correction or "no-slide")
-    elif args.correction:
+    if files is None and args.correction:
         print("warning: --correction has no effect without UWB (--toa/--readers/--tags)",
               file=sys.stderr)
-    result = solve_recording(recording, sensor_map, model, solver=Solver(model),
-                             progress=not args.quiet, correction=correction, calibration=cal)
-    if files is not None and correction is not None:
-        uwb = uwb_summary(tracks, correction)
-    write_result_folder(result.motion, args.out, bvh_up=args.bvh_up, extra_summary={
-        "calibration": {"method": cal.method, "heading_deg": float(np.degrees(cal.heading)),
-                        "window_s": [cal.window[0] / recording.rate,
-                                     cal.window[1] / recording.rate]},
-        "uwb": uwb,
-    })
-    for warning in result.motion.warnings:
+    window, pose = parse_calibrate(args.calibrate)
+    actor = ActorInputs(None, Path(args.imu), Path(args.map),
+                        Path(args.body) if args.body else None, args.height, window, pose,
+                        parse_forward(args.forward), args.rate)
+    motion = solve_actor(actor, args.out, files, args.correction, args.bvh_up,
+                         progress=not args.quiet)
+    for warning in motion.warnings:
         print(f"warning: {warning}", file=sys.stderr)
-    print(f"wrote {args.out}: {len(result.motion)} frames at {recording.rate:g} Hz")
+    print(f"wrote {args.out}: {len(motion)} frames at {motion.rate:g} Hz")
+    return 0
+
+
+def _run_session(args: argparse.Namespace) -> int:
+    """``solve --session FILE``: every actor into ``--out/<actor>``."""
+    clash = [o for o in ("imu", "map", "body", "height", "toa", "readers", "tags")
+             if getattr(args, o) is not None]
+    if clash:
+        raise InputError(f"--session names every file; drop --{clash[0]}", field=clash[0])
+    session = load_session(args.session)
+    if args.correction:
+        session.correction = args.correction
+    motions = solve_session(session, args.out, args.bvh_up, progress=not args.quiet)
+    for name, motion in motions.items():
+        for warning in motion.warnings:
+            print(f"warning: {name}: {warning}", file=sys.stderr)
+        print(f"wrote {Path(args.out) / name}: {len(motion)} frames at {motion.rate:g} Hz")
     return 0

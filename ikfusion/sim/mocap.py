@@ -24,7 +24,7 @@ from ..model.body import Body
 from ..model.human_model import HumanModel
 from ..rotations import angle_between
 from .skeleton_map import map_motion
-from .truth import TruthMotion, contact_phases, site_positions
+from .truth import TruthMotion, contact_phases, moved_configurations, site_positions
 
 
 def body_from_dims(dims: dict[str, float]) -> tuple[Body, list[str]]:
@@ -127,12 +127,7 @@ def level_on_floor(q: np.ndarray, points: np.ndarray, time: np.ndarray) -> np.nd
     axis = np.cross(normal, [0.0, 0.0, 1.0])
     angle = np.arcsin(min(1.0, float(np.linalg.norm(axis))))
     R = pin.exp3(axis / np.linalg.norm(axis) * angle) if angle > 1e-9 else np.eye(3)
-    out = q.copy()
-    out[:, :3] = q[:, :3] @ R.T
-    for k in range(len(q)):
-        out[k, 3:7] = pin.Quaternion(R @ pin.Quaternion(q[k, 3:7]).matrix()).coeffs()
-    out[:, 2] -= height
-    return out
+    return moved_configurations(q, R, np.array([0.0, 0.0, -height]))
 
 
 #: A first frame whose segments turn more than this before the next one [deg] is a reference

@@ -45,6 +45,19 @@ class TruthMotion:
         return float(1.0 / np.mean(np.diff(self.time))) if len(self.time) > 1 else 0.0
 
 
+def moved_configurations(q: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Configurations (N, nq) of a free-flyer model moved rigidly: ``p -> R p + t``.
+
+    The root position and orientation turn by ``R`` (3, 3) and shift by ``t`` (3,) [m];
+    joint coordinates are unchanged.
+    """
+    out = q.copy()
+    out[:, :3] = q[:, :3] @ np.asarray(R).T + np.asarray(t)
+    for k in range(len(q)):
+        out[k, 3:7] = pin.Quaternion(R @ pin.Quaternion(q[k, 3:7]).matrix()).coeffs()
+    return out
+
+
 def contact_phases(model: HumanModel, q: np.ndarray, time: np.ndarray,
                    names: list[str], height: float = 0.03, speed: float = 0.3) -> np.ndarray:
     """Contact phases from kinematics: a point near the floor (z = 0) that is nearly still."""

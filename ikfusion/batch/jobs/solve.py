@@ -67,7 +67,7 @@ def check_options(options: Mapping[str, Any]) -> None:
     _check_file(options.get("body"), "body")
     if options.get("body") and options.get("height") is not None:
         raise InputError("give --body or --height, not both", field="body")
-    cli_solve.parse_calibrate(str(options.get("calibrate", "auto")), 1.0)
+    cli_solve.parse_calibrate(str(options.get("calibrate", "auto")))
     cli_solve.parse_forward(options.get("forward"))
 
 

@@ -1,0 +1,79 @@
+"""A simulated session: several actors in one hall, heard by one constellation.
+
+Each actor gets its own capture folder (``<name>/imu``, ``sensors.yaml``, ``body.yaml``,
+``truth.npz``) as :func:`ikfusion.sim.capture.write_capture` writes it; their tags (head and both
+feet, ids ``<name>-T1..T3``) transmit into one TOA log on the shared timeline, and
+``session.yaml`` names it all for ``ikfusion solve --session`` (see :mod:`ikfusion.session`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from ..results.atomic import atomic_folder
+from ..uwb.constellation import Constellation, save_constellation
+from ..uwb.toa_log import ToaLog, write_toa_csv
+from ..uwb.tracking import TagInfo, save_tags
+from .capture import write_capture
+from .imu import ImuNoise
+from .truth import TruthMotion
+from .uwb_capture import UwbCaptureOptions, default_tags, simulate_uwb, smooth_truth
+
+
+def actor_tags(actor: str) -> dict[str, TagInfo]:
+    """The head and feet tags of one actor, ids ``<actor>-T1..T3``."""
+    return {f"{actor}-{tid}": TagInfo(f"{actor}-{tid}", actor, tag.site)
+            for tid, tag in default_tags(actor).items()}
+
+
+def write_session_capture(folder: str | Path, truths: Mapping[str, TruthMotion],
+                          constellation: Constellation, noise: ImuNoise | None, seed: int,
+                          uwb: UwbCaptureOptions | None = None) -> Path:
+    """Simulate every actor's sensors and tags; write the session folder atomically.
+
+    Args:
+        folder: The session folder.
+        truths: Actor name -> its motion (all on one timeline, in the readers' frame).
+        constellation: The readers.
+        noise: IMU errors (None: perfect sensors).
+        seed: Random seed.
+        uwb: UWB simulation settings.
+
+    Returns:
+        The path of ``session.yaml``.
+    """
+    rng = np.random.default_rng(seed)
+    logs: list[ToaLog] = []
+    tags: dict[str, TagInfo] = {}
+    actors = {}
+    with atomic_folder(folder) as tmp:
+        for k, (name, truth) in enumerate(truths.items()):
+            smooth = smooth_truth(truth)  # as write_capture does for a capture with tags
+            write_capture(tmp / name, smooth, noise, seed + 1 + k)
+            sim = simulate_uwb(smooth, constellation, rng, uwb, tags=actor_tags(name))
+            logs.append(sim.log)
+            tags.update(sim.tags)
+            actors[name] = {"imu": f"{name}/imu", "map": f"{name}/sensors.yaml",
+                            "body": f"{name}/body.yaml"}
+        write_toa_csv(tmp / "toa.csv", _merged(logs))
+        save_constellation(constellation, tmp / "readers.yaml")
+        save_tags(tags, tmp / "tags.yaml")
+        (tmp / "session.yaml").write_text(yaml.safe_dump(
+            {"toa": "toa.csv", "readers": "readers.yaml", "tags": "tags.yaml",
+             "correction": "no-slide", "actors": actors}, sort_keys=False))
+    return Path(folder) / "session.yaml"
+
+
+def _merged(logs: list[ToaLog]) -> ToaLog:
+    """One log of every reception, in time order."""
+    def joined(name: str) -> np.ndarray:
+        return np.concatenate([getattr(log, name) for log in logs])
+
+    order = np.argsort(joined("time"), kind="stable")
+    return ToaLog(time=joined("time")[order], tag=joined("tag")[order], seq=joined("seq")[order],
+                  reader=joined("reader")[order], toa=joined("toa")[order],
+                  line=np.zeros(len(order), dtype=np.int64))
