@@ -10,6 +10,12 @@ positions (horizontal error, weighted by the measurements' covariances) and acts
   correction (at most ``max_step`` per touch-down), so the body walks into place step by step.
 * ``off``: tags are only reported.
 
+A heading drift of the sensors (a magnetically disturbed area) makes the body walk the wrong
+way, which position corrections alone chase for ever. So the direction the tags travelled over
+the last ``heading_window`` seconds is compared with the direction the solved tag sites
+travelled; when both moved far enough, their angle is the heading error, and the solver's
+orientation targets are turned toward it at a bounded rate (``slide`` and ``no-slide``).
+
 The first fix places the body in the tag frame at once (there is nothing to slide yet); the
 frames solved before it are moved by the same offset afterwards (:meth:`DriftCorrection.
 place_start`), so the whole motion is in the tag frame. Heights come from the floor, so only
@@ -53,14 +59,26 @@ class DriftCorrection:
         mode: ``off``, ``slide`` or ``no-slide``.
         time_constant: Lag of the ``slide`` correction [s].
         max_step: Largest offset of one touch-down in ``no-slide`` [m].
+        heading_window: Travel compared for the heading error [s].
+        heading_travel: Both travels must exceed this for an estimate [m].
+        heading_deadband: Errors below this are left alone [rad] (the sensors' own noise).
+        heading_rate: Largest turn of the targets [rad/s].
+        heading_time_constant: The turn closes the error with this lag [s].
         gap: (N,) remaining horizontal gap after each frame [m] (NaN without a fix).
+        heading: (N,) accumulated heading correction after each frame [rad].
     """
 
     fixes: list[SiteFixes]
     mode: str = "no-slide"
     time_constant: float = 0.5
-    max_step: float = 0.05
+    max_step: float = 0.10
+    heading_window: float = 2.0
+    heading_travel: float = 0.6
+    heading_deadband: float = np.radians(2.0)
+    heading_rate: float = np.radians(5.0)
+    heading_time_constant: float = 1.0
     gap: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    heading: np.ndarray = field(default_factory=lambda: np.zeros(0))
     _placed: bool = False
     _placement: tuple[int, np.ndarray] | None = None
 
@@ -70,6 +88,8 @@ class DriftCorrection:
                              f"{self.mode!r}")
         n = len(self.fixes[0].p_world) if self.fixes else 0
         self.gap = np.full(n, np.nan)
+        self.heading = np.zeros(n)
+        self._solved = np.full((len(self.fixes), n, 2), np.nan)  # solved sites, horizontal
 
     def horizontal_error(self, pose: Pose, k: int) -> np.ndarray | None:
         """Information-weighted mean of (measured - solved) over the sites with a fix [m]."""
@@ -87,6 +107,12 @@ class DriftCorrection:
 
     def after_frame(self, solver: Solver, pose: Pose, k: int, dt: float) -> None:
         """Compare frame ``k`` with the fixes and steer the solver's feet for the next frames."""
+        shifted = solver.shifted[:2]  # the sites' travel without the corrections' moves
+        for i, f in enumerate(self.fixes):
+            self._solved[i, k] = pose.site_position(f.site)[:2] - shifted
+        if self.mode != "off" and self._placed:
+            self._correct_heading(solver, k, dt)
+        self.heading[k] = solver.heading_correction
         error = self.horizontal_error(pose, k)
         if error is None:
             return
@@ -104,6 +130,40 @@ class DriftCorrection:
             norm = float(np.linalg.norm(delta))
             scale = min(1.0, self.max_step / norm) if norm > 0 else 0.0
             solver.set_touchdown_offset(delta * scale)
+
+    def heading_error(self, k: int, dt: float) -> float | None:
+        """Angle from the solved sites' inertial travel to the tags' travel over the window [rad].
+
+        The median over the sites whose fix and solved position both moved at least
+        ``heading_travel``; None when none did (standing, turning on the spot, no fixes).
+        """
+        back = k - int(round(self.heading_window / dt)) if dt > 0 else -1
+        if back < 0:
+            return None
+        angles = []
+        for i, f in enumerate(self.fixes):
+            measured = f.p_world[k, :2] - f.p_world[back, :2]
+            solved = self._solved[i, k] - self._solved[i, back]
+            if not (np.isfinite(measured).all() and np.isfinite(solved).all()):
+                continue
+            if min(np.linalg.norm(measured), np.linalg.norm(solved)) < self.heading_travel:
+                continue
+            angles.append(np.arctan2(solved[0] * measured[1] - solved[1] * measured[0],
+                                     solved @ measured))
+        return float(np.median(angles)) if angles else None
+
+    def _correct_heading(self, solver: Solver, k: int, dt: float) -> None:
+        """Turn the solver's targets toward the heading error, at a bounded rate."""
+        error = self.heading_error(k, dt)
+        if error is None or dt <= 0:
+            return
+        # the travel was solved under the turn of mid-window; what was turned since is done
+        mid = k - int(round(0.5 * self.heading_window / dt))
+        error -= solver.heading_correction - self.heading[max(mid, 0)]
+        if abs(error) < self.heading_deadband:
+            return
+        step = error * min(1.0, dt / self.heading_time_constant)
+        solver.turn(float(np.clip(step, -self.heading_rate * dt, self.heading_rate * dt)))
 
     def place_start(self, motion: Motion) -> None:
         """Move the frames solved before the first fix by its offset (in place).

@@ -11,37 +11,20 @@ import yaml
 
 from ikfusion.cli import main
 from ikfusion.errors import ConfigError
-from ikfusion.model import Body, HumanModel
 from ikfusion.paths import shipped_config
-from ikfusion.rotations import axis_rotation
 from ikfusion.session import load_session
-from ikfusion.sim.gait import GaitParameters, generate_gait
 from ikfusion.sim.imu import ImuNoise
-from ikfusion.sim.session_capture import write_session_capture
-from ikfusion.sim.truth import TruthMotion, moved_configurations, site_positions
+from ikfusion.sim.session_capture import circling_pair, write_session_capture
+from ikfusion.sim.truth import TruthMotion, site_positions
 from ikfusion.uwb.constellation import load_constellation
 from ikfusion.view import load_scene
 
 CENTRE = np.array([3.0, 4.0, 0.0])  # middle of the 6 m x 8 m room
 
 
-def walkers(seconds: float) -> dict[str, TruthMotion]:
-    """Two people of 1.70 m and 1.85 m on one 1.5 m circle, always on opposite sides."""
-    out = {}
-    for name, height, turn in (("alice", 1.70, 0.0), ("bob", 1.85, np.pi)):
-        walk = GaitParameters(path="circle", radius=1.5, duration=seconds, stand=2.0,
-                              speed=1.0, step_length=0.6)
-        truth = generate_gait(HumanModel.from_body(Body.from_height(height)), walk, rate=60.0)
-        R = axis_rotation("z", turn)
-        # the circle's centre (0, 1.5) goes to the middle of the room, bob half a turn on
-        truth.q = moved_configurations(truth.q, R, CENTRE - R @ np.array([0.0, 1.5, 0.0]))
-        out[name] = truth
-    return out
-
-
 @pytest.fixture(scope="module")
 def session(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, TruthMotion]]:
-    truths = walkers(16.0)
+    truths = circling_pair(16.0, CENTRE)
     room = load_constellation(shipped_config("constellations", "room_6x8.yaml"))
     folder = tmp_path_factory.mktemp("session") / "session"
     return write_session_capture(folder, truths, room, ImuNoise(), seed=5), truths

@@ -26,7 +26,7 @@ from tqdm import tqdm
 
 from ..errors import SolverError
 from ..model.human_model import HumanModel
-from ..rotations import matrix_to_quat_wxyz, wxyz_to_xyzw
+from ..rotations import axis_rotation, matrix_to_quat_wxyz, wxyz_to_xyzw
 from .compiled import SensedPoseSpec, compiled_kinematics
 from .configuration import Configuration
 from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
@@ -39,6 +39,7 @@ from .settings import SolverSettings
 from .tasks import DampingTask, OrientationTask, PositionTask, PostureTask, Task
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
+
 
 
 @dataclass
@@ -176,6 +177,9 @@ class Solver:
         self._pitch = np.zeros(len(self.contact_names))
         self._root_velocity = np.zeros(3)
         self._touchdown_offset = np.zeros(3)
+        self._heading = 0.0
+        self._R_heading: np.ndarray | None = None
+        self._shifted = np.zeros(3)
 
     # ------------------------------------------------------------------ position corrections
     def shift_anchors(self, delta: np.ndarray) -> None:
@@ -184,6 +188,7 @@ class Solver:
         The body follows its feet, which slide: the ``slide`` correction of a drifting position.
         """
         d = np.array([float(delta[0]), float(delta[1]), 0.0])
+        self._shifted += d
         anchors = self._contacts.anchors.copy()
         anchors[self._contacts.active] += d
         self._contacts = replace(self._contacts, anchors=anchors)
@@ -195,12 +200,32 @@ class Solver:
         absolute fix says.
         """
         d = np.array([float(delta[0]), float(delta[1]), 0.0])
+        self._shifted += d
         if self._q is not None:
             self._q = self._q.copy()
             self._q[:3] += d
         self._contacts = replace(self._contacts, anchors=self._contacts.anchors + d)
         self._history = deque(((t, p + d) for t, p in self._history),
                               maxlen=self._history.maxlen)
+
+    def turn(self, yaw: float) -> None:
+        """Turn every orientation target by ``yaw`` [rad] more about the vertical, from now on.
+
+        The heading correction of sensors whose heading drifted (a magnetically disturbed
+        hall): the body turns with its targets, the position correction takes it from there.
+        """
+        self._heading += float(yaw)
+        self._R_heading = axis_rotation("z", self._heading)
+
+    @property
+    def shifted(self) -> np.ndarray:
+        """How far the position corrections have moved the body so far (3,) [m]."""
+        return self._shifted.copy()
+
+    @property
+    def heading_correction(self) -> float:
+        """The accumulated turn of the orientation targets [rad]."""
+        return self._heading
 
     def set_touchdown_offset(self, offset: np.ndarray) -> None:
         """Plant points that touch down from now on ``offset`` (3,) [m] away from where they land.
@@ -223,6 +248,7 @@ class Solver:
             anchors = self._contacts.anchors.copy()
             anchors[new] += self._touchdown_offset
             self._contacts = replace(self._contacts, anchors=anchors)
+            self._shifted += self._touchdown_offset
             self._touchdown_offset = np.zeros(3)
 
     @property
@@ -241,7 +267,7 @@ class Solver:
             if i is None:
                 self.model.segment_frame_id(name)  # raises NameNotFound with the valid names
                 continue
-            R[i] = R_target
+            R[i] = R_target if self._R_heading is None else self._R_heading @ R_target
             w[i] = frame.orientation_weights.get(name, 1.0)
         self.orientation_task.set_targets(R, w)
         tracked = self.orientation_task.weights > 0

@@ -14,9 +14,12 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ..errors import InputError
+from ..io.mtmanager import read_mtmanager
 from ..io.mtmanager_writer import write_mtmanager
 from ..model import SENSOR_SEGMENTS
 from ..results.atomic import atomic_folder
+from ..rotations import axis_rotation
 from ..uwb.constellation import Constellation
 from .gait import GaitParameters, generate_gait
 from .imu import ImuNoise, simulate_imus
@@ -103,3 +106,27 @@ def write_capture(folder: str | Path, truth: TruthMotion, noise: ImuNoise | None
         if constellation is not None:
             write_uwb_files(tmp, simulate_uwb(truth, constellation, rng, uwb))
     return Capture(Path(folder), truth)
+
+
+def add_heading_drift(imu_folder: str | Path, start: float, end: float,
+                      deg_per_s: float) -> None:
+    """Rewrite a capture's MT Manager files with a heading drift of the IMUs' own fusion.
+
+    The drift grows in [``start``, ``end``) [s], as in a magnetically disturbed area:
+    ``theta(t)`` grows at ``deg_per_s`` inside the window and keeps its final value after it.
+    Reported orientations become ``Rz(theta) R_world_sensor``; gyroscopes get the rate that
+    makes them consistent, ``theta'(t) R_world_sensor^T e_z`` (sensor frame) [rad/s].
+    """
+    recording = read_mtmanager(imu_folder)
+    t = recording.time
+    rate = np.radians(deg_per_s) * ((t >= start) & (t < end))
+    theta = np.radians(deg_per_s) * np.clip(t - start, 0.0, end - start)
+    R_drift = axis_rotation("z", theta)
+    for sensor_id, stream in recording.sensors.items():
+        if stream.acc is None or stream.gyr is None or stream.packet_counter is None:
+            raise InputError("simulated files hold acc, gyr and PacketCounter; this one "
+                             "does not", path=imu_folder, field=sensor_id)
+        R = R_drift @ stream.R_world_sensor
+        gyr = stream.gyr + rate[:, None] * R[:, 2, :]  # R^T e_z is the third row of R
+        write_mtmanager(imu_folder, PREFIX, sensor_id, stream.packet_counter, R, recording.rate,
+                        acc=stream.acc, gyr=gyr)

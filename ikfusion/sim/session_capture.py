@@ -14,14 +14,36 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ..model import Body, HumanModel
 from ..results.atomic import atomic_folder
+from ..rotations import axis_rotation
 from ..uwb.constellation import Constellation, save_constellation
 from ..uwb.toa_log import ToaLog, write_toa_csv
 from ..uwb.tracking import TagInfo, save_tags
 from .capture import write_capture
+from .gait import GaitParameters, generate_gait
 from .imu import ImuNoise
-from .truth import TruthMotion
+from .truth import TruthMotion, moved_configurations
 from .uwb_capture import UwbCaptureOptions, default_tags, simulate_uwb, smooth_truth
+
+
+def circling_pair(seconds: float, centre: np.ndarray, radius: float = 1.5,
+                  rate: float = 60.0) -> dict[str, TruthMotion]:
+    """Two people walking around each other, always on opposite sides of one circle.
+
+    ``alice`` (1.70 m) and ``bob`` (1.85 m) on a circle of ``radius`` [m] about ``centre``
+    (3,) [m].
+    """
+    out = {}
+    for name, height, turn in (("alice", 1.70, 0.0), ("bob", 1.85, np.pi)):
+        walk = GaitParameters(path="circle", radius=radius, duration=seconds, stand=2.0,
+                              speed=1.0, step_length=0.6)
+        truth = generate_gait(HumanModel.from_body(Body.from_height(height)), walk, rate=rate)
+        R = axis_rotation("z", turn)
+        # the generator's circle turns left about (0, radius): move that point to the centre
+        truth.q = moved_configurations(truth.q, R, centre - R @ np.array([0.0, radius, 0.0]))
+        out[name] = truth
+    return out
 
 
 def actor_tags(actor: str) -> dict[str, TagInfo]:

@@ -1,0 +1,63 @@
+"""A heading drift of the IMUs (a magnetically disturbed area) is found and undone from UWB."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ikfusion.imu.calibration import calibrate_recording
+from ikfusion.io.reader import read_imu
+from ikfusion.io.sensor_map import load_sensor_map
+from ikfusion.model import Body, HumanModel
+from ikfusion.paths import shipped_config
+from ikfusion.pipeline import solve_recording
+from ikfusion.sim.capture import add_heading_drift, truth_motion, write_capture
+from ikfusion.sim.imu import ImuNoise
+from ikfusion.sim.truth import site_positions
+from ikfusion.uwb.constellation import load_constellation
+from ikfusion.uwb_aiding import UwbInputs, drift_correction, track_recording_tags
+
+DRIFT_DEG = 12.0  # turned into the sensors' headings between 6 s and 18 s
+
+
+@pytest.fixture(scope="module")
+def drifted(tmp_path_factory: pytest.TempPathFactory):  # type: ignore[no-untyped-def]
+    truth = truth_motion("gait", 26.0, 60.0)
+    truth.q[:, :2] += [3.0, 2.5]  # the 1.5 m circle in the middle of the room
+    room = load_constellation(shipped_config("constellations", "room_6x8.yaml"))
+    capture = write_capture(tmp_path_factory.mktemp("drift") / "capture", truth, ImuNoise(), 2,
+                            constellation=room)
+    add_heading_drift(capture.folder / "imu", 6.0, 18.0, DRIFT_DEG / 12.0)
+    recording = read_imu(capture.folder / "imu")
+    sensor_map = load_sensor_map(capture.sensor_map)
+    model = HumanModel.from_body(Body.from_yaml(capture.folder / "body.yaml"))
+    calibration = calibrate_recording(recording, sensor_map)
+    files = UwbInputs(*(capture.folder / f for f in ("toa.csv", "readers.yaml", "tags.yaml")))
+    tags, tracks = track_recording_tags(recording, sensor_map, model, calibration, files)
+    return recording, sensor_map, model, calibration, tags, tracks, capture.truth
+
+
+def _head_rms_after(drifted, correction, t0: float) -> float:  # type: ignore[no-untyped-def]
+    recording, sensor_map, model, calibration, _, _, truth = drifted
+    motion = solve_recording(recording, sensor_map, model, correction=correction,
+                             calibration=calibration).motion
+    late = motion.time >= t0
+    head = site_positions(model, motion.q[late], ["HeadTop"])[:, 0]
+    true = site_positions(truth.model, truth.q[late], ["HeadTop"])[:, 0]
+    return float(np.sqrt(np.mean(np.sum((head - true) ** 2, axis=1))))
+
+
+@pytest.mark.parametrize("mode", ["slide", "no-slide"])
+def test_the_drift_is_turned_back(drifted, mode: str) -> None:  # type: ignore[no-untyped-def]
+    recording, _, _, _, tags, tracks, _ = drifted
+    turned = drift_correction(tags, tracks, recording.time, mode)
+    still = replace(drift_correction(tags, tracks, recording.time, mode), heading_rate=0.0)
+    with_turn = _head_rms_after(drifted, turned, 20.0)
+    without = _head_rms_after(drifted, still, 20.0)
+    # the targets were turned back by about the drift the sensors took
+    assert np.degrees(turned.heading[-1]) == pytest.approx(-DRIFT_DEG, abs=3.0)
+    assert np.all(still.heading == 0.0)
+    assert with_turn < 0.6 * without
