@@ -199,6 +199,10 @@ def write_uwb_files(folder: str | Path, sim: SimulatedUwb) -> dict[str, Path]:
             "tags": save_tags(sim.tags, out / "tags.yaml")}
 
 
+#: Tag sites on the feet (their units get zero-velocity updates in stance).
+FOOT_TAG_SITES = ("LeftFootTop", "RightFootTop")
+
+
 def tag_segment(model: HumanModel, site: str) -> str:
     """Segment carrying a tag site (its sensor is the tag's IMU unit)."""
     return model.site(site).segment
@@ -236,7 +240,7 @@ def imu_units_from_simulation(truth: TruthMotion, imus: SimulatedImus,
         if with_height:
             height = site_positions(model, truth.q, [tag.site])[:, 0, 2]
         out[tag_id] = ImuUnit(imus.time, imus.R_world_sensor[i], imus.acc[i], imus.gyr[i],
-                              lever, height)
+                              lever, height, foot=tag.site in FOOT_TAG_SITES)
     return out
 
 
@@ -285,7 +289,8 @@ def imu_units_from_recording(recording: ImuRecording, sensor_map: Mapping[str, s
         acc = np.where(stream.valid[:, None], stream.acc, np.nan)
         gyr = np.where(stream.valid[:, None], stream.gyr, np.nan)
         out[tag_id] = ImuUnit(recording.time, stream.R_world_sensor, acc, gyr, lever,
-                              None if heights is None else heights.get(tag_id))
+                              None if heights is None else heights.get(tag_id),
+                              foot=tag.site in FOOT_TAG_SITES)
     return out
 
 

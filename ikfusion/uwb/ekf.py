@@ -18,7 +18,10 @@ it, updated, then propagated on), from its raw times of arrival [m], with no mul
   tested again;
 - the orientation reported by the IMU's own fusion (``R_world_sensor_aid``) is a weak attitude
   measurement at about 10 Hz, and an optional tag height [m] a pseudo-measurement at each
-  transmission.
+  transmission;
+- while the unit is known to stand still (a foot in stance, ``still``), a zero-velocity
+  update at every sample (ZUPT) keeps its velocity, and so its position, from drifting when
+  few or no readers hear it.
 
 The reported tag position follows the filter through an output offset that absorbs every
 correction and decays (time constant ``output_time_constant``, at most
@@ -88,6 +91,7 @@ class EkfOptions:
         initial_gyr_bias_sigma: Initial gyroscope bias uncertainty [rad/s].
         output_time_constant: Decay time of the output offset [s].
         max_output_speed: Largest speed at which the output offset decays [m/s].
+        zupt_sigma: Velocity noise of a zero-velocity update [m/s] (a foot rolls a little).
     """
 
     sigma: float | None = None
@@ -111,6 +115,7 @@ class EkfOptions:
     initial_gyr_bias_sigma: float = 0.01
     output_time_constant: float = 0.2
     max_output_speed: float = 1.5
+    zupt_sigma: float = 0.05
 
 
 @dataclass(frozen=True)
@@ -237,6 +242,7 @@ class ImuSamples:
         R_world_sensor_aid: Orientation from the IMU's own fusion, shape (N, 3, 3) (NaN where
             unknown), or None.
         height: Tag height aid, shape (N,) [m] (NaN where unknown), or None.
+        still: Where the unit stands still (a foot in stance), shape (N,) bool, or None.
     """
 
     time: np.ndarray
@@ -244,6 +250,7 @@ class ImuSamples:
     gyr: np.ndarray
     R_world_sensor_aid: np.ndarray | None = None
     height: np.ndarray | None = None
+    still: np.ndarray | None = None
 
 
 def run_unit_filter(
@@ -364,6 +371,8 @@ class _UnitFilter:
             next_tx = self._interval(k, time[k], time[k + 1], next_tx)
             if (k + 1 - k0) % attitude_every == 0:
                 self._attitude_update(k + 1)
+            if self.imu.still is not None and self.imu.still[k + 1]:
+                self._zero_velocity_update()
             self._record(k + 1, p_out, cov_out, quat_out, time[k + 1] - time[k])
         return self._result(time, p_out, cov_out, quat_out)
 
@@ -499,6 +508,15 @@ class _UnitFilter:
         var = self.opts.height_sigma**2
         if nu[0] ** 2 <= 25.0 * (float((H @ self.P @ H.T)[0, 0]) + var):
             self._update(H, nu, np.array([var]))
+
+    def _zero_velocity_update(self) -> None:
+        """The unit stands still: its velocity is zero (within ``zupt_sigma``)."""
+        x = self.x
+        assert x is not None
+        H = np.zeros((3, N_ERROR))
+        H[:, VEL] = np.eye(3)
+        self._update(H, -np.asarray(x.v_world_sensor, dtype=float),
+                     np.full(3, self.opts.zupt_sigma**2))
 
     def _attitude_update(self, k: int) -> None:
         sigma_deg = self.opts.attitude_sigma_deg

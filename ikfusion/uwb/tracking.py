@@ -70,6 +70,8 @@ class ImuUnit:
         gyr: Angular rate in the sensor frame, shape (N, 3) [rad/s] (NaN where missing).
         lever_sensor_tag: Sensor-to-tag vector in the sensor frame, shape (3,) [m].
         height: Tag height from the body, shape (N,) [m], for the optional height aid, or None.
+        foot: The unit is on a foot: its stance (from its gyroscope) gives zero-velocity
+            updates.
     """
 
     time: np.ndarray
@@ -78,6 +80,7 @@ class ImuUnit:
     gyr: np.ndarray
     lever_sensor_tag: np.ndarray
     height: np.ndarray | None = None
+    foot: bool = False
 
 
 def load_tags(path: str | Path) -> dict[str, TagInfo]:
@@ -217,12 +220,20 @@ def track_unit(unit: ImuUnit, tx: UnitTransmissions, constellation: Constellatio
                options: EkfOptions | None = None, *, use_height: bool = False) -> UnitTrack:
     """Run the filter of one unit, started at its first fix inside the IMU's time span."""
     imu = ImuSamples(unit.time, unit.acc, unit.gyr, unit.R_world_sensor,
-                     unit.height if use_height else None)
+                     unit.height if use_height else None, _stance(unit) if unit.foot else None)
     start = first_start(tx, float(unit.time[0]), float(unit.time[-1]))
     if start is None:
         return _empty_track(unit.time, tx, len(constellation.readers))
     return run_unit_filter(imu, tx, constellation.positions, constellation.clock_offsets, start,
                            unit.lever_sensor_tag, constellation.sigma, options)
+
+
+def _stance(unit: ImuUnit) -> np.ndarray:
+    """(N,) where a foot unit stands still, from its gyroscope (:func:`foot_still`)."""
+    from ..imu.stance import foot_still
+
+    rate = 1.0 / float(np.median(np.diff(unit.time))) if len(unit.time) > 1 else 60.0
+    return np.asarray(foot_still(unit.R_world_sensor, rate, unit.gyr) == 1.0)
 
 
 def first_start(tx: UnitTransmissions, t_begin: float, t_end: float) -> UnitStart | None:
