@@ -283,6 +283,17 @@ def camera(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     return target + np.array([0.35, -1.0, 0.3]) * distance, target
 
 
+def default_curves(actor: Actor) -> list[str]:
+    """The joint curves shown at first (every curve stays selectable).
+
+    :data:`DEFAULT_CURVES` for the human model, a robot's knee and elbow joints otherwise.
+    """
+    human = [c for c in DEFAULT_CURVES if c in actor.angle_names]
+    if human:
+        return human
+    return [c for c in actor.angle_names if "knee" in c.lower() or "elbow" in c.lower()][:6]
+
+
 def make_blueprint(scene: Scene) -> Any:
     """The viewer layout: 3-D view left; joint angles, contacts, solve time right; paused."""
     require_rerun()
@@ -290,7 +301,7 @@ def make_blueprint(scene: Scene) -> Any:
 
     plots: list[Any] = []
     curves = [f"/plots/{entity_name(a.name)}/angles/{c}" for a in scene.actors
-              for c in DEFAULT_CURVES if c in a.angle_names]
+              for c in default_curves(a)]
     if curves:
         plots.append(rrb.TimeSeriesView(name="Joint angles [deg]", origin="/plots",
                                         contents=curves, plot_legend=rrb.PlotLegend(
