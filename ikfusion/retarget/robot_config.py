@@ -101,6 +101,15 @@ def example_robot_data_dir() -> Path:
                       "pip install 'ikfusion[robots]'")
 
 
+def robots_installed() -> bool:
+    """Whether the shipped robots' URDFs (``example-robot-data``) are installed."""
+    try:
+        example_robot_data_dir()
+    except ConfigError:
+        return False
+    return True
+
+
 def config_path(robot: str) -> Path:
     """The shipped config of ``robot`` (one of :data:`SHIPPED_ROBOTS`)."""
     return configs_dir() / "retarget" / f"{robot}.yaml"

@@ -22,8 +22,8 @@ from ikfusion.retarget import load_source, retarget
 from ikfusion.retarget.capsules import CapsulePairs
 from ikfusion.retarget.robot_config import (
     RetargetConfig,
-    example_robot_data_dir,
     load_retarget_config,
+    robots_installed,
 )
 from ikfusion.retarget.robot_model import RobotModel
 
@@ -31,18 +31,10 @@ SHARED = Path(__file__).resolve().parents[3] / "shared" / "data"
 CLIPS = sorted((SHARED / "mocap").glob("*.bvh")) + [SHARED / "mvnx" / "test_mocap.mvnx"]
 
 
-def _has_robots() -> bool:
-    try:
-        example_robot_data_dir()
-    except ConfigError:
-        return False
-    return True
-
-
 needs_shared = pytest.mark.skipif(not (SHARED / "mocap").is_dir(),
                                   reason="../shared/data (the real mocap clips) is not beside "
                                   "the repository")
-needs_robots = pytest.mark.skipif(not _has_robots(), reason="example-robot-data is not "
+needs_robots = pytest.mark.skipif(not robots_installed(), reason="example-robot-data is not "
                                   "installed (pip install 'ikfusion[robots]')")
 
 

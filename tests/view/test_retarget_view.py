@@ -11,18 +11,9 @@ import pinocchio as pin
 import pytest
 from view_motion import FRAMES
 
-from ikfusion.errors import ConfigError
 from ikfusion.retarget import retarget
-from ikfusion.retarget.robot_config import example_robot_data_dir
+from ikfusion.retarget.robot_config import robots_installed
 from ikfusion.view import load_scene
-
-
-def _has_robots() -> bool:
-    try:
-        example_robot_data_dir()
-    except ConfigError:
-        return False
-    return True
 
 
 def test_a_taller_human_is_drawn_at_its_height(result_folder: Path, tmp_path: Path) -> None:
@@ -37,7 +28,7 @@ def test_a_taller_human_is_drawn_at_its_height(result_folder: Path, tmp_path: Pa
     assert lit.any() and np.all(feet[lit] < 0.01)
 
 
-@pytest.mark.skipif(not _has_robots(), reason="example-robot-data is not installed "
+@pytest.mark.skipif(not robots_installed(), reason="example-robot-data is not installed "
                     "(pip install 'ikfusion[robots]')")
 def test_the_robot_is_rebuilt_from_its_urdf_and_saved(result_folder: Path,
                                                       tmp_path: Path) -> None:
