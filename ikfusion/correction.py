@@ -73,11 +73,11 @@ class DriftCorrection:
 
     fixes: list[SiteFixes]
     mode: str = "no-slide"
-    time_constant: float = 0.2
+    time_constant: float = 0.05
     max_step: float = 0.10
     max_lean: float = 0.03
-    heading_window: float = 2.0
-    heading_travel: float = 0.6
+    heading_window: float = 1.0
+    heading_travel: float = 0.4
     heading_deadband: float = np.radians(2.0)
     heading_rate: float = np.radians(10.0)
     heading_time_constant: float = 1.0
