@@ -291,15 +291,16 @@ class HumanModel:
 
         Args:
             rng: Random generator.
-            margin_deg: Stay this far inside each limit [deg].
+            margin_deg: Stay this far inside each limit [deg] (at most a quarter of the range).
             p_world_pelvis: Pelvis position; the N-pose height when omitted. The pelvis
                 orientation is a uniformly random heading.
         """
         angles = {}
         for joint in self.ball_joints.values():
             for a in joint.spec.angles:
-                angles[joint.spec.column(a.name)] = rng.uniform(a.lower_deg + margin_deg,
-                                                                a.upper_deg - margin_deg)
+                inside = min(margin_deg, 0.25 * (a.upper_deg - a.lower_deg))  # narrow ranges
+                angles[joint.spec.column(a.name)] = rng.uniform(a.lower_deg + inside,
+                                                                a.upper_deg - inside)
         yaw = rng.uniform(-np.pi, np.pi)
         R = np.array([[np.cos(yaw), -np.sin(yaw), 0.0], [np.sin(yaw), np.cos(yaw), 0.0],
                       [0.0, 0.0, 1.0]])

@@ -26,7 +26,8 @@ def smooth_motion(model: HumanModel, rng: np.random.Generator, frames: int, keys
     (so every frame stays inside the ranges of motion), with a turning pelvis."""
     lo, hi = angle_limits(model)
     columns = model.angle_columns
-    key_angles = rng.uniform(lo + margin_deg, hi - margin_deg, size=(keys, len(columns)))
+    inside = np.minimum(margin_deg, 0.25 * (hi - lo))  # narrow ranges (the toes' twist)
+    key_angles = rng.uniform(lo + inside, hi - inside, size=(keys, len(columns)))
     key_yaw = rng.uniform(-np.pi, np.pi, size=keys)
     qs = []
     for k in range(frames):
