@@ -3,11 +3,13 @@
 The capture is a walk in circles in a 6 m x 8 m room (the 10-reader constellation of
 ``configs/constellations/room_6x8.yaml`` surrounds it), worn by the 17-sensor MVN layout with
 random mountings and the default sensor errors (orientation noise and heading wander), with UWB
-tags on the head and both feet, written as MT Manager files and a TOA log. The body is
-calibrated on the N-pose at the start, the tags are tracked once by their IMU + UWB filters, and
-the recording is solved from those files three times: IMU only, UWB with ``slide`` and with
-``no-slide`` correction (SPEC: the default when UWB is given). Each result is written and scored
-against the ground truth.
+tags on the head and both feet, written as MT Manager files and a TOA log. The IMU files are
+read and the body calibrated on the N-pose at the start once, the tags are tracked once by their
+IMU + UWB filters, and the recording is solved from those files three times: IMU only, UWB with
+``slide`` and with ``no-slide`` correction (SPEC: the default when UWB is given). Each result is
+written like ``ikfusion solve`` writes it and scored against the ground truth: the IMU-only one
+after shifting it to the true start (its absolute position is unobservable), the UWB ones as
+they are, in the readers' frame.
 """
 
 from __future__ import annotations
@@ -16,15 +18,17 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from .correction import DriftCorrection
 from .evaluate import Evaluation, evaluate
 from .ik import Motion
-from .imu.calibration import calibrate_recording
+from .imu.calibration import Calibration, calibrate_recording
 from .io.reader import read_imu
-from .io.sensor_map import load_sensor_map
+from .io.recording import ImuRecording
+from .io.sensor_map import SensorMap, load_sensor_map
 from .model import Body, HumanModel
 from .paths import shipped_config
 from .pipeline import solve_recording
@@ -34,9 +38,12 @@ from .sim.gait import GaitParameters, generate_gait
 from .sim.imu import ImuNoise
 from .sim.truth import TruthMotion
 from .uwb.constellation import load_constellation
+from .uwb.ekf import UnitTrack
+from .uwb.tracking import TagInfo
 from .uwb_aiding import UwbInputs, drift_correction, track_recording_tags, uwb_summary
 
-#: The three solves: column label, result folder, correction mode (None: IMU only).
+#: The three solves: column label, result folder, correction mode (None: IMU only). The last
+#: one is the default of ``solve`` with UWB and is written to ``result/``.
 MODES = (("IMU only", "result_imu_only", None),
          ("UWB slide", "result_slide", "slide"),
          ("UWB no-slide", "result", "no-slide"))
@@ -49,10 +56,13 @@ class ModeResult:
     Attributes:
         label: Column heading of the table.
         folder: Its result folder.
-        motion: The solved motion.
-        evaluation: Scored against the truth (IMU only: after the start alignment).
-        solve_seconds: Wall time of the solve [s].
-        gap_m: Mean and largest remaining horizontal gap of the correction [m] (None: no UWB).
+        motion: The solved motion (one frame per IMU sample).
+        evaluation: Scored against the truth (IMU only: after the start alignment; UWB: as it
+            is, in the readers' frame).
+        solve_seconds: Wall time of the solve [s] (calibration and tag tracking excluded: they
+            are done once for all modes).
+        gap_m: Mean and largest remaining horizontal gap between the body's tag sites and the
+            tracked tags over the frames with a fix [m] (None: IMU only).
     """
 
     label: str
@@ -65,7 +75,7 @@ class ModeResult:
 
 @dataclass
 class DemoResult:
-    """What the demo produced."""
+    """What the demo produced: its folder, the truth and one result per mode of :data:`MODES`."""
 
     out_dir: Path
     truth: TruthMotion
@@ -73,73 +83,122 @@ class DemoResult:
 
     @property
     def motion(self) -> Motion:
-        """The default mode's motion (UWB no-slide)."""
+        """The default mode's motion (UWB no-slide, ``result/``)."""
         return self.modes[-1].motion
 
 
+@dataclass
+class _Prepared:
+    """What every mode shares: read, calibrated and tracked once."""
+
+    recording: ImuRecording
+    sensor_map: SensorMap
+    model: HumanModel
+    calibration: Calibration
+    tags: dict[str, TagInfo]
+    tracks: dict[str, UnitTrack]
+
+
 def demo_walk(seconds: float) -> GaitParameters:
-    """Walking in circles (radius 1.5 m) in the middle of the 6 m x 8 m room."""
+    """Walking in circles (radius 1.5 m, 1.1 m/s) after a 2 s N-pose, ``seconds`` [s] in all."""
     return GaitParameters(path="circle", radius=1.5, duration=seconds, stand=2.0, speed=1.1,
                           step_length=0.6)
 
 
 def run_demo(out_dir: str | Path = "ikfusion-demo", seconds: float = 60.0, seed: int = 7,
              progress: bool = True) -> DemoResult:
-    """Simulate a capture into files, solve it three ways from the files, write and evaluate."""
+    """Simulate a capture into files, solve it three ways from the files, write and evaluate.
+
+    Args:
+        out_dir: Folder of ``capture/`` and the three result folders.
+        seconds: Length of the capture [s] (2 s N-pose, then walking), at 60 Hz.
+        seed: Random seed of the sensor and UWB simulation.
+        progress: Show progress bars (gait synthesis and each solve).
+    """
     out = Path(out_dir)
+    capture = simulate_demo_capture(out / "capture", seconds, seed, progress)
+    shared = _prepare(capture)
+    modes = [_solve_mode(shared, capture, out / name, label, mode, progress)
+             for label, name, mode in MODES]
+    return DemoResult(out, capture.truth, modes)
+
+
+def simulate_demo_capture(folder: Path, seconds: float, seed: int, progress: bool) -> Capture:
+    """The walk in the middle of the 6 m x 8 m room, with IMUs and UWB, written to ``folder``.
+
+    The gait starts at the origin heading +X; it is moved to (3.0, 2.5) m so that its circle
+    (radius 1.5 m) is centred in the room (readers' frame, ENU).
+    """
     truth = generate_gait(HumanModel.default(), demo_walk(seconds), rate=60.0, progress=progress)
-    # Put the walk in the middle of the room (the gait starts at the origin heading +X).
     truth.q[:, 0] += 3.0
     truth.q[:, 1] += 4.0 - 1.5
     room = load_constellation(shipped_config("constellations", "room_6x8.yaml"))
-    capture = write_capture(out / "capture", truth, ImuNoise(), seed, constellation=room)
-    return DemoResult(out, capture.truth, _solve_three_ways(capture, out, progress))
+    return write_capture(folder, truth, ImuNoise(), seed, constellation=room)
 
 
-def _solve_three_ways(capture: Capture, out: Path, progress: bool) -> list[ModeResult]:
-    """Calibrate and track the tags once, then solve in every mode of :data:`MODES`."""
-    recording = read_imu(capture.imu)
+def _prepare(capture: Capture) -> _Prepared:
+    """Read the IMU files, calibrate on the N-pose and track the three tags, once."""
     sensor_map = load_sensor_map(capture.sensor_map)
+    recording = read_imu(capture.imu, sensor_map=sensor_map)
     model = HumanModel.from_body(Body.from_yaml(capture.folder / "body.yaml"))
     calibration = calibrate_recording(recording, sensor_map)
     files = UwbInputs(capture.folder / "toa.csv", capture.folder / "readers.yaml",
                       capture.folder / "tags.yaml")
     tags, tracks = track_recording_tags(recording, sensor_map, model, calibration, files)
-    results = []
-    for label, name, mode in MODES:
-        correction: DriftCorrection | None = None
-        if mode is not None:
-            correction = drift_correction(tags, tracks, recording.time, mode)
-        start = time.perf_counter()
-        solved = solve_recording(recording, sensor_map, model, progress=progress,
-                                 correction=correction, calibration=calibration)
-        elapsed = time.perf_counter() - start
-        uwb = {"used": False} if correction is None else uwb_summary(tracks, correction)
-        folder = write_result_folder(solved.motion, out / name, extra_summary={
-            "source": f"ikfusion demo: simulated walk in circles, 17 sensors, default noise, "
-                      f"{label}",
-            "calibration": {"method": calibration.method}, "uwb": uwb})
-        gap = None if correction is None else _gap(correction)
-        results.append(ModeResult(label, Path(folder), solved.motion,
-                                  evaluate(folder, capture.folder / "truth.npz"), elapsed, gap))
-    return results
+    return _Prepared(recording, sensor_map, model, calibration, tags, tracks)
+
+
+def _solve_mode(shared: _Prepared, capture: Capture, folder: Path, label: str,
+                mode: str | None, progress: bool) -> ModeResult:
+    """Solve with one correction mode (None: IMU only), write its result folder, score it."""
+    correction: DriftCorrection | None = None
+    if mode is not None:
+        correction = drift_correction(shared.tags, shared.tracks, shared.recording.time, mode)
+    start = time.perf_counter()
+    solved = solve_recording(shared.recording, shared.sensor_map, shared.model,
+                             progress=progress, correction=correction,
+                             calibration=shared.calibration)
+    elapsed = time.perf_counter() - start
+    written = write_result_folder(solved.motion, folder,
+                                  extra_summary=_summary(shared, label, correction))
+    score = evaluate(written, capture.folder / "truth.npz",
+                     align="auto" if correction is None else "none")
+    gap = None if correction is None else _gap(correction)
+    return ModeResult(label, Path(written), solved.motion, score, elapsed, gap)
+
+
+def _summary(shared: _Prepared, label: str,
+             correction: DriftCorrection | None) -> dict[str, Any]:
+    """The extra ``summary.json`` keys, as ``ikfusion solve`` writes them, and the source.
+
+    ``calibration``: how the heading was found, the body heading [deg] and the still window [s];
+    ``uwb``: ``{"used": false}`` or :func:`ikfusion.uwb_aiding.uwb_summary`.
+    """
+    cal = shared.calibration
+    rate = shared.recording.rate
+    uwb = {"used": False} if correction is None else uwb_summary(shared.tracks, correction)
+    return {
+        "source": f"ikfusion demo: simulated walk in circles, 17 sensors, default noise, "
+                  f"{label}",
+        "calibration": {"method": cal.method, "heading_deg": float(np.degrees(cal.heading)),
+                        "window_s": [cal.window[0] / rate, cal.window[1] / rate]},
+        "uwb": uwb,
+    }
 
 
 def _gap(correction: DriftCorrection) -> tuple[float, float]:
-    """Mean and largest remaining horizontal gap of a correction over the solve [m]."""
+    """Mean and largest remaining horizontal gap of a correction over its frames with a fix [m]."""
     gap = correction.gap[np.isfinite(correction.gap)]
     return (float(gap.mean()), float(gap.max())) if gap.size else (0.0, 0.0)
 
 
-def table(result: DemoResult) -> str:
-    """The accuracy and speed table printed by ``ikfusion demo``, one column per mode."""
-    m = result.motion
-    walked = float(np.sum(np.linalg.norm(np.diff(result.truth.q[::60, :2], axis=0), axis=1)))
+def _rows(result: DemoResult) -> list[tuple[str, list[str]]]:
+    """The table's rows: a name and one cell per mode (the first row holds the headings)."""
 
     def row(name: str, cell: Callable[[ModeResult], str]) -> tuple[str, list[str]]:
         return name, [cell(r) for r in result.modes]
 
-    rows = [
+    return [
         ("", [r.label for r in result.modes]),
         row("joint angle RMS [deg]", lambda r: f"{r.evaluation.joint_angle_rms_deg:.2f}"),
         row("segment orientation RMS [deg]",
@@ -150,11 +209,23 @@ def table(result: DemoResult) -> str:
             lambda r: f"{100 * r.evaluation.head_position_rms_xy_m:.1f}"),
         row("foot slide per contact [mm]", lambda r: f"{r.evaluation.foot_slide_mm:.1f} mean, "
                                                      f"{r.evaluation.foot_slide_max_mm:.1f} max"),
-        row("UWB gap left [cm]", lambda r: "-" if r.gap_m is None else
+        row("UWB gap remaining [cm]", lambda r: "-" if r.gap_m is None else
             f"{100 * r.gap_m[0]:.1f} mean, {100 * r.gap_m[1]:.1f} max"),
         row("speed [frames/s]", lambda r: f"{len(r.motion) / r.solve_seconds:.0f} "
                                           f"({1e3 * np.median(r.motion.solve_time):.2f} ms/frame)"),
     ]
+
+
+def table(result: DemoResult) -> str:
+    """The accuracy and speed table printed by ``ikfusion demo``, one column per mode.
+
+    Metrics are those of :func:`ikfusion.evaluate.evaluate` over the whole capture (foot slide
+    over the truth's contact phases); speed is frames per second of wall time of the solve and
+    the median solver time per frame [ms].
+    """
+    m = result.motion
+    walked = float(np.sum(np.linalg.norm(np.diff(result.truth.q[::60, :2], axis=0), axis=1)))
+    rows = _rows(result)
     width = max(len(name) for name, _ in rows)
     cols = [max(len(cells[i]) for _, cells in rows) for i in range(len(result.modes))]
     lines = [f"capture: {m.time[-1] - m.time[0]:.0f} s walk in circles, {walked:.0f} m, "
@@ -163,7 +234,7 @@ def table(result: DemoResult) -> str:
     lines += [f"{name:<{width}}  " + "  ".join(f"{c:>{w}}" for c, w in zip(cells, cols))
               for name, cells in rows]
     lines.append("IMU-only positions are shifted to the true start (absolute position is not "
-                 "observable without UWB).")
+                 "observable without UWB); UWB results are scored as they are.")
     lines.append(f"results in {result.out_dir}/result (UWB no-slide), result_slide and "
                  f"result_imu_only; capture and truth in {result.out_dir}/capture")
     lines.append(f"see it: ikfusion view {result.out_dir}/result --truth "
