@@ -6,10 +6,8 @@ positions (horizontal error, weighted by the measurements' covariances) and acts
 
 * ``slide``: every planted point is moved toward the correction at once (a first-order lag of
   ``time_constant``); the body follows at once, planted feet slide.
-* ``no-slide``: planted points never move; the pelvis leans toward the correction (at most
-  ``max_lean``, the legs bend a little) and each point that touches down is planted offset by
-  the correction (at most ``max_step`` per touch-down), so the body walks into place step by
-  step.
+* ``no-slide``: planted points never move; each point that touches down is planted offset by the
+  correction (at most ``max_step`` per touch-down), so the body walks into place step by step.
 * ``off``: tags are only reported.
 
 A heading drift of the sensors (a magnetically disturbed area) makes the body walk the wrong
@@ -61,7 +59,6 @@ class DriftCorrection:
         mode: ``off``, ``slide`` or ``no-slide``.
         time_constant: Lag of the ``slide`` correction [s].
         max_step: Largest offset of one touch-down in ``no-slide`` [m].
-        max_lean: Largest pull of the pelvis toward the correction in ``no-slide`` [m].
         heading_window: Travel compared for the heading error [s].
         heading_travel: Both travels must exceed this for an estimate [m].
         heading_deadband: Errors below this are left alone [rad] (the sensors' own noise).
@@ -75,7 +72,6 @@ class DriftCorrection:
     mode: str = "no-slide"
     time_constant: float = 0.05
     max_step: float = 0.10
-    max_lean: float = 0.03
     heading_window: float = 1.0
     heading_travel: float = 0.4
     heading_deadband: float = np.radians(2.0)
@@ -134,8 +130,6 @@ class DriftCorrection:
             norm = float(np.linalg.norm(delta))
             scale = min(1.0, self.max_step / norm) if norm > 0 else 0.0
             solver.set_touchdown_offset(delta * scale)
-            lean = min(1.0, self.max_lean / norm) if norm > 0 else 0.0
-            solver.set_lean(delta * lean)
 
     def heading_error(self, k: int, dt: float) -> float | None:
         """Angle from the solved sites' inertial travel to the tags' travel over the window [rad].

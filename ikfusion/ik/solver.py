@@ -39,8 +39,6 @@ from .settings import SolverSettings
 from .tasks import DampingTask, OrientationTask, PositionTask, PostureTask, Task
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
-#: Weight of the pelvis's pull toward a lean [1/m^2] (segment orientations weigh 1/rad^2).
-LEAN_WEIGHT = 30.0
 
 
 
@@ -182,7 +180,6 @@ class Solver:
         self._heading = 0.0
         self._R_heading: np.ndarray | None = None
         self._shifted = np.zeros(3)
-        self._lean = np.zeros(3)
 
     # ------------------------------------------------------------------ position corrections
     def shift_anchors(self, delta: np.ndarray) -> None:
@@ -229,15 +226,6 @@ class Solver:
     def heading_correction(self) -> float:
         """The accumulated turn of the orientation targets [rad]."""
         return self._heading
-
-    def set_lean(self, offset: np.ndarray) -> None:
-        """Pull the pelvis softly ``offset`` (3,) [m] (horizontal part) further, from now on.
-
-        Further than where the planted feet and the sensors put it: the legs bend a little and
-        no planted point moves. The ``no-slide`` correction's immediate part; zero switches it
-        off.
-        """
-        self._lean = np.array([float(offset[0]), float(offset[1]), 0.0])
 
     def set_touchdown_offset(self, offset: np.ndarray) -> None:
         """Plant points that touch down from now on ``offset`` (3,) [m] away from where they land.
@@ -394,10 +382,6 @@ class Solver:
         elif flight:
             p_root = self._q[:3] + self._root_velocity * dt + 0.5 * GRAVITY * dt**2  # type: ignore[index]
             self.root_task.set_targets(p_root[None], [s.ballistic])
-            tasks.append(self.root_task)
-        elif not first and np.any(self._lean):
-            # lean toward the correction: the pelvis where the warm start puts it, moved
-            self.root_task.set_targets((q[:3] + self._lean)[None], [LEAN_WEIGHT])
             tasks.append(self.root_task)
         conf = self._configuration
         conf.update(q)
