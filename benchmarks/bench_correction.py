@@ -11,7 +11,10 @@ contact points per contact phase of the solve itself after the first fix has pla
 difference from the uncorrected solve [deg]; the largest extra change of any joint angle from
 one frame to the next compared with the uncorrected solve [deg/frame] (which angle, when); for
 the injected gap, the same compared with the mode's solve without the gap (what the gap adds,
-also without the unsensed toe joints), and the time until the remaining gap is below 5 cm [s].
+also without the unsensed toe joints), and the time until the remaining gap is below 5 cm [s];
+``pop deg``: the largest error of a per-frame change of a body joint angle (toes left out)
+against the truth's change in the same frame [deg/frame], the pops the solve makes at contact
+hand-overs whatever the mode (compare with ``off``).
 
 Run: .venv/bin/python benchmarks/bench_correction.py [--seconds 40] [--seed 4]
 """
@@ -62,6 +65,16 @@ def run_mode(capture: Path, mode: str, shift_from: float | None) -> dict[str, ob
     return {"motion": solved.motion, "gap": correction.gap, "time": recording.time}
 
 
+def pop_deg(motion, truth: dict) -> float:
+    """Largest |per-frame change of a body joint angle - the truth's change| [deg]."""
+    names = list(truth["joint_angle_names"])
+    body = [c for c in motion.model.angle_columns if "BallFoot" not in c]
+    solved = motion.joint_angles()[:, [motion.model.angle_columns.index(c) for c in body]]
+    true = truth["joint_angles"][:, [names.index(c) for c in body]]
+    n = min(len(solved), len(true))
+    return float(np.abs(np.diff(solved[-n:] - true[-n:], axis=0)).max())
+
+
 def head_rms_cm(motion, truth: dict) -> float:
     names = list(truth["site_names"])
     p_true = truth["p_world_site"][:, names.index("HeadTop")]
@@ -91,7 +104,7 @@ def main() -> None:
     angles_off = reference.joint_angles()
     print(f"{args.seconds:.0f} s walk in circles, room_6x8 (10 readers), seed {args.seed}")
     print(f"{'mode':<26} {'head cm':>8} {'slide mm':>9} {'max mm':>7} {'d angles':>9} "
-          f"{'jump deg':>9} {'gap jump':>9} {'closed s':>9}")
+          f"{'jump deg':>9} {'gap jump':>9} {'closed s':>9} {'pop deg':>8}")
     for name, r in runs.items():
         motion = r["motion"]
         contact_points = list(motion.contact_names)
@@ -124,7 +137,8 @@ def main() -> None:
             below = np.flatnonzero(after & (gap < 0.05))
             closed = f"{time[below[0]] - inject:.1f}" if len(below) else "never"
         print(f"{name:<26} {head_rms_cm(motion, truth):>8.1f} {slides.mean():>9.2f} "
-              f"{slides.max():>7.2f} {d_rms:>9.2f} {jump:>9.2f} {gap_jump:>9} {closed:>9}  "
+              f"{slides.max():>7.2f} {d_rms:>9.2f} {jump:>9.2f} {gap_jump:>9} {closed:>9} "
+              f"{pop_deg(motion, truth):>8.2f}  "
               f"({where})", flush=True)
 
 

@@ -6,8 +6,10 @@ positions (horizontal error, weighted by the measurements' covariances) and acts
 
 * ``slide``: every planted point is moved toward the correction at once (a first-order lag of
   ``time_constant``); the body follows at once, planted feet slide.
-* ``no-slide``: planted points never move; each point that touches down is planted offset by the
-  correction (at most ``max_step`` per touch-down), so the body walks into place step by step.
+* ``no-slide``: planted points never move; each swing foot is led during its swing toward the
+  correction (at most ``max_step`` per step), the pelvis leans toward it a little and follows
+  each foot it is handed to gradually (:class:`ikfusion.ik.support.SupportFollower`), so the
+  body walks into place step by step without a jump.
 * ``off``: tags are only reported.
 
 A heading drift of the sensors (a magnetically disturbed area) makes the body walk the wrong
@@ -58,11 +60,13 @@ class DriftCorrection:
         fixes: The measured sites.
         mode: ``off``, ``slide`` or ``no-slide``.
         time_constant: Lag of the ``slide`` correction [s].
-        max_step: Largest offset of one touch-down in ``no-slide`` [m].
+        max_step: Largest offset of one step in ``no-slide`` [m].
         heading_window: Travel compared for the heading error [s].
         heading_travel: Both travels must exceed this for an estimate [m].
         heading_deadband: Errors below this are left alone [rad] (the sensors' own noise).
         heading_rate: Largest turn of the targets [rad/s].
+        heading_length_ratio: Travels whose lengths differ by more than this factor are not
+            compared (the fixes jumped or the body slid: no heading information).
         heading_time_constant: The turn closes the error with this lag [s].
         gap: (N,) remaining horizontal gap after each frame [m] (NaN without a fix).
         heading: (N,) accumulated heading correction after each frame [rad].
@@ -76,6 +80,7 @@ class DriftCorrection:
     heading_travel: float = 0.4
     heading_deadband: float = np.radians(2.0)
     heading_rate: float = np.radians(10.0)
+    heading_length_ratio: float = 1.25
     heading_time_constant: float = 1.0
     gap: np.ndarray = field(default_factory=lambda: np.zeros(0))
     heading: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -127,29 +132,35 @@ class DriftCorrection:
         elif self.mode == "slide":
             solver.shift_anchors(delta * min(1.0, dt / self.time_constant))
         else:
-            norm = float(np.linalg.norm(delta))
-            scale = min(1.0, self.max_step / norm) if norm > 0 else 0.0
-            solver.set_touchdown_offset(delta * scale)
+            solver.set_step_offset(delta, self.max_step)
 
     def heading_error(self, k: int, dt: float) -> float | None:
         """Angle from the solved sites' inertial travel to the tags' travel over the window [rad].
 
         The median over the sites whose fix and solved position both moved at least
-        ``heading_travel``; None when none did (standing, turning on the spot, no fixes).
+        ``heading_travel`` by lengths within ``heading_length_ratio`` of each other, the head's
+        (body sites') only when it has one (swing feet are led by the no-slide correction);
+        None when none did (standing, turning on the spot, a jump of the fixes, no fixes).
         """
         back = k - int(round(self.heading_window / dt)) if dt > 0 else -1
         if back < 0:
             return None
-        angles = []
+        angles, body = [], []
         for i, f in enumerate(self.fixes):
             measured = f.p_world[k, :2] - f.p_world[back, :2]
             solved = self._solved[i, k] - self._solved[i, back]
             if not (np.isfinite(measured).all() and np.isfinite(solved).all()):
                 continue
-            if min(np.linalg.norm(measured), np.linalg.norm(solved)) < self.heading_travel:
+            lengths = np.linalg.norm(measured), np.linalg.norm(solved)
+            if min(lengths) < self.heading_travel:
                 continue
+            if max(lengths) > self.heading_length_ratio * min(lengths):
+                continue  # a jump of the fixes, not a turn: heading drift keeps the length
             angles.append(np.arctan2(solved[0] * measured[1] - solved[1] * measured[0],
                                      solved @ measured))
+            body.append("Foot" not in f.site)
+        if any(body):  # swing feet are led by the no-slide correction: trust the head first
+            angles = [a for a, b in zip(angles, body) if b]
         return float(np.median(angles)) if angles else None
 
     def _correct_heading(self, solver: Solver, k: int, dt: float) -> None:

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -31,12 +31,18 @@ class ContactState:
         active: (k,) in contact.
         anchors: (k, 3) [m] where each point is held while in contact.
         age: (k,) [s] how long each point has been in contact.
+        released: (k,) [s] how long ago each point left contact (inf: never in contact).
     """
 
     names: list[str]
     active: np.ndarray
     anchors: np.ndarray
     age: np.ndarray
+    released: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def __post_init__(self) -> None:
+        if len(self.released) != len(self.names):
+            self.released = np.full(len(self.names), np.inf)
 
     @classmethod
     def empty(cls, names: Sequence[str]) -> ContactState:
@@ -66,6 +72,7 @@ class ContactThresholds:
     settle_speed: float
     tilt_deg: float
     still_relative: float
+    reenter_delay: float
 
     @classmethod
     def from_settings(cls, settings: object) -> ContactThresholds:
@@ -77,7 +84,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
                      hints: Mapping[str, bool] | None = None,
                      foot_pitch: np.ndarray | None = None,
                      foot_still: np.ndarray | None = None,
-                     p_solved: np.ndarray | None = None) -> ContactState:
+                     p_solved: np.ndarray | None = None,
+                     placed: np.ndarray | None = None) -> ContactState:
     """Let go of planted points the current frame's sensed pose lifts (run before solving).
 
     With ``foot_still``, also plant the points of still feet and hand the body over to them.
@@ -94,6 +102,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
             NaN when unknown. Sensor noise in the pose cannot lift a still foot.
         p_solved: (k, 3) contact point positions of the last solved pose [m]: where points
             planted by stance are anchored (on or above the floor; anchors settle down).
+        placed: (k, 3) offsets [m] by which anchors were placed on purpose away from where the
+            sensed legs put them (a swing foot led by the drift correction): not drift.
 
     Returns:
         A new state: the same anchors for the points that stay, fewer active points, and
@@ -117,8 +127,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
                  & _other_foot(state.names, active))
         handed_over |= active & moving & _other_foot(state.names, plant)
     staying = active & ~handed_over
-    drift, other_age = _drift_from_other_foot(state.names, staying, state.anchors, p_sensed,
-                                              state.age)
+    held = state.anchors if placed is None else state.anchors - placed
+    drift, other_age = _drift_from_other_foot(state.names, staying, held, p_sensed, state.age)
     # Two planted feet that disagree: the foot planted earlier lets go (toe-off), even a
     # still one (its anchor is out of date); a still foot ignores the sensed height and pitch.
     pulled = (drift > th.leave_distance) & (state.age >= other_age)
@@ -147,7 +157,9 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
                 anchors[j] = p_sensed[j] + _sensed_offset(p_sensed, anchors, ref)
         anchors[plant, 2] = np.maximum(anchors[plant, 2], th.floor_z)
         age[plant] = 0.0
-    return ContactState(state.names, (active & ~leave) | plant, anchors, age)
+    released = state.released.copy()
+    released[leave] = 0.0
+    return ContactState(state.names, (active & ~leave) | plant, anchors, age, released)
 
 
 @functools.lru_cache(maxsize=16)
@@ -214,8 +226,11 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     speed = (np.linalg.norm(p_solved - p_solved_previous, axis=1) / dt
              if dt > 0 else np.zeros(len(active)))
     tilted = _tilted(state.names, foot_pitch, np.radians(th.tilt_deg))
+    released = np.where(active, state.released, state.released + max(dt, 0.0))
+    # a point that just let go (toe-off) does not come back down at once while it is low
     enter = (~active & (p_solved[:, 2] < th.floor_z + th.enter_height)
-             & (speed < th.enter_speed) & (height_rel < th.enter_relative) & ~tilted)
+             & (speed < th.enter_speed) & (height_rel < th.enter_relative) & ~tilted
+             & (released >= th.reenter_delay))
     for i, name in enumerate(state.names):
         if hints and name in hints:
             enter[i] = (not active[i]) and bool(hints[name])
@@ -227,7 +242,7 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     anchors[:, 2] = np.maximum(anchors[:, 2] - th.settle_speed * max(dt, 0.0), th.floor_z)
     age = np.where(active, state.age + max(dt, 0.0), 0.0)
     age[enter] = 0.0
-    return ContactState(state.names, active, anchors, age)
+    return ContactState(state.names, active, anchors, age, released)
 
 
 def _landing_anchors(names: Sequence[str], active: np.ndarray, anchors: np.ndarray,

@@ -32,6 +32,13 @@ class SolverSettings:
     smoothness_root_rotation: float = 1e-6
     smoothness_joints: float = 1e-6
     ballistic: float = 1e3
+    continuity: float = 1e2
+    swing: float = 1e2
+    lag_speed: float = 0.2
+    lag_max: float = 0.05
+    swing_speed: float = 0.4
+    lean_max: float = 0.04
+    lean_speed: float = 0.1
     joint_range_margin_deg: float = 5.0
     max_joint_velocity: float = 30.0
     max_root_velocity: float = 15.0
@@ -46,6 +53,7 @@ class SolverSettings:
     settle_speed: float = 0.2
     tilt_deg: float = 5.0
     still_relative: float = 0.06
+    reenter_delay: float = 0.1
     still_rate: float = 0.6
     still_duration: float = 0.1
     speed_window: int = 1

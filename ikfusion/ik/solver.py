@@ -36,6 +36,7 @@ from .limits.joint_range import LinearisedRanges
 from .pose import Motion, Pose
 from .qp import QpProblem, QpSolution, assemble_qp, build_qp, solve_qp
 from .settings import SolverSettings
+from .support import SupportFollower
 from .tasks import DampingTask, OrientationTask, PositionTask, PostureTask, Task
 
 GRAVITY = np.array([0.0, 0.0, -9.81])
@@ -100,6 +101,9 @@ class Solver:
         self.root_task = PositionTask([root_frame], [segments[0]])
         self.contact_names = model.sites_of_kind("contact") if s.contacts else []
         contact_ids = [model.site_frame_id(n) for n in self.contact_names]
+        self.support = SupportFollower(self.contact_names, s.lag_speed, s.lag_max, s.swing_speed,
+                                       s.lean_max, s.lean_speed)
+        self.swing_task = PositionTask(contact_ids, self.contact_names, s.swing)
         self.contact_constraint = ContactConstraint(contact_ids, self.contact_names)
         self.floor_limit = FloorLimit(contact_ids, s.floor_z)
         self.joint_limits = JointRangeLimit(model.ball_joints, s.joint_range_margin_deg)
@@ -176,7 +180,7 @@ class Solver:
         self._p_sensed = np.zeros((len(self.contact_names), 3))
         self._pitch = np.zeros(len(self.contact_names))
         self._root_velocity = np.zeros(3)
-        self._touchdown_offset = np.zeros(3)
+        self.support.reset()
         self._heading = 0.0
         self._R_heading: np.ndarray | None = None
         self._shifted = np.zeros(3)
@@ -189,6 +193,7 @@ class Solver:
         """
         d = np.array([float(delta[0]), float(delta[1]), 0.0])
         self._shifted += d
+        self.support.shift(d)
         anchors = self._contacts.anchors.copy()
         anchors[self._contacts.active] += d
         self._contacts = replace(self._contacts, anchors=anchors)
@@ -201,6 +206,7 @@ class Solver:
         """
         d = np.array([float(delta[0]), float(delta[1]), 0.0])
         self._shifted += d
+        self.support.shift(d)
         if self._q is not None:
             self._q = self._q.copy()
             self._q[:3] += d
@@ -220,36 +226,28 @@ class Solver:
     @property
     def shifted(self) -> np.ndarray:
         """How far the position corrections have moved the body so far (3,) [m]."""
-        return self._shifted.copy()
+        return self._shifted - self.support.pending + self.support.lean
+
+    @property
+    def pending_shift(self) -> np.ndarray:
+        """How far the pelvis will still move to catch up with its feet (3,) [m]."""
+        return self.support.pending
 
     @property
     def heading_correction(self) -> float:
         """The accumulated turn of the orientation targets [rad]."""
         return self._heading
 
-    def set_touchdown_offset(self, offset: np.ndarray) -> None:
-        """Plant points that touch down from now on ``offset`` (3,) [m] away from where they land.
+    def set_step_offset(self, offset: np.ndarray, max_step: float) -> None:
+        """Lead feet that lift off from now on toward the correction ``offset`` (3,) [m].
 
-        Horizontal part only. Planted points never move, and the body moves toward the corrected
-        position one step at a time: the ``no-slide`` correction.
+        Horizontal part only; each step takes at most ``max_step`` [m] of it.
+
+        Planted points never move: each swing foot is led gradually to its offset and the
+        pelvis follows it after touch-down (:class:`SupportFollower`), so the body moves toward
+        the corrected position one step at a time: the ``no-slide`` correction.
         """
-        self._touchdown_offset = np.array([float(offset[0]), float(offset[1]), 0.0])
-
-    def _offset_new_anchors(self, before: np.ndarray) -> None:
-        """Apply the touch-down offset, once, to points of a foot that landed this frame.
-
-        Only a foot coming down from a swing is offset; the next offset comes from the
-        correction after the body has moved.
-        """
-        feet = {n.startswith("Left") for n, b in zip(self.contact_names, before) if b}
-        new = self._contacts.active & ~before
-        new &= np.array([n.startswith("Left") not in feet for n in self.contact_names])
-        if new.any() and np.any(self._touchdown_offset):
-            anchors = self._contacts.anchors.copy()
-            anchors[new] += self._touchdown_offset
-            self._contacts = replace(self._contacts, anchors=anchors)
-            self._shifted += self._touchdown_offset
-            self._touchdown_offset = np.zeros(3)
+        self.support.set_step(offset, max_step)
 
     @property
     def contacts(self) -> ContactState:
@@ -365,12 +363,18 @@ class Solver:
             self._pitch = self._smooth(self._pitch, self._foot_pitch(self._q, tracked))  # type: ignore[arg-type]
             self._contacts = release_contacts(self._contacts, self._p_sensed, self.thresholds,
                                               frame.contacts, self._pitch,
-                                              self._feet_still(frame), self._history[-1][1])
+                                              self._feet_still(frame), self._history[-1][1],
+                                              self.support.placed_offsets(self._contacts.active))
         self.contact_constraint.set_anchors(self._contacts.active, self._contacts.anchors)
         if not first and self._contacts.active.any():
             # ... and translated so that its planted points sit on their anchors on average.
-            active = self._contacts.active
-            q[:3] += np.mean(self._contacts.anchors[active] - p_sensed[active], axis=0)
+            offset = self.support.follow(self._contacts.active, self._contacts.anchors,
+                                         p_sensed, dt)
+            q[:3] += offset
+            p_warm = p_sensed + offset
+            self._shifted += self.support.landed
+        elif not first:
+            self.support.lose_support()
         self.floor_limit.enabled = ~self._contacts.active
         flight = not first and bool(self._contact_ids) and not self._contacts.active.any()
         tasks: list[Task] = [self.orientation_task, self.position_task, self.posture_task,
@@ -383,6 +387,8 @@ class Solver:
             p_root = self._q[:3] + self._root_velocity * dt + 0.5 * GRAVITY * dt**2  # type: ignore[index]
             self.root_task.set_targets(p_root[None], [s.ballistic])
             tasks.append(self.root_task)
+        elif not first and self._contacts.active.any():
+            tasks += self._support_tasks(q, p_warm)
         conf = self._configuration
         conf.update(q)
         done, relaxed = 0, False
@@ -405,6 +411,25 @@ class Solver:
             conf.update(q)
         pose = self._finish_frame(frame, q, tracked, dt, first, start, done, relaxed)
         return pose
+
+    def _support_tasks(self, q: np.ndarray, p_warm: np.ndarray) -> list[Task]:
+        """The pelvis at its warm start plus the lag; swing feet led to their offsets.
+
+        Args:
+            q: The warm start (sensed pose on the support).
+            p_warm: (k, 3) its contact points [m].
+        """
+        s = self.settings
+        tasks: list[Task] = []
+        lag = self.support.lag
+        if s.continuity > 0 and (lag.any() or self.support.lean.any()):
+            self.root_task.set_targets((q[:3] + lag + self.support.lean)[None], [s.continuity])
+            tasks.append(self.root_task)
+        targets, weights = self.support.swing_targets(p_warm + lag + self.support.lean)
+        if weights.any():
+            self.swing_task.set_targets(targets, weights)
+            tasks.append(self.swing_task)
+        return tasks
 
     def _problem(self, conf: Configuration, tasks: list[Task]) -> QpProblem:
         """The QP of one Gauss-Newton step (compiled residuals when available)."""
@@ -431,6 +456,8 @@ class Solver:
         same = self.damping_task.q_reference is previous
         self.damping_task.add_objective(conf, H, c, moved if same else None)
         Pc, Jc = P[self._contact_rows], J[self._contact_rows]
+        if self.swing_task in tasks:
+            self.swing_task.add_rows(Pc, Jc, H, c)
         ranges = self.joint_limits.linearise(angles.reshape(-1, 3), E_inv.reshape(-1, 3, 3), nv)
         up, down = ranges.near(self.joint_limits.margin)
         floor = self.floor_limit.rows(Pc, Jc)
@@ -577,13 +604,11 @@ class Solver:
                 self._p_sensed = self._sensed_pose(q, tracked)[1]
                 self._pitch = self._foot_pitch(q, tracked)
             self._history.append((frame.time, p_contacts))
+            self.support.record(p_contacts)
             t_old, p_old = self._history[0]
-            before = self._contacts.active.copy()
             self._contacts = touch_down(self._contacts, p_contacts, p_old, self._p_sensed,
                                         frame.time - t_old, self.thresholds, frame.contacts,
                                         self._pitch)
-            if not first:
-                self._offset_new_anchors(before)
             if first:
                 contacts_now = self._contacts.as_dict()
         if not first and dt > 0:

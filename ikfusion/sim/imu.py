@@ -33,9 +33,22 @@ GRAVITY = np.array([0.0, 0.0, -9.81])
 class ImuNoise:
     """Sensor error model (standard deviations; angles in degrees where named ``_deg``).
 
+    The orientation a sensor reports comes out of its own fusion filter: its error is of the
+    size the datasheets give (Xsens MTw: 0.75 deg roll/pitch, 1.5 deg heading RMS in motion)
+    but varies slowly, like the filter's state. Between two samples the reported orientation
+    moves as the gyroscope says: real MT Manager files standing still turn 0.006-0.04 deg from
+    sample to sample (``../shared/data/xsens/static11``, ``movingreality_trial007``). So the
+    orientation errors are first-order Gauss-Markov processes plus a little white noise, and
+    a heading random walk. Tilt is observable through gravity at every sample, so the filter
+    corrects it fast (short time constant); heading only through the magnetometer, heavily
+    filtered (long time constant).
+
     Attributes:
-        tilt_deg: White orientation noise about the horizontal axes [deg].
-        heading_deg: White orientation noise about the vertical [deg].
+        tilt_deg: RMS of the slowly varying error about the horizontal axes [deg].
+        heading_deg: RMS of the slowly varying error about the vertical [deg].
+        tilt_correlation_s: Time constant of the tilt error [s].
+        heading_correlation_s: Time constant of the heading error [s].
+        white_deg: White orientation noise per sample, each axis [deg].
         heading_walk_deg_per_sqrt_s: Heading random walk [deg/sqrt(s)].
         acc: White accelerometer noise [m/s^2].
         acc_bias: Accelerometer bias, drawn once per sensor [m/s^2].
@@ -45,6 +58,9 @@ class ImuNoise:
 
     tilt_deg: float = 0.5
     heading_deg: float = 1.5
+    tilt_correlation_s: float = 0.1
+    heading_correlation_s: float = 2.0
+    white_deg: float = 0.02
     heading_walk_deg_per_sqrt_s: float = 0.13
     acc: float = 0.05
     acc_bias: float = 0.05
@@ -54,7 +70,8 @@ class ImuNoise:
     @classmethod
     def none(cls) -> ImuNoise:
         """Perfect sensors."""
-        return cls(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        return cls(tilt_deg=0.0, heading_deg=0.0, white_deg=0.0, heading_walk_deg_per_sqrt_s=0.0,
+                   acc=0.0, acc_bias=0.0, gyr=0.0, gyr_bias=0.0)
 
 
 @dataclass
@@ -132,12 +149,32 @@ def simulate_imus(model: HumanModel, time: np.ndarray, q: np.ndarray, segments: 
 
 def _orientation_errors(R_true: np.ndarray, noise: ImuNoise, dt: float,
                         rng: np.random.Generator) -> np.ndarray:
-    """Left-multiply world-frame errors: white tilt/heading noise and a heading random walk."""
+    """Left-multiply world-frame errors: slow tilt/heading errors, white noise, heading walk."""
     s, n = R_true.shape[:2]
-    white = np.radians(rng.normal(size=(s, n, 3)) * [noise.tilt_deg / np.sqrt(2),
-                                                     noise.tilt_deg / np.sqrt(2),
-                                                     noise.heading_deg])
+    sigma = np.radians([noise.tilt_deg / np.sqrt(2), noise.tilt_deg / np.sqrt(2),
+                        noise.heading_deg])
+    tau = np.array([noise.tilt_correlation_s, noise.tilt_correlation_s,
+                    noise.heading_correlation_s])
+    slow = _gauss_markov(rng.normal(size=(s, n, 3)) * sigma, dt, tau)
+    white = np.radians(noise.white_deg) * rng.normal(size=(s, n, 3))
     walk = np.radians(noise.heading_walk_deg_per_sqrt_s) * np.sqrt(dt) * np.cumsum(
         rng.normal(size=(s, n)), axis=1)
-    E = exp_so3(white) @ axis_rotation("z", walk)
+    E = exp_so3(slow + white) @ axis_rotation("z", walk)
     return E @ R_true
+
+
+def _gauss_markov(draws: np.ndarray, dt: float, tau: np.ndarray) -> np.ndarray:
+    """First-order Gauss-Markov series along axis 1 with the draws' variance.
+
+    ``draws`` (s, n, 3) are independent normal samples scaled to the wanted standard
+    deviation, ``tau`` (3,) the time constant of each axis [s] (0: white); the series starts
+    stationary (its first value is the first draw).
+    """
+    tau = np.asarray(tau, dtype=float)
+    a = np.where(tau > 0, np.exp(-dt / np.where(tau > 0, tau, 1.0)), 0.0)
+    out = np.empty_like(draws)
+    out[:, 0] = draws[:, 0]
+    gain = np.sqrt(1.0 - a * a)
+    for k in range(1, draws.shape[1]):
+        out[:, k] = a * out[:, k - 1] + gain * draws[:, k]
+    return out

@@ -52,8 +52,18 @@ def test_steady_turn_gives_its_rate_in_the_sensor_frame(human: HumanModel, rng) 
 def test_default_noise_has_the_documented_size(human: HumanModel, rng) -> None:
     t, q = turning(human, 0.0, 600, 60.0)
     noise = ImuNoise(heading_walk_deg_per_sqrt_s=0.0)
-    imus = simulate_imus(human, t, q, ["Pelvis"], rng, noise, random_mounting=False)
+    imus = simulate_imus(human, t, q, ["Pelvis"] * 100, rng, noise, random_mounting=False)
     truth = human.segment_rotation(q[0], "Pelvis")
-    errors = np.degrees(angle_between(imus.R_world_sensor[0], truth))
-    expected = np.sqrt(noise.tilt_deg**2 + noise.heading_deg**2)
+    errors = np.degrees(angle_between(imus.R_world_sensor, truth))
+    expected = np.sqrt(noise.tilt_deg**2 + noise.heading_deg**2 + 3 * noise.white_deg**2)
     assert np.sqrt(np.mean(errors**2)) == pytest.approx(expected, rel=0.1)
+    # ... and varies slowly, as a fusion filter's output does: from one sample to the next an
+    # error with time constant tau moves by sqrt(2 (1 - exp(-dt / tau))) of its size
+    steps = np.degrees(angle_between(imus.R_world_sensor[:, 1:], imus.R_world_sensor[:, :-1]))
+    dt = 1 / 60.0
+    per_axis = [(noise.tilt_deg**2 / 2, noise.tilt_correlation_s)] * 2 + [
+        (noise.heading_deg**2, noise.heading_correlation_s)]
+    expected_steps = np.sqrt(sum(2 * var * (1 - np.exp(-dt / tau)) for var, tau in per_axis)
+                             + 6 * noise.white_deg**2)
+    assert np.sqrt(np.mean(steps**2)) == pytest.approx(expected_steps, rel=0.1)
+    assert expected_steps < 0.5 * expected  # far from white noise of the same size

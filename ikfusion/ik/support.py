@@ -1,0 +1,221 @@
+"""Smooth hand-overs of the body between its feet, and swing feet placed by the correction.
+
+Each frame the solver starts from the sensed pose translated so that the planted points of the
+*reference* foot (the one planted longest) sit on their anchors on average: the *support
+offset*. When the body is handed to the other foot (a toe lets go), the two feet rarely agree
+exactly: inertial drift between steps, or a foot placed by the ``no-slide`` correction where the
+sensed leg would not put it. The support offset then jumps, and a body that followed it would
+jump with it.
+
+:class:`SupportFollower` keeps the pelvis continuous instead: the jump becomes a *lag* (3,) [m]
+between the pelvis and its warm-start position, which shrinks at a bounded speed while the
+planted legs take it up through their joints. The pelvis follows ``warm start + lag + lean``
+as a soft position task.
+
+For the ``no-slide`` correction it also leads swing feet and leans the pelvis: when a foot lifts
+off, the correction still to make (less what the lag will still bring) is latched for it, at
+most ``max_step``, and the foot is led toward it during the swing (a soft position task on its
+heels, relative to the pelvis), starting from where its heel left the floor; it lands where the
+corrected body wants it, with no jump at touch-down. Meanwhile the pelvis leans toward the
+correction by at most ``lean_max``; the lean passes into the lag when the body is handed to a
+foot that was placed leaning.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+
+class SupportFollower:
+    """Pelvis lag across hand-overs and swing-foot offsets (see the module docstring).
+
+    Args:
+        contact_names: Contact point names (``Left...`` / ``Right...``).
+        lag_speed: The lag shrinks at this speed [m/s].
+        lag_max: ... and is never longer than this [m] (larger disagreements are jumped over).
+        swing_speed: A swing foot moves toward its offset at this speed [m/s].
+        lean_max: The pelvis leans toward the correction at most this far [m] ...
+        lean_speed: ... at this speed [m/s].
+        confirm: A touch-down counts once the foot stayed planted this long [s].
+    """
+
+    def __init__(self, contact_names: Sequence[str], lag_speed: float, lag_max: float,
+                 swing_speed: float, lean_max: float = 0.0, lean_speed: float = 0.0,
+                 confirm: float = 0.2) -> None:
+        self.lag_speed = lag_speed
+        self.lag_max = lag_max
+        self.swing_speed = swing_speed
+        self.lean_max = lean_max
+        self.lean_speed = lean_speed
+        self.confirm = confirm
+        left = np.array([n.startswith("Left") for n in contact_names], dtype=bool)
+        self._feet = (left, ~left)
+        # the swing foot is led by its heels: points on the foot itself, not on the unsensed toes
+        self._led = np.array(["Heel" in n for n in contact_names], dtype=bool)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the support, the lag and every offset."""
+        self._support: tuple[np.ndarray, np.ndarray] | None = None
+        self.lag = np.zeros(3)
+        self.lean = np.zeros(3)
+        self._step = np.zeros(3)
+        self._max_step = 0.0
+        self._swinging = [False, False]
+        self._goal = np.zeros((2, 3))
+        self.swing = np.zeros((2, 3))
+        self._landed_swing = np.zeros((2, 3))
+        self._base: np.ndarray | None = None
+        self._deviation = np.zeros((len(self._led), 3))
+        self._planted_for = np.zeros(2)
+        self.landed = np.zeros(3)
+
+    # ------------------------------------------------------------------ corrections
+    def set_step(self, offset: np.ndarray, max_step: float) -> None:
+        """The horizontal correction (3,) [m] the body still needs, by steps of ``max_step`` [m].
+
+        A foot that lifts off is led by this correction less what the pelvis will still move
+        (:attr:`pending`), at most ``max_step``.
+        """
+        self._step = np.array([float(offset[0]), float(offset[1]), 0.0])
+        self._max_step = float(max_step)
+
+    def shift(self, delta: np.ndarray) -> None:
+        """The anchors moved by ``delta`` (3,) [m] on purpose: the body follows them at once."""
+        if self._support is not None:
+            self._support = (self._support[0], self._support[1] + delta)
+
+    @property
+    def pending(self) -> np.ndarray:
+        """How far the lag will still move the pelvis (3,) [m] (horizontal)."""
+        return np.array([-self.lag[0], -self.lag[1], 0.0])
+
+    # ------------------------------------------------------------------ per frame
+    def follow(self, active: np.ndarray, anchors: np.ndarray, p_sensed: np.ndarray,
+               dt: float) -> np.ndarray:
+        """The support offset (3,) [m] of this frame; updates the lag and the swing feet.
+
+        Args:
+            active: (k,) planted points (at least one).
+            anchors: (k, 3) their anchors [m].
+            p_sensed: (k, 3) contact points of this frame's sensed pose (any translation) [m].
+            dt: Time since the last frame [s].
+        """
+        reference = self._reference(active)
+        offset = np.mean(anchors[reference] - p_sensed[reference], axis=0)
+        if self._support is not None:
+            was, held = self._support
+            if was.any():
+                # what the last frame's support says now, minus what this frame's says
+                self.lag += np.mean(held[was] - p_sensed[was], axis=0) - offset
+            if not (was & reference).any():
+                # the body is handed to a foot that was placed leaning: the lean is in it now
+                self.lag += self.lean
+                self.lean = np.zeros(3)
+
+        self.lag = _clip_norm(_shrink(self.lag, self.lag_speed * dt), self.lag_max)
+        wanted = _clip_norm(self.lean + self._step - self.pending, self.lean_max)
+        self.lean += _clip_norm(wanted - self.lean, self.lean_speed * dt)
+        self._support = (reference, anchors.copy())
+        self._update_swing(active, dt)
+        return offset
+
+    def _reference(self, active: np.ndarray) -> np.ndarray:
+        """The planted points of the foot planted longest (both feet when they landed together).
+
+        While both feet are planted the body stays on the foot it stood on: a foot that just
+        landed, led away from where the sensed legs put it, takes the body over only when the
+        other foot lets go, so the leg that leaves the floor carries no strain that would snap.
+        """
+        age = np.array([-1.0 if self._swinging[f] else self._planted_for[f]
+                        for f in range(len(self._feet))])
+        planted = np.array([bool(active[points].any()) for points in self._feet])
+        oldest = planted & (age == age[planted].max())
+        reference = np.zeros(len(active), dtype=bool)
+        for f in np.flatnonzero(oldest):
+            reference |= self._feet[f]
+        return reference & active
+
+    def lose_support(self) -> None:
+        """No point is planted (flight): the ballistic path takes over; nothing lags."""
+        self._support = None
+        self.lag = np.zeros(3)
+
+    def _update_swing(self, active: np.ndarray, dt: float) -> None:
+        """Latch the offset of feet that lifted off, move swinging feet, settle landed feet.
+
+        A foot that lets go again within ``confirm`` seconds of touching down (a heel strike
+        its gyroscope did not confirm) resumes its swing where it was, so its offset is
+        neither lost nor counted twice.
+        """
+        self.landed = np.zeros(3)
+        for f, points in enumerate(self._feet):
+            if active[points].any():
+                if self._swinging[f]:  # it touched down where it was led
+                    self._swinging[f] = False
+                    self._landed_swing[f] = self.swing[f]
+                    self._planted_for[f] = 0.0
+                    self.landed += self.swing[f]
+                else:
+                    self._planted_for[f] += dt
+                self.swing[f] = 0.0
+                continue
+            if not self._swinging[f]:
+                self._swinging[f] = True
+                if self._planted_for[f] < self.confirm and np.any(self._landed_swing[f]):
+                    self.swing[f] = self._landed_swing[f]
+                    self.landed -= self._landed_swing[f]
+                else:
+                    self._goal[f] = _clip_norm(self._step - self.pending, self._max_step)
+                    # the heel leaves the floor where it is, not where the sensed leg puts it
+                    self.swing[f] = np.mean(self._deviation[points & self._led], axis=0)
+                self._landed_swing[f] = 0.0
+            self.swing[f] += _clip_norm(self._goal[f] - self.swing[f], self.swing_speed * dt)
+
+    def record(self, p_solved: np.ndarray) -> None:
+        """After solving: how far each contact point (k, 3) [m] is from where it was led."""
+        if self._base is not None:
+            self._deviation = p_solved - self._base
+        self._base = None
+
+    def placed_offsets(self, active: np.ndarray) -> np.ndarray:
+        """(k, 3) [m]: how far each planted point was placed from where the sensed legs put it.
+
+        While both feet are planted, the younger one was led by its swing offset: the feet
+        disagree by that much on purpose, which must not read as drift between them.
+        """
+        out = np.zeros((len(active), 3))
+        planted = [bool(active[points].any()) for points in self._feet]
+        if all(planted):
+            young = int(np.argmin(self._planted_for))
+            out[self._feet[young]] = self._landed_swing[young]
+        return out
+
+    def swing_targets(self, p_points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Targets (k, 3) [m] and weights (k,) (0 or 1) for the heels of swing feet.
+
+        Args:
+            p_points: (k, 3) contact points of the warm start (the sensed pose on the support,
+                plus the lag) [m].
+        """
+        self._base = p_points.copy()
+        targets = p_points.copy()
+        weights = np.zeros(len(p_points))
+        for f, points in enumerate(self._feet):
+            if self._swinging[f] and (np.any(self._goal[f]) or np.any(self.swing[f])):
+                targets[points] += self.swing[f]
+                weights[points & self._led] = 1.0
+        return targets, weights
+
+
+def _shrink(v: np.ndarray, by: float) -> np.ndarray:
+    """``v`` shortened by ``by`` (never past zero)."""
+    n = float(np.linalg.norm(v))
+    return v * max(0.0, 1.0 - by / n) if n > 0 else v * 0.0
+
+
+def _clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
+    """``v`` shortened to at most ``limit`` long."""
+    return v - _shrink(v, limit)

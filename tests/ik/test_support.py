@@ -1,0 +1,116 @@
+"""Hand-overs between the feet and swing feet led by the no-slide correction, in closed form."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ikfusion.ik.contacts import ContactState, ContactThresholds, touch_down
+from ikfusion.ik.settings import SolverSettings
+from ikfusion.ik.support import SupportFollower
+
+NAMES = ["LeftHeel", "LeftToe", "RightHeel", "RightToe"]
+DT = 1.0 / 60.0
+LEFT = np.array([True, True, False, False])
+RIGHT = ~LEFT
+BOTH = LEFT | RIGHT
+
+
+def _follower(**kw) -> SupportFollower:
+    args = {"lag_speed": 0.3, "lag_max": 0.05, "swing_speed": 0.6} | kw
+    return SupportFollower(NAMES, **args)
+
+
+def _points(x_left: float, x_right: float) -> np.ndarray:
+    """Contact points of a sensed pose: left foot at x_left, right foot at x_right [m]."""
+    return np.array([[x_left, 0.1, 0.0], [x_left + 0.2, 0.1, 0.0],
+                     [x_right, -0.1, 0.0], [x_right + 0.2, -0.1, 0.0]])
+
+
+def test_the_pelvis_lags_a_hand_over_jump_and_catches_up_at_its_speed() -> None:
+    f = _follower()
+    anchors = _points(0.0, 0.5)
+    sensed = _points(0.0, 0.5)
+    assert np.allclose(f.follow(LEFT, anchors, sensed, DT), 0.0)  # standing on the left foot
+    # the right foot lands where the sensed pose disagrees by 3 cm: the body stays on the left
+    anchors = _points(0.0, 0.53)
+    assert np.allclose(f.follow(BOTH, anchors, sensed, DT), 0.0)
+    assert np.allclose(f.lag, 0.0)
+    # the left toe and heel let go: the support says +3 cm at once; the pelvis lags it
+    offset = f.follow(RIGHT, anchors, sensed, DT)
+    assert offset[0] == pytest.approx(0.03)
+    assert f.lag[0] == pytest.approx(-0.03 + 0.3 * DT)  # continuous, then shrinking
+    assert f.pending[0] == pytest.approx(0.03 - 0.3 * DT)
+    for _ in range(5):
+        f.follow(RIGHT, anchors, sensed, DT)
+    assert f.lag[0] == pytest.approx(-0.03 + 6 * 0.3 * DT)
+    # a larger disagreement than lag_max is jumped over beyond it
+    g = _follower()
+    g.follow(LEFT, _points(0.0, 0.5), sensed, DT)
+    g.follow(BOTH, _points(0.0, 0.7), sensed, DT)
+    g.follow(RIGHT, _points(0.0, 0.7), sensed, DT)
+    assert np.linalg.norm(g.lag) == pytest.approx(0.05)
+
+
+def test_intended_moves_of_the_anchors_are_followed_at_once() -> None:
+    f = _follower()
+    sensed = _points(0.0, 0.5)
+    f.follow(LEFT, _points(0.0, 0.5), sensed, DT)
+    f.shift(np.array([0.02, 0.0, 0.0]))  # the slide correction moved the planted points
+    offset = f.follow(LEFT, _points(0.02, 0.5), sensed, DT)
+    assert offset[0] == pytest.approx(0.02) and np.allclose(f.lag, 0.0)
+
+
+def test_a_swing_foot_is_led_to_the_correction_at_its_speed() -> None:
+    f = _follower()
+    sensed = _points(0.0, 0.5)
+    f.set_step(np.array([0.3, 0.0, 0.0]), max_step=0.1)
+    f.follow(BOTH, _points(0.0, 0.5), sensed, DT)
+    f.follow(LEFT, _points(0.0, 0.5), sensed, DT)  # the right foot lifts off
+    assert f.swing[1][0] == pytest.approx(0.6 * DT)  # toward the step, at most max_step
+    targets, weights = f.swing_targets(sensed)
+    assert weights.tolist() == [0.0, 0.0, 1.0, 0.0]  # its heel only
+    assert targets[2, 0] == pytest.approx(0.5 + 0.6 * DT)
+    for _ in range(30):
+        f.follow(LEFT, _points(0.0, 0.5), sensed, DT)
+    assert f.swing[1][0] == pytest.approx(0.1)  # reached, not beyond
+    f.follow(BOTH, _points(0.0, 0.6), sensed, DT)  # it lands there
+    assert f.landed[0] == pytest.approx(0.1)
+    # ... and the body stays on the left foot until that lets go, then follows without a jump
+    assert np.allclose(f.lag, 0.0)
+    f.follow(RIGHT, _points(0.0, 0.6), sensed, DT)
+    assert f.lag[0] == pytest.approx(-0.05)  # the jump beyond lag_max was taken at once
+
+
+def test_a_touch_down_let_go_at_once_resumes_its_swing() -> None:
+    f = _follower()
+    sensed = _points(0.0, 0.5)
+    f.set_step(np.array([0.1, 0.0, 0.0]), max_step=0.1)
+    f.follow(BOTH, _points(0.0, 0.5), sensed, DT)
+    for _ in range(5):
+        f.follow(LEFT, _points(0.0, 0.5), sensed, DT)
+    led = f.swing[1].copy()
+    f.follow(BOTH, _points(0.0, 0.5 + led[0]), sensed, DT)  # a heel strike ...
+    assert f.landed[0] == pytest.approx(led[0])
+    f.set_step(np.zeros(3), max_step=0.1)  # (the correction would now see less to do)
+    f.follow(LEFT, _points(0.0, 0.5), sensed, DT)  # ... the gyroscope did not confirm
+    assert f.landed[0] == pytest.approx(-led[0])  # not counted
+    assert f.swing[1][0] == pytest.approx(min(led[0] + 0.6 * DT, 0.1))  # and not restarted
+
+
+def test_a_point_that_let_go_does_not_come_back_down_at_once() -> None:
+    th = ContactThresholds.from_settings(SolverSettings())
+    low = _points(0.0, 0.5)
+    # the right toe just let go (toe-off), still low and slow: it stays off for reenter_delay
+    state = ContactState(NAMES, LEFT.copy(), low.copy(), np.zeros(4), np.array(
+        [np.inf, np.inf, np.inf, 0.0]))
+    frames = 0
+    while not state.active[3]:
+        state = touch_down(state, low, low, low, DT, th)
+        frames += 1
+        assert frames < 60
+    assert frames * DT == pytest.approx(th.reenter_delay, abs=DT)
+    # a point never in contact lands at once
+    fresh = touch_down(ContactState(NAMES, LEFT.copy(), low.copy(), np.zeros(4)), low, low,
+                       low, DT, th)
+    assert fresh.active.all()
