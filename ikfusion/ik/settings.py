@@ -32,7 +32,8 @@ class SolverSettings:
     smoothness_root_rotation: float = 1e-6
     smoothness_joints: float = 1e-6
     ballistic: float = 1e3
-    continuity: float = 1e2
+    continuity: float = 3.0
+    continuity_placed: float = 1e2
     swing: float = 1e2
     lag_speed: float = 0.2
     lag_max: float = 0.05

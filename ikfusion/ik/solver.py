@@ -422,8 +422,10 @@ class Solver:
         s = self.settings
         tasks: list[Task] = []
         lag = self.support.lag
-        if s.continuity > 0 and (lag.any() or self.support.lean.any()):
-            self.root_task.set_targets((q[:3] + lag + self.support.lean)[None], [s.continuity])
+        weight = s.continuity_placed if self.support.placed else s.continuity
+        target = self.support.pelvis_target(q[:3])
+        if weight > 0 and (lag.any() or self.support.lean.any()):
+            self.root_task.set_targets(target[None], [weight])
             tasks.append(self.root_task)
         targets, weights = self.support.swing_targets(p_warm + lag + self.support.lean)
         if weights.any():
@@ -604,7 +606,7 @@ class Solver:
                 self._p_sensed = self._sensed_pose(q, tracked)[1]
                 self._pitch = self._foot_pitch(q, tracked)
             self._history.append((frame.time, p_contacts))
-            self.support.record(p_contacts)
+            self.support.record(p_contacts, q[:3])
             t_old, p_old = self._history[0]
             self._contacts = touch_down(self._contacts, p_contacts, p_old, self._p_sensed,
                                         frame.time - t_old, self.thresholds, frame.contacts,

@@ -60,6 +60,7 @@ class SupportFollower:
         """Forget the support, the lag and every offset."""
         self._support: tuple[np.ndarray, np.ndarray] | None = None
         self.lag = np.zeros(3)
+        self._allowance = 0.0
         self.lean = np.zeros(3)
         self._step = np.zeros(3)
         self._max_step = 0.0
@@ -68,6 +69,8 @@ class SupportFollower:
         self.swing = np.zeros((2, 3))
         self._landed_swing = np.zeros((2, 3))
         self._base: np.ndarray | None = None
+        self._target: np.ndarray | None = None
+        self._off_target = np.zeros(3)
         self._deviation = np.zeros((len(self._led), 3))
         self._planted_for = np.zeros(2)
         self.landed = np.zeros(3)
@@ -88,6 +91,11 @@ class SupportFollower:
             self._support = (self._support[0], self._support[1] + delta)
 
     @property
+    def placed(self) -> bool:
+        """Does the lag hold a foot the correction placed on purpose (not just drift)?"""
+        return self._allowance > self.lag_max
+
+    @property
     def pending(self) -> np.ndarray:
         """How far the lag will still move the pelvis (3,) [m] (horizontal)."""
         return np.array([-self.lag[0], -self.lag[1], 0.0])
@@ -103,6 +111,7 @@ class SupportFollower:
             p_sensed: (k, 3) contact points of this frame's sensed pose (any translation) [m].
             dt: Time since the last frame [s].
         """
+        self._settle_landings(active, dt)
         reference = self._reference(active)
         offset = np.mean(anchors[reference] - p_sensed[reference], axis=0)
         if self._support is not None:
@@ -111,16 +120,24 @@ class SupportFollower:
                 # what the last frame's support says now, minus what this frame's says
                 self.lag += np.mean(held[was] - p_sensed[was], axis=0) - offset
             if not (was & reference).any():
-                # the body is handed to a foot that was placed leaning: the lean is in it now
-                self.lag += self.lean
+                # the body is handed to a foot that was placed leaning: the lean is in it now;
+                # and the pelvis goes on from where it was solved, not from its soft target
+                self.lag += self.lean + self._off_target
                 self.lean = np.zeros(3)
-
-        self.lag = _clip_norm(_shrink(self.lag, self.lag_speed * dt), self.lag_max)
+                # what the correction placed on purpose is caught up with, never jumped over
+                self._allowance = self.lag_max + float(np.linalg.norm(
+                    self._landed_swing[self._foot_of(reference)]))
+        self._allowance = max(self.lag_max, self._allowance - self.lag_speed * dt)
+        self.lag = _clip_norm(_shrink(self.lag, self.lag_speed * dt), self._allowance)
         wanted = _clip_norm(self.lean + self._step - self.pending, self.lean_max)
         self.lean += _clip_norm(wanted - self.lean, self.lean_speed * dt)
         self._support = (reference, anchors.copy())
         self._update_swing(active, dt)
         return offset
+
+    def _foot_of(self, points: np.ndarray) -> int:
+        """The foot (0 left, 1 right) of the first of ``points``."""
+        return 0 if (points & self._feet[0]).any() else 1
 
     def _reference(self, active: np.ndarray) -> np.ndarray:
         """The planted points of the foot planted longest (both feet when they landed together).
@@ -129,8 +146,7 @@ class SupportFollower:
         landed, led away from where the sensed legs put it, takes the body over only when the
         other foot lets go, so the leg that leaves the floor carries no strain that would snap.
         """
-        age = np.array([-1.0 if self._swinging[f] else self._planted_for[f]
-                        for f in range(len(self._feet))])
+        age = self._planted_for.copy()
         planted = np.array([bool(active[points].any()) for points in self._feet])
         oldest = planted & (age == age[planted].max())
         reference = np.zeros(len(active), dtype=bool)
@@ -143,24 +159,30 @@ class SupportFollower:
         self._support = None
         self.lag = np.zeros(3)
 
+    def _settle_landings(self, active: np.ndarray, dt: float) -> None:
+        """Feet that touched down keep where they were led (:attr:`landed` sums it)."""
+        self.landed = np.zeros(3)
+        for f, points in enumerate(self._feet):
+            if not active[points].any():
+                continue
+            if self._swinging[f]:
+                self._swinging[f] = False
+                self._landed_swing[f] = self.swing[f]
+                self._planted_for[f] = 0.0
+                self.landed += self.swing[f]
+            else:
+                self._planted_for[f] += dt
+            self.swing[f] = 0.0
+
     def _update_swing(self, active: np.ndarray, dt: float) -> None:
-        """Latch the offset of feet that lifted off, move swinging feet, settle landed feet.
+        """Latch the offset of feet that lifted off and move swinging feet.
 
         A foot that lets go again within ``confirm`` seconds of touching down (a heel strike
         its gyroscope did not confirm) resumes its swing where it was, so its offset is
         neither lost nor counted twice.
         """
-        self.landed = np.zeros(3)
         for f, points in enumerate(self._feet):
             if active[points].any():
-                if self._swinging[f]:  # it touched down where it was led
-                    self._swinging[f] = False
-                    self._landed_swing[f] = self.swing[f]
-                    self._planted_for[f] = 0.0
-                    self.landed += self.swing[f]
-                else:
-                    self._planted_for[f] += dt
-                self.swing[f] = 0.0
                 continue
             if not self._swinging[f]:
                 self._swinging[f] = True
@@ -174,11 +196,22 @@ class SupportFollower:
                 self._landed_swing[f] = 0.0
             self.swing[f] += _clip_norm(self._goal[f] - self.swing[f], self.swing_speed * dt)
 
-    def record(self, p_solved: np.ndarray) -> None:
-        """After solving: how far each contact point (k, 3) [m] is from where it was led."""
+    def pelvis_target(self, p_warm: np.ndarray) -> np.ndarray:
+        """Where the pelvis should be (3,) [m], its warm start ``p_warm`` plus lag and lean."""
+        self._target = p_warm + self.lag + self.lean
+        return self._target
+
+    def record(self, p_solved: np.ndarray, p_pelvis: np.ndarray) -> None:
+        """After solving: how far the contact points and the pelvis are from where they were led.
+
+        Args:
+            p_solved: (k, 3) solved contact points [m].
+            p_pelvis: (3,) solved pelvis position [m].
+        """
         if self._base is not None:
             self._deviation = p_solved - self._base
-        self._base = None
+        self._off_target = p_pelvis - self._target if self._target is not None else np.zeros(3)
+        self._base = self._target = None
 
     def placed_offsets(self, active: np.ndarray) -> np.ndarray:
         """(k, 3) [m]: how far each planted point was placed from where the sensed legs put it.
