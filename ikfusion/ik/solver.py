@@ -183,7 +183,6 @@ class Solver:
         self.support.reset()
         self._heading = 0.0
         self._R_heading: np.ndarray | None = None
-        self._shifted = np.zeros(3)
 
     # ------------------------------------------------------------------ position corrections
     def shift_anchors(self, delta: np.ndarray) -> None:
@@ -192,7 +191,6 @@ class Solver:
         The body follows its feet, which slide: the ``slide`` correction of a drifting position.
         """
         d = np.array([float(delta[0]), float(delta[1]), 0.0])
-        self._shifted += d
         self.support.shift(d)
         anchors = self._contacts.anchors.copy()
         anchors[self._contacts.active] += d
@@ -205,7 +203,6 @@ class Solver:
         absolute fix says.
         """
         d = np.array([float(delta[0]), float(delta[1]), 0.0])
-        self._shifted += d
         self.support.shift(d)
         if self._q is not None:
             self._q = self._q.copy()
@@ -226,7 +223,7 @@ class Solver:
     @property
     def shifted(self) -> np.ndarray:
         """How far the position corrections have moved the body so far (3,) [m]."""
-        return self._shifted - self.support.pending + self.support.lean
+        return self.support.displacement
 
     @property
     def pending_shift(self) -> np.ndarray:
@@ -372,7 +369,6 @@ class Solver:
                                          p_sensed, dt)
             q[:3] += offset
             p_warm = p_sensed + offset
-            self._shifted += self.support.landed
         elif not first:
             self.support.lose_support()
         self.floor_limit.enabled = ~self._contacts.active

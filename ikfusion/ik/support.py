@@ -74,6 +74,8 @@ class SupportFollower:
         self._deviation = np.zeros((len(self._led), 3))
         self._planted_for = np.zeros(2)
         self.landed = np.zeros(3)
+        self._placed_by = np.zeros((2, 3))  # how far each foot's anchors were moved on purpose
+        self._reference_feet = np.array([True, True])
 
     # ------------------------------------------------------------------ corrections
     def set_step(self, offset: np.ndarray, max_step: float) -> None:
@@ -87,8 +89,18 @@ class SupportFollower:
 
     def shift(self, delta: np.ndarray) -> None:
         """The anchors moved by ``delta`` (3,) [m] on purpose: the body follows them at once."""
+        self._placed_by += delta
         if self._support is not None:
             self._support = (self._support[0], self._support[1] + delta)
+
+    @property
+    def displacement(self) -> np.ndarray:
+        """How far the corrections have moved the pelvis from the inertial body (3,) [m].
+
+        The intended placement of the foot the body stands on, plus the lag and the lean.
+        """
+        placed = self._placed_by[self._reference_feet].mean(axis=0)
+        return placed + self.lag + self.lean
 
     @property
     def placed(self) -> bool:
@@ -132,6 +144,8 @@ class SupportFollower:
         wanted = _clip_norm(self.lean + self._step - self.pending, self.lean_max)
         self.lean += _clip_norm(wanted - self.lean, self.lean_speed * dt)
         self._support = (reference, anchors.copy())
+        self._reference_feet = np.array([bool((reference & points).any())
+                                         for points in self._feet])
         self._update_swing(active, dt)
         return offset
 
@@ -170,6 +184,8 @@ class SupportFollower:
                 self._landed_swing[f] = self.swing[f]
                 self._planted_for[f] = 0.0
                 self.landed += self.swing[f]
+                # led from the pelvis, which stood where the reference foot and lag put it
+                self._placed_by[f] = self.displacement + self.swing[f]
             else:
                 self._planted_for[f] += dt
             self.swing[f] = 0.0

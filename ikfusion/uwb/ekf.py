@@ -58,6 +58,7 @@ from .ekf_model import (
     tag_position,
     tag_position_jacobian,
 )
+from .smoother import SmootherLog
 
 #: Variance inflation of the process noise over an interval whose IMU sample is missing.
 _MISSING_SAMPLE_INFLATION = 25.0
@@ -92,6 +93,8 @@ class EkfOptions:
         output_time_constant: Decay time of the output offset [s].
         max_output_speed: Largest speed at which the output offset decays [m/s].
         zupt_sigma: Velocity noise of a zero-velocity update [m/s] (a foot rolls a little).
+        smooth: Also run the Rauch-Tung-Striebel pass backward (:mod:`ikfusion.uwb.smoother`):
+            every instant then uses the whole recording; False gives the causal filter.
     """
 
     sigma: float | None = None
@@ -116,6 +119,7 @@ class EkfOptions:
     output_time_constant: float = 0.2
     max_output_speed: float = 1.5
     zupt_sigma: float = 0.05
+    smooth: bool = True
 
 
 @dataclass(frozen=True)
@@ -324,6 +328,8 @@ class _UnitFilter:
         self.reset = np.zeros(t_count, dtype=bool)
         self.bad_in_row = 0
         self.last_used = -math.inf
+        self.log = SmootherLog() if opts.smooth else None
+        self.marks: dict[int, int] = {}  # recorded sample -> the log step it starts
 
     # ------------------------------------------------------------------ set-up
     def _initialise(self, start: UnitStart, k: int) -> None:
@@ -374,7 +380,20 @@ class _UnitFilter:
             if self.imu.still is not None and self.imu.still[k + 1]:
                 self._zero_velocity_update()
             self._record(k + 1, p_out, cov_out, quat_out, time[k + 1] - time[k])
+        if self.log is not None and self.x is not None:
+            self._smooth(p_out, cov_out, quat_out)
         return self._result(time, p_out, cov_out, quat_out)
+
+    def _smooth(self, p_out: np.ndarray, cov_out: np.ndarray, quat_out: np.ndarray) -> None:
+        """Replace the recorded outputs by the smoothed states at the same samples."""
+        assert self.log is not None and self.x is not None
+        smoothed = self.log.smooth(self.x, self.P)
+        for k, step in self.marks.items():
+            x, P = smoothed[step]
+            J = tag_position_jacobian(x, self.lever)
+            p_out[k] = tag_position(x, self.lever)
+            cov_out[k] = J @ P @ J.T
+            quat_out[k] = x.quat_wxyz_world_sensor
 
     @staticmethod
     def _sample_dt(time: np.ndarray) -> float:
@@ -401,10 +420,15 @@ class _UnitFilter:
     def _propagate(self, f: np.ndarray, w: np.ndarray, dt: float, inflation: float) -> None:
         x = self.x
         assert x is not None
-        R_mid = propagate_nominal(x, f, w, dt)
+        before = x.copy() if self.log is not None else None
+        R_mid = propagate_nominal(x, f, w, dt)  # (the biases stay: the transition uses them)
         fill_transition(self.F, R_mid, f - x.b_acc, w - x.b_gyr, dt)
+        q = self.q_density * (dt * inflation)
+        if self.log is not None and before is not None:
+            motion = (R_mid, f - x.b_acc, w - x.b_gyr, dt)
+            self.log.propagated(before, self.P.copy(), motion, q, x.copy())
         P = self.F @ self.P @ self.F.T
-        P[np.diag_indices(N_ERROR)] += self.q_density * (dt * inflation)
+        P[np.diag_indices(N_ERROR)] += q
         self.P = P
 
     # ------------------------------------------------------------------ updates
@@ -546,6 +570,8 @@ class _UnitFilter:
             decay = min(norm * dt / self.opts.output_time_constant,
                         self.opts.max_output_speed * dt, norm)
             o *= 1.0 - decay / norm
+        if self.log is not None:
+            self.marks[k] = len(self.log)
         J = tag_position_jacobian(x, self.lever)
         p_out[k] = tag_position(x, self.lever) + o
         cov_out[k] = J @ self.P @ J.T + np.outer(o, o)

@@ -291,3 +291,16 @@ def inject_error(x: NominalState, dx: np.ndarray) -> None:
     x.b_gyr += dx[BGYR]
     x.clock += float(dx[CLOCK])
     x.clock_rate += float(dx[CLOCK_RATE])
+
+
+def state_difference(x_a: NominalState, x_b: NominalState) -> np.ndarray:
+    """The error state (17,) that :func:`inject_error` adds to ``x_b`` to give ``x_a``."""
+    d = np.empty(N_ERROR)
+    d[POS] = x_a.p_world_sensor - x_b.p_world_sensor
+    d[VEL] = x_a.v_world_sensor - x_b.v_world_sensor
+    d[ATT] = rotation_log(x_b.R_world_sensor.T @ x_a.R_world_sensor)
+    d[BACC] = x_a.b_acc - x_b.b_acc
+    d[BGYR] = x_a.b_gyr - x_b.b_gyr
+    d[CLOCK] = x_a.clock - x_b.clock
+    d[CLOCK_RATE] = x_a.clock_rate - x_b.clock_rate
+    return d
