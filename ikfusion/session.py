@@ -108,7 +108,7 @@ def solve_actor(actor: ActorInputs, out: str | Path, uwb: UwbInputs | None = Non
     result = solve_recording(recording, sensor_map, model, solver=Solver(model),
                              progress=progress, correction=fix, calibration=cal)
     if uwb is not None and fix is not None:
-        summary = uwb_summary(tracks, fix)
+        summary = uwb_summary(tracks, fix, uwb.smooth)
     extra: dict[str, Any] = {
         "calibration": {"method": cal.method, "heading_deg": float(np.degrees(cal.heading)),
                         "window_s": [cal.window[0] / recording.rate,
@@ -150,8 +150,8 @@ def load_session(path: str | Path) -> Session:
     if given and len(given) < 3:
         missing = sorted({"toa", "readers", "tags"} - set(given))
         raise ConfigError("UWB needs toa, readers and tags", path=file, field=missing[0])
-    uwb = UwbInputs(*(_file(file, data, k) for k in ("toa", "readers", "tags"))) \
-        if given else None
+    uwb = UwbInputs(_file(file, data, "toa"), _file(file, data, "readers"),
+                    _file(file, data, "tags")) if given else None
     actors = [_actor(file, str(name), spec) for name, spec in data["actors"].items()]
     return Session(actors, uwb, correction, file)
 

@@ -22,18 +22,23 @@ from .io.recording import ImuRecording
 from .model.human_model import HumanModel
 from .sim.uwb_capture import imu_units_from_recording
 from .uwb.constellation import load_constellation
-from .uwb.ekf import UnitTrack
+from .uwb.ekf import EkfOptions, UnitTrack
 from .uwb.toa_log import read_toa_csv
 from .uwb.tracking import TagInfo, load_tags, track_tags
 
 
 @dataclass
 class UwbInputs:
-    """The UWB files of a session (SPEC sections 3-4)."""
+    """The UWB files of a session (SPEC sections 3-4), and how to filter them.
+
+    ``smooth``: the tag filters also run backward over the recording (every instant uses the
+    whole file, :mod:`ikfusion.uwb.smoother`); False keeps them causal, as they would run live.
+    """
 
     toa: Path
     readers: Path
     tags: Path
+    smooth: bool = True
 
 
 def track_recording_tags(recording: ImuRecording, sensor_map: Mapping[str, str],
@@ -57,7 +62,8 @@ def track_recording_tags(recording: ImuRecording, sensor_map: Mapping[str, str],
     log = read_toa_csv(files.toa)
     mounting = {s: R.T for s, R in calibration.R_sensor_segment.items()}
     units = imu_units_from_recording(recording, sensor_map, tags, model, mounting)
-    return tags, track_tags(log, constellation, tags, units)
+    return tags, track_tags(log, constellation, tags, units,
+                            options=EkfOptions(smooth=files.smooth))
 
 
 def drift_correction(tags: Mapping[str, TagInfo], tracks: Mapping[str, UnitTrack],
@@ -77,11 +83,11 @@ def drift_correction(tags: Mapping[str, TagInfo], tracks: Mapping[str, UnitTrack
 
 
 def uwb_summary(tracks: Mapping[str, UnitTrack],
-                correction: DriftCorrection) -> dict[str, object]:
+                correction: DriftCorrection, smoothed: bool = True) -> dict[str, object]:
     """What ``summary.json`` reports about UWB.
 
-    Per tag: transmissions and TOAs used and rejected, time without UWB; and the remaining
-    horizontal gap of the correction.
+    Per tag: transmissions and TOAs used and rejected, time without UWB; whether the tracks
+    were smoothed over the recording; and the remaining horizontal gap of the correction.
     """
     per_tag = {}
     for tag_id, track in tracks.items():
@@ -93,6 +99,6 @@ def uwb_summary(tracks: Mapping[str, UnitTrack],
             "seconds_without_uwb": float(t.seconds_without_uwb),
         }
     gap = correction.gap[np.isfinite(correction.gap)]
-    return {"used": True, "correction": correction.mode, "tags": per_tag,
+    return {"used": True, "correction": correction.mode, "smoothed": smoothed, "tags": per_tag,
             "gap_mean_m": float(gap.mean()) if gap.size else None,
             "gap_max_m": float(gap.max()) if gap.size else None}

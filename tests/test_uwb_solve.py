@@ -21,9 +21,9 @@ def capture(tmp_path_factory) -> Path:  # type: ignore[no-untyped-def]
     return folder
 
 
-def _solve(capture: Path, out: Path, correction: str | None) -> Path:
+def _solve(capture: Path, out: Path, correction: str | None, *extra: str) -> Path:
     args = ["solve", "--imu", str(capture / "imu"), "--map", str(capture / "sensors.yaml"),
-            "--body", str(capture / "body.yaml"), "--out", str(out), "--quiet"]
+            "--body", str(capture / "body.yaml"), "--out", str(out), "--quiet", *extra]
     if correction:
         args += ["--toa", str(capture / "toa.csv"), "--readers", str(capture / "readers.yaml"),
                  "--tags", str(capture / "tags.yaml"), "--correction", correction]
@@ -51,10 +51,22 @@ def test_uwb_brings_the_head_to_the_truth(capture: Path, tmp_path: Path, mode: s
     assert aided.joint_angle_rms_deg < 3.5
     summary = json.loads((aided_folder / "summary.json").read_text())
     uwb = summary["uwb"]
-    assert uwb["used"] is True and uwb["correction"] == mode
+    assert uwb["used"] is True and uwb["correction"] == mode and uwb["smoothed"] is True
     head = next(t for t in uwb["tags"].values())
     assert head["toas_used"] > 0.7 * head["toas"]  # most are used; the NLOS ones are rejected
     assert head["toas_rejected"] > 0
+
+
+def test_causal_tracks_use_the_past_only(capture: Path, tmp_path: Path) -> None:
+    """``--causal``: the filter as it would run live; still far better than IMU only, and
+    smoothing over the recording only helps."""
+    truth = capture / "truth.npz"
+    causal = _solve(capture, tmp_path / "causal", "no-slide", "--causal")
+    smoothed = _solve(capture, tmp_path / "smoothed", "no-slide")
+    assert json.loads((causal / "summary.json").read_text())["uwb"]["smoothed"] is False
+    head = {f: evaluate(f, truth, align="none").head_position_rms_m for f in (causal, smoothed)}
+    assert head[causal] < 0.06
+    assert head[smoothed] <= head[causal]
 
 
 def test_uwb_needs_all_three_files(capture: Path, tmp_path: Path, capsys) -> None:  # type: ignore[no-untyped-def]

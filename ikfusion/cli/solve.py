@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from ..errors import InputError
@@ -41,6 +42,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--tags", metavar="FILE", help="UWB tags YAML")
     p.add_argument("--correction", choices=["off", "slide", "no-slide"], default=None,
                    help="how UWB corrects drift")
+    p.add_argument("--causal", action="store_true",
+                   help="track the UWB tags with the past only at each instant, as live (by "
+                        "default the whole recording smooths them)")
     p.add_argument("--bvh-up", choices=["z", "y"], default="z", help="up axis of motion.bvh")
     p.add_argument("--out", required=True, metavar="DIR",
                    help="result folder (with --session: the folder of the actors' folders)")
@@ -74,7 +78,8 @@ def _uwb_files(args: argparse.Namespace) -> UwbInputs | None:
         return None
     if not all(given):
         raise InputError("UWB aiding needs all of --toa, --readers and --tags", field="toa")
-    return UwbInputs(Path(args.toa), Path(args.readers), Path(args.tags))
+    return UwbInputs(Path(args.toa), Path(args.readers), Path(args.tags),
+                     smooth=not args.causal)
 
 
 def parse_forward(text: str | None) -> dict[str, str] | None:
@@ -122,6 +127,8 @@ def _run_session(args: argparse.Namespace) -> int:
     session = load_session(args.session)
     if args.correction:
         session.correction = args.correction
+    if args.causal and session.uwb is not None:
+        session.uwb = replace(session.uwb, smooth=False)
     motions = solve_session(session, args.out, args.bvh_up, progress=not args.quiet)
     for name, motion in motions.items():
         for warning in motion.warnings:
