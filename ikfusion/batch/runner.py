@@ -232,6 +232,10 @@ def dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
         client = Client(cluster)
         try:
             yield client
+        except KeyboardInterrupt:
+            # the workers' connections break while the cluster stops: expected, not news
+            logging.getLogger("distributed").setLevel(logging.CRITICAL)
+            raise
         finally:
             client.close()
     finally:

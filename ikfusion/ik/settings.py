@@ -53,6 +53,7 @@ class SolverSettings:
     leave_distance: float = 0.02
     settle_speed: float = 0.2
     tilt_deg: float = 5.0
+    heel_rise_deg: float = 0.5
     still_relative: float = 0.06
     reenter_delay: float = 0.1
     still_rate: float = 0.6

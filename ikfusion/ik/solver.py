@@ -105,6 +105,7 @@ class Solver:
                                        s.lean_max, s.lean_speed)
         self.swing_task = PositionTask(contact_ids, self.contact_names, s.swing)
         self.contact_constraint = ContactConstraint(contact_ids, self.contact_names)
+        self._heels = np.array(["Heel" in n for n in self.contact_names], dtype=bool)
         self.floor_limit = FloorLimit(contact_ids, s.floor_z)
         self.joint_limits = JointRangeLimit(model.ball_joints, s.joint_range_margin_deg)
         self.velocity_limit = VelocityLimit(self._tangent_vector(
@@ -357,12 +358,21 @@ class Solver:
             self.velocity_limit.set_previous(self._q, dt)
         if not first and self._contact_ids:
             self._p_sensed = self._smooth(self._p_sensed, p_sensed)
-            self._pitch = self._smooth(self._pitch, self._foot_pitch(self._q, tracked))  # type: ignore[arg-type]
+            pitch = self._foot_pitch(self._q, tracked)  # type: ignore[arg-type]
+            self._pitch = self._smooth(self._pitch, pitch)
             self._contacts = release_contacts(self._contacts, self._p_sensed, self.thresholds,
                                               frame.contacts, self._pitch,
                                               self._feet_still(frame), self._history[-1][1],
                                               self.support.placed_offsets(self._contacts.active))
-        self.contact_constraint.set_anchors(self._contacts.active, self._contacts.anchors)
+        rising = None
+        if not first and self._contact_ids:
+            # a planted heel whose foot already rolls toe-down may rise (it still cannot slip)
+            still = self._feet_still(frame)
+            rising = self._heels & (pitch > np.radians(s.heel_rise_deg))
+            if still is not None:
+                rising &= still != 1.0  # a foot its IMU says stands still stays flat
+        self.contact_constraint.set_anchors(self._contacts.active, self._contacts.anchors,
+                                            rising)
         if not first and self._contacts.active.any():
             # ... and translated so that its planted points sit on their anchors on average.
             offset = self.support.follow(self._contacts.active, self._contacts.anchors,
@@ -371,7 +381,7 @@ class Solver:
             p_warm = p_sensed + offset
         elif not first:
             self.support.lose_support()
-        self.floor_limit.enabled = ~self._contacts.active
+        self.floor_limit.enabled = ~self._contacts.active | self.contact_constraint.free_z
         flight = not first and bool(self._contact_ids) and not self._contacts.active.any()
         tasks: list[Task] = [self.orientation_task, self.position_task, self.posture_task,
                              self.damping_task]
@@ -596,7 +606,9 @@ class Solver:
                       first: bool, start: float, iterations: int, relaxed: bool) -> Pose:
         conf = self._configuration
         p_contacts = conf.positions(self._contact_ids)
-        contacts_now = self._contacts.as_dict()
+        # a rising heel is held against slipping but no longer stands on the floor
+        contacts_now = {n: bool(a and not r) for n, a, r in zip(
+            self.contact_names, self._contacts.active, self.contact_constraint.free_z)}
         if self._contact_ids:
             if first:
                 self._p_sensed = self._sensed_pose(q, tracked)[1]
@@ -626,16 +638,16 @@ class Solver:
         orientation, position = self.orientation_task, self.position_task
         targets = (orientation.targets, orientation.weights, position.targets,
                    position.information, self.contact_constraint.active,
-                   self.contact_constraint.anchors)
+                   self.contact_constraint.anchors, self.contact_constraint.free_z)
         model = self.model.model
         names = self.contact_names
 
         def residuals() -> dict[str, dict[str, float]]:
-            R, w, p, info, active, anchors = targets
+            R, w, p, info, active, anchors, free_z = targets
             o, pos = copy.copy(orientation), copy.copy(position)
             o.targets, o.weights, pos.targets, pos.information = R, w, p, info
             contact = copy.copy(self.contact_constraint)
-            contact.set_anchors(active, anchors)
+            contact.set_anchors(active, anchors, free_z)
             conf = Configuration(model, q)
             slide = contact.slide_m(conf)
             return {

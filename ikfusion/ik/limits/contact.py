@@ -14,6 +14,9 @@ from .base import Equality, Inequality
 class ContactConstraint:
     """Contact points in contact stay at their anchors: ``p_i(q ⊕ dq) = anchor_i`` (3 rows each).
 
+    A point may be held horizontally only (``free_z``): a heel rising as its foot rolls onto
+    the toes does not slip, but it leaves the floor gradually instead of all at once.
+
     Args:
         frame_ids: Frame indices of the contact points.
         names: Their names (``LeftHeel``, ...).
@@ -24,11 +27,21 @@ class ContactConstraint:
         self.names = list(names)
         self.active = np.zeros(len(self.frame_ids), dtype=bool)
         self.anchors = np.zeros((len(self.frame_ids), 3))
+        self.free_z = np.zeros(len(self.frame_ids), dtype=bool)
 
-    def set_anchors(self, active: npt.ArrayLike, anchors: npt.ArrayLike) -> None:
-        """Which points are in contact (k,) and where they are held (k, 3) [m]."""
+    def set_anchors(self, active: npt.ArrayLike, anchors: npt.ArrayLike,
+                    free_z: npt.ArrayLike | None = None) -> None:
+        """Set the points in contact.
+
+        Args:
+            active: (k,) which points are in contact.
+            anchors: (k, 3) where they are held [m].
+            free_z: (k,) which of them are held horizontally only.
+        """
         self.active = np.asarray(active, dtype=bool).copy()
         self.anchors = np.asarray(anchors, dtype=float).reshape(-1, 3).copy()
+        self.free_z = (np.zeros_like(self.active) if free_z is None
+                       else np.asarray(free_z, dtype=bool) & self.active)
 
     def equality(self, configuration: Configuration) -> Equality:
         """Linearised rows ``J_i dq = anchor_i - p_i`` for the active points."""
@@ -40,10 +53,9 @@ class ContactConstraint:
 
     def rows(self, p_world: np.ndarray, J_linear: np.ndarray) -> Equality:
         """Rows from every point's position (k, 3) [m] and linear Jacobian (k, 3, nv)."""
-        nv = J_linear.shape[-1]
-        J = J_linear[self.active].reshape(-1, nv)
-        b = (self.anchors[self.active] - p_world[self.active]).reshape(-1)
-        return Equality(J, b)
+        held = np.repeat(self.active[:, None], 3, axis=1)
+        held[:, 2] &= ~self.free_z
+        return Equality(J_linear[held], (self.anchors - p_world)[held])
 
     def slide_m(self, configuration: Configuration,
                 p_world: np.ndarray | None = None) -> np.ndarray:
@@ -52,8 +64,9 @@ class ContactConstraint:
         ``p_world`` (k, 3) [m] are the points' positions when the caller has them.
         """
         p = configuration.positions(self.frame_ids) if p_world is None else p_world
-        d = np.linalg.norm(p - self.anchors, axis=1)
-        return np.where(self.active, d, np.nan)
+        d = p - self.anchors
+        d[self.free_z, 2] = 0.0
+        return np.where(self.active, np.linalg.norm(d, axis=1), np.nan)
 
 
 class FloorLimit:
