@@ -227,11 +227,6 @@ class Solver:
         return self.support.displacement
 
     @property
-    def pending_shift(self) -> np.ndarray:
-        """How far the pelvis will still move to catch up with its feet (3,) [m]."""
-        return self.support.pending
-
-    @property
     def heading_correction(self) -> float:
         """The accumulated turn of the orientation targets [rad]."""
         return self._heading
@@ -360,17 +355,18 @@ class Solver:
             self._p_sensed = self._smooth(self._p_sensed, p_sensed)
             pitch = self._foot_pitch(self._q, tracked)  # type: ignore[arg-type]
             self._pitch = self._smooth(self._pitch, pitch)
-            self._contacts = release_contacts(self._contacts, self._p_sensed, self.thresholds,
-                                              frame.contacts, self._pitch,
-                                              self._feet_still(frame), self._history[-1][1],
-                                              self.support.placed_offsets(self._contacts.active))
-        rising = None
-        if not first and self._contact_ids:
-            # a planted heel whose foot already rolls toe-down may rise (it still cannot slip)
             still = self._feet_still(frame)
+            self._contacts = release_contacts(self._contacts, self._p_sensed, self.thresholds,
+                                              frame.contacts, self._pitch, still,
+                                              self._history[-1][1],
+                                              self.support.placed_offsets(self._contacts.active))
+            # a planted heel whose foot already rolls toe-down may rise (it still cannot slip),
+            # unless its IMU says the foot stands still
             rising = self._heels & (pitch > np.radians(s.heel_rise_deg))
             if still is not None:
-                rising &= still != 1.0  # a foot its IMU says stands still stays flat
+                rising &= still != 1.0
+        else:
+            rising = None
         self.contact_constraint.set_anchors(self._contacts.active, self._contacts.anchors,
                                             rising)
         if not first and self._contacts.active.any():
