@@ -422,11 +422,11 @@ class _UnitFilter:
         assert x is not None
         before = x.copy() if self.log is not None else None
         R_mid = propagate_nominal(x, f, w, dt)  # (the biases stay: the transition uses them)
-        fill_transition(self.F, R_mid, f - x.b_acc, w - x.b_gyr, dt)
+        f_free, w_free = f - x.b_acc, w - x.b_gyr
+        fill_transition(self.F, R_mid, f_free, w_free, dt)
         q = self.q_density * (dt * inflation)
         if self.log is not None and before is not None:
-            motion = (R_mid, f - x.b_acc, w - x.b_gyr, dt)
-            self.log.propagated(before, self.P.copy(), motion, q, x.copy())
+            self.log.propagated(before, self.P.copy(), (R_mid, f_free, w_free, dt), q, x.copy())
         P = self.F @ self.P @ self.F.T
         P[np.diag_indices(N_ERROR)] += q
         self.P = P
