@@ -224,10 +224,13 @@ def dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
         return
     if workers < 1:
         raise InputError(f"--workers must be at least 1, not {workers}", field="workers")
+    # The workers' own log stays quiet: a task's error comes back with its future (and goes
+    # into batch_report.csv), a worker that dies is reported by the runner, and what is left
+    # are connection errors while the cluster stops, which say nothing to a user.
     with _sigint_ignored():  # Ctrl-C reaches the client only; it stops the workers itself
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                host="127.0.0.1", dashboard_address=":0",  # any free port
-                               silence_logs=logging.ERROR)
+                               silence_logs=logging.CRITICAL)
     try:
         client = Client(cluster)
         try:

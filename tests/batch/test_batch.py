@@ -228,7 +228,8 @@ def test_interrupted_batch_resumes_without_recomputing(capture: Path, tmp_path: 
 
 def test_ctrl_c_stops_cleanly(capture: Path, tmp_path: Path) -> None:
     """SIGINT to the whole process group, as a terminal's Ctrl-C sends it."""
-    make_inputs(capture, tmp_path / "in", 6)
+    count = 40  # enough that the run is still busy when the signal comes, even on a loaded host
+    make_inputs(capture, tmp_path / "in", count)
     out = tmp_path / "out"
     process = subprocess.Popen(
         [sys.executable, "-m", "ikfusion", "batch", "solve", str(tmp_path / "in" / "cap*"),
@@ -250,7 +251,7 @@ def test_ctrl_c_stops_cleanly(capture: Path, tmp_path: Path) -> None:
     assert "Traceback" not in err and "interrupted" in err
     report = read_report(out)
     done = sorted(p.name for p in out.iterdir() if p.is_dir())
-    assert 1 <= len(done) < 6 and sorted(report) == done
+    assert 1 <= len(done) < count and sorted(report) == done
     for name in done:
         assert_complete(out / name, 30)
     assert hidden_entries(out) == []
