@@ -40,6 +40,8 @@ class SolverSettings:
     swing_speed: float = 0.4
     lean_max: float = 0.04
     lean_speed: float = 0.1
+    ease_speed_deg: float = 20.0
+    persistence: float = 1.0
     joint_range_margin_deg: float = 5.0
     max_joint_velocity: float = 30.0
     max_root_velocity: float = 15.0

@@ -35,6 +35,7 @@ from .limits import ContactConstraint, FloorLimit, Inequality, JointRangeLimit, 
 from .limits.joint_range import LinearisedRanges
 from .pose import Motion, Pose
 from .qp import QpProblem, QpSolution, assemble_qp, build_qp, solve_qp
+from .release import ReleaseEasing
 from .settings import SolverSettings
 from .support import SupportFollower
 from .tasks import DampingTask, OrientationTask, PositionTask, PostureTask, Task
@@ -97,6 +98,9 @@ class Solver:
                                       dtype=int)[:, None] + np.arange(4)
         self.damping_task = DampingTask(self._tangent_vector(
             s.smoothness_root_translation, s.smoothness_root_rotation, s.smoothness_joints))
+        self.persistence_task = DampingTask(np.zeros(model.model.nv))
+        self._joint_v_cols = np.array([j.idx_v for j in model.ball_joints.values()],
+                                      dtype=int)[:, None] + np.arange(3)
         root_frame = model.segment_frame_id(segments[0])
         self.root_task = PositionTask([root_frame], [segments[0]])
         self.contact_names = model.sites_of_kind("contact") if s.contacts else []
@@ -130,7 +134,20 @@ class Solver:
         self._contact_feet = np.array([self._segment_index.get(
             f"{'Left' if n.startswith('Left') else 'Right'}Foot", -1) for n in self.contact_names],
             dtype=int)
+        self.easing = ReleaseEasing([self._leg_of(foot) for foot in self._contact_feet],
+                                    len(segments), np.radians(s.ease_speed_deg))
+        self._eased_segments = np.unique(np.concatenate(
+            [self._leg_of(foot) for foot in self._contact_feet] or [np.zeros(0, dtype=int)]))
         self.reset()
+
+    def _leg_of(self, foot: int) -> np.ndarray:
+        """Segment indices from ``foot`` up to the pelvis, the pelvis excluded (none: -1)."""
+        parent = dict(zip(self._joint_child.tolist(), self._joint_parent.tolist()))
+        leg = []
+        while foot > 0:
+            leg.append(foot)
+            foot = parent.get(foot, 0)
+        return np.array(leg, dtype=int)
 
     def _sensed_spec(self) -> SensedPoseSpec:
         """What :meth:`_sensed_configuration` does, for the compiled sensed-pose function."""
@@ -182,6 +199,8 @@ class Solver:
         self._pitch = np.zeros(len(self.contact_names))
         self._root_velocity = np.zeros(3)
         self.support.reset()
+        self.easing.reset()
+        self._bent: np.ndarray | None = None  # solved pose minus sensed pose (tangent, nv)
         self._heading = 0.0
         self._R_heading: np.ndarray | None = None
 
@@ -261,6 +280,7 @@ class Solver:
             R[i] = R_target if self._R_heading is None else self._R_heading @ R_target
             w[i] = frame.orientation_weights.get(name, 1.0)
         self.orientation_task.set_targets(R, w)
+        self._sensed_targets = self.orientation_task.targets
         tracked = self.orientation_task.weights > 0
         if frame.positions or self._positions_set:
             self._set_position_targets(frame)
@@ -351,6 +371,8 @@ class Solver:
             iterations = s.max_iterations
             self.damping_task.set_reference(self._q)
             self.velocity_limit.set_previous(self._q, dt)
+        q_warm = q.copy()
+        self._set_persistence(q_warm, tracked, first)
         if not first and self._contact_ids:
             self._p_sensed = self._smooth(self._p_sensed, p_sensed)
             pitch = self._foot_pitch(self._q, tracked)  # type: ignore[arg-type]
@@ -365,8 +387,12 @@ class Solver:
             rising = self._heels & (pitch > np.radians(s.heel_rise_deg))
             if still is not None:
                 rising &= still != 1.0
+            # points held in the last solve and not in this one: their legs ease back
+            self.easing.release(self.contact_constraint.active & ~self._contacts.active)
         else:
             rising = None
+        if not first:
+            self._ease_released_legs(dt)
         self.contact_constraint.set_anchors(self._contacts.active, self._contacts.anchors,
                                             rising)
         if not first and self._contacts.active.any():
@@ -380,7 +406,7 @@ class Solver:
         self.floor_limit.enabled = ~self._contacts.active | self.contact_constraint.free_z
         flight = not first and bool(self._contact_ids) and not self._contacts.active.any()
         tasks: list[Task] = [self.orientation_task, self.position_task, self.posture_task,
-                             self.damping_task]
+                             self.damping_task, self.persistence_task]
         if frame.root_position is not None:
             self.root_task.set_targets(np.asarray(frame.root_position, dtype=float)[None],
                                        [frame.root_position_weight])
@@ -408,11 +434,48 @@ class Solver:
                 break  # planted points are then held exactly by the projection below
         relaxed = self._project_on_constraints(conf) or relaxed
         q = conf.q.copy()
+        self._bent = self._sensed_bend(q_warm, q, tracked)
         if first:
             q = self._place_on_floor(q)
             conf.update(q)
         pose = self._finish_frame(frame, q, tracked, dt, first, start, done, relaxed)
         return pose
+
+    def _set_persistence(self, q_warm: np.ndarray, tracked: np.ndarray, first: bool) -> None:
+        """Joints between two sensed segments stay bent as they were in the last frame.
+
+        Contacts, limits and the support tasks bend joints away from what the sensors say
+        (``q_warm``, the sensed pose); a soft task keeps that bend (:attr:`_bent`, tangent
+        [rad]) from frame to frame, so it changes gradually when a constraint comes or goes.
+        Joints with an unsensed side are left out: their warm start is the last solved angle,
+        and keeping a change of it would keep a velocity.
+        """
+        s = self.settings
+        both = tracked[self._joint_parent] & tracked[self._joint_child]
+        weights = np.zeros(self.model.model.nv)
+        weights[self._joint_v_cols[both].ravel()] = s.persistence
+        self.persistence_task.weights = weights
+        self.persistence_task.set_reference(
+            None if first or s.persistence <= 0 or self._bent is None
+            else pin.integrate(self.model.model, q_warm, self._bent))
+
+    def _sensed_bend(self, q_warm: np.ndarray, q: np.ndarray, tracked: np.ndarray) -> np.ndarray:
+        """``q ⊖ q_warm`` (nv) on the joints between two sensed segments, zero elsewhere."""
+        bent = pin.difference(self.model.model, q_warm, q)
+        both = tracked[self._joint_parent] & tracked[self._joint_child]
+        keep = np.zeros(len(bent), dtype=bool)
+        keep[self._joint_v_cols[both].ravel()] = True
+        return np.where(keep, bent, 0.0)
+
+    def _ease_released_legs(self, dt: float) -> None:
+        """Legs that let go of the floor return to their sensed orientations gradually.
+
+        Their orientation targets are the sensed ones turned by :attr:`easing`'s offsets; the
+        contact detection has already used the sensed ones.
+        """
+        eased = self.easing.apply(self._sensed_targets, dt)
+        if eased is not None:
+            self.orientation_task.set_targets(eased, self.orientation_task.weights)
 
     def _support_tasks(self, q: np.ndarray, p_warm: np.ndarray) -> list[Task]:
         """The pelvis at its warm start plus the lag; swing feet led to their offsets.
@@ -424,7 +487,8 @@ class Solver:
         s = self.settings
         tasks: list[Task] = []
         lag = self.support.lag
-        weight = s.continuity_placed if self.support.placed else s.continuity
+        share = self.support.placed_share
+        weight = (1.0 - share) * s.continuity + share * s.continuity_placed
         target = self.support.pelvis_target(q[:3])
         if weight > 0 and (lag.any() or self.support.lean.any()):
             self.root_task.set_targets(target[None], [weight])
@@ -459,6 +523,7 @@ class Solver:
             self.root_task.add_rows(P[-1:], J[-1:], H, c)
         same = self.damping_task.q_reference is previous
         self.damping_task.add_objective(conf, H, c, moved if same else None)
+        self.persistence_task.add_objective(conf, H, c)
         Pc, Jc = P[self._contact_rows], J[self._contact_rows]
         if self.swing_task in tasks:
             self.swing_task.add_rows(Pc, Jc, H, c)
@@ -611,6 +676,9 @@ class Solver:
                 self._pitch = self._foot_pitch(q, tracked)
             self._history.append((frame.time, p_contacts))
             self.support.record(p_contacts, q[:3])
+            legs = self._eased_segments
+            self.easing.record(legs, self._sensed_targets[legs],
+                               conf.rotations([self.orientation_task.frame_ids[i] for i in legs]))
             t_old, p_old = self._history[0]
             self._contacts = touch_down(self._contacts, p_contacts, p_old, self._p_sensed,
                                         frame.time - t_old, self.thresholds, frame.contacts,
@@ -632,7 +700,7 @@ class Solver:
         frame keeps its targets.
         """
         orientation, position = self.orientation_task, self.position_task
-        targets = (orientation.targets, orientation.weights, position.targets,
+        targets = (self._sensed_targets, orientation.weights, position.targets,
                    position.information, self.contact_constraint.active,
                    self.contact_constraint.anchors, self.contact_constraint.free_z)
         model = self.model.model

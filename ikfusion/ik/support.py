@@ -108,6 +108,17 @@ class SupportFollower:
         return self._allowance > self.lag_max
 
     @property
+    def placed_share(self) -> float:
+        """How much of the lag is a placed foot, 0 (drift only) to 1 (``lag_max`` or more).
+
+        The pelvis is held to its target the more firmly the more it is: a weight that
+        switched at once would let the pelvis snap when the placed part has been caught up.
+        """
+        if self.lag_max <= 0:
+            return 1.0 if self.placed else 0.0
+        return float(np.clip((self._allowance - self.lag_max) / self.lag_max, 0.0, 1.0))
+
+    @property
     def pending(self) -> np.ndarray:
         """How far the lag will still move the pelvis (3,) [m] (horizontal)."""
         return np.array([-self.lag[0], -self.lag[1], 0.0])
@@ -126,6 +137,7 @@ class SupportFollower:
         self._settle_landings(active, dt)
         reference = self._reference(active)
         offset = np.mean(anchors[reference] - p_sensed[reference], axis=0)
+        moved = np.zeros(3)  # how far the pelvis target moves to where the pelvis was solved
         if self._support is not None:
             was, held = self._support
             if was.any():
@@ -135,6 +147,7 @@ class SupportFollower:
                 # the body is handed to a foot that was placed leaning: the lean is in it now;
                 # and the pelvis goes on from where it was solved, not from its soft target
                 self.lag += self.lean + self._off_target
+                moved = self._off_target
                 self.lean = np.zeros(3)
                 # what the correction placed on purpose is caught up with, never jumped over
                 self._allowance = self.lag_max + float(np.linalg.norm(
@@ -146,7 +159,7 @@ class SupportFollower:
         self._support = (reference, anchors.copy())
         self._reference_feet = np.array([bool((reference & points).any())
                                          for points in self._feet])
-        self._update_swing(active, dt)
+        self._update_swing(active, dt, moved)
         return offset
 
     def _foot_of(self, points: np.ndarray) -> int:
@@ -190,8 +203,11 @@ class SupportFollower:
                 self._planted_for[f] += dt
             self.swing[f] = 0.0
 
-    def _update_swing(self, active: np.ndarray, dt: float) -> None:
+    def _update_swing(self, active: np.ndarray, dt: float, moved: np.ndarray) -> None:
         """Latch the offset of feet that lifted off and move swinging feet.
+
+        Swing feet are led relative to the pelvis target: when it ``moved`` (3,) [m] to
+        where the pelvis was solved, their offsets take that back, so they are not pulled along.
 
         A foot that lets go again within ``confirm`` seconds of touching down (a heel strike
         its gyroscope did not confirm) resumes its swing where it was, so its offset is
@@ -211,6 +227,7 @@ class SupportFollower:
                     self.swing[f] = np.mean(self._deviation[points & self._led], axis=0)
                 self._landed_swing[f] = 0.0
             self.swing[f] += _clip_norm(self._goal[f] - self.swing[f], self.swing_speed * dt)
+            self.swing[f] -= moved
 
     def pelvis_target(self, p_warm: np.ndarray) -> np.ndarray:
         """Where the pelvis should be (3,) [m], its warm start ``p_warm`` plus lag and lean."""
@@ -253,7 +270,7 @@ class SupportFollower:
         targets = p_points.copy()
         weights = np.zeros(len(p_points))
         for f, points in enumerate(self._feet):
-            if self._swinging[f] and (np.any(self._goal[f]) or np.any(self.swing[f])):
+            if self._swinging[f] and np.any(self._goal[f]):
                 targets[points] += self.swing[f]
                 weights[points & self._led] = 1.0
         return targets, weights

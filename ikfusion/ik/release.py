@@ -1,0 +1,74 @@
+"""Legs that let go of the floor return to their sensed orientations gradually.
+
+While a foot is planted, its leg is bent away from what its sensors say whenever the body is
+moved: the pelvis kept continuous across a hand-over, leaning toward a drift correction, or
+inertial drift between the feet. The moment the foot lets go (its heel, then its toes), nothing
+holds that strain any more, and a leg that jumped back to its sensed orientations would pop by
+the whole strain in one frame.
+
+:class:`ReleaseEasing` keeps, for every segment of a leg that let go, its deviation from the
+sensed orientation at that moment as an *offset* of its orientation target,
+``R_world_target = R_world_sensed @ Exp(offset)`` (offset in the segment frame [rad]), and
+shrinks it at a bounded rate, so the leg returns to its sensors within a few frames.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..rotations import exp_so3, log_so3
+
+
+class ReleaseEasing:
+    """Orientation-target offsets of the legs that let go (see the module docstring).
+
+    Args:
+        legs: For each contact point, the indices of the segments its release lets go of
+            (its foot and the segments up to the pelvis, the pelvis excluded).
+        n_segments: Number of segments (rows of the orientation targets).
+        speed: The offsets shrink at this rate [rad/s].
+    """
+
+    def __init__(self, legs: Sequence[np.ndarray], n_segments: int, speed: float) -> None:
+        self.speed = speed
+        self._legs = [np.asarray(leg, dtype=int) for leg in legs]
+        self._n = n_segments
+        self.reset()
+
+    def reset(self) -> None:
+        """No offsets; nothing recorded."""
+        self.offsets = np.zeros((self._n, 3))
+        self._deviation = np.zeros((self._n, 3))
+
+    def record(self, segments: np.ndarray, R_world_sensed: np.ndarray,
+               R_world_solved: np.ndarray) -> None:
+        """After solving: the deviation of ``segments`` from their sensed orientations.
+
+        Args:
+            segments: (m,) segment indices (those of the legs).
+            R_world_sensed: (m, 3, 3) their orientation targets of the frame, without offsets.
+            R_world_solved: (m, 3, 3) their solved orientations.
+        """
+        self._deviation[segments] = log_so3(np.swapaxes(R_world_sensed, 1, 2) @ R_world_solved)
+
+    def release(self, released: np.ndarray) -> None:
+        """Points that let go (k,) bool: their legs keep their last deviation as offsets."""
+        if self.speed <= 0:
+            return
+        for point in np.flatnonzero(released):
+            leg = self._legs[point]
+            self.offsets[leg] = self._deviation[leg]
+
+    def apply(self, R_world_sensed: np.ndarray, dt: float) -> np.ndarray | None:
+        """Shrink the offsets by ``speed * dt``; the offset targets (n, 3, 3), None if none."""
+        norm = np.linalg.norm(self.offsets, axis=1)
+        keep = np.maximum(0.0, 1.0 - self.speed * dt / np.where(norm > 0, norm, 1.0))
+        self.offsets *= np.where(norm > 0, keep, 0.0)[:, None]
+        moving = np.flatnonzero(np.any(self.offsets != 0.0, axis=1))
+        if len(moving) == 0:
+            return None
+        R = R_world_sensed.copy()
+        R[moving] = R[moving] @ exp_so3(self.offsets[moving])
+        return R
