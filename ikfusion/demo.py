@@ -25,11 +25,7 @@ import numpy as np
 from .correction import DriftCorrection
 from .evaluate import Evaluation, evaluate
 from .ik import Motion
-from .imu.calibration import Calibration, calibrate_recording
-from .io.reader import read_imu
-from .io.recording import ImuRecording
-from .io.sensor_map import SensorMap, load_sensor_map
-from .model import Body, HumanModel
+from .model import HumanModel
 from .paths import shipped_config
 from .pipeline import solve_recording
 from .results import write_result_folder
@@ -38,9 +34,7 @@ from .sim.gait import GaitParameters, generate_gait
 from .sim.imu import ImuNoise
 from .sim.truth import TruthMotion
 from .uwb.constellation import load_constellation
-from .uwb.ekf import UnitTrack
-from .uwb.tracking import TagInfo
-from .uwb_aiding import UwbInputs, drift_correction, track_recording_tags, uwb_summary
+from .uwb_aiding import TrackedCapture, drift_correction, track_capture, uwb_summary
 
 #: The three solves: column label, result folder, correction mode (None: IMU only). The last
 #: one is the default of ``solve`` with UWB and is written to ``result/``.
@@ -87,18 +81,6 @@ class DemoResult:
         return self.modes[-1].motion
 
 
-@dataclass
-class _Prepared:
-    """What every mode shares: read, calibrated and tracked once."""
-
-    recording: ImuRecording
-    sensor_map: SensorMap
-    model: HumanModel
-    calibration: Calibration
-    tags: dict[str, TagInfo]
-    tracks: dict[str, UnitTrack]
-
-
 def demo_walk(seconds: float) -> GaitParameters:
     """Walking in circles (radius 1.5 m, 1.1 m/s) after a 2 s N-pose, ``seconds`` [s] in all."""
     return GaitParameters(path="circle", radius=1.5, duration=seconds, stand=2.0, speed=1.1,
@@ -117,7 +99,7 @@ def run_demo(out_dir: str | Path = "ikfusion-demo", seconds: float = 60.0, seed:
     """
     out = Path(out_dir)
     capture = simulate_demo_capture(out / "capture", seconds, seed, progress)
-    shared = _prepare(capture)
+    shared = track_capture(capture.folder)
     modes = [_solve_mode(shared, capture, out / name, label, mode, progress)
              for label, name, mode in MODES]
     return DemoResult(out, capture.truth, modes)
@@ -136,19 +118,7 @@ def simulate_demo_capture(folder: Path, seconds: float, seed: int, progress: boo
     return write_capture(folder, truth, ImuNoise(), seed, constellation=room)
 
 
-def _prepare(capture: Capture) -> _Prepared:
-    """Read the IMU files, calibrate on the N-pose and track the three tags, once."""
-    sensor_map = load_sensor_map(capture.sensor_map)
-    recording = read_imu(capture.imu, sensor_map=sensor_map)
-    model = HumanModel.from_body(Body.from_yaml(capture.folder / "body.yaml"))
-    calibration = calibrate_recording(recording, sensor_map)
-    files = UwbInputs(capture.folder / "toa.csv", capture.folder / "readers.yaml",
-                      capture.folder / "tags.yaml")
-    tags, tracks = track_recording_tags(recording, sensor_map, model, calibration, files)
-    return _Prepared(recording, sensor_map, model, calibration, tags, tracks)
-
-
-def _solve_mode(shared: _Prepared, capture: Capture, folder: Path, label: str,
+def _solve_mode(shared: TrackedCapture, capture: Capture, folder: Path, label: str,
                 mode: str | None, progress: bool) -> ModeResult:
     """Solve with one correction mode (None: IMU only), write its result folder, score it."""
     correction: DriftCorrection | None = None
@@ -167,7 +137,7 @@ def _solve_mode(shared: _Prepared, capture: Capture, folder: Path, label: str,
     return ModeResult(label, Path(written), solved.motion, score, elapsed, gap)
 
 
-def _summary(shared: _Prepared, label: str,
+def _summary(shared: TrackedCapture, label: str,
              correction: DriftCorrection | None) -> dict[str, Any]:
     """The extra ``summary.json`` keys, as ``ikfusion solve`` writes them, and the source.
 

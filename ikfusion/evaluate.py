@@ -15,7 +15,11 @@ Metrics (all over the common time span):
   and horizontal [m];
 * ``foot_slide_mm`` and ``foot_slide_max_mm``: per contact phase of the truth, the largest
   horizontal distance of the estimated contact point from where it was when the phase began;
-  mean and maximum over phases [mm].
+  mean and maximum over phases [mm];
+* ``joint_angle_jump_max_deg``: the largest error of a frame-to-frame change of a joint angle
+  against the truth's change over the same frame [deg]: the pops of a solve (a contact that
+  lets go, a correction applied at once). The toe joints, which no sensor of a suit observes,
+  are left out. ``joint_angle_jump_at`` says which angle, when.
 """
 
 from __future__ import annotations
@@ -44,6 +48,8 @@ class Evaluation:
     foot_slide_max_mm: float
     aligned_start: bool
     per_joint_rms_deg: dict[str, float] = field(default_factory=dict)
+    joint_angle_jump_max_deg: float = 0.0
+    joint_angle_jump_at: str = ""
 
     def as_dict(self) -> dict[str, object]:
         """Plain dictionary (for JSON)."""
@@ -125,6 +131,29 @@ def phase_slides(P: np.ndarray, contacts: np.ndarray) -> list[float]:
     return slides
 
 
+def joint_angle_jump(time: np.ndarray, estimated: np.ndarray, true: np.ndarray,
+                     names: list[str]) -> tuple[float, str]:
+    """The largest error of a frame-to-frame change of a joint angle, and where.
+
+    Args:
+        time: (N,) [s].
+        estimated: (N, J) joint angles of the solve [deg].
+        true: (N, J) the truth's at the same times [deg].
+        names: (J,) angle names; the toes (``...BallFoot...``) are left out.
+
+    Returns:
+        ``|change of estimated - change of true|`` at its largest [deg] (0 for fewer than two
+        frames), and ``"<angle> at <t> s"`` (the frame the change ends on).
+    """
+    body = [k for k, n in enumerate(names) if "BallFoot" not in n]
+    if len(time) < 2 or not body:
+        return 0.0, ""
+    error = (estimated[:, body] - true[:, body] + 180.0) % 360.0 - 180.0
+    jump = np.abs((np.diff(error, axis=0) + 180.0) % 360.0 - 180.0)
+    k, j = np.unravel_index(int(np.argmax(jump)), jump.shape)
+    return float(jump[k, j]), f"{names[body[j]]} at {time[k + 1]:.2f} s"
+
+
 def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto") -> Evaluation:
     """Compare a ``solve`` result folder with a ``truth.npz``.
 
@@ -183,6 +212,7 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
     contact_names = [str(c) for c in truth["contact_names"]]
     P = np.stack([_interp(t, t_site, sites[c]) for c in contact_names], axis=1)
     slides = phase_slides(P, truth["contacts"][span])
+    jump, jump_at = joint_angle_jump(t, est_angles, true_angles, common)
     return Evaluation(
         frames=int(span.sum()),
         joint_angle_rms_deg=float(np.sqrt(np.mean(diff**2))),
@@ -193,4 +223,6 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
         foot_slide_max_mm=1e3 * float(np.max(slides)) if slides else 0.0,
         aligned_start=aligned,
         per_joint_rms_deg=per_joint,
+        joint_angle_jump_max_deg=jump,
+        joint_angle_jump_at=jump_at,
     )

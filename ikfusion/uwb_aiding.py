@@ -17,8 +17,11 @@ import numpy as np
 
 from .correction import DriftCorrection, SiteFixes
 from .errors import InputError
-from .imu.calibration import Calibration
+from .imu.calibration import Calibration, calibrate_recording
+from .io.reader import read_imu
 from .io.recording import ImuRecording
+from .io.sensor_map import SensorMap, load_sensor_map
+from .model import Body
 from .model.human_model import HumanModel
 from .sim.uwb_capture import imu_units_from_recording
 from .uwb.constellation import load_constellation
@@ -64,6 +67,37 @@ def track_recording_tags(recording: ImuRecording, sensor_map: Mapping[str, str],
     units = imu_units_from_recording(recording, sensor_map, tags, model, mounting)
     return tags, track_tags(log, constellation, tags, units,
                             options=EkfOptions(smooth=files.smooth))
+
+
+@dataclass
+class TrackedCapture:
+    """A capture folder read, calibrated on its N-pose and its tags tracked, for any solves."""
+
+    recording: ImuRecording
+    sensor_map: SensorMap
+    model: HumanModel
+    calibration: Calibration
+    tags: dict[str, TagInfo]
+    tracks: dict[str, UnitTrack]
+
+
+def track_capture(folder: str | Path, smooth: bool = True) -> TrackedCapture:
+    """Read a capture folder as ``simulate --readers`` writes it and track its tags.
+
+    The folder holds ``imu/``, ``sensors.yaml``, ``body.yaml``, ``toa.csv``, ``readers.yaml``
+    and ``tags.yaml``; ``smooth`` as in :class:`UwbInputs`.
+
+    Raises:
+        InputError: Bad files (naming file, line and field).
+    """
+    root = Path(folder)
+    sensor_map = load_sensor_map(root / "sensors.yaml")
+    recording = read_imu(root / "imu", sensor_map=sensor_map)
+    model = HumanModel.from_body(Body.from_yaml(root / "body.yaml"))
+    calibration = calibrate_recording(recording, sensor_map)
+    files = UwbInputs(root / "toa.csv", root / "readers.yaml", root / "tags.yaml", smooth)
+    tags, tracks = track_recording_tags(recording, sensor_map, model, calibration, files)
+    return TrackedCapture(recording, sensor_map, model, calibration, tags, tracks)
 
 
 def drift_correction(tags: Mapping[str, TagInfo], tracks: Mapping[str, UnitTrack],

@@ -7,17 +7,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from ikfusion.imu.calibration import calibrate_recording
-from ikfusion.io.reader import read_imu
-from ikfusion.io.sensor_map import load_sensor_map
-from ikfusion.model import Body, HumanModel
 from ikfusion.paths import shipped_config
 from ikfusion.pipeline import solve_recording
 from ikfusion.sim.capture import add_heading_drift, truth_motion, write_capture
 from ikfusion.sim.imu import ImuNoise
 from ikfusion.sim.truth import site_positions
 from ikfusion.uwb.constellation import load_constellation
-from ikfusion.uwb_aiding import UwbInputs, drift_correction, track_recording_tags
+from ikfusion.uwb_aiding import drift_correction, track_capture
 
 DRIFT_DEG = 12.0  # turned into the sensors' headings between 6 s and 18 s
 
@@ -30,13 +26,9 @@ def drifted(tmp_path_factory: pytest.TempPathFactory):  # type: ignore[no-untype
     capture = write_capture(tmp_path_factory.mktemp("drift") / "capture", truth, ImuNoise(), 2,
                             constellation=room)
     add_heading_drift(capture.folder / "imu", 6.0, 18.0, DRIFT_DEG / 12.0)
-    recording = read_imu(capture.folder / "imu")
-    sensor_map = load_sensor_map(capture.sensor_map)
-    model = HumanModel.from_body(Body.from_yaml(capture.folder / "body.yaml"))
-    calibration = calibrate_recording(recording, sensor_map)
-    files = UwbInputs(*(capture.folder / f for f in ("toa.csv", "readers.yaml", "tags.yaml")))
-    tags, tracks = track_recording_tags(recording, sensor_map, model, calibration, files)
-    return recording, sensor_map, model, calibration, tags, tracks, capture.truth
+    t = track_capture(capture.folder)
+    return (t.recording, t.sensor_map, t.model, t.calibration, t.tags, t.tracks,
+            capture.truth)
 
 
 def _head_rms_after(drifted, correction, t0: float) -> float:  # type: ignore[no-untyped-def]

@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 from ikfusion.cli import main
@@ -40,6 +41,28 @@ def test_truth_against_itself_is_exact(walk, tmp_path: Path) -> None:
     assert e.segment_orientation_rms_deg < 1e-3
     assert e.head_position_rms_m < 1e-5
     assert e.foot_slide_max_mm < 0.1
+    assert e.joint_angle_jump_max_deg < 1e-3
+
+
+def test_a_pop_is_measured_where_it_happens(walk, tmp_path: Path) -> None:
+    """A knee that jumps by 2 deg at one frame and stays there: one 2 deg jump, at that frame;
+    a constant error is no jump at all."""
+    truth_file = write_truth(tmp_path / "truth.npz", walk)
+    joint = walk.model.ball_joints["jRightKnee"]
+    k = len(walk.time) // 2
+    q = walk.q.copy()
+    # turn the knee by 2 deg about its flexion axis from frame k on (x, y, z, w quaternion)
+    flex = joint.spec.angles[0]
+    axis = np.eye(3)["xyz".index(flex.axis)] * flex.sign
+    half = np.radians(1.0)
+    turn = pin.Quaternion(np.cos(half), *(np.sin(half) * axis))
+    for i in range(k, len(q)):
+        x, y, z, w = q[i, joint.idx_q:joint.idx_q + 4]
+        turned = pin.Quaternion(w, x, y, z) * turn
+        q[i, joint.idx_q:joint.idx_q + 4] = [turned.x, turned.y, turned.z, turned.w]
+    e = evaluate(result_of(walk, q, tmp_path / "pop"), truth_file)
+    assert e.joint_angle_jump_max_deg == pytest.approx(2.0, abs=0.05)
+    assert e.joint_angle_jump_at == f"jRightKnee_flex at {walk.time[k]:.2f} s"
 
 
 def test_known_offsets_are_measured(walk, tmp_path: Path) -> None:
@@ -64,7 +87,7 @@ def test_cli_json_and_bad_input(walk, tmp_path: Path, capsys) -> None:
     metrics = json.loads(capsys.readouterr().out)
     for key in ("frames", "joint_angle_rms_deg", "segment_orientation_rms_deg",
                 "head_position_rms_m", "head_position_rms_xy_m", "foot_slide_mm",
-                "foot_slide_max_mm"):
+                "foot_slide_max_mm", "joint_angle_jump_max_deg"):
         assert key in metrics
     (result / "sites.csv").write_text("time,site,x,y,z\n0.0,HeadTop,1,2,oops\n")
     assert main(["evaluate", str(result), str(truth_file)]) == 2

@@ -1,0 +1,58 @@
+"""A leg that lets go of the floor eases back to its sensed orientations at a bounded rate."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ikfusion.ik.release import ReleaseEasing
+from ikfusion.rotations import angle_between, exp_so3
+
+DT = 1.0 / 60.0
+SPEED = np.radians(20.0)
+
+
+def test_a_released_leg_keeps_its_bend_and_eases_back() -> None:
+    # segments 0 (pelvis), 1-2 (left leg), 3-4 (right leg); points: left heel, right heel
+    easing = ReleaseEasing([np.array([1, 2]), np.array([3, 4])], 5, SPEED)
+    sensed = exp_so3(np.random.default_rng(1).normal(size=(5, 3)))
+    bend = np.radians(3.0) * np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 0, 0]])
+    solved = sensed @ exp_so3(bend)
+    easing.record(np.arange(5), sensed, solved)
+    assert easing.apply(sensed, DT) is None  # nothing let go: the sensed targets stand
+    easing.release(np.array([True, False]))
+    targets = easing.apply(sensed, 0.0)
+    assert targets is not None
+    # the left leg starts where it was solved, the pelvis and the right leg at their sensors
+    assert np.degrees(angle_between(targets[1:3], solved[1:3])).max() < 1e-9
+    assert np.degrees(angle_between(targets[[0, 3, 4]], sensed[[0, 3, 4]])).max() < 1e-9
+    # ... and each left segment turns back at 20 deg/s: 3 deg in 0.15 s
+    previous = targets
+    for k in range(1, 9):
+        targets = easing.apply(sensed, DT)
+        step = np.degrees(angle_between(targets[1:3], previous[1:3]))
+        assert step.max() <= 20.0 * DT + 1e-9
+        left = np.degrees(angle_between(targets[1:3], sensed[1:3]))
+        assert left == pytest.approx(max(0.0, 3.0 - 20.0 * DT * k), abs=1e-6)
+        previous = targets
+    assert easing.apply(sensed, DT) is None  # all the way back
+
+
+def test_a_new_release_restarts_from_the_latest_bend() -> None:
+    easing = ReleaseEasing([np.array([1])], 2, SPEED)
+    sensed = np.tile(np.eye(3), (2, 1, 1))
+    easing.record(np.array([1]), sensed[1:], exp_so3(np.radians([[2.0, 0, 0]])))
+    easing.release(np.array([True]))
+    easing.apply(sensed, 5 * DT)
+    easing.record(np.array([1]), sensed[1:], exp_so3(np.radians([[0, 4.0, 0]])))
+    easing.release(np.array([True]))
+    targets = easing.apply(sensed, 0.0)
+    assert np.degrees(angle_between(targets[1], exp_so3(np.radians([0, 4.0, 0])))) < 1e-9
+
+
+def test_zero_speed_switches_it_off() -> None:
+    easing = ReleaseEasing([np.array([1])], 2, 0.0)
+    sensed = np.tile(np.eye(3), (2, 1, 1))
+    easing.record(np.array([1]), sensed[1:], exp_so3(np.radians([[2.0, 0, 0]])))
+    easing.release(np.array([True]))
+    assert easing.apply(sensed, DT) is None
