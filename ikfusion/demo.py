@@ -179,6 +179,8 @@ def _rows(result: DemoResult) -> list[tuple[str, list[str]]]:
             lambda r: f"{100 * r.evaluation.head_position_rms_xy_m:.1f}"),
         row("foot slide per contact [mm]", lambda r: f"{r.evaluation.foot_slide_mm:.1f} mean, "
                                                      f"{r.evaluation.foot_slide_max_mm:.1f} max"),
+        row("largest joint-angle jump [deg/frame]",
+            lambda r: f"{r.evaluation.joint_angle_jump_max_deg:.2f}"),
         row("UWB gap remaining [cm]", lambda r: "-" if r.gap_m is None else
             f"{100 * r.gap_m[0]:.1f} mean, {100 * r.gap_m[1]:.1f} max"),
         row("speed [frames/s]", lambda r: f"{len(r.motion) / r.solve_seconds:.0f} "

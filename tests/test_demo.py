@@ -17,7 +17,7 @@ def test_demo_writes_results_and_prints_the_table(tmp_path: Path, capsys) -> Non
     assert main(["demo", "--out", str(out), "--seconds", "6", "--quiet"]) == 0
     text = capsys.readouterr().out
     for label in ("joint angle RMS", "head position RMS", "foot slide", "frames/s",
-                  "UWB gap remaining"):
+                  "UWB gap remaining", "joint-angle jump"):
         assert label in text
     # the heading row: one column per mode, in this order
     assert ["IMU", "only", "UWB", "slide", "UWB", "no-slide"] in [line.split()
