@@ -3,12 +3,16 @@
 Per frame, warm started from the previous frame:
 
 * costs: segment orientations (IMU), site positions (UWB, markers), a posture prior on joints
-  the sensors leave open, smoothness toward the previous frame, and during flight a ballistic
-  pelvis path;
+  the sensors leave open, smoothness toward the previous frame, the bend of sensed joints away
+  from their sensors kept from the previous frame (``persistence``), the pelvis across
+  hand-overs and swing feet led by a correction (:mod:`.support`), and during flight a
+  ballistic pelvis path;
 * constraints: anatomical ranges of motion (linearised), contact points in contact held at
   their touch-down anchors (no slip), contact points above the floor, velocity bounds.
 
 Global translation without aiding comes from chaining contacts: the planted foot is the anchor.
+A leg that lets go of the floor eases back to its sensors (:mod:`.release`), so what the contact
+bent does not snap back in one frame.
 """
 
 from __future__ import annotations
