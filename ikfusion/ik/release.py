@@ -14,11 +14,11 @@ shrinks it at a bounded rate, so the leg returns to its sensors within a few fra
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ..rotations import exp_so3, log_so3
+from ..rotations import exp_so3
 
 
 class ReleaseEasing:
@@ -38,28 +38,23 @@ class ReleaseEasing:
         self.reset()
 
     def reset(self) -> None:
-        """No offsets; nothing recorded."""
+        """No offsets."""
         self.offsets = np.zeros((self._n, 3))
-        self._deviation = np.zeros((self._n, 3))
 
-    def record(self, segments: np.ndarray, R_world_sensed: np.ndarray,
-               R_world_solved: np.ndarray) -> None:
-        """After solving: the deviation of ``segments`` from their sensed orientations.
+    def release(self, released: np.ndarray,
+                bend: Callable[[np.ndarray], np.ndarray]) -> None:
+        """Points that let go (k,) bool: the segments of their legs keep their bend as offsets.
 
         Args:
-            segments: (m,) segment indices (those of the legs).
-            R_world_sensed: (m, 3, 3) their orientation targets of the frame, without offsets.
-            R_world_solved: (m, 3, 3) their solved orientations.
+            released: Which contact points let go this frame.
+            bend: Given segment indices (m,), their last solved orientations' deviation from
+                their sensed ones, ``Log(R_world_sensed^T R_world_solved)`` (m, 3) [rad].
         """
-        self._deviation[segments] = log_so3(np.swapaxes(R_world_sensed, 1, 2) @ R_world_solved)
-
-    def release(self, released: np.ndarray) -> None:
-        """Points that let go (k,) bool: their legs keep their last deviation as offsets."""
-        if self.speed <= 0:
+        if self.speed <= 0 or not released.any():
             return
-        for point in np.flatnonzero(released):
-            leg = self._legs[point]
-            self.offsets[leg] = self._deviation[leg]
+        legs = np.unique(np.concatenate([self._legs[k] for k in np.flatnonzero(released)]))
+        if len(legs):
+            self.offsets[legs] = bend(legs)
 
     def apply(self, R_world_sensed: np.ndarray, dt: float) -> np.ndarray | None:
         """Shrink the offsets by ``speed * dt``; the offset targets (n, 3, 3), None if none."""

@@ -30,7 +30,7 @@ from tqdm import tqdm
 
 from ..errors import SolverError
 from ..model.human_model import HumanModel
-from ..rotations import axis_rotation, matrix_to_quat_wxyz, wxyz_to_xyzw
+from ..rotations import axis_rotation, log_so3, matrix_to_quat_wxyz, wxyz_to_xyzw
 from .compiled import SensedPoseSpec, compiled_kinematics
 from .configuration import Configuration
 from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
@@ -140,8 +140,6 @@ class Solver:
             dtype=int)
         self.easing = ReleaseEasing([self._leg_of(foot) for foot in self._contact_feet],
                                     len(segments), np.radians(s.ease_speed_deg))
-        self._eased_segments = np.unique(np.concatenate(
-            [self._leg_of(foot) for foot in self._contact_feet] or [np.zeros(0, dtype=int)]))
         self.reset()
 
     def _leg_of(self, foot: int) -> np.ndarray:
@@ -290,6 +288,7 @@ class Solver:
             self._set_position_targets(frame)
         self._positions_set = bool(frame.positions)
         both = tracked[self._joint_parent] & tracked[self._joint_child]
+        self._sensed_joints = self._joint_v_cols[both].ravel()  # their tangent columns
         self.posture_task.weights = np.where(both, 0.0, self._posture_weights)
         self._row_weights = (self.orientation_task.row_weights(), self.posture_task.row_weights())
         return tracked
@@ -376,7 +375,7 @@ class Solver:
             self.damping_task.set_reference(self._q)
             self.velocity_limit.set_previous(self._q, dt)
         q_warm = q.copy()
-        self._set_persistence(q_warm, tracked, first)
+        self._set_persistence(q_warm, first)
         if not first and self._contact_ids:
             self._p_sensed = self._smooth(self._p_sensed, p_sensed)
             pitch = self._foot_pitch(self._q, tracked)  # type: ignore[arg-type]
@@ -392,7 +391,8 @@ class Solver:
             if still is not None:
                 rising &= still != 1.0
             # points held in the last solve and not in this one: their legs ease back
-            self.easing.release(self.contact_constraint.active & ~self._contacts.active)
+            self.easing.release(self.contact_constraint.active & ~self._contacts.active,
+                                self._last_bend)
         else:
             rising = None
         if not first:
@@ -438,14 +438,14 @@ class Solver:
                 break  # planted points are then held exactly by the projection below
         relaxed = self._project_on_constraints(conf) or relaxed
         q = conf.q.copy()
-        self._bent = self._sensed_bend(q_warm, q, tracked)
+        self._bent = self._sensed_bend(q_warm, q)
         if first:
             q = self._place_on_floor(q)
             conf.update(q)
         pose = self._finish_frame(frame, q, tracked, dt, first, start, done, relaxed)
         return pose
 
-    def _set_persistence(self, q_warm: np.ndarray, tracked: np.ndarray, first: bool) -> None:
+    def _set_persistence(self, q_warm: np.ndarray, first: bool) -> None:
         """Joints between two sensed segments stay bent as they were in the last frame.
 
         Contacts, limits and the support tasks bend joints away from what the sensors say
@@ -455,21 +455,31 @@ class Solver:
         and keeping a change of it would keep a velocity.
         """
         s = self.settings
-        both = tracked[self._joint_parent] & tracked[self._joint_child]
         weights = np.zeros(self.model.model.nv)
-        weights[self._joint_v_cols[both].ravel()] = s.persistence
+        weights[self._sensed_joints] = s.persistence
         self.persistence_task.weights = weights
         self.persistence_task.set_reference(
             None if first or s.persistence <= 0 or self._bent is None
             else pin.integrate(self.model.model, q_warm, self._bent))
 
-    def _sensed_bend(self, q_warm: np.ndarray, q: np.ndarray, tracked: np.ndarray) -> np.ndarray:
+    def _sensed_bend(self, q_warm: np.ndarray, q: np.ndarray) -> np.ndarray:
         """``q ⊖ q_warm`` (nv) on the joints between two sensed segments, zero elsewhere."""
-        bent = pin.difference(self.model.model, q_warm, q)
-        both = tracked[self._joint_parent] & tracked[self._joint_child]
-        keep = np.zeros(len(bent), dtype=bool)
-        keep[self._joint_v_cols[both].ravel()] = True
-        return np.where(keep, bent, 0.0)
+        bent = np.zeros(self.model.model.nv)
+        bent[self._sensed_joints] = pin.difference(self.model.model, q_warm,
+                                                   q)[self._sensed_joints]
+        return bent
+
+    def _last_bend(self, segments: np.ndarray) -> np.ndarray:
+        """How far the last solved pose turned ``segments`` (m,) from their sensed orientations.
+
+        ``Log(R_world_sensed^T R_world_solved)`` (m, 3) [rad], in the segment frames.
+        """
+        data = self._sensed_data
+        pin.forwardKinematics(self.model.model, data, self._q)
+        ids = [self.orientation_task.frame_ids[i] for i in segments]
+        R_solved = np.array([pin.updateFramePlacement(self.model.model, data, f).rotation
+                             for f in ids]).reshape(-1, 3, 3)
+        return log_so3(np.swapaxes(self._last_sensed[segments], 1, 2) @ R_solved)
 
     def _ease_released_legs(self, dt: float) -> None:
         """Legs that let go of the floor return to their sensed orientations gradually.
@@ -680,9 +690,6 @@ class Solver:
                 self._pitch = self._foot_pitch(q, tracked)
             self._history.append((frame.time, p_contacts))
             self.support.record(p_contacts, q[:3])
-            legs = self._eased_segments
-            self.easing.record(legs, self._sensed_targets[legs],
-                               conf.rotations([self.orientation_task.frame_ids[i] for i in legs]))
             t_old, p_old = self._history[0]
             self._contacts = touch_down(self._contacts, p_contacts, p_old, self._p_sensed,
                                         frame.time - t_old, self.thresholds, frame.contacts,
@@ -692,6 +699,7 @@ class Solver:
         if not first and dt > 0:
             self._root_velocity = (q[:3] - self._q[:3]) / dt  # type: ignore[index]
         self._q = q
+        self._last_sensed = self._sensed_targets
         self._time = frame.time
         return Pose(self.model, float(frame.time), q, contacts_now,
                     time.perf_counter() - start, iterations, relaxed,

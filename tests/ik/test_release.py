@@ -18,9 +18,16 @@ def test_a_released_leg_keeps_its_bend_and_eases_back() -> None:
     sensed = exp_so3(np.random.default_rng(1).normal(size=(5, 3)))
     bend = np.radians(3.0) * np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 0, 0]])
     solved = sensed @ exp_so3(bend)
-    easing.record(np.arange(5), sensed, solved)
-    assert easing.apply(sensed, DT) is None  # nothing let go: the sensed targets stand
-    easing.release(np.array([True, False]))
+    asked = []
+
+    def bend_of(segments: np.ndarray) -> np.ndarray:
+        asked.append(segments.tolist())
+        return bend[segments]
+
+    easing.release(np.array([False, False]), bend_of)
+    assert easing.apply(sensed, DT) is None and not asked  # nothing let go: sensors stand
+    easing.release(np.array([True, False]), bend_of)
+    assert asked == [[1, 2]]
     targets = easing.apply(sensed, 0.0)
     assert targets is not None
     # the left leg starts where it was solved, the pelvis and the right leg at their sensors
@@ -41,11 +48,9 @@ def test_a_released_leg_keeps_its_bend_and_eases_back() -> None:
 def test_a_new_release_restarts_from_the_latest_bend() -> None:
     easing = ReleaseEasing([np.array([1])], 2, SPEED)
     sensed = np.tile(np.eye(3), (2, 1, 1))
-    easing.record(np.array([1]), sensed[1:], exp_so3(np.radians([[2.0, 0, 0]])))
-    easing.release(np.array([True]))
+    easing.release(np.array([True]), lambda legs: np.radians([[2.0, 0, 0]]))
     easing.apply(sensed, 5 * DT)
-    easing.record(np.array([1]), sensed[1:], exp_so3(np.radians([[0, 4.0, 0]])))
-    easing.release(np.array([True]))
+    easing.release(np.array([True]), lambda legs: np.radians([[0, 4.0, 0]]))
     targets = easing.apply(sensed, 0.0)
     assert np.degrees(angle_between(targets[1], exp_so3(np.radians([0, 4.0, 0])))) < 1e-9
 
@@ -53,6 +58,5 @@ def test_a_new_release_restarts_from_the_latest_bend() -> None:
 def test_zero_speed_switches_it_off() -> None:
     easing = ReleaseEasing([np.array([1])], 2, 0.0)
     sensed = np.tile(np.eye(3), (2, 1, 1))
-    easing.record(np.array([1]), sensed[1:], exp_so3(np.radians([[2.0, 0, 0]])))
-    easing.release(np.array([True]))
+    easing.release(np.array([True]), lambda legs: np.radians([[2.0, 0, 0]]))
     assert easing.apply(sensed, DT) is None
