@@ -37,7 +37,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--rate", type=float, metavar="HZ",
                    help="sample rate when the files have no `// Update Rate:` line")
     p.add_argument("--map", metavar="FILE",
-                   help="sensor map YAML: check that its sensors are there, show their segments")
+                   help="sensor map (YAML or OpenSense XML): check that its sensors are there, "
+                        "show their segments")
     p.set_defaults(func=run)
 
 

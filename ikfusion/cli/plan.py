@@ -15,9 +15,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
-from ..errors import ConfigError, InputError
+from ..errors import ConfigError
 from ..uwb import (
     Constellation,
     DopMap,
@@ -28,6 +27,7 @@ from ..uwb import (
     optimize_placement,
     save_constellation,
 )
+from ..yaml_files import read_yaml
 
 
 def _heights(text: str) -> list[float]:
@@ -277,12 +277,7 @@ def _stem(path: str) -> str:
 
 def _load_candidates(path: Path) -> np.ndarray:
     """Candidate mounting points from ``candidates: [[x, y, z], ...]`` or a constellation."""
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except OSError as err:
-        raise InputError(f"cannot read candidates: {err.strerror}", path=path) from err
-    except yaml.YAMLError as err:
-        raise ConfigError(f"not valid YAML: {err}", path=path) from err
+    data = read_yaml(path, "candidates file")
     if isinstance(data, dict) and "candidates" in data:
         rows = data["candidates"]
         if not isinstance(rows, list) or not rows:

@@ -24,7 +24,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--imu", metavar="PATH", help="MT Manager trial prefix, "
                    "folder or file, an IMU CSV or an MVNX file")
-    p.add_argument("--map", metavar="FILE", help="sensor map YAML")
+    p.add_argument("--map", metavar="FILE", help="sensor map YAML or OpenSense mapping XML")
     p.add_argument("--session", metavar="FILE", help="several actors in one world frame: a "
                    "YAML naming each actor's recording, map and body and the shared UWB files "
                    "(instead of --imu/--map); one result folder per actor under --out")

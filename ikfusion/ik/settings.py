@@ -6,10 +6,9 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from ..errors import ConfigError
 from ..paths import shipped_config
+from ..yaml_files import read_yaml
 
 
 @dataclass(frozen=True)
@@ -71,10 +70,9 @@ class SolverSettings:
             ConfigError: Unknown keys or values of the wrong type, naming the key.
         """
         file = Path(path) if path is not None else shipped_config("solver.yaml")
-        try:
-            doc = yaml.safe_load(file.read_text()) or {}
-        except (OSError, yaml.YAMLError) as err:
-            raise ConfigError(f"cannot read solver settings: {err}", path=file) from err
+        doc = read_yaml(file, "solver settings") or {}
+        if not isinstance(doc, dict):
+            raise ConfigError("expected a mapping of sections", path=file)
         flat: dict[str, Any] = {}
         for section, values in doc.items():
             if not isinstance(values, dict):

@@ -9,7 +9,8 @@ A sensor map is YAML::
       Pelvis: -z        # used only when a recording has too little movement to find it
 
 Every scalar is read as text, so an id such as ``00421234`` is never turned into a number.
-Segment names are the 23 MVN names of SPEC section 2.
+Segment names are the 23 MVN names of SPEC section 2. OpenSense's mapping XML (OpenSim body
+names, see :mod:`ikfusion.io.opensense_map`) is read as well.
 """
 
 from __future__ import annotations
@@ -22,7 +23,8 @@ import yaml
 
 from ..errors import ConfigError
 from ..model.joints import SEGMENTS
-from ..yaml_files import read_yaml
+from ..yaml_files import read_yaml, with_line
+from .opensense_map import is_xml_file, read_opensense_mapping
 from .recording import check_sensor_ids, normalize_sensor_id
 
 __all__ = ["SensorMap", "check_sensors", "load_sensor_map", "parse_axis"]
@@ -127,19 +129,29 @@ def sensor_map_from_dict(doc: Any, path: Path | None = None) -> SensorMap:
 
 
 def load_sensor_map(path: str | Path) -> SensorMap:
-    """Read a sensor map YAML file.
+    """Read a sensor map: the YAML of SPEC section 3 or OpenSense's mapping XML.
 
     Args:
-        path: The YAML file (e.g. ``configs/sensors/lower8.yaml``).
+        path: The YAML file (e.g. ``configs/sensors/lower8.yaml``), or an OpenSense XML
+            (``myIMUMappings.xml``: ``.xml`` name or text starting with ``<``), whose OpenSim
+            bodies become segments by :data:`~ikfusion.io.opensense_map.OPENSIM_BODY_SEGMENTS`.
 
     Returns:
-        The :class:`SensorMap` (a dict sensor id -> segment).
+        The :class:`SensorMap` (a dict sensor id -> segment; no ``forward`` from an XML).
 
     Raises:
-        ConfigError: Unreadable or not YAML, or an invalid map (see
-            :func:`sensor_map_from_dict`); the message names the file and the key.
+        ConfigError: Unreadable, not YAML/XML, or an invalid map (see
+            :func:`sensor_map_from_dict`); the message names the file, the line and the key.
     """
     file = Path(path)
+    if is_xml_file(file):
+        sensors = read_opensense_mapping(file)
+        try:
+            return sensor_map_from_dict(
+                {"sensors": {sid: segment for sid, (segment, _) in sensors.items()}}, file)
+        except ConfigError as err:
+            sid = (err.field or "").removeprefix("sensors.")
+            raise with_line(err, sensors[sid][1] if sid in sensors else None) from None
     doc = read_yaml(file, "the sensor map", loader=_text_loader())
     return sensor_map_from_dict(doc, file)
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 
 from ..errors import ConfigError
-from ..yaml_files import read_yaml
+from ..yaml_files import read_yaml_document, with_line
 
 #: Default dimension / body height ratios (Winter 2009, Fig. 4.1; see module docstring).
 HEIGHT_FRACTIONS: dict[str, float] = {
@@ -120,7 +120,12 @@ class Body:
             if isinstance(value, bool) or not isinstance(value, int | float):
                 raise ConfigError(f"expected a number in metres, found {value!r}", path=source,
                                   field=key)
-            parsed[key] = float(value)
+            try:
+                parsed[key] = float(value)
+            except OverflowError:  # an integer with hundreds of digits
+                raise ConfigError(f"expected a number in metres, found an integer of "
+                                  f"{len(str(abs(int(value))))} digits", path=source,
+                                  field=key) from None
         body = object.__new__(cls)
         for f in fields(cls):
             object.__setattr__(body, f.name, parsed.get(f.name, f.default))
@@ -129,12 +134,21 @@ class Body:
 
     @classmethod
     def from_yaml(cls, path: str | Path) -> Body:
-        """Read a body file (YAML mapping of SPEC section 2 keys)."""
+        """Read a body file (YAML mapping of SPEC section 2 keys).
+
+        Raises:
+            ConfigError: Unreadable, not YAML (see :mod:`ikfusion.yaml_files`), or a value that is
+                not a finite, plausible number in metres (kg for ``mass``); naming the file, the
+                line and the key.
+        """
         file = Path(path)
-        doc = read_yaml(file, "body file")
-        if not isinstance(doc, dict):
+        doc = read_yaml_document(file, "body file")
+        if not isinstance(doc.data, dict):
             raise ConfigError("expected a mapping of body dimensions", path=file)
-        return cls.from_dict(doc, source=file)
+        try:
+            return cls.from_dict(doc.data, source=file)
+        except ConfigError as err:
+            raise with_line(err, doc.line_of(err.field) if err.field else None) from None
 
     def to_dict(self) -> dict[str, float]:
         """Every dimension resolved (defaults filled in), in metres and kg."""

@@ -7,8 +7,10 @@ from pathlib import Path
 
 import pytest
 
+from ikfusion.cli import main
 from ikfusion.errors import ConfigError
 from ikfusion.io import SensorMap, load_sensor_map, read_mtmanager
+from ikfusion.io.opensense_map import OPENSIM_BODY_SEGMENTS
 from ikfusion.model import SEGMENTS
 from ikfusion.paths import configs_dir
 
@@ -99,3 +101,83 @@ def test_not_yaml(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="not valid YAML") as err:
         load_sensor_map(path)
     assert err.value.path == path
+
+
+def test_opensim_body_table_names_our_segments() -> None:
+    assert set(OPENSIM_BODY_SEGMENTS.values()) <= set(SEGMENTS)
+    for body, segment in OPENSIM_TO_MVN.items():
+        assert OPENSIM_BODY_SEGMENTS[body] == segment
+    sides = {"_r": "Right", "_l": "Left"}
+    for body, segment in OPENSIM_BODY_SEGMENTS.items():
+        if body[-2:] in sides:
+            assert segment.startswith(sides[body[-2:]])
+            assert OPENSIM_BODY_SEGMENTS[body[:-1] + ("l" if body[-1] == "r" else "r")] == \
+                segment.replace(sides[body[-2:]], sides["_l" if body[-1] == "r" else "_r"])
+
+
+def test_opensense_xml_map_solves_like_lower8(shared_data: Path, tmp_path: Path) -> None:
+    folder = shared_data / "xsens/opensense_walk"
+    xml = folder / "myIMUMappings.xml"
+    lower8 = configs_dir() / "sensors/lower8.yaml"
+    smap = load_sensor_map(xml)
+    assert dict(smap) == dict(load_sensor_map(lower8)) and smap.path == xml
+    for name, map_file in (("xml", xml), ("yaml", lower8)):
+        assert main(["solve", "--imu", str(folder), "--map", str(map_file), "--out",
+                     str(tmp_path / name), "--quiet"]) == 0
+    for result in ("joint_angles.csv", "segments.csv", "contacts.csv"):
+        assert (tmp_path / "xml" / result).read_bytes() == (tmp_path / "yaml" / result).read_bytes()
+
+
+def _opensense(entries: str) -> str:
+    return ('<?xml version="1.0" encoding="UTF-8" ?>\n<OpenSimDocument Version="40000">\n'
+            "<XsensDataReaderSettings>\n<ExperimentalSensors>\n" + entries
+            + "</ExperimentalSensors>\n</XsensDataReaderSettings>\n</OpenSimDocument>\n")
+
+
+def _sensor(sid: str, frame: str) -> str:
+    return (f'<ExperimentalSensor name="_{sid}">\n'
+            f"  <name_in_model>{frame}</name_in_model>\n</ExperimentalSensor>\n")
+
+
+@pytest.mark.parametrize(
+    ("text", "line", "words"),
+    [
+        (_opensense(_sensor("00B40001", "pelvis_imu") + _sensor("00B40002", "spine_imu")), 8,
+         "unknown OpenSim body 'spine' for sensor 00B40002"),
+        (_opensense(_sensor("00B40001", "pelvis_imu") + _sensor("00B40002", "pelvis")), 8,
+         "segment Pelvis has two sensors (00B40001 and 00B40002)"),
+        (_opensense(_sensor("00B40001", "pelvis_imu") + _sensor("00B40001", "torso_imu")), 8,
+         "sensor 00B40001 is listed twice (lines 5 and 8)"),
+        (_opensense('<ExperimentalSensor name="_00B40001">\n</ExperimentalSensor>\n'), 5,
+         "no <name_in_model>"),
+        (_opensense(_sensor("00B40001", "pelvis_imu")).replace("</ExperimentalSensors>", ""), 9,
+         "not valid XML: mismatched tag"),
+        ('<?xml version="1.0"?>\n<!DOCTYPE lolz [<!ENTITY lol "lol"><!ENTITY lol2 '
+         '"&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;&lol;">]>\n'
+         + _opensense(_sensor("00B40001", "pelvis_imu")).split("\n", 1)[1], 2, "DOCTYPE"),
+        (_opensense(""), None, "no <ExperimentalSensor"),
+    ],
+)
+def test_bad_opensense_xml_names_file_and_line(tmp_path: Path, text: str, line: int | None,
+                                               words: str) -> None:
+    path = tmp_path / "myIMUMappings.xml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as err:
+        load_sensor_map(path)
+    assert err.value.path == path and err.value.line == line
+    assert words in str(err.value)
+
+
+def test_xml_map_under_any_name_and_bad_xml_exits_2(tmp_path: Path, capsys) -> None:
+    path = tmp_path / "map.yaml"  # XML content, whatever the name says
+    path.write_text(_opensense(_sensor("00B40001", "pelvis_imu") + _sensor("00B40002", "head")
+                               + _sensor("00B40003", "radius_l_imu")))
+    assert dict(load_sensor_map(path)) == {"00B40001": "Pelvis", "00B40002": "Head",
+                                           "00B40003": "LeftForeArm"}
+    path.write_text(_opensense(_sensor("00B40001", "pelvis_imu <")))
+    export = tmp_path / "T_00B40001.txt"
+    export.write_text("// Update Rate: 60.0Hz\nPacketCounter\tQuat_q0\tQuat_q1\tQuat_q2\tQuat_q3\n"
+                      "1\t1\t0\t0\t0\n")
+    assert main(["solve", "--imu", str(export), "--map", str(path), "--out",
+                 str(tmp_path / "r"), "--quiet"]) == 2
+    assert "map.yaml, line 6: not valid XML" in capsys.readouterr().err

@@ -122,3 +122,24 @@ def test_body_yaml_round_trip(tmp_path: Path) -> None:
     body = Body.from_yaml(path)
     assert body.dimension("shoulder_width") == 0.36
     assert body.dimension("upper_arm") == pytest.approx(0.186 * 1.62)
+
+
+@pytest.mark.parametrize(
+    ("value", "field"),
+    [
+        (".nan", "height"), (".inf", "height"), ("-.inf", "height"), ("0", "height"),
+        ("1" + "0" * 400, "height"),  # an integer too large for a float
+        (".nan", "upper_leg"), (".inf", "upper_leg"), ("-0.43", "upper_leg"), ("43", "upper_leg"),
+        (".nan", "mass"), ("1.0e+400", "mass"), ("7000", "mass"),
+    ],
+)
+def test_non_finite_or_absurd_body_value_names_file_line_field(tmp_path: Path, value: str,
+                                                               field: str) -> None:
+    values = {"height": "1.75", "mass": "70", "upper_leg": "0.43"} | {field: value}
+    lines = ["# subject 7, measured 2026-03-02"] + [f"{k}: {v}" for k, v in values.items()]
+    path = tmp_path / "body.yaml"
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(ConfigError) as err:
+        Body.from_yaml(path)
+    assert (err.value.path, err.value.field) == (path, field)
+    assert err.value.line == 1 + list(values).index(field) + 1

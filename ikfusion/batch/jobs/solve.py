@@ -190,8 +190,8 @@ KIND = JobKind(
     "parallel on Dask. Reruns skip inputs already solved with the same files and options; "
     "DIR/batch_report.csv lists input,status,error,frames,seconds.",
     options=(
-        Option(("--map",), {"metavar": "FILE", "help": "sensor map YAML (needed for IMU "
-                            "recordings; overrides a capture folder's sensors.yaml)"}),
+        Option(("--map",), {"metavar": "FILE", "help": "sensor map YAML or OpenSense XML (needed "
+                            "for IMU recordings; overrides a capture folder's sensors.yaml)"}),
         Option(("--body",), {"metavar": "FILE", "help": "body dimensions YAML (overrides a "
                              "capture folder's body.yaml)"}, group="body"),
         Option(("--height",), {"type": float, "metavar": "M", "help": "body height [m] "
