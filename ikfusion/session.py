@@ -20,6 +20,7 @@ All actors share the timeline of the TOA log (seconds from the recordings' first
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -30,11 +31,15 @@ from .correction import DriftCorrection
 from .errors import ConfigError
 from .ik import Motion, Solver
 from .imu.calibration import calibrate_recording
+from .imu.mvn_calibration import calibration_from_mvnx
+from .io.mvnx import MvnxRecording, read_mvnx
 from .io.reader import read_imu
+from .io.recording import check_sensor_ids
 from .io.sensor_map import load_sensor_map
 from .model import Body, HumanModel
 from .pipeline import solve_recording
 from .results import write_result_folder
+from .results.mvn_comparison import compare_with_mvn
 from .uwb_aiding import UwbInputs, drift_correction, track_recording_tags, uwb_summary
 from .yaml_files import read_yaml
 
@@ -46,7 +51,8 @@ class ActorInputs:
     Attributes:
         name: The actor (as the tags file names it; None for a single solve of every tag).
         imu: MT Manager prefix, folder or file, IMU CSV or MVNX.
-        sensor_map: Sensor map YAML.
+        sensor_map: Sensor map (YAML or OpenSense XML); None for an MVNX file, whose sensors
+            are named by their segments.
         body: Body YAML, or None.
         height: Body height [m] when there is no body file (None: the default body).
         window_s: Calibration window [s] (None: automatic), ``pose``: ``npose``/``tpose``.
@@ -56,7 +62,7 @@ class ActorInputs:
 
     name: str | None
     imu: Path
-    sensor_map: Path
+    sensor_map: Path | None
     body: Path | None = None
     height: float | None = None
     window_s: tuple[float, float] | None = None
@@ -64,13 +70,27 @@ class ActorInputs:
     forward: dict[str, str] | None = None
     rate: float | None = None
 
-    def model(self) -> HumanModel:
-        """The actor's body model."""
+    def model(self, mvnx: MvnxRecording | None = None) -> HumanModel:
+        """The actor's body model (an MVNX take brings its subject's dimensions)."""
         if self.body is not None:
             return HumanModel.from_body(Body.from_yaml(self.body))
         if self.height is not None:
             return HumanModel.from_body(Body.from_height(self.height))
+        if mvnx is not None:
+            dimensions = mvnx.body_dimensions()
+            if "height" in dimensions:
+                return HumanModel.from_body(Body.from_dict(dimensions, source=mvnx.path))
         return HumanModel.default()
+
+    def mvnx(self) -> MvnxRecording | None:
+        """The MVNX take when ``imu`` is one (MVN's own calibration and result come with it)."""
+        if self.imu.is_file() and self.imu.suffix.lower() == ".mvnx":
+            return read_mvnx(self.imu)
+        return None
+
+    def uses_file_calibration(self) -> bool:
+        """Whether an MVNX take keeps MVN's calibration (no window, T-pose or heading given)."""
+        return self.window_s is None and self.pose == "npose" and self.forward is None
 
 
 @dataclass
@@ -95,11 +115,24 @@ def solve_actor(actor: ActorInputs, out: str | Path, uwb: UwbInputs | None = Non
     Raises:
         InputError: Bad files (file, line and field named).
     """
-    sensor_map = load_sensor_map(actor.sensor_map)
-    recording = read_imu(actor.imu, rate=actor.rate, sensor_map=sensor_map)
-    model = actor.model()
-    cal = calibrate_recording(recording, sensor_map, actor.window_s, forward=actor.forward,
-                              pose=actor.pose)
+    mvnx = actor.mvnx()
+    if actor.sensor_map is None and mvnx is None:
+        raise ConfigError("a sensor map is needed (--map) for anything but an MVNX file",
+                          path=actor.imu, field="map")
+    sensor_map: Mapping[str, str] = (load_sensor_map(actor.sensor_map)
+                                     if actor.sensor_map is not None
+                                     else mvnx.sensor_map() if mvnx is not None else {})
+    if mvnx is not None:
+        recording = mvnx.imu_recording()
+        recording.warnings += check_sensor_ids(sensor_map, recording.sensors, actor.imu)
+    else:
+        recording = read_imu(actor.imu, rate=actor.rate, sensor_map=sensor_map)
+    model = actor.model(mvnx)
+    if mvnx is not None and actor.uses_file_calibration():
+        cal = calibration_from_mvnx(mvnx)
+    else:
+        cal = calibrate_recording(recording, sensor_map, actor.window_s, forward=actor.forward,
+                                  pose=actor.pose)
     fix: DriftCorrection | None = None
     summary: dict[str, object] = {"used": False}
     if uwb is not None:
@@ -117,6 +150,9 @@ def solve_actor(actor: ActorInputs, out: str | Path, uwb: UwbInputs | None = Non
     }
     if actor.name is not None:
         extra["actor"] = actor.name
+    if mvnx is not None:
+        extra["mvn_comparison"] = compare_with_mvn(result.motion, mvnx)
+        result.motion.warnings += extra["mvn_comparison"]["warnings"]
     write_result_folder(result.motion, out, bvh_up=bvh_up, extra_summary=extra)
     return result.motion
 
@@ -179,6 +215,6 @@ def _actor(session: Path, name: str, spec: Any) -> ActorInputs:
                           field=f"{key}.height")
     return ActorInputs(
         name=name, imu=_file(session, spec, "imu", f"{key}.imu"),
-        sensor_map=_file(session, spec, "map", f"{key}.map"),
+        sensor_map=_file(session, spec, "map", f"{key}.map") if "map" in spec else None,
         body=_file(session, spec, "body", f"{key}.body") if "body" in spec else None,
         height=None if height is None else float(height))

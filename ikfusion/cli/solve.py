@@ -24,7 +24,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--imu", metavar="PATH", help="MT Manager trial prefix, "
                    "folder or file, an IMU CSV or an MVNX file")
-    p.add_argument("--map", metavar="FILE", help="sensor map YAML or OpenSense mapping XML")
+    p.add_argument("--map", metavar="FILE", help="sensor map: YAML or OpenSense's mapping XML "
+                   "(not needed for an MVNX file, whose sensors are named by segment)")
     p.add_argument("--session", metavar="FILE", help="several actors in one world frame: a "
                    "YAML naming each actor's recording, map and body and the shared UWB files "
                    "(instead of --imu/--map); one result folder per actor under --out")
@@ -100,14 +101,16 @@ def run(args: argparse.Namespace) -> int:
     """Run ``ikfusion solve``."""
     if args.session:
         return _run_session(args)
-    if not args.imu or not args.map:
+    if not args.imu:
         raise InputError("give --imu and --map (or --session FILE)", field="imu")
+    if not args.map and Path(args.imu).suffix.lower() != ".mvnx":
+        raise InputError("give --map (only an MVNX file solves without one)", field="map")
     files = _uwb_files(args)
     if files is None and args.correction:
         print("warning: --correction has no effect without UWB (--toa/--readers/--tags)",
               file=sys.stderr)
     window, pose = parse_calibrate(args.calibrate)
-    actor = ActorInputs(None, Path(args.imu), Path(args.map),
+    actor = ActorInputs(None, Path(args.imu), Path(args.map) if args.map else None,
                         Path(args.body) if args.body else None, args.height, window, pose,
                         parse_forward(args.forward), args.rate)
     motion = solve_actor(actor, args.out, files, args.correction, args.bvh_up,
