@@ -31,9 +31,9 @@ DEFAULT_MARGIN = 0.5
 #: Headings tried, in degrees, smallest turn first.
 _YAWS_DEG = [0.0] + [s * a for a in range(10, 181, 10) for s in (1, -1) if s * a != -180]
 #: Track samples scored per layout.
-_TRACK_POINTS = 150
-#: Grid cells across the area's larger side for the centre positions tried.
-_GRID_CELLS = 40
+_TRACK_POINTS = 64
+#: Grid cells across each side of the area's bounding box for the centre positions tried.
+_GRID_CELLS = 24
 
 
 @dataclass(frozen=True)
@@ -138,9 +138,10 @@ def fit_track(
     centre = 0.5 * (track.min(axis=0) + track.max(axis=0))
     local = track[pick] - centre
     lo, hi = poly.min(axis=0), poly.max(axis=0)
-    step = max(float(np.max(hi - lo)) / _GRID_CELLS, 0.02)
-    gx = np.arange(lo[0], hi[0] + 0.5 * step, step)
-    gy = np.arange(lo[1], hi[1] + 0.5 * step, step)
+    # The same number of cells on both sides, so a narrow area is searched across too.
+    gx = np.linspace(lo[0], hi[0], _GRID_CELLS + 1)
+    gy = np.linspace(lo[1], hi[1], _GRID_CELLS + 1)
+    step = max(float(np.min(hi - lo)) / _GRID_CELLS, 0.01)
     spots = np.stack(np.meshgrid(gx, gy), axis=-1).reshape(-1, 2)
     middle = 0.5 * (lo + hi)
     best: tuple[tuple[float, float, float], float, np.ndarray] | None = None
