@@ -4,7 +4,8 @@ The result folder's CSV files are compared with ``truth.npz`` at the truth's sam
 (the estimate is interpolated linearly, quaternions by normalised linear blending of the
 nearest samples). Without UWB the absolute position of the body is unobservable, so by default
 (``align="auto"``) an IMU-only result is shifted horizontally so that its first pelvis position
-equals the truth's; a result that used UWB is compared as it is.
+equals the truth's; a result that used UWB is compared as it is. The shift applied is reported
+as ``start_shift_m`` ([x, y, z] [m], zero when not aligned).
 
 Metrics (all over the common time span):
 
@@ -50,6 +51,7 @@ class Evaluation:
     per_joint_rms_deg: dict[str, float] = field(default_factory=dict)
     joint_angle_jump_max_deg: float = 0.0
     joint_angle_jump_at: str = ""
+    start_shift_m: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
 
     def as_dict(self) -> dict[str, object]:
         """Plain dictionary (for JSON)."""
@@ -225,4 +227,5 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
         per_joint_rms_deg=per_joint,
         joint_angle_jump_max_deg=jump,
         joint_angle_jump_at=jump_at,
+        start_shift_m=[float(v) for v in shift],
     )

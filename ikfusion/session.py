@@ -141,7 +141,7 @@ def solve_actor(actor: ActorInputs, out: str | Path, uwb: UwbInputs | None = Non
     result = solve_recording(recording, sensor_map, model, solver=Solver(model),
                              progress=progress, correction=fix, calibration=cal)
     if uwb is not None and fix is not None:
-        summary = uwb_summary(tracks, fix, uwb.smooth)
+        summary = {**uwb_summary(tracks, fix, uwb.smooth), "readers": str(uwb.readers.resolve())}
     extra: dict[str, Any] = {
         "calibration": {"method": cal.method, "heading_deg": float(np.degrees(cal.heading)),
                         "window_s": [cal.window[0] / recording.rate,

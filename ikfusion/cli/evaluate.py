@@ -7,6 +7,7 @@ import json
 import sys
 
 from ..evaluate import evaluate
+from ..uwb.constellation import load_constellation
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -24,8 +25,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--align", choices=["auto", "start", "none"], default="auto",
                    help="shift the estimate to the true start position (auto: only without UWB)")
     p.add_argument("--plot", metavar="DIR", nargs="?", const="", default=None,
-                   help="write trajectory.png and joint_angles.png (into DIR, default the "
-                   "result folder); needs matplotlib")
+                   help="write trajectory.png (HeadTop top view as scored, i.e. with the "
+                   "same start alignment, readers and capture area when known) and "
+                   "joint_angles.png (hip, knee, ankle, shoulder flexion, both sides) into DIR, "
+                   "default the result folder; needs matplotlib")
+    p.add_argument("--readers", metavar="FILE",
+                   help="constellation drawn on the plot (default: the one summary.json names)")
     p.set_defaults(func=run)
 
 
@@ -36,7 +41,9 @@ def run(args: argparse.Namespace) -> int:
     if args.plot is not None:
         from ..evaluate_plot import plot_evaluation
 
-        for path in plot_evaluation(args.result, args.truth, args.plot or args.result):
+        readers = load_constellation(args.readers) if args.readers else None
+        for path in plot_evaluation(args.result, args.truth, args.plot or args.result,
+                                    evaluation=result, readers=readers):
             print(f"wrote {path}", file=sys.stderr)
     if args.json:
         print(json.dumps(metrics, indent=2))

@@ -3,8 +3,10 @@
 ``ikfusion plan FILE.yaml`` draws the expected position sigma (range sigma x DOP) over the
 capture area at one tag height and prints its summary. ``ikfusion plan FILE.yaml --optimize N``
 chooses N reader positions among candidate mounting points (the area border at
-``--mount-heights`` by default) minimising the 95th-percentile expected sigma, and compares them
-with a naive layout evenly spaced along the border.
+``--mount-heights`` by default, plus the file's own readers) minimising the 95th-percentile
+expected sigma. The search starts from the file's readers when there are N of them (else from a
+naive layout evenly spaced along the border, and says so), never returns a layout worse than
+that start, and reports "start -> optimised" on the same map grid.
 """
 
 from __future__ import annotations
@@ -57,7 +59,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="DOP maps of a reader constellation; reader placement",
         description="Draw the expected position sigma (range sigma x DOP) of a constellation "
         "over its capture area and print median, 95th percentile, max and the fraction under "
-        "5 cm; with --optimize N, choose N reader positions that minimise the 95th percentile.",
+        "5 cm; with --optimize N, choose N reader positions that minimise the 95th percentile, "
+        "starting from the file's readers when it has N of them (else from N readers evenly "
+        "spaced on the area border); the result is never worse than that start.",
     )
     p.add_argument("constellation", metavar="CONSTELLATION.yaml", help="constellation YAML")
     p.add_argument("--height", type=float, default=1.5, metavar="M", help="tag height [m]")
@@ -154,10 +158,13 @@ def _run_optimize(args: argparse.Namespace) -> int:
             field="area",
         )
     area = capture_area(template)
+    own = template.positions if template.readers else None
+    from_own = own is not None and len(own) == args.optimize
     candidates = None if args.candidates is None else _load_candidates(Path(args.candidates))
     result = optimize_placement(
         area,
         args.optimize,
+        start=own if from_own else None,
         candidates=candidates,
         mount_heights=args.mount_heights,
         spacing=args.spacing,
@@ -166,11 +173,19 @@ def _run_optimize(args: argparse.Namespace) -> int:
         clock=args.clock == "free",
         sigma=template.sigma,
         coverage=template.range,
+        eval_step=args.step,
     )
-    naive_c = _layout(result.naive, template, area, "naive")
+    start_name = "your layout" if from_own else "naive perimeter layout"
+    start_c = _layout(result.start, template, area, "start")
     chosen_c = _layout(result.chosen, template, area, f"{template.name or 'area'}_optimized")
-    naive_map, chosen_map = _map(naive_c, args), _map(chosen_c, args)
-    naive_s, chosen_s = naive_map.summary(), chosen_map.summary()
+    start_map, chosen_map = _map(start_c, args), _map(chosen_c, args)
+    start_s, chosen_s = start_map.summary(), chosen_map.summary()
+    naive_s = (
+        start_s
+        if not from_own
+        else _map(_layout(result.naive, template, area, "naive"), args).summary()
+    )
+    own_s = None if own is None else _map(_layout(own, template, area, "own"), args).summary()
     written = None
     if args.out_constellation:
         written = save_constellation(chosen_c, args.out_constellation)
@@ -179,15 +194,16 @@ def _run_optimize(args: argparse.Namespace) -> int:
         from ..uwb.plot import plot_placement
 
         png = plot_placement(
-            naive_map,
+            start_map,
             chosen_map,
-            result.naive,
+            result.start,
             result.chosen,
             args.out or f"{_stem(args.constellation)}_placement.png",
+            start_label=start_name,
         )
     gain = (
-        100.0 * (1.0 - chosen_s.p95 / naive_s.p95)
-        if np.isfinite(naive_s.p95) and np.isfinite(chosen_s.p95)
+        100.0 * (1.0 - chosen_s.p95 / start_s.p95)
+        if np.isfinite(start_s.p95) and np.isfinite(chosen_s.p95)
         else None
     )
     report: dict[str, Any] = {
@@ -196,8 +212,17 @@ def _run_optimize(args: argparse.Namespace) -> int:
         **_settings(template, args, chosen_map),
         "candidates": len(result.candidates),
         "layouts_scored": result.evaluations,
+        "start": {
+            "layout": "yours" if from_own else "naive",
+            "readers": _rows(result.start),
+            "summary": start_s.as_dict("cm"),
+        },
+        "yours": None
+        if own is None
+        else {"readers": _rows(own), "summary": None if own_s is None else own_s.as_dict("cm")},
         "naive": {"readers": _rows(result.naive), "summary": naive_s.as_dict("cm")},
         "optimized": {"readers": _rows(result.chosen), "summary": chosen_s.as_dict("cm")},
+        "kept_start": result.kept_start,
         "p95_improvement_percent": None if gain is None else round(gain, 2),
         "png": None if png is None else str(png),
         "constellation_out": None if written is None else str(written),
@@ -205,12 +230,21 @@ def _run_optimize(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(report, indent=2))
         return 0
-    print(_describe("naive perimeter layout", naive_map, args))
+    if own is not None and not from_own and own_s is not None:
+        print(
+            f"your file has {len(own)} readers (p95 {_cm(own_s.p95)}); --optimize "
+            f"{args.optimize} starts from a naive layout of {args.optimize} readers evenly "
+            "spaced on the area border"
+        )
+    print(_describe(start_name, start_map, args))
     print(_describe(f"optimised ({len(result.candidates)} candidates)", chosen_map, args))
     change = "n/a" if gain is None else f"{gain:.1f} % lower"
     print(
-        f"p95 expected sigma: naive {_cm(naive_s.p95)} -> optimised {_cm(chosen_s.p95)} ({change})"
+        f"p95 expected sigma: {start_name} {_cm(start_s.p95)} -> optimised "
+        f"{_cm(chosen_s.p95)} ({change})"
     )
+    if result.kept_start:
+        print(f"  no layout searched beats {start_name}; it is kept")
     for i, (x, y, z) in enumerate(result.chosen):
         print(f"  R{i + 1}: [{x:.2f}, {y:.2f}, {z:.2f}]")
     if written is not None:

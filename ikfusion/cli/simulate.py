@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from ..errors import InputError
+from ..sim.area_fit import DEFAULT_MARGIN, place_in_area
 from ..sim.capture import truth_motion, write_capture
 from ..sim.imu import ImuNoise
 from ..uwb.constellation import load_constellation
+from ..uwb.dop import capture_area
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -26,7 +29,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--rate", type=float, default=60.0, metavar="HZ", help="sensor rate [Hz]")
     p.add_argument("--noise", choices=["default", "none"], default="default",
                    help="sensor errors (none: perfect sensors)")
-    p.add_argument("--readers", metavar="FILE", help="UWB constellation YAML")
+    p.add_argument("--readers", metavar="FILE",
+                   help="UWB constellation YAML; the motion is turned about z and moved so its "
+                   "ground track lies inside the constellation's area (else the readers' "
+                   "footprint) with a margin, and a warning says when it cannot fit")
+    p.add_argument("--margin", type=float, default=DEFAULT_MARGIN, metavar="M",
+                   help="clearance of the ground track from the area border with --readers "
+                   "[m] (default %(default)s)")
     p.add_argument("--seed", type=int, default=1, help="random seed")
     p.add_argument("--out", required=True, metavar="DIR", help="capture folder")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -35,12 +44,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``ikfusion simulate``."""
+    if args.margin < 0:
+        raise InputError(f"--margin must not be negative, got {args.margin}", field="margin")
     if args.rate <= 0 or args.seconds <= 2.5:
         raise InputError("--rate must be positive and --seconds above 2.5 (2 s of N-pose "
                          "come first)", field="seconds")
     truth = truth_motion(args.motion, args.seconds, args.rate, progress=not args.quiet)
     noise = ImuNoise() if args.noise == "default" else ImuNoise.none()
     constellation = load_constellation(args.readers) if args.readers else None
+    if constellation is not None:
+        truth, fit = place_in_area(truth, capture_area(constellation), args.margin)
+        print(fit.describe())
+        if not fit.fits:
+            print(f"warning: {truth.source} does not fit inside the capture area of "
+                  f"{args.readers} with a {fit.margin:g} m margin: "
+                  f"{100 * fit.inside_after:.0f} % of its ground track is inside, the rest "
+                  f"reaches {max(-fit.clearance, 0.0):.2f} m beyond the border; the readers "
+                  "cover it less well there", file=sys.stderr)
     capture = write_capture(args.out, truth, noise, args.seed, constellation=constellation)
     print(f"wrote {capture.folder}: {len(truth.time)} samples at {truth.rate:g} Hz from "
           f"{truth.source}")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 from dataclasses import dataclass, field, replace
@@ -123,12 +124,17 @@ def write_truth(path: str | Path, truth: TruthMotion) -> Path:
     Keys: ``time`` (N,) [s]; ``q`` (N, nq); ``segment_names``; ``p_world_segment`` (N, S, 3)
     [m]; ``quat_wxyz_world_segment`` (N, S, 4); ``site_names``; ``p_world_site`` (N, M, 3) [m];
     ``contact_names``; ``contacts`` (N, k) bool; ``joint_angle_names`` and ``joint_angles``
-    (N, 66) [deg]; ``source``.
+    (N, 66) [deg]; ``source``; with ``info["area_fit"]`` (where ``simulate --readers`` put
+    the motion in the capture area, see :mod:`ikfusion.sim.area_fit`) also ``area_fit``, that
+    mapping as a JSON string.
     """
     model = truth.model
     segments = model.segment_names
     sites = model.site_names
     p_seg, R_seg = segment_poses(model, truth.q)
+    extra: dict[str, Any] = {}
+    if "area_fit" in truth.info:
+        extra["area_fit"] = np.array(json.dumps(truth.info["area_fit"]))
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".npz")
@@ -140,7 +146,8 @@ def write_truth(path: str | Path, truth: TruthMotion) -> Path:
             site_names=np.array(sites), p_world_site=site_positions(model, truth.q, sites),
             contact_names=np.array(truth.contact_names), contacts=truth.contacts,
             joint_angle_names=np.array(model.angle_columns),
-            joint_angles=model.joint_angle_matrix(truth.q), source=np.array(truth.source))
+            joint_angles=model.joint_angle_matrix(truth.q), source=np.array(truth.source),
+            **extra)
         os.replace(tmp, target)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

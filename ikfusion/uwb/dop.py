@@ -317,6 +317,35 @@ def capture_area(constellation: Constellation) -> np.ndarray:
     return convex_hull_polygon(constellation.positions[:, :2])
 
 
+def map_step(area: npt.ArrayLike, step: float | None = None) -> float:
+    """Grid spacing of a DOP map over ``area``: ``step``, or about 10 000 points (>= 5 cm) [m].
+
+    Raises:
+        InputError: When ``step`` is not positive.
+    """
+    poly = np.asarray(area, dtype=float)
+    value = max(np.sqrt(polygon_area(poly) / 1e4), 0.05) if step is None else float(step)
+    if not value > 0:
+        raise InputError(f"grid step must be positive, got {value}")
+    return value
+
+
+def area_points(area: npt.ArrayLike, height: float, step: float | None = None) -> np.ndarray:
+    """The grid points inside ``area`` at which :func:`dop_map` summarises, shape (G, 3) [m].
+
+    The grid is anchored at the area's bounding-box corner with spacing :func:`map_step`, so
+    these are exactly the map's inside points whatever the readers' positions.
+    """
+    poly = np.asarray(area, dtype=float)
+    step = map_step(poly, step)
+    size = float(np.max(poly.max(axis=0) - poly.min(axis=0)))
+    gx, gy = grid_over(poly, step, 0.0)
+    mx, my = np.meshgrid(gx, gy)
+    xy = np.column_stack([mx.ravel(), my.ravel()])
+    xy = xy[polygon_contains(poly, xy, tol=1e-6 * max(size, 1.0))]
+    return np.column_stack([xy, np.full(len(xy), float(height))])
+
+
 def dop_map(
     constellation: Constellation,
     *,
@@ -346,9 +375,7 @@ def dop_map(
     """
     area = capture_area(constellation)
     size = float(np.max(area.max(axis=0) - area.min(axis=0)))
-    step = max(np.sqrt(polygon_area(area) / 1e4), 0.05) if step is None else float(step)
-    if not step > 0:
-        raise InputError(f"grid step must be positive, got {step}")
+    step = map_step(area, step)
     margin = 0.05 * size if margin is None else float(margin)
     x, y = grid_over(area, step, margin, constellation.positions)
     if x.size * y.size > 4_000_000:

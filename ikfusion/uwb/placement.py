@@ -10,8 +10,14 @@ layout's covariance at every point is one small inverse of a sum. The search:
    D-optimal choice), then the one that lowers the objective most;
 2. local refinement: best-improvement swaps of one chosen reader for one unused candidate until
    no swap helps;
-3. the same refinement started from the naive layout (evenly spaced along the border, snapped to
-   the candidates); the better of the two results is returned.
+3. the same refinement started from the start layout (the user's own readers when given, else
+   the naive layout evenly spaced along the border); the start's points join the candidates, so
+   the search can keep any of them.
+
+The search scores layouts on a coarse grid; the result is then chosen on the fine grid of the
+DOP map (:func:`ikfusion.uwb.dop.area_points`, the grid ``ikfusion plan`` reports on) among
+the start and the searched layouts. The optimiser is therefore monotone: it never returns a
+layout whose reported 95th percentile is worse than its start's (ties keep the start).
 
 Uncovered grid points make the objective infinite; to rank such layouts anyway the information
 carries a weak prior (1 km on every unknown), which changes finite results by under 1e-9.
@@ -27,8 +33,8 @@ import numpy.typing as npt
 
 from ..errors import InputError
 from .constellation import Constellation, make_constellation
-from .dop import Mode, min_readers
-from .geometry import evenly_spaced_on_border, grid_over, perimeter_points, polygon_contains
+from .dop import Mode, area_points, compute_dop, min_readers, summarize
+from .geometry import evenly_spaced_on_border, perimeter_points
 
 #: Prior standard deviation on every unknown, so every layout has a finite score [m].
 _PRIOR_SIGMA = 1e3
@@ -40,28 +46,37 @@ _MEAN_WEIGHT = 1e-3
 class PlacementResult:
     """Outcome of :func:`optimize_placement`.
 
+    Every objective is the 95th-percentile expected sigma over the evaluation grid (uncovered
+    points count as infinite).
+
     Attributes:
         chosen: Chosen reader positions, shape (N, 3) [m].
+        start: The layout the search started from (the user's, or the naive one), (N, 3) [m].
         naive: The naive layout (evenly spaced along the border), shape (N, 3) [m].
-        objective: 95th-percentile expected sigma of the chosen layout over the area [m].
-        naive_objective: The same for the naive layout [m].
+        objective: Objective of the chosen layout [m]; never above ``start_objective``.
+        start_objective: Objective of the start layout [m].
+        naive_objective: Objective of the naive layout [m].
         candidates: The candidate mounting points searched, shape (C, 3) [m].
         evaluations: Layouts scored during the search.
+        kept_start: Whether no searched layout beat the start, so the start is returned.
     """
 
     chosen: np.ndarray
+    start: np.ndarray
     naive: np.ndarray
     objective: float
+    start_objective: float
     naive_objective: float
     candidates: np.ndarray
     evaluations: int
+    kept_start: bool
 
     @property
     def improvement(self) -> float:
-        """Relative reduction of the objective against the naive layout (0.25 = 25 % lower)."""
-        if not np.isfinite(self.naive_objective):
+        """Relative reduction of the objective against the start (0.25 = 25 % lower)."""
+        if not np.isfinite(self.start_objective):
             return 1.0 if np.isfinite(self.objective) else 0.0
-        return 1.0 - self.objective / self.naive_objective
+        return 1.0 - self.objective / self.start_objective
 
     def constellation(self, template: Constellation, name: str = "optimized") -> Constellation:
         """The chosen layout as a constellation with the template's range, sigma and area."""
@@ -182,28 +197,6 @@ class _Scorer:
             value = value + np.log(total[..., -1] + self.eps)
         return value.mean(axis=-1)
 
-    def exact_sigma(self, chosen: Sequence[int]) -> np.ndarray:
-        """Expected sigma per point without the prior (infinite where there is no fix)."""
-        total = self.sums[list(chosen)].sum(axis=0)
-        saved, self.eps = self.eps, 0.0
-        try:
-            e = self._position_info(total)
-        finally:
-            self.eps = saved
-        if self.dims == 2:
-            a, d, b = e
-            det = a * b - d * d
-            trace_num = a + b
-            scale = np.maximum(a, b)
-        else:
-            a, d, f_, b, g_, c = e
-            det = a * (b * c - g_ * g_) - d * (d * c - g_ * f_) + f_ * (d * g_ - b * f_)
-            trace_num = (b * c - g_ * g_) + (a * c - f_ * f_) + (a * b - d * d)
-            scale = np.maximum(np.maximum(a, b), c)
-        ok = det > 1e-12 * np.maximum(scale, 1e-300) ** self.dims
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(ok, np.sqrt(trace_num / det), np.inf)
-
     def score(self, chosen: Sequence[int]) -> float:
         return float(self.objective(self.sigma(self.sums[list(chosen)].sum(axis=0))))
 
@@ -253,6 +246,7 @@ def optimize_placement(
     area: npt.ArrayLike,
     n: int,
     *,
+    start: npt.ArrayLike | None = None,
     candidates: npt.ArrayLike | None = None,
     mount_heights: Sequence[float] = (0.5, 2.5),
     spacing: float = 1.0,
@@ -262,6 +256,7 @@ def optimize_placement(
     sigma: float = 0.03,
     coverage: float | None = None,
     grid_step: float | None = None,
+    eval_step: float | None = None,
     max_rounds: int = 100,
 ) -> PlacementResult:
     """Choose ``n`` reader positions minimising the 95th-percentile expected sigma.
@@ -269,6 +264,8 @@ def optimize_placement(
     Args:
         area: Capture-area polygon, shape (K, 2) [m].
         n: Number of readers to place.
+        start: The layout to improve, shape (n, 3) [m] (e.g. the user's readers); by default
+            the naive layout. Its points join the candidates.
         candidates: Mounting points, shape (C, 3) [m]; by default the area border every
             ``spacing`` metres at each of ``mount_heights``.
         mount_heights: Heights of the default candidates and of the naive layout [m].
@@ -278,14 +275,17 @@ def optimize_placement(
         clock: Whether the transmit time is unknown.
         sigma: Range noise [m].
         coverage: Reader coverage radius [m] or None.
-        grid_step: Spacing of the evaluation grid [m]; by default 1/30 of the larger side.
+        grid_step: Spacing of the search grid [m]; by default 1/30 of the larger side.
+        eval_step: Spacing of the grid on which the result is chosen and its objectives are
+            reported [m]; by default the DOP map's (:func:`ikfusion.uwb.dop.map_step`).
         max_rounds: Maximum swap rounds of each local refinement.
 
     Returns:
-        The chosen layout with the naive one for comparison.
+        The chosen layout, never worse than ``start``, with the start and the naive layout.
 
     Raises:
-        InputError: When ``n`` is below the readers needed for a fix or above the candidates.
+        InputError: When ``n`` is below the readers needed for a fix or above the candidates,
+            or ``start`` does not hold ``n`` finite positions.
     """
     poly = np.asarray(area, dtype=float)
     heights = [float(z) for z in mount_heights]
@@ -301,38 +301,56 @@ def optimize_placement(
         raise InputError(f"candidates must have shape (C, 3), got {cand.shape}")
     if n < k_min:
         raise InputError(f"{mode} positioning needs at least {k_min} readers, asked for {n}")
+    naive = perimeter_layout(poly, n, heights)
+    first = naive if start is None else np.atleast_2d(np.asarray(start, dtype=float))
+    if first.shape != (n, 3) or not np.all(np.isfinite(first)):
+        raise InputError(f"the start layout must hold {n} finite [x, y, z], got {first.shape}")
     if n > len(cand):
         raise InputError(f"cannot choose {n} readers among {len(cand)} candidate points")
+    cand = _with_points(cand, first)
     size = float(np.max(poly.max(axis=0) - poly.min(axis=0)))
     step = size / 30.0 if grid_step is None else float(grid_step)
-    gx, gy = grid_over(poly, step, 0.0)
-    mx, my = np.meshgrid(gx, gy)
-    xy = np.column_stack([mx.ravel(), my.ravel()])
-    xy = xy[polygon_contains(poly, xy, tol=1e-6 * max(size, 1.0))]
-    points = np.column_stack([xy, np.full(len(xy), height)])
-    naive = perimeter_layout(poly, n, heights)
+    points = area_points(poly, height, step)
     scorer = _Scorer(cand, points, mode=mode, clock=clock, sigma=sigma, coverage=coverage)
-    greedy, greedy_value = _refine(scorer, _greedy(scorer, n, k_min), max_rounds)
+    start_idx = _snap(first, cand)
+    searched = [
+        _refine(scorer, _greedy(scorer, n, k_min), max_rounds)[0],
+        _refine(scorer, start_idx, max_rounds)[0],
+    ]
     snapped = _snap(naive, cand)
     if len(set(snapped)) == n:
-        from_naive, naive_value = _refine(scorer, snapped, max_rounds)
-        if naive_value < greedy_value:
-            greedy = from_naive
-    chosen = cand[greedy]
-    naive_scorer = _Scorer(naive, points, mode=mode, clock=clock, sigma=sigma, coverage=coverage)
+        searched.append(_refine(scorer, snapped, max_rounds)[0])
+    fine = area_points(poly, height, eval_step)
+
+    def reported(layout: list[int] | np.ndarray) -> float:
+        positions = cand[layout] if isinstance(layout, list) else layout
+        dop = compute_dop(fine, positions, mode=mode, clock=clock, coverage=coverage, sigma=sigma)
+        return summarize(dop.expected_sigma).p95
+
+    start_value = reported(start_idx)
+    best, best_value = start_idx, start_value
+    for layout in searched:
+        value = reported(layout)
+        if value < best_value:
+            best, best_value = layout, value
     return PlacementResult(
-        chosen=chosen,
+        chosen=cand[best],
+        start=first,
         naive=naive,
-        objective=_p95(scorer, list(greedy)),
-        naive_objective=_p95(naive_scorer, list(range(n))),
+        objective=best_value,
+        start_objective=start_value,
+        naive_objective=reported(naive),
         candidates=cand,
         evaluations=scorer.count,
+        kept_start=best is start_idx,
     )
 
 
-def _p95(scorer: _Scorer, chosen: list[int]) -> float:
-    """Exact 95th percentile (uncovered points are infinite) of a layout [m]."""
-    return float(np.percentile(scorer.exact_sigma(chosen), 95, method="higher"))
+def _with_points(candidates: np.ndarray, extra: np.ndarray) -> np.ndarray:
+    """``candidates`` followed by the rows of ``extra`` that are not already among them."""
+    d = np.linalg.norm(extra[:, None, :] - candidates[None, :, :], axis=2)
+    new = extra[~np.any(d < 1e-9, axis=1)]
+    return np.concatenate([candidates, new]) if len(new) else candidates
 
 
 def _snap(layout: np.ndarray, candidates: np.ndarray) -> list[int]:

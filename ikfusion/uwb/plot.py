@@ -17,9 +17,9 @@ from .dop import GOOD_SIGMA, DopMap
 _VMAX_RANGE_CM = (5.0, 50.0)
 
 
-def matplotlib_classes(purpose: str = "drawing DOP maps",
-                       instead: str = "pass --no-plot to print the numbers only"
-                       ) -> tuple[Any, Any]:
+def matplotlib_classes(
+    purpose: str = "drawing DOP maps", instead: str = "pass --no-plot to print the numbers only"
+) -> tuple[Any, Any]:
     """Figure and Agg canvas classes, with a clear error when matplotlib is missing.
 
     Args:
@@ -184,8 +184,11 @@ def plot_placement(
     naive_readers: np.ndarray,
     chosen_readers: np.ndarray,
     path: str | Path,
+    start_label: str = "naive perimeter layout",
 ) -> Path:
-    """Side-by-side maps of the naive and the optimised layout on one colour scale.
+    """Side-by-side maps of the start (by default naive) and the optimised layout.
+
+    Both maps share one colour scale; ``start_label`` titles the first panel.
 
     Returns:
         The PNG path.
@@ -196,7 +199,7 @@ def plot_placement(
     vmax = colour_limit_cm([naive, chosen])
     mesh = None
     panels = [
-        (naive, naive_readers, "naive perimeter layout"),
+        (naive, naive_readers, start_label),
         (chosen, chosen_readers, "optimised"),
     ]
     for i, (m, readers, label) in enumerate(panels):
