@@ -5,9 +5,11 @@ from __future__ import annotations
 import argparse
 
 from ..errors import InputError
+from ..output_folders import check_output_folder
 from ..sim.capture import truth_motion, write_capture
 from ..sim.imu import ImuNoise
 from ..uwb.constellation import load_constellation
+from . import add_force_option
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -29,6 +31,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--readers", metavar="FILE", help="UWB constellation YAML")
     p.add_argument("--seed", type=int, default=1, help="random seed")
     p.add_argument("--out", required=True, metavar="DIR", help="capture folder")
+    add_force_option(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -38,10 +41,12 @@ def run(args: argparse.Namespace) -> int:
     if args.rate <= 0 or args.seconds <= 2.5:
         raise InputError("--rate must be positive and --seconds above 2.5 (2 s of N-pose "
                          "come first)", field="seconds")
+    check_output_folder(args.out, args.force)  # before the simulation, not after it
     truth = truth_motion(args.motion, args.seconds, args.rate, progress=not args.quiet)
     noise = ImuNoise() if args.noise == "default" else ImuNoise.none()
     constellation = load_constellation(args.readers) if args.readers else None
-    capture = write_capture(args.out, truth, noise, args.seed, constellation=constellation)
+    capture = write_capture(args.out, truth, noise, args.seed, constellation=constellation,
+                            force=args.force)
     print(f"wrote {capture.folder}: {len(truth.time)} samples at {truth.rate:g} Hz from "
           f"{truth.source}")
     return 0

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -11,6 +9,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from ..atomic import atomic_write
 from ..ik.frame import Frame
 from ..imu.stance import foot_still
 from ..model.human_model import HumanModel
@@ -129,23 +128,15 @@ def write_truth(path: str | Path, truth: TruthMotion) -> Path:
     segments = model.segment_names
     sites = model.site_names
     p_seg, R_seg = segment_poses(model, truth.q)
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".npz")
-    os.close(fd)
-    try:
+    with atomic_write(path, "wb") as out:
         np.savez_compressed(
-            tmp, time=truth.time, q=truth.q, segment_names=np.array(segments),
+            out, time=truth.time, q=truth.q, segment_names=np.array(segments),
             p_world_segment=p_seg, quat_wxyz_world_segment=matrix_to_quat_wxyz(R_seg),
             site_names=np.array(sites), p_world_site=site_positions(model, truth.q, sites),
             contact_names=np.array(truth.contact_names), contacts=truth.contacts,
             joint_angle_names=np.array(model.angle_columns),
             joint_angles=model.joint_angle_matrix(truth.q), source=np.array(truth.source))
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return target
+    return Path(path)
 
 
 def with_feet_still(frames: list[Frame], rate: float) -> list[Frame]:
