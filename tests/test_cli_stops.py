@@ -106,7 +106,11 @@ def test_ctrl_c_while_building_the_parser(monkeypatch, capsys) -> None:
         raise KeyboardInterrupt
 
     monkeypatch.setattr("ikfusion.cli.build_parser", interrupted)
-    assert main(["inspect", "x"]) == 130
+    try:
+        code = main(["inspect", "x"])
+    except KeyboardInterrupt:
+        pytest.fail("KeyboardInterrupt escaped ikfusion.cli.main")
+    assert code == 130
     assert capsys.readouterr().err == "ikfusion: interrupted\n"
 
 

@@ -313,3 +313,45 @@ def test_batch_on_an_external_scheduler(capture: Path, tmp_path: Path) -> None:
             _stop(process)
         for log in logs:
             log.close()
+
+
+def test_resume_redoes_an_output_whose_files_are_gone(capture: Path, tmp_path: Path) -> None:
+    """batch.json alone does not make an input done: the kind's files must be there too."""
+    make_inputs(capture, tmp_path / "in", 3)
+    out = tmp_path / "out"
+    argv = ["batch", "solve", str(tmp_path / "in" / "cap*"), "--out", str(out), "--workers",
+            "1", "--quiet"]
+    assert main(argv) == 0
+    (out / "cap00" / "summary.json").unlink()
+    (out / "cap01" / "joint_angles.csv").unlink()
+    assert main(argv) == 0
+    report = read_report(out)
+    assert {n: r["status"] for n, r in report.items()} == {
+        "cap00": "ok", "cap01": "ok", "cap02": "skipped"}
+    for name in report:
+        assert_complete(out / name, 30)
+
+
+def test_batch_refuses_folders_it_did_not_write(capture: Path, tmp_path: Path,
+                                                capsys) -> None:
+    make_inputs(capture, tmp_path / "in", 2)
+    pattern = str(tmp_path / "in" / "cap*")
+    out = tmp_path / "out"
+    (out / "docs").mkdir(parents=True)
+    (out / "docs" / "thesis.txt").write_text("mine")
+    assert main(["batch", "solve", pattern, "--out", str(out), "--quiet"]) == 2
+    assert "not written by ikfusion" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["docs"]
+    # a batch folder of ours where a user put a folder named like an output
+    out = tmp_path / "out2"
+    assert main(["batch", "solve", pattern, "--out", str(out), "--workers", "1",
+                 "--quiet"]) == 0
+    shutil.rmtree(out / "cap01")
+    (out / "cap01" / "docs").mkdir(parents=True)
+    (out / "cap01" / "docs" / "thesis.txt").write_text("mine")
+    assert main(["batch", "solve", pattern, "--out", str(out), "--workers", "1",
+                 "--quiet"]) == 2
+    assert (out / "cap01" / "docs" / "thesis.txt").read_text() == "mine"
+    assert main(["batch", "solve", pattern, "--out", str(out), "--workers", "1", "--quiet",
+                 "--force"]) == 0
+    assert_complete(out / "cap01", 30)
