@@ -1,7 +1,11 @@
-"""``python -m ikfusion`` runs the command line."""
+"""``python -m ikfusion`` runs the command line (Ctrl-C while it loads exits 130 quietly)."""
 
 import sys
 
-from .cli import main
+try:
+    from .cli import main
+except KeyboardInterrupt:
+    print("ikfusion: interrupted", file=sys.stderr)
+    sys.exit(130)
 
 sys.exit(main())

@@ -26,6 +26,7 @@ from .correction import DriftCorrection
 from .evaluate import Evaluation, evaluate
 from .ik import Motion
 from .model import HumanModel
+from .output_folders import check_output_folder, prepare_output_folder
 from .paths import shipped_config
 from .pipeline import solve_recording
 from .results import write_result_folder
@@ -88,7 +89,7 @@ def demo_walk(seconds: float) -> GaitParameters:
 
 
 def run_demo(out_dir: str | Path = "ikfusion-demo", seconds: float = 60.0, seed: int = 7,
-             progress: bool = True) -> DemoResult:
+             progress: bool = True, force: bool = False) -> DemoResult:
     """Simulate a capture into files, solve it three ways from the files, write and evaluate.
 
     Args:
@@ -96,16 +97,26 @@ def run_demo(out_dir: str | Path = "ikfusion-demo", seconds: float = 60.0, seed:
         seconds: Length of the capture [s] (2 s N-pose, then walking), at 60 Hz.
         seed: Random seed of the sensor and UWB simulation.
         progress: Show progress bars (gait synthesis and each solve).
+        force: Write into ``out_dir`` and replace its folders even when ikfusion did not
+            write them.
+
+    Raises:
+        InputError: ``out_dir`` or a folder in it is refused (checked before any work).
     """
     out = Path(out_dir)
-    capture = simulate_demo_capture(out / "capture", seconds, seed, progress)
+    check_output_folder(out, force)
+    for name in ("capture", *(name for _, name, _ in MODES)):
+        check_output_folder(out / name, force)
+    prepare_output_folder(out, "demo", force)
+    capture = simulate_demo_capture(out / "capture", seconds, seed, progress, force)
     shared = track_capture(capture.folder)
-    modes = [_solve_mode(shared, capture, out / name, label, mode, progress)
+    modes = [_solve_mode(shared, capture, out / name, label, mode, progress, force)
              for label, name, mode in MODES]
     return DemoResult(out, capture.truth, modes)
 
 
-def simulate_demo_capture(folder: Path, seconds: float, seed: int, progress: bool) -> Capture:
+def simulate_demo_capture(folder: Path, seconds: float, seed: int, progress: bool,
+                          force: bool = False) -> Capture:
     """The walk in the middle of the 6 m x 8 m room, with IMUs and UWB, written to ``folder``.
 
     The gait starts at the origin heading +X; it is moved to (3.0, 2.5) m so that its circle
@@ -115,11 +126,11 @@ def simulate_demo_capture(folder: Path, seconds: float, seed: int, progress: boo
     truth.q[:, 0] += 3.0
     truth.q[:, 1] += 4.0 - 1.5
     room = load_constellation(shipped_config("constellations", "room_6x8.yaml"))
-    return write_capture(folder, truth, ImuNoise(), seed, constellation=room)
+    return write_capture(folder, truth, ImuNoise(), seed, constellation=room, force=force)
 
 
 def _solve_mode(shared: TrackedCapture, capture: Capture, folder: Path, label: str,
-                mode: str | None, progress: bool) -> ModeResult:
+                mode: str | None, progress: bool, force: bool = False) -> ModeResult:
     """Solve with one correction mode (None: IMU only), write its result folder, score it."""
     correction: DriftCorrection | None = None
     if mode is not None:
@@ -130,7 +141,8 @@ def _solve_mode(shared: TrackedCapture, capture: Capture, folder: Path, label: s
                              calibration=shared.calibration)
     elapsed = time.perf_counter() - start
     written = write_result_folder(solved.motion, folder,
-                                  extra_summary=_summary(shared, label, correction))
+                                  extra_summary=_summary(shared, label, correction),
+                                  force=force)
     score = evaluate(written, capture.folder / "truth.npz",
                      align="auto" if correction is None else "none")
     gap = None if correction is None else _gap(correction)

@@ -37,6 +37,7 @@ from .io.reader import read_imu
 from .io.recording import check_sensor_ids
 from .io.sensor_map import load_sensor_map
 from .model import Body, HumanModel
+from .output_folders import check_output_folder, folder_name_problem, prepare_output_folder
 from .pipeline import solve_recording
 from .results import write_result_folder
 from .results.mvn_comparison import compare_with_mvn
@@ -106,15 +107,19 @@ class Session:
 
 def solve_actor(actor: ActorInputs, out: str | Path, uwb: UwbInputs | None = None,
                 correction: str | None = None, bvh_up: str = "z",
-                progress: bool = False) -> Motion:
+                progress: bool = False, force: bool = False) -> Motion:
     """Calibrate, track the actor's tags (with UWB), solve and write its result folder.
+
+    ``out`` is replaced only when ikfusion wrote it (or it is empty), or with ``force``; it is
+    checked before the solve starts.
 
     Returns:
         The solved motion (its warnings are in ``summary.json`` too).
 
     Raises:
-        InputError: Bad files (file, line and field named).
+        InputError: Bad files (file, line and field named), or a refused ``out``.
     """
+    check_output_folder(out, force)
     mvnx = actor.mvnx()
     if actor.sensor_map is None and mvnx is None:
         raise ConfigError("a sensor map is needed (--map) for anything but an MVNX file",
@@ -153,17 +158,29 @@ def solve_actor(actor: ActorInputs, out: str | Path, uwb: UwbInputs | None = Non
     if mvnx is not None:
         extra["mvn_comparison"] = compare_with_mvn(result.motion, mvnx)
         result.motion.warnings += extra["mvn_comparison"]["warnings"]
-    write_result_folder(result.motion, out, bvh_up=bvh_up, extra_summary=extra)
+    write_result_folder(result.motion, out, bvh_up=bvh_up, extra_summary=extra, force=force)
     return result.motion
 
 
 def solve_session(session: Session, out: str | Path, bvh_up: str = "z",
-                  progress: bool = False) -> dict[str, Motion]:
-    """Solve every actor of a session into ``out/<actor>/``."""
+                  progress: bool = False, force: bool = False) -> dict[str, Motion]:
+    """Solve every actor of a session into ``out/<actor>/``.
+
+    ``out`` and the actors' folders are checked before any solve starts (see
+    :func:`ikfusion.output_folders.check_output_folder`; ``force`` lifts the check).
+
+    Raises:
+        InputError: Bad files, or a refused output folder.
+    """
     root = Path(out)
-    return {a.name or "actor": solve_actor(a, root / (a.name or "actor"), session.uwb,
-                                           session.correction, bvh_up, progress)
-            for a in session.actors}
+    folders = {a.name or "actor": root / (a.name or "actor") for a in session.actors}
+    check_output_folder(root, force)
+    for folder in folders.values():
+        check_output_folder(folder, force)
+    prepare_output_folder(root, "solve --session", force)
+    return {name: solve_actor(a, folders[name], session.uwb, session.correction, bvh_up,
+                              progress, force)
+            for a, name in zip(session.actors, folders)}
 
 
 def load_session(path: str | Path) -> Session:
@@ -188,7 +205,7 @@ def load_session(path: str | Path) -> Session:
         raise ConfigError("UWB needs toa, readers and tags", path=file, field=missing[0])
     uwb = UwbInputs(_file(file, data, "toa"), _file(file, data, "readers"),
                     _file(file, data, "tags")) if given else None
-    actors = [_actor(file, str(name), spec) for name, spec in data["actors"].items()]
+    actors = [_actor(file, name, spec) for name, spec in data["actors"].items()]
     return Session(actors, uwb, correction, file)
 
 
@@ -204,7 +221,14 @@ def _file(session: Path, data: dict[str, Any], key: str, name: str | None = None
     return path
 
 
-def _actor(session: Path, name: str, spec: Any) -> ActorInputs:
+def _actor(session: Path, name: Any, spec: Any) -> ActorInputs:
+    """One actor of the session file; its name becomes a folder name under ``--out``."""
+    if isinstance(name, int) and not isinstance(name, bool):
+        name = str(name)
+    problem = folder_name_problem(name) if isinstance(name, str) else "it is not text"
+    if problem is not None:
+        raise ConfigError(f"actor name {name!r} cannot name its result folder: {problem}; use "
+                          "a plain name such as 'alice'", path=session, field="actors")
     key = f"actors.{name}"
     if not isinstance(spec, dict):
         raise ConfigError("expected {imu: ..., map: ..., body: ... | height: ...}", path=session,

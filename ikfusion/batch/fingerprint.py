@@ -56,10 +56,18 @@ def read_stamp(folder: Path) -> dict[str, Any] | None:
     return stamp if isinstance(stamp, dict) else None
 
 
-def is_complete(folder: Path, expected: str) -> bool:
-    """Whether ``folder`` is a finished output made with fingerprint ``expected``."""
+def is_complete(folder: Path, expected: str, outputs: Sequence[str] = ()) -> bool:
+    """Whether ``folder`` is a finished output made with fingerprint ``expected``.
+
+    Args:
+        folder: The output folder.
+        expected: The fingerprint of the job now.
+        outputs: File names the job kind writes; a folder missing one of them is unfinished.
+    """
     stamp = read_stamp(folder)
-    return stamp is not None and stamp.get("fingerprint") == expected
+    if stamp is None or stamp.get("fingerprint") != expected:
+        return False
+    return all((folder / name).is_file() for name in outputs)
 
 
 def write_stamp(folder: Path, stamp: Mapping[str, Any]) -> None:

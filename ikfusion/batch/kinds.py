@@ -78,6 +78,13 @@ class JobOutput:
 ExpandFn = Callable[[Sequence[str], Mapping[str, Any]], list[BatchInput]]
 #: Processes one item's ``source`` into ``out_dir`` (an empty folder) with the options.
 RunFn = Callable[[Any, Path, Mapping[str, Any]], "JobOutput | int | None"]
+#: The file names ``run`` writes into an output folder with these options.
+OutputsFn = Callable[[Mapping[str, Any]], tuple[str, ...]]
+
+
+def no_outputs(options: Mapping[str, Any]) -> tuple[str, ...]:
+    """The :data:`OutputsFn` of a kind that names no files (resume trusts ``batch.json``)."""
+    return ()
 
 
 @dataclass(frozen=True)
@@ -92,6 +99,8 @@ class JobKind:
         expand: How INPUTS expand into items (validating them).
         run: How one item becomes an output folder. Must be importable by name on the workers
             (a module-level function).
+        outputs: The files ``run`` writes, given the options: a rerun skips an input only when
+            its folder has them all (and the same fingerprint).
     """
 
     name: str
@@ -100,6 +109,7 @@ class JobKind:
     options: tuple[Option, ...]
     expand: ExpandFn
     run: RunFn
+    outputs: OutputsFn = no_outputs
 
 
 def load_kind(name: str) -> JobKind:

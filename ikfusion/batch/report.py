@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import csv
-import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+
+from ..atomic import atomic_write
 
 #: The report file name under the batch output folder.
 REPORT_NAME = "batch_report.csv"
@@ -39,13 +40,11 @@ class JobResult:
 
 def write_report(path: Path, results: Iterable[JobResult]) -> Path:
     """Write the report CSV atomically (a reader never sees half of it)."""
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    with tmp.open("w", newline="") as f:
+    with atomic_write(path, "w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(REPORT_COLUMNS)
         for r in results:
             writer.writerow([r.input, r.status, r.error, r.frames, f"{r.seconds:.3f}"])
-    os.replace(tmp, path)
     return path
 
 

@@ -3,7 +3,7 @@
 The client (this process) expands the inputs, names their output folders, skips those already
 finished with the same fingerprint and submits the rest, one Dask task each, to a
 ``LocalCluster`` (N worker processes, one thread each) or to a running scheduler. A task writes
-into a partial folder that is renamed on success (:func:`ikfusion.results.atomic.atomic_folder`),
+into a partial folder that is renamed on success (:func:`ikfusion.atomic.atomic_folder`),
 so an output folder is whole or absent. On Ctrl-C the pending tasks are cancelled, the cluster
 is closed, partial folders are removed and the report lists what finished.
 
@@ -17,7 +17,6 @@ import contextlib
 import hashlib
 import logging
 import re
-import shutil
 import signal
 import threading
 import time
@@ -26,14 +25,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..atomic import atomic_folder
+from ..atomic import remove_leftovers as remove_atomic_leftovers
 from ..errors import InputError
-from ..results.atomic import atomic_folder
+from ..output_folders import check_output_folder, prepare_output_folder
 from .fingerprint import fingerprint, is_complete, read_stamp, write_stamp
 from .kinds import BatchInput, JobKind, JobOutput, RunFn
 from .report import REPORT_NAME, JobResult, exit_code, write_report
-
-#: Leftovers of :func:`atomic_folder` in an output folder (``.NAME.partial-XXXX``, ``.old-PID``).
-_LEFTOVER = re.compile(r"^\..*\.(partial|old)-[^/]*$")
 
 
 @dataclass(frozen=True)
@@ -105,17 +103,11 @@ def output_names(items: Sequence[BatchInput]) -> list[str]:
 
 
 def remove_leftovers(out_dir: Path) -> list[Path]:
-    """Remove partial folders a killed or interrupted run left in ``out_dir``; return them."""
-    removed = []
-    if out_dir.is_dir():
-        for entry in out_dir.iterdir():
-            if _LEFTOVER.match(entry.name):
-                if entry.is_dir():
-                    shutil.rmtree(entry, ignore_errors=True)
-                else:
-                    entry.unlink(missing_ok=True)
-                removed.append(entry)
-    return removed
+    """Remove the partial folders a killed or interrupted run left in ``out_dir``; return them.
+
+    One batch at a time per output folder: every leftover is removed, whatever its process.
+    """
+    return remove_atomic_leftovers(out_dir, only_dead=False)
 
 
 def plan_jobs(kind: JobKind, items: Sequence[BatchInput], options: Mapping[str, Any],
@@ -155,17 +147,18 @@ def _as_output(value: JobOutput | int | None, folder: Path) -> JobOutput:
 
 
 def process_input(run: RunFn, kind_name: str, job: PlannedJob, out_dir: str,
-                  options: Mapping[str, Any], version: str) -> JobResult:
+                  options: Mapping[str, Any], version: str, force: bool = False) -> JobResult:
     """Process one input into ``out_dir/job.name`` with ``run`` (on a Dask worker).
 
     The output is written in a partial folder renamed on success, with ``batch.json``. Errors
     become a failed :class:`JobResult` (bad input or internal), never an exception, so one bad
-    input does not stop the batch.
+    input does not stop the batch. An existing folder is replaced only when ikfusion wrote it,
+    or with ``force``.
     """
     final = Path(out_dir) / job.name
     start = time.perf_counter()
     try:
-        with atomic_folder(final) as partial:
+        with atomic_folder(final, f"batch {kind_name}", force) as partial:
             output = _as_output(run(job.item.source, partial, options), partial)
             seconds = time.perf_counter() - start
             write_stamp(partial, {
@@ -283,7 +276,7 @@ def _finished_unseen(job: PlannedJob, out_dir: Path) -> JobResult:
 def _run_on_dask(client: Any, kind: JobKind, jobs: Sequence[PlannedJob], out_dir: Path,
                  options: Mapping[str, Any], version: str, progress: _Progress,
                  done: dict[str, JobResult],
-                 on_result: Callable[[JobResult], None] | None) -> None:
+                 on_result: Callable[[JobResult], None] | None, force: bool = False) -> None:
     """Submit ``jobs`` and collect results into ``done`` (keyed by name) as they finish.
 
     On KeyboardInterrupt the pending futures are cancelled before it propagates.
@@ -291,7 +284,8 @@ def _run_on_dask(client: Any, kind: JobKind, jobs: Sequence[PlannedJob], out_dir
     from distributed import as_completed
 
     futures = [client.submit(process_input, kind.run, kind.name, job, str(out_dir), dict(options),
-                             version, key=f"ikfusion-batch-{job.name}-{job.fingerprint[:16]}",
+                             version, force,
+                             key=f"ikfusion-batch-{job.name}-{job.fingerprint[:16]}",
                              pure=False)
                for job in jobs]
     by_key = {f.key: job for f, job in zip(futures, jobs)}
@@ -321,7 +315,8 @@ def _inside(path: Path, folder: Path) -> bool:
 def run_batch(kind: JobKind, inputs: Sequence[str], out_dir: str | Path,
               options: Mapping[str, Any], workers: int = 1, scheduler: str | None = None,
               progress: bool = True,
-              on_result: Callable[[JobResult], None] | None = None) -> BatchOutcome:
+              on_result: Callable[[JobResult], None] | None = None,
+              force: bool = False) -> BatchOutcome:
     """Process every input of ``inputs`` with ``kind`` into ``out_dir``, in parallel on Dask.
 
     Args:
@@ -333,13 +328,16 @@ def run_batch(kind: JobKind, inputs: Sequence[str], out_dir: str | Path,
         scheduler: A Dask scheduler address, ``tcp://HOST:PORT``.
         progress: Show a progress bar on standard error.
         on_result: Called in this process with every finished input's result.
+        force: Use ``out_dir`` and replace folders in it even when ikfusion did not write them.
 
     Returns:
-        The results in input order. On KeyboardInterrupt the report of what finished is
-        written, partial folders are removed, and the interrupt propagates.
+        The results in input order. On KeyboardInterrupt (or the SIGTERM the command line turns
+        into one) the report of what finished is written, partial folders are removed, and the
+        interrupt propagates.
 
     Raises:
-        InputError: INPUTS or options that cannot work (before anything runs).
+        InputError: INPUTS or options that cannot work, or a refused output folder (before
+            anything runs).
     """
     from .. import __version__
 
@@ -347,33 +345,37 @@ def run_batch(kind: JobKind, inputs: Sequence[str], out_dir: str | Path,
     items = [it for it in kind.expand(inputs, options) if not _inside(Path(it.label), out)]
     if not items:
         raise InputError("no inputs to process", field="INPUTS")
-    out.mkdir(parents=True, exist_ok=True)
-    remove_leftovers(out)
+    check_output_folder(out, force)
     jobs = plan_jobs(kind, items, options, __version__)
+    for job in jobs:
+        check_output_folder(out / job.name, force)
+    prepare_output_folder(out, f"batch {kind.name}", force)
+    remove_leftovers(out)
+    outputs = kind.outputs(options)
     done: dict[str, JobResult] = {}
     todo = []
     for job in jobs:
-        if is_complete(out / job.name, job.fingerprint):
+        if is_complete(out / job.name, job.fingerprint, outputs):
             done[job.name] = _skipped(job, out)
         else:
             todo.append(job)
     bar = _Progress(len(jobs), len(done), progress)
-    interrupted = False
+    interrupted: KeyboardInterrupt | None = None
     try:
         if todo:
             with dask_client(workers, scheduler) as client:
                 _run_on_dask(client, kind, todo, out, options, __version__, bar, done,
-                             on_result)
-    except KeyboardInterrupt:
-        interrupted = True
+                             on_result, force)
+    except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM as the command line raises it
+        interrupted = stop
     finally:
         bar.close()
         remove_leftovers(out)
         for job in jobs:
-            if job.name not in done and is_complete(out / job.name, job.fingerprint):
+            if job.name not in done and is_complete(out / job.name, job.fingerprint, outputs):
                 done[job.name] = _finished_unseen(job, out)
         results = [done[j.name] for j in jobs if j.name in done]
         report = write_report(out / REPORT_NAME, results)
-    if interrupted:
-        raise KeyboardInterrupt
+    if interrupted is not None:
+        raise interrupted
     return BatchOutcome(results, report)

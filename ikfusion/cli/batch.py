@@ -15,6 +15,7 @@ from typing import Any
 
 from ..batch import KIND_MODULES, JobKind, load_kind, run_batch
 from ..batch.report import counts
+from . import add_force_option
 
 
 def _add_kind(sub: argparse._SubParsersAction, kind: JobKind) -> None:
@@ -30,6 +31,7 @@ def _add_kind(sub: argparse._SubParsersAction, kind: JobKind) -> None:
                    help="run on this Dask scheduler instead of a local cluster (the workers "
                    "must see the inputs and --out under the same paths)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_force_option(p)
     groups: dict[str, Any] = {}
     for option in kind.options:
         target: Any = p
@@ -62,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
     kind = load_kind(args.batch_kind)
     options = {o.dest: getattr(args, o.dest) for o in kind.options}
     outcome = run_batch(kind, args.inputs, args.out, options, workers=args.workers,
-                        scheduler=args.scheduler, progress=not args.quiet)
+                        scheduler=args.scheduler, progress=not args.quiet, force=args.force)
     tally = counts(outcome.results)
     for result in outcome.results:
         if result.status == "failed":

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ..demo import run_demo, table
+from . import add_force_option
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -20,6 +21,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "the accuracy and speed table with a column per mode.",
     )
     p.add_argument("--out", default="ikfusion-demo", metavar="DIR", help="output folder")
+    add_force_option(p)
     p.add_argument("--seconds", type=float, default=60.0, metavar="S",
                    help="length of the simulated capture [s]")
     p.add_argument("--seed", type=int, default=7, help="random seed of the simulation")
@@ -30,6 +32,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``ikfusion demo``."""
-    result = run_demo(args.out, seconds=args.seconds, seed=args.seed, progress=not args.quiet)
+    result = run_demo(args.out, seconds=args.seconds, seed=args.seed, progress=not args.quiet,
+                      force=args.force)
     print(table(result))
     return 0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ..retarget import ROBOTS, retarget
+from . import add_force_option
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -30,6 +31,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--format", choices=["gmr"], default=None,
                    help="also write robot_motion.pkl in the layout of RL tracking pipelines")
     p.add_argument("--out", required=True, help="output folder")
+    add_force_option(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -38,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     """Run ``ikfusion retarget``."""
     _, metrics = retarget(args.source, args.robot, height=args.height, out=args.out,
                           gmr=args.format == "gmr", config=args.config,
-                          progress=not args.quiet)
+                          progress=not args.quiet, force=args.force)
     gap = metrics.get("self_collision_min_distance_m")
     print(f"wrote {args.out}: {metrics['frames']} frames at {metrics['frames_per_second']:.0f} "
           f"frames/s; joint-limit violations {metrics['joint_limit_violations']}, velocity-limit "

@@ -6,11 +6,13 @@ import argparse
 import sys
 
 from ..errors import InputError
+from ..output_folders import check_output_folder
 from ..sim.area_fit import DEFAULT_MARGIN, place_in_area
 from ..sim.capture import truth_motion, write_capture
 from ..sim.imu import ImuNoise
 from ..uwb.constellation import load_constellation
 from ..uwb.dop import capture_area
+from . import add_force_option
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -38,6 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    "[m] (default %(default)s)")
     p.add_argument("--seed", type=int, default=1, help="random seed")
     p.add_argument("--out", required=True, metavar="DIR", help="capture folder")
+    add_force_option(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -49,6 +52,7 @@ def run(args: argparse.Namespace) -> int:
     if args.rate <= 0 or args.seconds <= 2.5:
         raise InputError("--rate must be positive and --seconds above 2.5 (2 s of N-pose "
                          "come first)", field="seconds")
+    check_output_folder(args.out, args.force)  # before the simulation, not after it
     truth = truth_motion(args.motion, args.seconds, args.rate, progress=not args.quiet)
     noise = ImuNoise() if args.noise == "default" else ImuNoise.none()
     constellation = load_constellation(args.readers) if args.readers else None
@@ -61,7 +65,8 @@ def run(args: argparse.Namespace) -> int:
                   f"{100 * fit.inside_after:.0f} % of its ground track is inside, the rest "
                   f"reaches {max(-fit.clearance, 0.0):.2f} m beyond the border; the readers "
                   "cover it less well there", file=sys.stderr)
-    capture = write_capture(args.out, truth, noise, args.seed, constellation=constellation)
+    capture = write_capture(args.out, truth, noise, args.seed, constellation=constellation,
+                            force=args.force)
     print(f"wrote {capture.folder}: {len(truth.time)} samples at {truth.rate:g} Hz from "
           f"{truth.source}")
     return 0

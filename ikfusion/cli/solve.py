@@ -10,6 +10,7 @@ from pathlib import Path
 from ..errors import InputError
 from ..session import ActorInputs, load_session, solve_actor, solve_session
 from ..uwb_aiding import UwbInputs
+from . import add_force_option
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -49,6 +50,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--bvh-up", choices=["z", "y"], default="z", help="up axis of motion.bvh")
     p.add_argument("--out", required=True, metavar="DIR",
                    help="result folder (with --session: the folder of the actors' folders)")
+    add_force_option(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -114,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
                         Path(args.body) if args.body else None, args.height, window, pose,
                         parse_forward(args.forward), args.rate)
     motion = solve_actor(actor, args.out, files, args.correction, args.bvh_up,
-                         progress=not args.quiet)
+                         progress=not args.quiet, force=args.force)
     for warning in motion.warnings:
         print(f"warning: {warning}", file=sys.stderr)
     print(f"wrote {args.out}: {len(motion)} frames at {motion.rate:g} Hz")
@@ -132,7 +134,8 @@ def _run_session(args: argparse.Namespace) -> int:
         session.correction = args.correction
     if args.causal and session.uwb is not None:
         session.uwb = replace(session.uwb, smooth=False)
-    motions = solve_session(session, args.out, args.bvh_up, progress=not args.quiet)
+    motions = solve_session(session, args.out, args.bvh_up, progress=not args.quiet,
+                            force=args.force)
     for name, motion in motions.items():
         for warning in motion.warnings:
             print(f"warning: {name}: {warning}", file=sys.stderr)

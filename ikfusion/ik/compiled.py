@@ -49,6 +49,7 @@ import casadi as ca
 import numpy as np
 import pinocchio as pin
 
+from ..atomic import atomic_path
 from ..model.ball_joints import BallJoint
 
 _AXES = {"x": 0, "y": 1, "z": 2}
@@ -510,17 +511,15 @@ def _native(functions: Sequence[ca.Function], key: str) -> list[ca.Function] | N
     try:
         if not library.exists():
             folder.mkdir(parents=True, exist_ok=True)
-            with tempfile.TemporaryDirectory(dir=folder) as tmp:
+            with tempfile.TemporaryDirectory(dir=folder) as tmp, atomic_path(library) as built:
                 source = Path(tmp) / "ik_step.c"
                 generator = ca.CodeGenerator(source.name, {"with_header": False})
                 for function in functions:
                     generator.add(function)
                 generator.generate(f"{tmp}{os.sep}")
-                built = Path(tmp) / library.name
                 subprocess.run([compiler, "-O1", "-shared", "-fPIC", str(source), "-o",
                                 str(built), "-lm"], check=True, capture_output=True,
                                timeout=600)
-                os.replace(built, library)
         return [ca.external(f.name(), str(library)) for f in functions]
     except (OSError, subprocess.SubprocessError, RuntimeError):
         return None

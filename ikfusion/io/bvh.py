@@ -35,7 +35,6 @@ from __future__ import annotations
 import math
 import os
 import re
-import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,6 +43,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 import numpy.typing as npt
 
+from ..atomic import atomic_write_text
 from ..errors import InputError, NameNotFound
 from ..rotations import axis_rotation, matrix_to_euler
 
@@ -862,7 +862,7 @@ def write_bvh(
     out.append(f"Frames: {n_frames}")
     out.append(f"Frame Time: {frame_time!r}")
     out.extend(_frame_lines(values, decimals))
-    _atomic_write(target, "\n".join(out) + "\n")
+    atomic_write_text(target, "\n".join(out) + "\n")
     return target
 
 
@@ -982,15 +982,3 @@ def _write_joint(
     out.append(f"{pad}}}")
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
-            handle.write(text)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise

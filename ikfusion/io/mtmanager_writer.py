@@ -10,14 +10,13 @@ are written as they are.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
 
+from ..atomic import atomic_write_text
 from ..rotations import matrix_to_quat_wxyz, matrix_to_xsens_euler
 from .mtmanager import world_conversions
 from .orientation_columns import EULER_COLUMNS, MAT_COLUMNS, QUAT_COLUMNS
@@ -146,16 +145,7 @@ def write_mtmanager(folder: str | Path, prefix: str, sensor_id: str,
     lines = _header_lines(header, sensor_id, rate, coordinate_system, comments)
     lines.append(delimiter.join(columns))
     target = Path(folder) / f"{prefix}{sensor_id}.txt"
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.")
-    try:
-        with os.fdopen(fd, "w", newline="\n") as out:
-            out.write("\n".join(lines) + "\n" + text)
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return target
+    return atomic_write_text(target, "\n".join(lines) + "\n" + text)
 
 
 def _vectors(values: npt.ArrayLike, n: int, name: str) -> np.ndarray:

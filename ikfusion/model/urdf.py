@@ -12,13 +12,12 @@ loads the result.
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from ..atomic import atomic_write_text
 from .body import Body
 from .joints import JOINTS, SEGMENTS, JointSpec, load_joint_specs
 from .layout import BodyLayout, build_layout
@@ -115,15 +114,4 @@ def body_to_urdf(body: Body, name: str = "human") -> str:
 
 def write_urdf(body: Body, path: str | Path, name: str = "human") -> Path:
     """Write the URDF of ``body`` atomically (a temporary file renamed into place)."""
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    text = body_to_urdf(body, name=name)
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as out:
-            out.write(text)
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return target
+    return atomic_write_text(path, body_to_urdf(body, name=name))

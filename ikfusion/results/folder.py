@@ -19,12 +19,15 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from ..atomic import atomic_folder
 from ..ik.pose import Motion
 from ..rotations import matrix_to_quat_wxyz
-from .atomic import atomic_folder
 from .bvh_export import write_motion_bvh
 from .opensim_export import write_motion_mot
 
+#: The files of a result folder (besides the hidden marker of :mod:`ikfusion.output_folders`).
+RESULT_FILES = ("joint_angles.csv", "segments.csv", "sites.csv", "contacts.csv", "solve_time.csv",
+                "motion.bvh", "motion.mot", "summary.json")
 SEGMENT_COLUMNS = ("time", "segment", "px", "py", "pz", "qw", "qx", "qy", "qz")
 SITE_COLUMNS = ("time", "site", "x", "y", "z")
 
@@ -77,21 +80,26 @@ def summary(motion: Motion, extra: Mapping[str, Any] | None = None) -> dict[str,
 
 
 def write_result_folder(motion: Motion, out_dir: str | Path, bvh_up: str = "z",
-                        extra_summary: Mapping[str, Any] | None = None) -> Path:
+                        extra_summary: Mapping[str, Any] | None = None,
+                        force: bool = False) -> Path:
     """Write the result folder of a solved motion; it appears whole or not at all.
 
     Args:
         motion: The solved motion.
-        out_dir: The folder (replaced if it exists).
+        out_dir: The folder (replacing one ikfusion wrote, or any with ``force``).
         bvh_up: Up axis of ``motion.bvh`` (``"z"`` or ``"y"``).
         extra_summary: More keys for ``summary.json`` (calibration, UWB usage, ...).
+        force: Replace ``out_dir`` even when ikfusion did not write it.
+
+    Raises:
+        InputError: ``out_dir`` exists and is not an ikfusion output (without ``force``).
 
     Returns:
         The folder.
     """
     model = motion.model
     p_seg, quat_seg, p_site = _poses(motion)
-    with atomic_folder(out_dir) as tmp:
+    with atomic_folder(out_dir, "solve", force) as tmp:
         angles = motion.joint_angles()
         np.savetxt(tmp / "joint_angles.csv", np.column_stack([motion.time, angles]),
                    delimiter=",", fmt="%.6f", header=",".join(["time", *model.angle_columns]),

@@ -13,6 +13,7 @@ from typing import Any
 
 from ..errors import InputError
 from ..ik.settings import SolverSettings
+from ..output_folders import check_output_folder
 from .human import retarget_human
 from .output import (
     RobotMotion,
@@ -33,7 +34,7 @@ ROBOTS = ("human", *SHIPPED_ROBOTS)
 
 def retarget(source: str | Path | HumanMotion, robot: str = "human", height: float | None = None,
              out: str | Path | None = None, gmr: bool = False, config: str | Path | None = None,
-             progress: bool = False) -> tuple[RobotMotion, dict[str, Any]]:
+             progress: bool = False, force: bool = False) -> tuple[RobotMotion, dict[str, Any]]:
     """Retarget a motion onto ``robot``; write the output folder when ``out`` is given.
 
     Args:
@@ -44,6 +45,7 @@ def retarget(source: str | Path | HumanMotion, robot: str = "human", height: flo
         gmr: Also write the pickle layout of RL tracking pipelines.
         config: A retarget config replacing the shipped one (needed for a URDF path).
         progress: Show a progress bar.
+        force: Replace ``out`` even when ikfusion did not write it.
 
     Returns:
         The robot motion and the metrics.
@@ -52,6 +54,8 @@ def retarget(source: str | Path | HumanMotion, robot: str = "human", height: flo
         InputError: An unknown robot, a missing height, a bad config or a bad source (file,
             line, field).
     """
+    if out is not None:
+        check_output_folder(out, force)  # before the work, not after it
     if robot == "human":
         if height is None or not 0.5 < height < 2.5:
             raise InputError("a human target needs --height in metres (0.5-2.5)",
@@ -78,7 +82,7 @@ def retarget(source: str | Path | HumanMotion, robot: str = "human", height: flo
         robot_motion = robot_robot_motion(trajectory)
     metrics["source"] = motion_in.source
     if out is not None:
-        write_robot_motion(out, robot_motion, metrics, gmr=gmr)
+        write_robot_motion(out, robot_motion, metrics, gmr=gmr, force=force)
     return robot_motion, metrics
 
 

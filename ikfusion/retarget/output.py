@@ -17,11 +17,11 @@ from typing import Any
 
 import numpy as np
 
+from ..atomic import atomic_folder
 from ..evaluate import phase_slides
 from ..ik.configuration import Configuration
 from ..ik.limits import JointRangeLimit
 from ..ik.pose import Motion
-from ..results.atomic import atomic_folder
 from ..rotations import angle_between, wxyz_to_xyzw, xyzw_to_wxyz
 from ..sim.truth import site_positions
 from .capsules import CapsulePairs
@@ -149,9 +149,9 @@ def robot_metrics(trajectory: RobotTrajectory, seconds: float) -> dict[str, Any]
 
 
 def write_robot_motion(out_dir: str | Path, robot: RobotMotion, summary: dict[str, Any],
-                       gmr: bool = False) -> Path:
-    """Write the output folder (replaced if it exists)."""
-    with atomic_folder(out_dir) as tmp:
+                       gmr: bool = False, force: bool = False) -> Path:
+    """Write the output folder (replacing one ikfusion wrote, or any with ``force``)."""
+    with atomic_folder(out_dir, "retarget", force) as tmp:
         np.savez(tmp / "robot_motion.npz", fps=robot.fps, root_pos=robot.root_pos,
                  root_quat_wxyz=robot.root_quat_wxyz, dof_pos=robot.dof_pos,
                  dof_names=np.array(robot.dof_names), contacts=robot.contacts,

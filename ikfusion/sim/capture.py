@@ -14,11 +14,11 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ..atomic import atomic_folder
 from ..errors import InputError
 from ..io.mtmanager import read_mtmanager
 from ..io.mtmanager_writer import write_mtmanager
 from ..model import SENSOR_SEGMENTS
-from ..results.atomic import atomic_folder
 from ..rotations import axis_rotation
 from ..uwb.constellation import Constellation
 from .gait import GaitParameters, generate_gait
@@ -78,13 +78,14 @@ def truth_motion(motion: str, seconds: float, rate: float, progress: bool = Fals
 def write_capture(folder: str | Path, truth: TruthMotion, noise: ImuNoise | None, seed: int,
                   segments: list[str] | None = None,
                   constellation: Constellation | None = None,
-                  uwb: UwbCaptureOptions | None = None) -> Capture:
+                  uwb: UwbCaptureOptions | None = None, force: bool = False) -> Capture:
     """Simulate the sensors on ``truth`` and write the capture folder atomically.
 
     With a ``constellation``, tags on HeadTop, LeftFootTop and RightFootTop are simulated too
     (``toa.csv``, ``readers.yaml``, ``tags.yaml``); the truth is then low-pass filtered first
     (:func:`ikfusion.sim.uwb_capture.smooth_truth`), so that its accelerations, which the
-    inertial part of the UWB filter integrates, carry no frame-to-frame IK jitter.
+    inertial part of the UWB filter integrates, carry no frame-to-frame IK jitter. An existing
+    ``folder`` is replaced only when ikfusion wrote it, or with ``force``.
     """
     segs = list(segments or SENSOR_SEGMENTS)
     rng = np.random.default_rng(seed)
@@ -93,7 +94,7 @@ def write_capture(folder: str | Path, truth: TruthMotion, noise: ImuNoise | None
     imus = simulate_imus(truth.model, truth.time, truth.q, segs, rng, noise)
     ids = sensor_ids(segs)
     counter = 1000 + np.arange(len(truth.time))
-    with atomic_folder(folder) as tmp:
+    with atomic_folder(folder, "simulate", force) as tmp:
         for i, segment in enumerate(segs):
             write_mtmanager(tmp / "imu", PREFIX, ids[segment], counter, imus.R_world_sensor[i],
                             truth.rate, acc=imus.acc[i], gyr=imus.gyr[i])

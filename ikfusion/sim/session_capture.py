@@ -14,8 +14,10 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ..atomic import atomic_folder
+from ..errors import InputError
 from ..model import Body, HumanModel
-from ..results.atomic import atomic_folder
+from ..output_folders import folder_name_problem
 from ..rotations import axis_rotation
 from ..uwb.constellation import Constellation, save_constellation
 from ..uwb.toa_log import ToaLog, write_toa_csv
@@ -54,7 +56,7 @@ def actor_tags(actor: str) -> dict[str, TagInfo]:
 
 def write_session_capture(folder: str | Path, truths: Mapping[str, TruthMotion],
                           constellation: Constellation, noise: ImuNoise | None, seed: int,
-                          uwb: UwbCaptureOptions | None = None) -> Path:
+                          uwb: UwbCaptureOptions | None = None, force: bool = False) -> Path:
     """Simulate every actor's sensors and tags; write the session folder atomically.
 
     Args:
@@ -64,6 +66,7 @@ def write_session_capture(folder: str | Path, truths: Mapping[str, TruthMotion],
         noise: IMU errors (None: perfect sensors).
         seed: Random seed.
         uwb: UWB simulation settings.
+        force: Replace ``folder`` even when ikfusion did not write it.
 
     Returns:
         The path of ``session.yaml``.
@@ -72,7 +75,12 @@ def write_session_capture(folder: str | Path, truths: Mapping[str, TruthMotion],
     logs: list[ToaLog] = []
     tags: dict[str, TagInfo] = {}
     actors = {}
-    with atomic_folder(folder) as tmp:
+    for name in truths:
+        problem = folder_name_problem(name)
+        if problem is not None:
+            raise InputError(f"actor name {name!r} cannot name a folder: {problem}",
+                             field="actors")
+    with atomic_folder(folder, "simulate", force) as tmp:
         for k, (name, truth) in enumerate(truths.items()):
             smooth = smooth_truth(truth)  # as write_capture does for a capture with tags
             write_capture(tmp / name, smooth, noise, seed + 1 + k)

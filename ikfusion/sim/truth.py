@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -12,6 +10,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 
+from ..atomic import atomic_write
 from ..ik.frame import Frame
 from ..imu.stance import foot_still
 from ..model.human_model import HumanModel
@@ -135,24 +134,16 @@ def write_truth(path: str | Path, truth: TruthMotion) -> Path:
     extra: dict[str, Any] = {}
     if "area_fit" in truth.info:
         extra["area_fit"] = np.array(json.dumps(truth.info["area_fit"]))
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.", suffix=".npz")
-    os.close(fd)
-    try:
+    with atomic_write(path, "wb") as out:
         np.savez_compressed(
-            tmp, time=truth.time, q=truth.q, segment_names=np.array(segments),
+            out, time=truth.time, q=truth.q, segment_names=np.array(segments),
             p_world_segment=p_seg, quat_wxyz_world_segment=matrix_to_quat_wxyz(R_seg),
             site_names=np.array(sites), p_world_site=site_positions(model, truth.q, sites),
             contact_names=np.array(truth.contact_names), contacts=truth.contacts,
             joint_angle_names=np.array(model.angle_columns),
             joint_angles=model.joint_angle_matrix(truth.q), source=np.array(truth.source),
             **extra)
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return target
+    return Path(path)
 
 
 def with_feet_still(frames: list[Frame], rate: float) -> list[Frame]:

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ._atomic import atomic_write_bytes
+from ..atomic import atomic_write_bytes
 from .calibration_result import UwbCalibration
 from .plot import matplotlib_classes
 

@@ -29,9 +29,9 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
+from ..atomic import atomic_write_text
 from ..errors import ConfigError
 from ..yaml_files import read_yaml
-from ._atomic import atomic_write_text
 
 #: Range noise used when a file does not give ``sigma`` [m].
 DEFAULT_RANGE_SIGMA = 0.03

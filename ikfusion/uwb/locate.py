@@ -40,8 +40,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy.stats import chi2
 
+from ..atomic import atomic_write_text
 from ..errors import InputError
-from ._atomic import atomic_write_text
 from .constellation import Constellation
 from .initial_guess import bancroft, subset_starts
 from .linalg import inverse_batched, solve_batched

@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from ..atomic import atomic_write_bytes
 from ..errors import InputError
-from ._atomic import atomic_write_bytes
 from .dop import GOOD_SIGMA, DopMap
 
 #: Colour-scale limits of expected-sigma maps [cm].

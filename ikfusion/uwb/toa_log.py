@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from ..atomic import atomic_write_text
 from ..errors import InputError
-from ._atomic import atomic_write_text
 
 #: Columns every TOA CSV must have, in the order the writer uses.
 TOA_COLUMNS = ("time", "tag", "seq", "reader", "toa")

@@ -19,9 +19,9 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from ..atomic import atomic_write_text
 from ..errors import ConfigError, InputError
 from ..yaml_files import read_yaml
-from ._atomic import atomic_write_text
 from .constellation import Constellation
 from .ekf import (
     EkfOptions,

@@ -20,6 +20,7 @@ import pytest
 
 pytest.importorskip("distributed")
 
+from ikfusion.atomic import temporary_name  # noqa: E402
 from ikfusion.batch import (  # noqa: E402
     REPORT_NAME,
     STAMP_NAME,
@@ -35,6 +36,7 @@ from ikfusion.batch.report import JobResult, exit_code  # noqa: E402
 from ikfusion.batch.runner import run_batch  # noqa: E402
 from ikfusion.cli import build_parser, main  # noqa: E402
 from ikfusion.errors import InputError  # noqa: E402
+from ikfusion.output_folders import MARKER_NAME  # noqa: E402
 
 #: The MT Manager file made corrupt, and the line cut short in it.
 CORRUPT_FILE = "SIM_00B50003.txt"
@@ -77,8 +79,8 @@ def read_report(out: Path) -> dict[str, dict[str, str]]:
 
 
 def hidden_entries(out: Path) -> list[str]:
-    """Partial or stale folders left in the batch folder."""
-    return [p.name for p in out.iterdir() if p.name.startswith(".")]
+    """Partial or stale folders left in the batch folder (its marker aside)."""
+    return [p.name for p in out.iterdir() if p.name.startswith(".") and p.name != MARKER_NAME]
 
 
 def assert_complete(folder: Path, frames: int) -> None:
@@ -154,7 +156,7 @@ def test_a_new_job_kind_plugs_in(tmp_path: Path) -> None:
     assert rows["two.txt"]["status"] == "failed"
     assert "two.txt, line 1, field 'value'" in rows["two.txt"]["error"]
     assert rows["three.txt"]["error"] == "RuntimeError: boom"
-    assert sorted(p.name for p in out.iterdir()) == ["batch_report.csv", "one"]
+    assert sorted(p.name for p in out.iterdir()) == [MARKER_NAME, "batch_report.csv", "one"]
 
 
 def test_bad_input_is_reported_and_the_others_run(capture: Path, tmp_path: Path,
@@ -207,7 +209,7 @@ def test_interrupted_batch_resumes_without_recomputing(capture: Path, tmp_path: 
     for name in done:
         assert_complete(out / name, 30)
     before = {name: mtimes(out / name) for name in done}
-    stale = out / ".cap04.partial-killed"  # what a killed run leaves behind
+    stale = temporary_name(out / "cap04")  # what a killed run leaves behind
     stale.mkdir()
     (stale / "motion.bvh").write_text("half")
 
@@ -311,3 +313,45 @@ def test_batch_on_an_external_scheduler(capture: Path, tmp_path: Path) -> None:
             _stop(process)
         for log in logs:
             log.close()
+
+
+def test_resume_redoes_an_output_whose_files_are_gone(capture: Path, tmp_path: Path) -> None:
+    """batch.json alone does not make an input done: the kind's files must be there too."""
+    make_inputs(capture, tmp_path / "in", 3)
+    out = tmp_path / "out"
+    argv = ["batch", "solve", str(tmp_path / "in" / "cap*"), "--out", str(out), "--workers",
+            "1", "--quiet"]
+    assert main(argv) == 0
+    (out / "cap00" / "summary.json").unlink()
+    (out / "cap01" / "joint_angles.csv").unlink()
+    assert main(argv) == 0
+    report = read_report(out)
+    assert {n: r["status"] for n, r in report.items()} == {
+        "cap00": "ok", "cap01": "ok", "cap02": "skipped"}
+    for name in report:
+        assert_complete(out / name, 30)
+
+
+def test_batch_refuses_folders_it_did_not_write(capture: Path, tmp_path: Path,
+                                                capsys) -> None:
+    make_inputs(capture, tmp_path / "in", 2)
+    pattern = str(tmp_path / "in" / "cap*")
+    out = tmp_path / "out"
+    (out / "docs").mkdir(parents=True)
+    (out / "docs" / "thesis.txt").write_text("mine")
+    assert main(["batch", "solve", pattern, "--out", str(out), "--quiet"]) == 2
+    assert "not written by ikfusion" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["docs"]
+    # a batch folder of ours where a user put a folder named like an output
+    out = tmp_path / "out2"
+    assert main(["batch", "solve", pattern, "--out", str(out), "--workers", "1",
+                 "--quiet"]) == 0
+    shutil.rmtree(out / "cap01")
+    (out / "cap01" / "docs").mkdir(parents=True)
+    (out / "cap01" / "docs" / "thesis.txt").write_text("mine")
+    assert main(["batch", "solve", pattern, "--out", str(out), "--workers", "1",
+                 "--quiet"]) == 2
+    assert (out / "cap01" / "docs" / "thesis.txt").read_text() == "mine"
+    assert main(["batch", "solve", pattern, "--out", str(out), "--workers", "1", "--quiet",
+                 "--force"]) == 0
+    assert_complete(out / "cap01", 30)

@@ -32,8 +32,8 @@ def test_files_and_columns(human: HumanModel, rng, tmp_path: Path) -> None:
     motion = make_motion(human, rng)
     out = write_result_folder(motion, tmp_path / "result")
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["contacts.csv", "joint_angles.csv", "motion.bvh", "motion.mot", "segments.csv",
-                     "sites.csv", "solve_time.csv", "summary.json"]
+    assert names == [".ikfusion.json", "contacts.csv", "joint_angles.csv", "motion.bvh",
+                     "motion.mot", "segments.csv", "sites.csv", "solve_time.csv", "summary.json"]
     with (out / "joint_angles.csv").open() as f:
         rows = list(csv.reader(f))
     assert rows[0] == ["time", *human.angle_columns]

@@ -12,8 +12,8 @@ def test_simulate_solve_evaluate(tmp_path: Path, capsys) -> None:
     capture = tmp_path / "capture"
     assert main(["simulate", "--motion", "gait:straight", "--seconds", "9", "--noise", "none",
                  "--out", str(capture), "--quiet"]) == 0
-    assert sorted(p.name for p in capture.iterdir()) == ["body.yaml", "imu", "sensors.yaml",
-                                                         "truth.npz"]
+    assert sorted(p.name for p in capture.iterdir()) == [".ikfusion.json", "body.yaml", "imu",
+                                                         "sensors.yaml", "truth.npz"]
     assert len(list((capture / "imu").glob("SIM_*.txt"))) == 17
     result = tmp_path / "result"
     assert main(["solve", "--imu", str(capture / "imu" / "SIM_"), "--map",

@@ -46,6 +46,12 @@ def run(source: str, out_dir: Path, options: Mapping[str, Any]) -> JobOutput:
                      warnings=tuple(metrics.get("warnings", ())))
 
 
+def outputs(options: Mapping[str, Any]) -> tuple[str, ...]:
+    """The files a retarget writes (``robot_motion.pkl`` too with ``--format gmr``)."""
+    files = ("robot_motion.npz", "robot_motion.csv", "summary.json")
+    return (*files, "robot_motion.pkl") if options.get("format") == "gmr" else files
+
+
 KIND = JobKind(
     name="retarget",
     help="retarget many solve results, BVH or MVNX clips in parallel",
@@ -63,4 +69,5 @@ KIND = JobKind(
     ),
     expand=expand,
     run=run,
+    outputs=outputs,
 )

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from ...errors import InputError
+from ...results.folder import RESULT_FILES
 from ..kinds import BatchInput, JobKind, JobOutput, Option, expand_paths, files_under
 
 #: The UWB files of a capture folder, as (solve option, file name).
@@ -211,4 +212,5 @@ KIND = JobKind(
     ),
     expand=expand,
     run=run,
+    outputs=lambda options: RESULT_FILES,
 )
