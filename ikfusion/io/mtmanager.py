@@ -344,7 +344,7 @@ def _place(file: MtManagerFile, hz: float, warnings: list[str]) -> _Placed:
                          field="PacketCounter")
     counter, rows, wraps = place_counter(file.data[:, k], file.column("SampleTimeFine"),
                                          file.line_numbers, file.header_line, file.path,
-                                         file.columns[k], hz, warnings)
+                                         file.columns[k], hz, warnings, file.data)
     return _Placed(file, counter, rows, wraps)
 
 

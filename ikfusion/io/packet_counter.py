@@ -5,8 +5,8 @@ The counter is the time base of a trial, so a damaged one must never become a hu
 * a 16-bit counter (every value < 65536) wraps; each step is read as the signed step between
   -32768 and 32767 packets, and where ``SampleTimeFine`` (10 kHz ticks, 32-bit) is known it
   decides how many whole wraps the step spans, forwards or backwards;
-* a column whose steps are not mostly 1 is not a packet counter (it is refused, naming the
-  ``SampleTimeFine`` column when the two look swapped);
+* a PacketCounter column stepping by more than 1 beside a SampleTimeFine column stepping by 1
+  is a swapped header, refused;
 * one row whose counter is far from both its neighbours while they agree with each other is a
   corrupted counter value: the row is skipped (its data kept out of the timeline rather than
   placed at a wrong time), unless ``SampleTimeFine`` agrees with its counter;
@@ -48,8 +48,8 @@ def unplaceable_lines(lines: np.ndarray, rows: np.ndarray) -> str:
 
 
 def place_counter(raw: np.ndarray, fine: np.ndarray | None, lines: np.ndarray, header_line: int,
-                  path: Path, name: str, hz: float,
-                  warnings: list[str]) -> tuple[np.ndarray, np.ndarray, bool]:
+                  path: Path, name: str, hz: float, warnings: list[str],
+                  table: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, bool]:
     """Unwrap and check one file's PacketCounter.
 
     Args:
@@ -61,6 +61,9 @@ def place_counter(raw: np.ndarray, fine: np.ndarray | None, lines: np.ndarray, h
         name: The PacketCounter column's name as written.
         hz: Sample rate [Hz], NaN when unknown (SampleTimeFine then counts no wraps).
         warnings: Remarks for the user are appended here.
+        table: (rows, columns) all the file's numbers, to tell repeated rows (the same data
+            again, dropped) from a counter that repeats over other data (more than a few rows
+            in a row: refused).
 
     Returns:
         The unwrapped counter of the kept rows in counter order, their row indices (the first
@@ -108,36 +111,36 @@ def place_counter(raw: np.ndarray, fine: np.ndarray | None, lines: np.ndarray, h
     if backwards:
         warnings.append(f"{path.name}: PacketCounter goes backwards {backwards} time(s) (first "
                         f"at line {int(lines[rows[1:][steps < 0][0]])}); "
-                        f"{'SampleTimeFine agrees, ' if f is not None and confirmed.any() else ''}"
+                        f"{'SampleTimeFine agrees, ' if confirmed[steps < 0].all() else ''}"
                         "the rows are sorted by counter")
-    unique, first = np.unique(unwrapped, return_index=True)
+    unique, first, inverse = np.unique(unwrapped, return_index=True, return_inverse=True)
     if len(unique) < len(unwrapped):
-        warnings.append(f"{path.name}: {len(unwrapped) - len(unique)} row(s) repeat a "
-                        "PacketCounter already read; the first row of each counter is kept")
+        _repeats(first, inverse, rows, table, lines, path, name, warnings)
     _check_span(unique, steps, confirmed, rows, lines, counter, path, name)
     return unique, rows[first], wraps
 
 
 def _check_steps_of_one(counter: np.ndarray, wrap: int, fine: np.ndarray | None,
                         header_line: int, path: Path, name: str) -> None:
-    """Refuse a column whose steps are not mostly 1 (a swapped or mislabelled column)."""
-    if len(counter) < 5:
+    """Refuse a PacketCounter and SampleTimeFine that are swapped in the header.
+
+    The sign: the PacketCounter column mostly steps by more than 1 per row while the
+    SampleTimeFine column holds 16-bit values stepping by exactly 1. (A counter that merely
+    lost many packets steps by more than 1 too; the span bound judges that one.)
+    """
+    if len(counter) < 5 or fine is None:
         return
     step = signed_step(np.diff(counter), wrap)
     forward = step[step > 0]
     if not len(forward) or float(np.median(forward)) <= 1.0:
         return
-    typical = float(np.median(forward))
-    if fine is not None:
-        f = fine[np.isfinite(fine)]
-        f_step = np.diff(f)
-        if len(f) >= 5 and f.max() < COUNTER_WRAP and np.median(f_step[f_step > 0]) == 1.0:
-            raise InputError(f"the {name} and SampleTimeFine columns look swapped: {name} steps "
-                             f"by {typical:g} per row and SampleTimeFine by 1; correct the "
-                             "header line", path=path, line=header_line, field=name)
-    raise InputError(f"{name} steps by {typical:g} per row (median): a packet counter steps by "
-                     "1 per packet, so this column is not the packet counter or most packets "
-                     "are lost", path=path, line=header_line, field=name)
+    f = fine[np.isfinite(fine)]
+    f_step = np.diff(f)
+    if len(f) >= 5 and f.max() < COUNTER_WRAP and (f_step > 0).any() \
+            and float(np.median(f_step[f_step > 0])) == 1.0:
+        raise InputError(f"the {name} and SampleTimeFine columns look swapped: {name} steps by "
+                         f"{float(np.median(forward)):g} per row and SampleTimeFine by 1; "
+                         "correct the header line", path=path, line=header_line, field=name)
 
 
 def _fine_packets(fine: np.ndarray, hz: float) -> np.ndarray:
@@ -196,6 +199,35 @@ def _steps(counter: np.ndarray, fine: np.ndarray | None, wrap: int, hz: float,
                         f"{int(off.sum())} step(s) (first at line "
                         f"{int(lines[1:][off][0])}); PacketCounter is used")
     return step, confirmed
+
+
+def _repeats(first: np.ndarray, inverse: np.ndarray, rows: np.ndarray, table: np.ndarray | None,
+             lines: np.ndarray, path: Path, name: str, warnings: list[str]) -> None:
+    """Warn about rows repeating a counter; refuse a run of them that holds other data."""
+    again = np.setdiff1d(np.arange(len(inverse)), first)  # positions in file order
+    original = first[inverse.ravel()[again]]
+    differs = np.ones(len(again), dtype=bool)
+    if table is not None:
+        a, b = table[rows[again]], table[rows[original]]
+        differs = ~((a == b) | (np.isnan(a) & np.isnan(b))).all(axis=1)
+    if differs.sum() > _LOCAL:
+        run = np.flatnonzero(differs)
+        step = np.diff(again[run])
+        starts = np.flatnonzero(np.concatenate([[True], step != 1]))
+        lengths = np.diff(np.concatenate([starts, [len(run)]]))
+        longest = int(np.argmax(lengths))
+        if lengths[longest] > _LOCAL:
+            k = int(again[run[starts[longest]]])
+            raise InputError(f"{name} repeats counters already read over {int(lengths[longest])} "
+                             "rows in a row that hold other data: the counter restarted or is "
+                             "corrupted, so the rows cannot be placed in time", path=path,
+                             line=int(lines[rows[k]]), field=name)
+    same = len(again) - int(differs.sum())
+    detail = (f" ({same} repeat the same data, {int(differs.sum())} hold other data)"
+              if table is not None and differs.any() else
+              " (the same data again)" if table is not None else "")
+    warnings.append(f"{path.name}: {len(again)} row(s) repeat a PacketCounter already read"
+                    f"{detail}; the first row of each counter is kept")
 
 
 def _check_span(unique: np.ndarray, steps: np.ndarray, confirmed: np.ndarray, rows: np.ndarray,

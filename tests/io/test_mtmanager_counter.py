@@ -43,7 +43,8 @@ def test_blocks_out_of_order_with_sample_time_fine_are_sorted(tmp_path: Path) ->
     s = rec.sensors["00B40001"]
     assert len(rec) == 300 and s.rows == 300 and s.lost == 0
     np.testing.assert_allclose(s.acc[:, 0], acc, atol=1e-9)
-    assert any("backwards 1 time" in w and "sorted" in w for w in rec.warnings)
+    assert any("backwards 1 time" in w and "SampleTimeFine agrees" in w and "sorted" in w
+               for w in rec.warnings)
 
 
 def test_counter_going_back_across_a_wrap_with_fine(tmp_path: Path) -> None:
@@ -100,22 +101,35 @@ def test_single_corrupted_counters_are_skipped_and_the_rest_kept(tmp_path: Path)
     assert any("corrupted counters" in w and all(x in w for x in lines) for w in rec.warnings)
 
 
-@pytest.mark.parametrize(("scrambled", "words"), [((0, 800), "is not the packet counter"),
-                                                   ((300, 600), "jumps from")])
+@pytest.mark.parametrize("scrambled", [(0, 800), (300, 600)])
 def test_a_scrambled_counter_is_refused_naming_the_line(tmp_path: Path, rng,
-                                                        scrambled: tuple[int, int],
-                                                        words: str) -> None:
+                                                        scrambled: tuple[int, int]) -> None:
     """Old code: random counters unwrapped into a timeline of millions of samples."""
     n = 800
     written = np.arange(n)
     a, b = scrambled
     written[a:b] = rng.integers(0, 65536, size=b - a)
     path = write_acc_file(tmp_path / "Z_00B40006.txt", written, np.zeros(n))
-    with pytest.raises(InputError, match=words) as err:
+    with pytest.raises(InputError, match="jumps from") as err:
         read_mtmanager(path)
     assert err.value.field == "PacketCounter" and err.value.line is not None
-    if a > 0:  # the line of a jump inside the scrambled rows
-        assert HEADER_LINES + a < err.value.line <= HEADER_LINES + b + 1
+    assert HEADER_LINES + a < err.value.line <= HEADER_LINES + b + 1  # a line of the damage
+
+
+def test_repeated_rows_are_dropped_but_a_restart_without_fine_is_refused(tmp_path: Path) -> None:
+    acc = np.arange(300) * 0.01
+    counter = np.concatenate([np.arange(200), np.arange(150, 200), np.arange(200, 250)])
+    again = np.concatenate([acc[:200], acc[150:200], acc[200:250]])  # rows 150-199 re-exported
+    rec = read_mtmanager(write_acc_file(tmp_path / "D_00B4000B.txt", counter, again))
+    s = rec.sensors["00B4000B"]
+    assert len(rec) == 250 and s.lost == 0
+    np.testing.assert_allclose(s.acc[:, 0], acc[:250], atol=1e-9)
+    assert any("50 row(s) repeat" in w and "the same data again" in w for w in rec.warnings)
+    restart = np.concatenate([np.arange(100), np.arange(100)])  # a restart: other data
+    path = write_acc_file(tmp_path / "E_00B4000C.txt", restart, acc[:200])
+    with pytest.raises(InputError, match="restarted") as err:
+        read_mtmanager(path)
+    assert err.value.line == HEADER_LINES + 101 and err.value.field == "PacketCounter"
 
 
 def test_real_long_gaps_are_still_lost_packets(tmp_path: Path, rng) -> None:
