@@ -10,7 +10,10 @@ first (w, x, y, z) in a Z-up world (taken as ENU), and optionally the specific f
 [m/s^2] and the angular rate ``gx, gy, gz`` [rad/s] in the sensor frame. Rows are placed on a
 common time base at the rate given or, by default, the median sample interval; a sample missing
 inside a sensor's span is a lost sample (orientation slerp-filled and flagged invalid). Empty
-and ``NaN`` fields are NaN with the rest of the row intact (the sample flagged invalid).
+and ``NaN`` fields are NaN with the rest of the row intact (the sample flagged invalid); infinite
+or physically impossible values likewise, with a warning (:mod:`ikfusion.io.plausibility`). Time
+stamps that would stretch the timeline far beyond the rows (``2 x rows + 65536`` samples) are
+refused, naming the line.
 """
 
 from __future__ import annotations
@@ -21,6 +24,8 @@ import numpy as np
 
 from ..errors import InputError
 from .orientation_columns import R_from_quat
+from .packet_counter import COUNTER_WRAP
+from .plausibility import MAGNITUDE_LIMITS, FieldCheck, screen, screen_warning
 from .recording import ImuRecording, SensorStream, build_stream, gap_summary
 from .table import detect_delimiter, fit_fields, parse_numeric, split_header
 
@@ -61,9 +66,13 @@ def read_imu_csv(path: str | Path, rate: float | None = None) -> ImuRecording:
     columns = [c.lower() for c in split_header(header, delimiter)]
     missing = [c for c in REQUIRED if c not in columns]
     if missing:
-        raise InputError(f"columns missing: {', '.join(missing)} (the header must hold "
-                         f"{','.join(REQUIRED)} and optionally {','.join(OPTIONAL)}); found "
-                         f"{','.join(columns)}", path=file, line=header_line, field=missing[0])
+        known = [c for c in columns if c in REQUIRED + OPTIONAL]
+        found = (f"found {', '.join(known)} and {len(columns) - len(known)} other field(s)"
+                 if known else f"none of them among its {len(columns)} field(s): not an IMU CSV")
+        raise InputError(f"columns missing: {', '.join(missing)} (the header line, the first "
+                         f"line that is not a # comment, must hold {','.join(REQUIRED)} and "
+                         f"optionally {','.join(OPTIONAL)}; {found})", path=file,
+                         line=header_line, field=missing[0])
     numbers = [n for n, _ in numbered[1:]]
     body = fit_fields([ln for _, ln in numbered[1:]], numbers, delimiter, columns, file)
     k_sensor = columns.index("sensor")
@@ -92,8 +101,10 @@ def _assemble(file: Path, columns: list[str], values: np.ndarray, labels: list[s
     warnings: list[str] = []
     hz = rate if rate is not None else _estimate_rate(t, names, file)
     if not np.isfinite(hz) or hz <= 0:
-        raise InputError(f"the rate must be a positive number of Hz, not {hz!r}", field="rate")
+        raise InputError(f"the rate must be a positive number of Hz, not {hz!r}",
+                         field="--rate")
     position = (t - t.min()) * hz
+    _check_span(position, names, numbers, file)
     slot = np.round(position).astype(np.int64)
     jitter = float(np.max(np.abs(position - slot)))
     if jitter > 0.25:
@@ -108,7 +119,10 @@ def _assemble(file: Path, columns: list[str], values: np.ndarray, labels: list[s
         if len(kept) < len(rows):
             warnings.append(f"{file.name}: sensor {sid} has {len(rows) - len(kept)} row(s) at "
                             "an instant it already had; the first is kept")
-        block = values[kept]
+        block = values[kept].copy()
+        impossible = screen_warning(f"{file.name}: sensor {sid}", screen(block, _checks(col)))
+        if impossible:
+            warnings.append(impossible)
         R, notes = R_from_quat(block[:, [col[c] for c in ("qw", "qx", "qy", "qz")]])
         warnings += [f"{file.name}: sensor {sid}: {m}" for m in notes]
         vectors = {"acc": _vector(block, col, ("ax", "ay", "az")),
@@ -121,7 +135,39 @@ def _assemble(file: Path, columns: list[str], values: np.ndarray, labels: list[s
             warnings.append(summary)
     return ImuRecording(time=np.arange(n) / hz, rate=float(hz), sensors=streams,
                         coordinate_system="ENU", source_coordinate_system="ENU",
-                        source=[file], warnings=warnings)
+                        source=[file], warnings=warnings,
+                        rate_source="--rate" if rate is not None else "time")
+
+
+def _checks(col: dict[str, int]) -> list[FieldCheck]:
+    """Plausibility checks of the quaternion, specific force and angular rate columns."""
+    checks = [FieldCheck("quaternion", tuple(col[c] for c in ("qw", "qx", "qy", "qz")),
+                         "quaternion")]
+    for label, names in (("Acc", ("ax", "ay", "az")), ("Gyr", ("gx", "gy", "gz"))):
+        where = tuple(col[c] for c in names if c in col)
+        if where:
+            checks.append(FieldCheck(label, where, "magnitude", MAGNITUDE_LIMITS[label]))
+    return checks
+
+
+def _check_span(position: np.ndarray, names: np.ndarray, numbers: np.ndarray,
+                file: Path) -> None:
+    """Refuse times that would make the timeline far longer than the rows can fill.
+
+    Like the MT Manager reader: at most ``2 x rows + 65536`` samples, rows being those of the
+    sensor with the most.
+    """
+    _, per_sensor = np.unique(names, return_counts=True)
+    limit = 2 * int(per_sensor.max()) + COUNTER_WRAP
+    if float(np.max(position)) + 1 <= limit:
+        return
+    order = np.argsort(position, kind="stable")
+    k = int(np.argmax(np.diff(position[order])))
+    raise InputError(f"the time jumps by {(position[order[k + 1]] - position[order[k]]):.0f} "
+                     f"samples: the recording would span {float(np.max(position)) + 1:.0f} "
+                     f"samples for {int(per_sensor.max())} rows per sensor; a time stamp is "
+                     "corrupted or the rows come from different recordings", path=file,
+                     line=int(numbers[order[k + 1]]), field="time")
 
 
 def _vector(block: np.ndarray, col: dict[str, int], names: tuple[str, str, str]
@@ -144,13 +190,15 @@ def _estimate_rate(t: np.ndarray, names: np.ndarray, file: Path) -> float:
         if len(times) > 1:
             steps.append(np.diff(times))
     if not steps:
-        raise InputError("fewer than two instants per sensor: the rate cannot be found; give it",
+        raise InputError("fewer than two instants per sensor: the rate cannot be found; give it "
+                         "with --rate HZ",
                          path=file, field="time")
     dt = float(np.median(np.concatenate(steps)))
     if dt <= 0:
         raise InputError("the time column does not increase", path=file, field="time")
     index = np.round((t - t.min()) / dt)
-    if np.ptp(index) > 0:
-        dt = float(np.polyfit(index, t, 1)[0])
+    ok = np.isfinite(index)
+    if np.ptp(index[ok]) > 0:
+        dt = float(np.polyfit(index[ok], t[ok], 1)[0])
     hz = 1.0 / dt
     return float(np.round(hz)) if abs(hz - np.round(hz)) < 2e-3 * hz else hz

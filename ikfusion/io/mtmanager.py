@@ -16,8 +16,13 @@ Every variant of SPEC section 4 is read:
   ``SampleTimeFine`` (10 kHz ticks), UTC and other columns (kept in ``channels``).
 
 The time base comes from PacketCounter, a 16-bit counter that wraps at 65536: it is unwrapped
-(``SampleTimeFine``, when present, decides how many wraps a long gap spans and cross-checks the
-rate), and every sensor of a trial is placed at sample ``counter - first counter of the trial``.
+and checked by :mod:`ikfusion.io.packet_counter` (``SampleTimeFine``, when present, decides how
+many wraps a step spans; rows out of order are sorted; a restarted, swapped or scrambled counter
+is refused rather than turned into a huge timeline), and every sensor of a trial is placed at
+sample ``counter - first counter of the trial``. The rate comes from ``// Update Rate:``, else
+the ``SampleTimeFine`` or UTC columns, else the rate given (:mod:`ikfusion.io.sample_rate`).
+Infinite or physically impossible values make their sample invalid
+(:mod:`ikfusion.io.plausibility`).
 A gap in the counter is a lost packet: reported per sensor, its orientation slerp-filled and
 flagged invalid. Sensors that start late or stop early are NaN and invalid outside their span.
 NED and NWU exports are converted to ENU: ``R_ENU_sensor = R_ENU_NED @ R_NED_sensor`` and the
@@ -36,6 +41,8 @@ import numpy as np
 from ..errors import InputError
 from ..rotations import R_ENU_NED, R_ENU_NWU
 from .orientation_columns import OrientationColumns, orientation_from_columns
+from .packet_counter import COUNTER_WRAP, place_counter, trial_span_limit
+from .plausibility import mtmanager_checks, screen, screen_warning
 from .recording import (
     ImuRecording,
     SensorStream,
@@ -44,7 +51,16 @@ from .recording import (
     gap_summary,
     normalize_sensor_id,
 )
-from .table import detect_delimiter, fit_fields, parse_block, parse_numeric, split_header
+from .sample_rate import trial_rate
+from .table import (
+    delimiter_name,
+    detect_delimiter,
+    fit_fields,
+    parse_block,
+    parse_numeric,
+    short_quote,
+    split_header,
+)
 
 __all__ = [
     "ImuRecording",
@@ -55,10 +71,8 @@ __all__ = [
     "trial_files",
 ]
 
-_COUNTER_WRAP = 65536
-_FINE_WRAP = 2**32
-_FINE_HZ = 10000.0
 _ID_IN_NAME = re.compile(r"([0-9A-Fa-f]{8})\.txt$", re.IGNORECASE)
+_ID_OF_FILE = re.compile(r"([0-9A-Fa-f]{8})\.(?:txt|csv)$", re.IGNORECASE)
 _RATE = re.compile(r"(?:update|sample|output)\s*rate\s*[:=]\s*([0-9]+(?:[.,][0-9]*)?)\s*(k?hz)?",
                    re.IGNORECASE)
 _SYSTEM = re.compile(r"coordinate\s*system\s*:\s*([A-Za-z]*)", re.IGNORECASE)
@@ -155,7 +169,8 @@ def _comment_info(text: str, file: Path, number: int, info: _HeaderInfo) -> None
     if m := _SYSTEM.search(text):
         system = m.group(1).upper()
         if system not in world_conversions():
-            raise InputError(f"unknown coordinate system {m.group(1)!r} (ENU, NED or NWU)",
+            raise InputError(f"unknown coordinate system {short_quote(m.group(1))} (ENU, NED or "
+                             "NWU)",
                              path=file, line=number, field="Coordinate system")
         info.system = system
     if m := _DEVICE.search(text):
@@ -182,7 +197,7 @@ def read_mtmanager_file(path: str | Path) -> MtManagerFile:
     header, header_line, body_start = _find_header(text, file, info)
     delimiter = detect_delimiter(header)
     columns = split_header(header, delimiter)
-    _check_header(columns, file, header_line)
+    _check_header(columns, delimiter, file, header_line)
     body = text[body_start:].rstrip("\n")
     data = None
     if "//" not in body and "\n\n" not in body:
@@ -214,19 +229,22 @@ def _find_header(text: str, file: Path, info: _HeaderInfo) -> tuple[str, int, in
             return text[pos:end], number, end + 1
         pos = end + 1
     raise InputError("no header line: only comment lines, no line of column names starting "
-                     "with PacketCounter", path=file, line=number, field="PacketCounter")
+                     "with PacketCounter", path=file, line=max(number, 1), field="PacketCounter")
 
 
-def _check_header(columns: list[str], file: Path, line: int) -> None:
+def _check_header(columns: list[str], delimiter: str, file: Path, line: int) -> None:
     lowered = [c.lower() for c in columns]
-    if "packetcounter" not in lowered:
-        raise InputError(f"the header line has no PacketCounter column (found "
-                         f"{', '.join(columns[:6])}{', ...' if len(columns) > 6 else ''}); "
-                         "export with the packet counter so lost packets can be found",
+    if "packetcounter" not in lowered:  # not an MT Manager export: say nothing of its content
+        raise InputError(f"not an MT Manager export: line {line}, the first line that is not a "
+                         f"`//` comment, should be the header line of column names with "
+                         f"PacketCounter; it has no PacketCounter column ({len(columns)} "
+                         f"field{'s' if len(columns) != 1 else ''} when split by "
+                         f"{delimiter_name(delimiter)})",
                          path=file, line=line, field="PacketCounter")
     twice = sorted({c for c in columns if lowered.count(c.lower()) > 1})
     if twice:
-        raise InputError(f"columns named twice in the header: {', '.join(twice)}", path=file,
+        raise InputError(f"columns named twice in the header: "
+                         f"{', '.join(short_quote(t) for t in twice[:5])}", path=file,
                          line=line, field=twice[0])
 
 
@@ -253,7 +271,7 @@ def _data_lines(body: str, header: str, header_line: int, file: Path, info: _Hea
 
 
 def _sensor_id(file: Path, device: str | None, warnings: list[str]) -> str:
-    match = _ID_IN_NAME.search(file.name)
+    match = _ID_OF_FILE.search(file.name)
     if match:
         sid = match.group(1).upper()
         if device is not None and device != sid:
@@ -319,177 +337,15 @@ class _Placed:
     wraps: bool  # a 16-bit counter (its epoch can shift by whole wraps)
 
 
-def read_mtmanager(path: str | Path, rate: float | None = None,
-                   sensor_map: Mapping[str, str] | None = None) -> ImuRecording:
-    """Read a trial of MT Manager exports: a trial prefix, a folder or one file.
-
-    Args:
-        path: ``folder/``, ``folder/MT_012005D6_009-001_`` (a trial prefix) or one
-            ``...00B421E6.txt``.
-        rate: Sample rate [Hz] for files without ``// Update Rate:`` (the command line's
-            ``--rate``). A file's own rate wins; a disagreement is reported in the warnings.
-            Without either, the rate comes from SampleTimeFine when the files hold it.
-        sensor_map: Sensor id -> segment: every mapped sensor must be in the trial; trial
-            sensors the map does not name are reported in the warnings.
-
-    Returns:
-        The :class:`ImuRecording` (ENU world, time from 0 at the trial's first sample).
-
-    Raises:
-        InputError: Naming the file, line and column of bad input; a rate that cannot be known;
-            files that disagree on the rate; mapped sensors missing from the trial.
-    """
-    files = [read_mtmanager_file(f) for f in trial_files(path)]
-    warnings = [w for f in files for w in f.warnings]
-    hz = _trial_rate(files, rate, warnings)
-    placed = [_place_counter(f, hz, warnings) for f in files]
-    _align_epochs(placed)
-    nonempty = [p for p in placed if len(p.counter)]
-    if not nonempty:
-        raise InputError("no data rows in any file of the trial", path=files[0].path,
-                         line=files[0].header_line + 1)
-    start = min(int(p.counter.min()) for p in nonempty)
-    end = max(int(p.counter.max()) for p in nonempty)
-    n = end - start + 1
-    counter = start + np.arange(n, dtype=np.int64)
-    sensors: dict[str, SensorStream] = {}
-    for p in placed:
-        stream = _stream(p, start, n, counter, warnings)
-        if stream.sensor_id in sensors:
-            raise InputError(f"sensor {stream.sensor_id} appears twice in the trial (also in "
-                             f"{sensors[stream.sensor_id].path})", path=p.file.path)
-        sensors[stream.sensor_id] = stream
-        _span_warnings(stream, n, hz, warnings)
-    systems = sorted({f.coordinate_system for f in files})
-    recording = ImuRecording(time=np.arange(n) / hz, rate=hz, sensors=sensors,
-                             coordinate_system="ENU", source_coordinate_system="/".join(systems),
-                             source=[f.path for f in files], warnings=warnings)
-    if sensor_map is not None:
-        recording.warnings += check_sensor_ids(sensor_map, sensors, Path(path))
-    return recording
-
-
-def _trial_rate(files: list[MtManagerFile], rate: float | None, warnings: list[str]) -> float:
-    declared = {f.rate for f in files if f.rate is not None}
-    if len(declared) > 1:
-        listed = ", ".join(f"{f.path.name}: {f.rate:g} Hz" for f in files if f.rate is not None)
-        raise InputError(f"the files of the trial disagree on the update rate ({listed})",
-                         path=files[0].path, field="Update Rate")
-    if rate is not None and (not np.isfinite(rate) or rate <= 0):
-        raise InputError(f"the rate must be a positive number of Hz, not {rate!r}",
-                         field="rate")
-    fine = [r for r in (_fine_rate(f) for f in files) if r is not None]
-    if declared:
-        hz = declared.pop()
-        if rate is not None and abs(rate - hz) > 1e-9 * hz:
-            warnings.append(f"the files declare `// Update Rate: {hz:g}Hz`; the rate given "
-                            f"({rate:g} Hz) is not used")
-    elif rate is not None:
-        hz = float(rate)
-    elif fine:
-        hz = float(np.median(fine))
-        warnings.append(f"no `// Update Rate:` in the files: {hz:g} Hz from SampleTimeFine")
-    else:
-        raise InputError("the sample rate is unknown: the files have no `// Update Rate:` line "
-                         "and no SampleTimeFine values; give it (read_mtmanager(..., rate=HZ) "
-                         "or --rate HZ on the command line)", path=files[0].path,
-                         field="Update Rate")
-    for f, r in zip(files, (_fine_rate(f) for f in files)):
-        if r is not None and abs(r - hz) > 0.02 * hz:
-            warnings.append(f"{f.path.name}: SampleTimeFine steps say {r:.4g} Hz but the "
-                            f"recording rate is {hz:g} Hz")
-    return hz
-
-
-def _fine_rate(file: MtManagerFile) -> float | None:
-    """Rate [Hz] from SampleTimeFine ticks (10 kHz) over single PacketCounter steps."""
-    fine = file.column("SampleTimeFine")
-    counter = file.column("PacketCounter")
-    if fine is None or counter is None:
-        return None
-    ok = np.isfinite(fine) & np.isfinite(counter)
-    if ok.sum() < 2:
-        return None
-    f, c = fine[ok], counter[ok]
-    step = np.mod(np.diff(c), _COUNTER_WRAP)
-    ticks = np.mod(np.diff(f), _FINE_WRAP)[step == 1]
-    if not len(ticks):
-        return None
-    median = float(np.median(ticks))
-    if median <= 0:
-        return None
-    close = ticks[np.abs(ticks - median) <= 0.1 * median]
-    rate = _FINE_HZ / float(np.mean(close))
-    return round(rate, 3)
-
-
-def _place_counter(file: MtManagerFile, hz: float, warnings: list[str]) -> _Placed:
-    """Unwrap the file's PacketCounter and drop rows that cannot be placed (with warnings)."""
+def _place(file: MtManagerFile, hz: float, warnings: list[str]) -> _Placed:
     k = file.index("PacketCounter")
     if k is None:  # read_mtmanager_file guarantees the column; kept for the type checker
         raise InputError("no PacketCounter column", path=file.path, line=file.header_line,
                          field="PacketCounter")
-    raw = file.data[:, k]
-    rows = np.flatnonzero(np.isfinite(raw))
-    if len(rows) < len(raw):
-        missing = np.flatnonzero(~np.isfinite(raw))
-        lines = ", ".join(str(int(file.line_numbers[i])) for i in missing[:5])
-        warnings.append(f"{file.path.name}: {len(missing)} row(s) without a PacketCounter "
-                        f"cannot be placed in time and are skipped (line {lines}"
-                        f"{', ...' if len(missing) > 5 else ''})")
-    values = raw[rows]
-    bad = np.flatnonzero((values != np.round(values)) | (values < 0))
-    if len(bad):
-        i = rows[bad[0]]
-        raise InputError(f"PacketCounter must be a whole number >= 0, found {raw[i]!r}",
-                         path=file.path, line=int(file.line_numbers[i]),
-                         field=file.columns[k])
-    counter = values.astype(np.int64)
-    if len(counter) == 0:
-        return _Placed(file, counter, rows, wraps=True)
-    wraps = bool(counter.max() < _COUNTER_WRAP)
-    if not wraps:  # a counter wider than 16 bit: used as it is
-        unwrapped = counter
-    else:
-        unwrapped = _unwrap16(counter, file, rows, hz, warnings)
-    order_kept = _first_occurrences(unwrapped)
-    if len(order_kept) < len(unwrapped):
-        dup = len(unwrapped) - len(order_kept)
-        warnings.append(f"{file.path.name}: {dup} row(s) repeat a PacketCounter already read; "
-                        "the first row of each counter is kept")
-    if np.any(np.diff(unwrapped) < 0):
-        warnings.append(f"{file.path.name}: PacketCounter goes backwards "
-                        f"{int(np.sum(np.diff(unwrapped) < 0))} time(s); rows placed by counter")
-    return _Placed(file, unwrapped[order_kept], rows[order_kept], wraps)
-
-
-def _first_occurrences(values: np.ndarray) -> np.ndarray:
-    """Indices of the first occurrence of each distinct value, in file order."""
-    _, first = np.unique(values, return_index=True)
-    return np.sort(first)
-
-
-def _unwrap16(counter: np.ndarray, file: MtManagerFile, rows: np.ndarray, hz: float,
-              warnings: list[str]) -> np.ndarray:
-    """Unwrap a 16-bit counter; SampleTimeFine decides the wraps of long gaps."""
-    step16 = np.mod(np.diff(counter), _COUNTER_WRAP)
-    steps = np.where(step16 >= _COUNTER_WRAP // 2, step16 - _COUNTER_WRAP, step16)
-    fine = file.column("SampleTimeFine")
-    if fine is not None:
-        f = fine[rows]
-        ticks = np.mod(np.diff(f), _FINE_WRAP)
-        expected = ticks * hz / _FINE_HZ  # packets elapsed according to SampleTimeFine
-        known = np.isfinite(expected)
-        long_gap = known & (expected > _COUNTER_WRAP // 2 - 1024)
-        wraps = np.round((expected[long_gap] - step16[long_gap]) / _COUNTER_WRAP)
-        steps[long_gap] = step16[long_gap] + _COUNTER_WRAP * wraps.astype(np.int64)
-        off = known & (np.abs(expected - steps) > 0.5)
-        if off.any():
-            first = int(file.line_numbers[rows[1:][off][0]])
-            warnings.append(f"{file.path.name}: SampleTimeFine and PacketCounter disagree on "
-                            f"{int(off.sum())} step(s) (first at line {first}); PacketCounter "
-                            "is used")
-    return counter[0] + np.concatenate([[0], np.cumsum(steps)]).astype(np.int64)
+    counter, rows, wraps = place_counter(file.data[:, k], file.column("SampleTimeFine"),
+                                         file.line_numbers, file.header_line, file.path,
+                                         file.columns[k], hz, warnings, file.data)
+    return _Placed(file, counter, rows, wraps)
 
 
 def _align_epochs(placed: list[_Placed]) -> None:
@@ -503,8 +359,81 @@ def _align_epochs(placed: list[_Placed]) -> None:
         return
     for p in placed:
         if len(p.counter) and p.wraps:
-            shift = int(np.round((reference - int(p.counter[0])) / _COUNTER_WRAP))
-            p.counter = p.counter + _COUNTER_WRAP * shift
+            shift = int(np.round((reference - int(p.counter[0])) / COUNTER_WRAP))
+            p.counter = p.counter + COUNTER_WRAP * shift
+
+
+def _check_trial_span(placed: list[_Placed], start: int, end: int) -> None:
+    """Refuse files whose counters lie too far apart to be one recording."""
+    nonempty = [p for p in placed if len(p.counter)]
+    limit = trial_span_limit([int(p.counter[-1] - p.counter[0]) + 1 for p in nonempty])
+    if end - start + 1 <= limit:
+        return
+    middle = float(np.median([p.counter[0] for p in nonempty]))
+    odd = max(nonempty, key=lambda p: abs(float(p.counter[0]) - middle))
+    raise InputError(f"the PacketCounter of this file starts at {int(odd.counter[0])} while the "
+                     f"trial's other files start near {int(middle)}: the files together would "
+                     f"span {end - start + 1} samples; they do not come from one recording",
+                     path=odd.file.path, line=int(odd.file.line_numbers[odd.rows[0]]),
+                     field="PacketCounter")
+
+
+def read_mtmanager(path: str | Path, rate: float | None = None,
+                   sensor_map: Mapping[str, str] | None = None, *,
+                   require_rate: bool = True) -> ImuRecording:
+    """Read a trial of MT Manager exports: a trial prefix, a folder or one file.
+
+    Args:
+        path: ``folder/``, ``folder/MT_012005D6_009-001_`` (a trial prefix) or one
+            ``...00B421E6.txt``.
+        rate: Sample rate [Hz] for files that do not tell it (the command line's ``--rate``).
+            The files' own rate wins (``// Update Rate:``, else SampleTimeFine or UTC
+            columns); a disagreement is reported in the warnings.
+        sensor_map: Sensor id -> segment: every mapped sensor must be in the trial; trial
+            sensors the map does not name are reported in the warnings.
+        require_rate: When False, a trial whose rate nothing tells is read with ``rate`` and
+            ``time`` NaN and ``rate_source`` ``"unknown"`` (for ``inspect``).
+
+    Returns:
+        The :class:`ImuRecording` (ENU world, time from 0 at the trial's first sample);
+        ``rate_source`` says where the rate came from
+        (:data:`ikfusion.io.sample_rate.RATE_SOURCES`).
+
+    Raises:
+        InputError: Naming the file, line and column of bad input; a rate that cannot be known;
+            files that disagree on the rate; mapped sensors missing from the trial; a
+            PacketCounter that cannot be placed in time.
+    """
+    files = [read_mtmanager_file(f) for f in trial_files(path)]
+    warnings = [w for f in files for w in f.warnings]
+    hz, rate_source = trial_rate(files, rate, warnings, required=require_rate)
+    placed = [_place(f, hz, warnings) for f in files]
+    _align_epochs(placed)
+    nonempty = [p for p in placed if len(p.counter)]
+    if not nonempty:
+        raise InputError("no data rows in any file of the trial", path=files[0].path,
+                         line=files[0].header_line + 1)
+    start = min(int(p.counter[0]) for p in nonempty)
+    end = max(int(p.counter[-1]) for p in nonempty)
+    _check_trial_span(placed, start, end)
+    n = end - start + 1
+    counter = start + np.arange(n, dtype=np.int64)
+    sensors: dict[str, SensorStream] = {}
+    for p in placed:
+        stream = _stream(p, start, n, counter, warnings)
+        if stream.sensor_id in sensors:
+            raise InputError(f"sensor {stream.sensor_id} appears twice in the trial (also in "
+                             f"{sensors[stream.sensor_id].path})", path=p.file.path)
+        sensors[stream.sensor_id] = stream
+        _span_warnings(stream, n, hz, warnings)
+    systems = sorted({f.coordinate_system for f in files})
+    recording = ImuRecording(time=np.arange(n) / hz, rate=hz, sensors=sensors,
+                             coordinate_system="ENU", source_coordinate_system="/".join(systems),
+                             source=[f.path for f in files], warnings=warnings,
+                             rate_source=rate_source)
+    if sensor_map is not None:
+        recording.warnings += check_sensor_ids(sensor_map, sensors, Path(path))
+    return recording
 
 
 def _stream(p: _Placed, start: int, n: int, counter: np.ndarray,
@@ -515,6 +444,10 @@ def _stream(p: _Placed, start: int, n: int, counter: np.ndarray,
     for message in orientation.warnings:
         warnings.append(f"{file.path.name}: {message}")
     data = file.data[p.rows]
+    impossible = screen_warning(f"sensor {file.sensor_id}",
+                                screen(data, mtmanager_checks(file.columns)))
+    if impossible:
+        warnings.append(impossible)
     R_file, source, notes = orientation_from_columns(orientation, data)
     for message in notes:
         warnings.append(f"{file.path.name}: {message}")
@@ -589,8 +522,13 @@ def _span_warnings(stream: SensorStream, n: int, hz: float, warnings: list[str])
         return
     first, end = stream.span
     if first > 0:
-        warnings.append(f"sensor {stream.sensor_id} starts {first / hz:.2f} s ({first} samples) "
-                        "after the trial's first sample; NaN and invalid before")
+        warnings.append(f"sensor {stream.sensor_id} starts {_samples(first, hz)} after the "
+                        "trial's first sample; NaN and invalid before")
     if end < n:
-        warnings.append(f"sensor {stream.sensor_id} stops {(n - end) / hz:.2f} s ({n - end} "
-                        "samples) before the trial's last sample; NaN and invalid after")
+        warnings.append(f"sensor {stream.sensor_id} stops {_samples(n - end, hz)} before the "
+                        "trial's last sample; NaN and invalid after")
+
+
+def _samples(count: int, hz: float) -> str:
+    """``1.50 s (150 samples)``, or ``150 samples`` when the rate is unknown."""
+    return f"{count / hz:.2f} s ({count} samples)" if np.isfinite(hz) else f"{count} samples"

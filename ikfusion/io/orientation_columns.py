@@ -25,7 +25,7 @@ MAT_COLUMNS: tuple[str, ...] = tuple(f"Mat[{i}][{j}]" for i in (1, 2, 3) for j i
 EULER_COLUMNS: tuple[str, ...] = ("Roll", "Pitch", "Yaw")
 
 _ROUNDING = 1e-4  # |R^T R - I| allowed for matrices written with ~6 decimals
-_NOT_A_ROTATION = 0.05
+NOT_A_ROTATION = 0.05
 
 
 @dataclass
@@ -103,7 +103,7 @@ def R_from_matrix(rows: np.ndarray) -> tuple[np.ndarray, list[str]]:
     error[finite] = np.abs(gram - np.eye(3)).max(axis=(1, 2))
     det = np.full(len(R), np.nan)
     det[finite] = np.linalg.det(R[finite])
-    bad = finite & ((error > _NOT_A_ROTATION) | (det < 0))
+    bad = finite & ((error > NOT_A_ROTATION) | (det < 0))
     fix = finite & ~bad & (error > _ROUNDING)
     if fix.any():
         U, _, Vt = np.linalg.svd(R[fix])
@@ -113,7 +113,7 @@ def R_from_matrix(rows: np.ndarray) -> tuple[np.ndarray, list[str]]:
     if bad.any():
         R[bad] = np.nan
         notes.append(f"{int(bad.sum())} matrix row(s) are not rotations (|R^T R - I| > "
-                     f"{_NOT_A_ROTATION} or det < 0); those samples are invalid")
+                     f"{NOT_A_ROTATION} or det < 0); those samples are invalid")
     return R, notes
 
 

@@ -101,8 +101,10 @@ class ImuRecording:
     """A trial: every sensor on one common time base.
 
     Attributes:
-        time: (N,) sample times [s], starting at 0 with the trial's first sample.
-        rate: Sample rate [Hz].
+        time: (N,) sample times [s], starting at 0 with the trial's first sample (NaN when the
+            rate is unknown).
+        rate: Sample rate [Hz]; NaN only when a reader was asked to read without a rate and
+            nothing told it (``rate_source == "unknown"``).
         sensors: Sensor id -> :class:`SensorStream`.
         coordinate_system: World frame of every orientation and world vector: always ``"ENU"``
             after reading.
@@ -110,6 +112,10 @@ class ImuRecording:
             several joined by ``/``).
         source: The files read.
         warnings: Messages for the user (lost packets, late sensors, fallbacks, ...).
+        rate_source: Where the rate came from: ``"Update Rate"`` (the ``// Update Rate:``
+            line), ``"SampleTimeFine"``, ``"UTC"`` (the files' time columns), ``"--rate"``
+            (given by the user), ``"time"`` (a CSV's time column), ``"frameRate"`` (MVNX) or
+            ``"unknown"``.
     """
 
     time: np.ndarray
@@ -119,9 +125,15 @@ class ImuRecording:
     source_coordinate_system: str = "ENU"
     source: list[Path] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    rate_source: str = ""
 
     def __len__(self) -> int:
         return len(self.time)
+
+    @property
+    def rate_known(self) -> bool:
+        """Whether the rate is a number (False only for recordings read without a rate)."""
+        return bool(np.isfinite(self.rate))
 
     @property
     def sensor_ids(self) -> list[str]:
@@ -254,8 +266,9 @@ def gap_summary(sensor_id: str, gaps: np.ndarray, rate: float) -> str | None:
     lost = int(gaps[:, 1].sum())
     longest = int(np.argmax(gaps[:, 1]))
     first, length = gaps[longest]
+    at = f"{first / rate:.2f} s" if np.isfinite(rate) else f"sample {first}"
     return (f"sensor {sensor_id}: {lost} lost packet{'s' if lost > 1 else ''} in {len(gaps)} "
-            f"gap{'s' if len(gaps) > 1 else ''} (longest {length} at {first / rate:.2f} s); "
+            f"gap{'s' if len(gaps) > 1 else ''} (longest {length} at {at}); "
             "orientations inside gaps are slerp-filled and flagged invalid")
 
 

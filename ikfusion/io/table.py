@@ -44,6 +44,14 @@ def split_header(header: str, delimiter: str) -> list[str]:
     return [n or f"(unnamed column {k + 1})" for k, n in enumerate(names)]
 
 
+def short_quote(text: str, limit: int = 20) -> str:
+    """A field quoted for a message when short, else only its length (no file content echoed)."""
+    text = text.strip()
+    if len(text) <= limit and text.isprintable():
+        return repr(text)
+    return f"a field of {len(text)} characters"
+
+
 def delimiter_name(delimiter: str) -> str:
     """A readable name for a delimiter (for messages)."""
     return {"\t": "tab", ",": "comma", ";": "semicolon", " ": "space"}.get(delimiter,
@@ -192,7 +200,7 @@ def _raise_first_bad_field(lines: list[str], numbers: Sequence[int], delimiter: 
             try:
                 float(text)
             except ValueError:
-                raise InputError(f"not a number: {raw.strip()!r} (a number, NaN or an empty "
+                raise InputError(f"not a number: {short_quote(raw)} (a number, NaN or an empty "
                                  "field was expected)", path=path, line=int(number),
                                  field=name) from None
     raise InputError(f"could not read the numbers: {err}", path=path)

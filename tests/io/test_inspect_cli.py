@@ -15,8 +15,8 @@ from ikfusion.cli import main
 from ikfusion.io import write_mtmanager
 from ikfusion.rotations import angle_between, quat_wxyz_to_matrix, random_rotations
 
-KEYS = {"rows", "lost", "rate", "channels", "coordinate_system", "first_quat_wxyz",
-        "last_quat_wxyz"}
+KEYS = {"rows", "lost", "rate", "rate_source", "channels", "coordinate_system",
+        "first_quat_wxyz", "last_quat_wxyz"}
 PREFIX = "MT_012005D6_009-001_"
 
 
@@ -29,6 +29,7 @@ def check_opensense(info: dict, folder: Path) -> None:
         names, rows, _ = raw_table(folder / f"{PREFIX}{sid}.txt")
         assert sensor["rows"] == len(rows) and sensor["lost"] == 0
         assert sensor["rate"] == 100.0 and sensor["coordinate_system"] == "ENU"
+        assert sensor["rate_source"] == "Update Rate"
         assert sensor["channels"] == names
         for key, row in (("first_quat_wxyz", rows[0]), ("last_quat_wxyz", rows[-1])):
             q = np.array(sensor[key])
@@ -70,8 +71,11 @@ def test_inspect_table_with_a_map_and_lost_packets(tmp_path: Path, rng, capsys) 
     assert line.split()[:4] == ["00B40001", "Pelvis", "197", "3"]
     assert "acc quat" in line
     assert "3 lost packets in 2 gaps" in out
-    assert main(["inspect", str(tmp_path), "--json"]) == 2  # no rate: --rate is needed
-    assert "--rate HZ" in capsys.readouterr().err
+    assert main(["inspect", str(tmp_path), "--json"]) == 0  # no rate: shown without one
+    captured = capsys.readouterr()
+    sensor = json.loads(captured.out)["sensors"]["00B40001"]
+    assert sensor["rate"] is None and sensor["rows"] == 197 and sensor["lost"] == 3
+    assert "--rate HZ" in captured.err
 
 
 @pytest.mark.parametrize("kind", ["csv", "mvnx"])
@@ -87,6 +91,7 @@ def test_inspect_other_formats(shared_data: Path, tmp_path: Path, capsys, kind: 
     assert all(set(v) == KEYS for v in sensors.values())
     if kind == "csv":
         assert sensors["b"]["first_quat_wxyz"] == [0.0, 1.0, 0.0, 0.0]
-        assert sensors["a"]["rate"] == 100.0
+        assert sensors["a"]["rate"] == 100.0 and sensors["a"]["rate_source"] == "time"
     else:
         assert len(sensors) == 11 and sensors["Pelvis"]["rate"] == 60.0
+        assert sensors["Pelvis"]["rate_source"] == "frameRate"
