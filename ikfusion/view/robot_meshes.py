@@ -7,7 +7,8 @@ paths relative to the URDF. Each mesh is placed in the frame of the link that ca
 the viewer logs a mesh once and moves only its link frame per frame.
 
 Files the viewer reads itself (STL, OBJ, glTF) are kept as files; the others (COLLADA ``.dae``,
-as iCub and Romeo ship) are handed over as triangles read by Pinocchio's mesh loader.
+as iCub and Romeo ship) are handed over as triangles read by Pinocchio's mesh loader, and the
+URDF's boxes, cylinders and spheres (Talos's wrist sensors and IMU) as tessellated triangles.
 """
 
 from __future__ import annotations
@@ -45,8 +46,8 @@ def visual_meshes(model: pin.Model, urdf: Path) -> tuple[list[int], list[MeshPar
 
     Returns:
         The Pinocchio frame ids of the links that carry meshes, the meshes (``MeshPart.link``
-        indexes the first list), and how many visuals were left out because they are
-        primitive shapes (box, cylinder, sphere) rather than mesh files.
+        indexes the first list; boxes, cylinders and spheres come as triangles), and how many
+        visuals were left out because they are shapes of another kind.
 
     Raises:
         InputError: The URDF's visuals cannot be read, e.g. a mesh file is missing.
@@ -61,7 +62,8 @@ def visual_meshes(model: pin.Model, urdf: Path) -> tuple[list[int], list[MeshPar
     primitives = 0
     for visual in geometry.geometryObjects:
         file = Path(visual.meshPath)
-        if not visual.meshPath or not file.is_file():
+        shape = None if file.is_file() else primitive_triangles(visual.geometry)
+        if not file.is_file() and shape is None:
             primitives += 1
             continue
         if visual.parentFrame not in frames:
@@ -71,11 +73,11 @@ def visual_meshes(model: pin.Model, urdf: Path) -> tuple[list[int], list[MeshPar
         common = {"name": visual.name, "link": frames.index(visual.parentFrame), "file": file,
                   "T_link_mesh": T_link_mesh.homogeneous.copy(),
                   "rgba": None if np.allclose(rgba, _NO_MATERIAL) else rgba}
-        if file.suffix.lower() in VIEWER_MESH_FORMATS:
+        if shape is None and file.suffix.lower() in VIEWER_MESH_FORMATS:
             parts.append(MeshPart(scale=np.asarray(visual.meshScale, dtype=float).copy(),
                                   **common))
         else:  # Pinocchio's loader already scaled the vertices
-            vertices, triangles = mesh_triangles(visual.geometry)
+            vertices, triangles = shape or mesh_triangles(visual.geometry)
             parts.append(MeshPart(scale=np.ones(3), vertices=vertices, triangles=triangles,
                                   **common))
     return frames, parts, primitives
@@ -90,6 +92,54 @@ def mesh_triangles(mesh: object) -> tuple[np.ndarray, np.ndarray]:
         corner = mesh.tri_indices(i)  # type: ignore[attr-defined]
         triangles[i] = (corner[0], corner[1], corner[2])
     return vertices, triangles
+
+
+def primitive_triangles(shape: object, sides: int = 24) -> tuple[np.ndarray, np.ndarray] | None:
+    """Triangles of a URDF primitive as Pinocchio holds it, centred on its frame.
+
+    A box (``halfSide`` [m]), a cylinder along Z (``radius``, ``halfLength`` [m]) or a sphere
+    (``radius`` [m]), the round ones with ``sides`` facets around; None for other shapes.
+    """
+    kind = type(shape).__name__
+    if kind == "Box":
+        corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
+        faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4),
+                 (1, 5, 7, 3)]  # -x, +x, -y, +y, -z, +z; counter-clockwise seen from outside
+        quads = np.array(faces)
+        triangles = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+        vertices = corners * np.asarray(shape.halfSide)  # type: ignore[attr-defined]
+        return vertices.astype(np.float32), triangles.astype(np.uint32)
+    angle = 2 * np.pi * np.arange(sides) / sides
+    ring = np.column_stack([np.cos(angle), np.sin(angle)])
+    if kind == "Cylinder":
+        r, h = float(shape.radius), float(shape.halfLength)  # type: ignore[attr-defined]
+        rim = np.concatenate([np.column_stack([r * ring, np.full(sides, z)]) for z in (-h, h)])
+        vertices = np.concatenate([rim, [[0, 0, -h], [0, 0, h]]])
+        i = np.arange(sides)
+        j = (i + 1) % sides
+        triangles = np.concatenate([
+            np.column_stack([i, j, sides + j]), np.column_stack([i, sides + j, sides + i]),
+            np.column_stack([np.full(sides, 2 * sides), j, i]),
+            np.column_stack([np.full(sides, 2 * sides + 1), sides + i, sides + j])])
+        return vertices.astype(np.float32), triangles.astype(np.uint32)
+    if kind == "Sphere":
+        r = float(shape.radius)  # type: ignore[attr-defined]
+        rows = sides // 2
+        polar = np.pi * np.arange(1, rows) / rows
+        bands = [np.column_stack([r * np.sin(t) * ring, np.full(sides, r * np.cos(t))])
+                 for t in polar]
+        vertices = np.concatenate([[[0, 0, r]], *bands, [[0, 0, -r]]])
+        i = np.arange(sides)
+        j = (i + 1) % sides
+        tris = [np.column_stack([np.zeros(sides, int), 1 + i, 1 + j])]
+        for b in range(rows - 2):
+            top, low = 1 + b * sides, 1 + (b + 1) * sides
+            tris += [np.column_stack([top + i, low + i, low + j]),
+                     np.column_stack([top + i, low + j, top + j])]
+        last = len(vertices) - 1
+        tris.append(np.column_stack([np.full(sides, last), last - sides + j, last - sides + i]))
+        return vertices.astype(np.float32), np.concatenate(tris).astype(np.uint32)
+    return None
 
 
 def link_poses(data: pin.Data, frames: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
