@@ -14,7 +14,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Show the body, floor, contact points, UWB readers and tag paths in 3-D "
         "with joint-angle curves, contact phases and solve time on one timeline (play, pause, "
         "scrub, speed). PATH is a `solve` result folder (or a folder of them: one actor each), "
-        "a `simulate` capture folder (truth.npz) or a BVH file. Uses Rerun's web viewer, "
+        "a `simulate` capture folder (truth.npz), a `retarget` output (the robot with its "
+        "URDF meshes) or a BVH file; the human is drawn as capsules, every curve is named and "
+        "coloured apart. Uses Rerun's web viewer, "
         "served from the installed package (pip install 'ikfusion[view]').",
     )
     p.add_argument("path", metavar="PATH", help="result folder, capture folder or .bvh file")

@@ -8,22 +8,28 @@ Entity layout (world frame Z up, metres; one duration timeline ``time`` in secon
   ``world/<actor>/axes``: short X/Y/Z (red/green/blue) arrows of each segment frame,
   ``world/<actor>/contacts``: contact points, large and yellow while in contact,
   ``world/<actor>/tags/<site>``: tag site now, ``world/<actor>/paths/<site>``: its whole path;
+- ``world/<actor>/capsules``: a human's body, a capsule around each bone (not for ghosts), or
+  ``world/<actor>/links/<link>/<visual>``: a robot's URDF meshes (see :mod:`.shapes`);
 - ``plots/<actor>/angles/<column>`` [deg], ``plots/<actor>/contacts/<point>`` (phases stacked:
   point i is drawn at i + 0.8 while in contact, at i otherwise), ``plots/<actor>/solve_time_ms``.
+  Each series is named after its column (``jRightKnee_flex``, ``LeftHeel``; with the actor's
+  name in brackets when several actors are drawn) in its own colour, with legends shown; a
+  column has the same colour in every actor (paler in a ghost).
 
 Rerun is optional (the ``view`` extra); :func:`require_rerun` imports it with a clear message.
 """
 
 from __future__ import annotations
 
-import re
-from types import ModuleType
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
+from .rerun_lib import ViewerUnavailable as ViewerUnavailable
+from .rerun_lib import entity_name, require_rerun
 from .scene import Actor, Readers, Scene
+from .shapes import log_capsules, log_link_meshes
 
 #: Name of the one timeline that drives the 3-D view and the plots.
 TIMELINE = "time"
@@ -34,6 +40,13 @@ DEFAULT_CURVES: tuple[str, ...] = (
     "jLeftHip_flex", "jLeftKnee_flex", "jLeftAnkle_flex",
 )
 
+#: Distinct colours of plotted series, readable on a dark background (Trubetskoy's list).
+SERIES_PALETTE: tuple[tuple[int, int, int], ...] = (
+    (230, 25, 75), (60, 180, 75), (255, 225, 25), (0, 130, 200), (245, 130, 48),
+    (145, 30, 180), (70, 240, 240), (240, 50, 230), (210, 245, 60), (250, 190, 212),
+    (0, 128, 128), (220, 190, 255), (170, 110, 40), (255, 250, 200), (128, 0, 0),
+    (170, 255, 195), (128, 128, 0), (255, 215, 180), (0, 0, 128), (128, 128, 128),
+)
 _ACTOR_COLORS = ((66, 135, 245), (245, 130, 48), (60, 180, 75), (145, 30, 180), (70, 240, 240))
 _GHOST_COLOR = (200, 200, 200, 110)
 _AXIS_COLORS = np.array([[230, 40, 40], [40, 200, 40], [40, 90, 240]], dtype=np.uint8)
@@ -41,26 +54,6 @@ _CONTACT_ON = (255, 220, 0)
 _CONTACT_OFF = (90, 90, 90)
 _AXIS_LENGTH = 0.08  # [m]
 _LEAF_STUB = 0.08  # [m] bone of a leaf segment without a tip site, along its -Z axis
-
-
-class ViewerUnavailable(InputError):
-    """The optional viewer library is missing; the message says which extra to install."""
-
-
-def require_rerun() -> ModuleType:
-    """Import ``rerun`` (package ``rerun-sdk``) or explain how to install it."""
-    try:
-        import rerun
-    except ImportError as err:
-        raise ViewerUnavailable(
-            "ikfusion view needs the optional package rerun-sdk: install it with "
-            "pip install 'ikfusion[view]' (or pip install rerun-sdk)") from err
-    return rerun
-
-
-def entity_name(name: str) -> str:
-    """A name usable as one Rerun entity path part (letters, digits, ``_`` and ``-``)."""
-    return re.sub(r"[^A-Za-z0-9_-]", "_", name) or "_"
 
 
 def actor_color(index: int, actor: Actor) -> tuple[int, ...]:
@@ -77,9 +70,11 @@ def log_scene(rec: Any, scene: Scene) -> None:
         log_readers(rec, scene.readers)
     if scene.notes:
         rec.log("notes", rr.TextDocument("\n\n".join(scene.notes)), static=True)
+    curve_colors = scene_curve_colors(scene)
     for i, actor in enumerate(scene.actors):
         color = actor_color(i, actor)
-        log_actor_curves(rec, actor, color)  # first: whole columns, quick to show
+        tag = f" ({actor.name})" if len(scene.actors) > 1 else ""
+        log_actor_curves(rec, actor, color, curve_colors, tag)  # first: quick to show
         log_actor_paths(rec, actor, scene.tag_sites, color)
         log_actor_frames(rec, actor, scene.tag_sites, color)
 
@@ -139,30 +134,39 @@ def quat_wxyz_to_matrix(quat_wxyz: np.ndarray) -> np.ndarray:
 
 
 def bone_strips(actor: Actor) -> np.ndarray:
-    """Bones of every frame as 2-point strips, shape (N, B, 2, 3) [m].
+    """Bones of every frame as 2-point strips, shape (N, B, 2, 3) [m] (see :func:`bones`)."""
+    return bones(actor)[0]
+
+
+def bones(actor: Actor) -> tuple[np.ndarray, list[tuple[str, str]]]:
+    """Bones of every frame as 2-point strips (N, B, 2, 3) [m], and their (start, end) names.
 
     A bone joins each segment origin to each child's origin. A leaf segment ends at its tip
     site when it has one, else in a short stub along its -Z axis (distal in the N-pose) when its
-    orientation is known.
+    orientation is known (its end is then named ``tip``).
     """
     P = actor.p_world_segment
     R = segment_rotations(actor)
+    names = actor.segment_names
     starts = [P[:, int(p)] for p in actor.segment_parents if p >= 0]
     ends = [P[:, c] for c, p in enumerate(actor.segment_parents) if p >= 0]
-    for s, name in enumerate(actor.segment_names):
+    labels = [(names[int(p)], names[c]) for c, p in enumerate(actor.segment_parents) if p >= 0]
+    for s, name in enumerate(names):
         if actor.children(s):
             continue
         tip = actor.segment_tips.get(name)
         j = actor.site_index(tip) if tip else None
-        if j is not None:
+        if tip and j is not None:
             starts.append(P[:, s])
             ends.append(actor.p_world_site[:, j])
+            labels.append((name, tip))
         elif R is not None:
             starts.append(P[:, s])
             ends.append(P[:, s] - _LEAF_STUB * R[:, s, :, 2])
+            labels.append((name, "tip"))
     if not starts:
-        return np.zeros((actor.frames, 0, 2, 3))
-    return np.stack([np.stack(starts, axis=1), np.stack(ends, axis=1)], axis=2)
+        return np.zeros((actor.frames, 0, 2, 3)), []
+    return np.stack([np.stack(starts, axis=1), np.stack(ends, axis=1)], axis=2), labels
 
 
 def segment_axes(actor: Actor, R_world_segment: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -211,10 +215,14 @@ def log_actor_frames(rec: Any, actor: Actor, tag_sites: tuple[str, ...],
             lengths=np.full(n, per_frame)))
 
     radius = 0.012 if actor.ghost else 0.02
-    bones = bone_strips(actor)
-    send(f"{base}/bones", rr.LineStrips3D, bones.shape[1],
+    strips, names = bones(actor)
+    send(f"{base}/bones", rr.LineStrips3D, strips.shape[1],
          rr.LineStrips3D.from_fields(radii=radius, colors=color),
-         strips=bones.reshape(-1, 2, 3))
+         strips=strips.reshape(-1, 2, 3))
+    if actor.meshes is not None:
+        log_link_meshes(rec, base, index, actor.meshes, path_color(color))
+    elif not actor.ghost and strips.shape[1]:
+        log_capsules(rec, f"{base}/capsules", index, strips, names, path_color(color))
     S = len(actor.segment_names)
     send(f"{base}/joints", rr.Points3D, S,
          rr.Points3D.from_fields(radii=1.3 * radius, colors=color),
@@ -242,34 +250,59 @@ def log_actor_frames(rec: Any, actor: Actor, tag_sites: tuple[str, ...],
                  positions=actor.p_world_site[:, j])
 
 
-def log_actor_curves(rec: Any, actor: Actor, color: tuple[int, ...]) -> None:
-    """Joint angles [deg], stacked contact phases and solve time [ms] on the timeline."""
+def log_actor_curves(rec: Any, actor: Actor, color: tuple[int, ...],
+                     curve_colors: dict[str, tuple[int, int, int]], tag: str = "") -> None:
+    """Joint angles [deg], stacked contact phases and solve time [ms] on the timeline.
+
+    Every series is named after its column (``jRightKnee_flex``, ``LeftHeel``), followed by
+    ``tag`` (e.g. `` (truth)``) when several actors share the plots.
+
+    Args:
+        rec: The ``rerun.RecordingStream``.
+        actor: The actor.
+        color: The actor's colour (its solve-time curve).
+        curve_colors: Colour of each joint-angle column (see :func:`series_colors`); a ghost's
+            curves are drawn paler.
+        tag: Text appended to every series name.
+    """
     rr = require_rerun()
     base = f"plots/{entity_name(actor.name)}"
     index = [rr.TimeColumn(TIMELINE, duration=actor.time)]
 
     def series(path: str, name: str, values: np.ndarray, rgb: tuple[int, ...]) -> None:
-        rec.log(path, rr.SeriesLines(names=name, colors=rgb[:3], widths=1.5), static=True)
+        rec.log(path, rr.SeriesLines(names=name + tag, colors=rgb[:3], widths=1.5), static=True)
         rec.send_columns(path, indexes=index,
                          columns=rr.Scalars.columns(scalars=np.asarray(values, dtype=float)))
 
     for j, column in enumerate(actor.angle_names):
-        series(f"{base}/angles/{column}", f"{actor.name} {column}",
-               actor.joint_angles_deg[:, j], curve_color(column, color, actor.ghost))
+        rgb = curve_colors.get(column, color[:3])
+        series(f"{base}/angles/{column}", column, actor.joint_angles_deg[:, j],
+               path_color(rgb) if actor.ghost else rgb)
+    contact_colors = series_colors(actor.contact_names)
     for j, point in enumerate(actor.contact_names):
-        series(f"{base}/contacts/{point}", f"{actor.name} {point}",
-               j + 0.8 * actor.contacts[:, j], color)
+        series(f"{base}/contacts/{point}", point, j + 0.8 * actor.contacts[:, j],
+               contact_colors[point])
     if actor.solve_time_ms is not None:
-        series(f"{base}/solve_time_ms", f"{actor.name} solve time [ms]", actor.solve_time_ms,
-               color)
+        series(f"{base}/solve_time_ms", "solve time [ms]", actor.solve_time_ms, color)
 
 
-def curve_color(column: str, color: tuple[int, ...], ghost: bool) -> tuple[int, ...]:
-    """Colour of a joint-angle curve: right side darker than left, ghosts grey."""
-    if ghost:
-        return (150, 150, 150)
-    scale = 0.6 if "Right" in column else 1.0
-    return tuple(int(c * scale) for c in color[:3])
+def series_colors(names: Sequence[str]) -> dict[str, tuple[int, int, int]]:
+    """A distinct colour for each name, in order: :data:`SERIES_PALETTE`, then darker rounds."""
+    out: dict[str, tuple[int, int, int]] = {}
+    for i, name in enumerate(dict.fromkeys(names)):
+        shade = 0.8 ** (i // len(SERIES_PALETTE))
+        r, g, b = SERIES_PALETTE[i % len(SERIES_PALETTE)]
+        out[name] = (round(r * shade), round(g * shade), round(b * shade))
+    return out
+
+
+def scene_curve_colors(scene: Scene) -> dict[str, tuple[int, int, int]]:
+    """Colours of the joint-angle columns of all actors, the same in every actor.
+
+    The curves shown at first get the first (most distinct) colours.
+    """
+    shown = [c for a in scene.actors for c in default_curves(a)]
+    return series_colors(shown + [c for a in scene.actors for c in a.angle_names])
 
 
 def camera(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
@@ -294,6 +327,21 @@ def default_curves(actor: Actor) -> list[str]:
     return [c for c in actor.angle_names if "knee" in c.lower() or "elbow" in c.lower()][:6]
 
 
+def contact_title(scene: Scene) -> str:
+    """Title of the contact-phase plot, naming its rows.
+
+    Row i is drawn at i, raised to i + 0.8 while in contact, e.g.
+    ``Contacts (rows 0-3: LeftHeel, LeftToe, RightHeel, RightToe; raised = in contact)``.
+    """
+    rows: dict[int, list[str]] = {}
+    for actor in scene.actors:
+        for j, point in enumerate(actor.contact_names):
+            if point not in rows.setdefault(j, []):
+                rows[j].append(point)
+    names = ", ".join("/".join(rows[j]) for j in sorted(rows))
+    return f"Contacts (rows 0-{len(rows) - 1}: {names}; raised = in contact)"
+
+
 def make_blueprint(scene: Scene) -> Any:
     """The viewer layout: 3-D view left; joint angles, contacts, solve time right; paused."""
     require_rerun()
@@ -305,13 +353,13 @@ def make_blueprint(scene: Scene) -> Any:
     if curves:
         plots.append(rrb.TimeSeriesView(name="Joint angles [deg]", origin="/plots",
                                         contents=curves, plot_legend=rrb.PlotLegend(
-                                            visible=False)))
+                                            visible=True)))
     phases = [f"/plots/{entity_name(a.name)}/contacts/{c}" for a in scene.actors
               for c in a.contact_names]
     if phases:
-        plots.append(rrb.TimeSeriesView(name="Contact phases", origin="/plots",
+        plots.append(rrb.TimeSeriesView(name=contact_title(scene), origin="/plots",
                                         contents=phases, plot_legend=rrb.PlotLegend(
-                                            visible=False)))
+                                            visible=True)))
     timing = [f"/plots/{entity_name(a.name)}/solve_time_ms" for a in scene.actors
               if a.solve_time_ms is not None]
     if timing:

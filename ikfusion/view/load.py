@@ -71,6 +71,7 @@ def load_scene(path: str | Path, truth: str | Path | None = None,
                          path=source)
     if truth is not None:
         actors.append(load_truth_actor(truth, name="truth", ghost=True))
+    notes += [n for a in actors for n in a.notes]
     readers_file = Path(readers) if readers is not None else folder / "readers.yaml"
     found = load_readers(readers_file) if readers is not None or readers_file.is_file() else None
     return Scene(tuple(actors), found, TAG_SITES, str(source), tuple(notes))

@@ -4,8 +4,10 @@
 which body they belong to (``robot``, ``config``, ``height_m``). The body is rebuilt and its
 forward kinematics give what the viewer draws: for a robot, every joint frame as a segment
 (bones join each joint to its children) and the sole corners as contact points, lit while the
-foot is planted; for the human model, its segments and contact points. Joint curves are the
-robot's joint positions [deg] (the human's anatomical angles).
+foot is planted; for the human model, its segments and contact points. A robot also gets the
+visual meshes of its URDF with the pose of each link that carries one, so that it is drawn as
+built (its joint sticks stay one click away). Joint curves are the robot's joint positions
+[deg] (the human's anatomical angles).
 """
 
 from __future__ import annotations
@@ -18,7 +20,8 @@ import pinocchio as pin
 
 from ..errors import InputError
 from ..rotations import matrix_to_quat_wxyz, quat_wxyz_to_matrix
-from .scene import Actor
+from .robot_meshes import link_poses, visual_meshes
+from .scene import Actor, LinkMeshes
 
 
 def is_retarget_folder(folder: Path) -> bool:
@@ -69,6 +72,16 @@ def _robot_actor(data: dict[str, np.ndarray], robot: str, config_file: str | Non
     P = np.zeros((n, len(joints), 3))
     R = np.zeros((n, len(joints), 3, 3))
     corners = np.zeros((n, 8, 3))
+    notes: tuple[str, ...] = ()
+    try:
+        links, parts, primitives = visual_meshes(pin_model, model.config.urdf)
+    except InputError as err:  # the sticks are still worth showing
+        links, parts, primitives = [], [], 0
+        notes = (f"{robot} drawn without meshes: {err}",)
+    if primitives:
+        notes += (f"{robot}: {primitives} visual(s) made of primitive shapes are not drawn",)
+    p_link = np.zeros((n, len(links), 3))
+    R_link = np.zeros((n, len(links), 3, 3))
     for k in range(n):
         q = np.concatenate([data["root_pos"][k], data["root_quat_wxyz"][k, [1, 2, 3, 0]],
                             data["dof_pos"][k]])
@@ -79,6 +92,9 @@ def _robot_actor(data: dict[str, np.ndarray], robot: str, config_file: str | Non
         corners[k] = np.concatenate([
             f.corners @ pin_data.oMf[model.frame_ids[f.link]].rotation.T
             + pin_data.oMf[model.frame_ids[f.link]].translation for f in feet])
+        p_link[k], R_link[k] = link_poses(pin_data, links)
+    meshes = LinkMeshes(tuple(pin_model.frames[f].name for f in links), p_link,
+                        matrix_to_quat_wxyz(R_link), tuple(parts)) if parts else None
     sites = tuple(f"{side}_sole_{i}" for side in ("left", "right") for i in range(4))
     return Actor(
         name=name, time=_time(data), segment_names=tuple(pin_model.names[j] for j in joints),
@@ -87,7 +103,7 @@ def _robot_actor(data: dict[str, np.ndarray], robot: str, config_file: str | Non
         site_names=sites, p_world_site=corners, contact_names=sites,
         contacts=np.repeat(np.asarray(data["contacts"], dtype=bool), 4, axis=1),
         angle_names=tuple(str(d) for d in data["dof_names"]),
-        joint_angles_deg=np.degrees(data["dof_pos"]))
+        joint_angles_deg=np.degrees(data["dof_pos"]), meshes=meshes, notes=notes)
 
 
 def _human_actor(data: dict[str, np.ndarray], height: float, name: str) -> Actor:

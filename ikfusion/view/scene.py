@@ -8,8 +8,52 @@ in degrees as in ``joint_angles.csv``. Quaternions are scalar first (w, x, y, z)
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
+
+
+@dataclass(frozen=True)
+class MeshPart:
+    """One visual mesh of a robot link, as its URDF places it.
+
+    Attributes:
+        name: Name of the visual (the URDF's link name and a number, e.g. ``pelvis_0``).
+        link: Index of the link it moves with in :attr:`LinkMeshes.link_names`.
+        file: The mesh file (resolved from ``package://`` or relative paths).
+        T_link_mesh: (4, 4) pose of the mesh frame in the link frame [m].
+        scale: (3,) scale of the mesh file's coordinates (the URDF's ``scale``).
+        rgba: Colour of the URDF material (0-1 each), or None when it gives none.
+        vertices: (V, 3) vertices in the mesh frame, scaled [m], for files the viewer cannot
+            read itself (COLLADA); None when ``file`` is drawn as it is.
+        triangles: (T, 3) vertex indices of ``vertices``, or None.
+    """
+
+    name: str
+    link: int
+    file: Path
+    T_link_mesh: np.ndarray
+    scale: np.ndarray
+    rgba: tuple[float, float, float, float] | None = None
+    vertices: np.ndarray | None = None
+    triangles: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class LinkMeshes:
+    """The meshes of a robot and the pose of each of its links at every frame.
+
+    Attributes:
+        link_names: The L links that carry a mesh (URDF link names).
+        p_world_link: (N, L, 3) link frame origins [m].
+        quat_wxyz_world_link: (N, L, 4) link orientations ``R_world_link``.
+        parts: The meshes, each fixed to one link.
+    """
+
+    link_names: tuple[str, ...]
+    p_world_link: np.ndarray
+    quat_wxyz_world_link: np.ndarray
+    parts: tuple[MeshPart, ...]
 
 
 @dataclass(frozen=True)
@@ -33,6 +77,9 @@ class Actor:
         joint_angles_deg: (N, A) joint angles [deg].
         solve_time_ms: (N,) solve time per frame [ms], or None.
         ghost: Drawn faint (a reference such as the truth), not as the main body.
+        meshes: A robot's link meshes and link poses; None draws the body as capsules
+            around its bones (ghosts as bones only).
+        notes: Facts about how the actor is drawn (e.g. why a robot has no meshes).
     """
 
     name: str
@@ -50,6 +97,8 @@ class Actor:
     joint_angles_deg: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     solve_time_ms: np.ndarray | None = None
     ghost: bool = False
+    meshes: LinkMeshes | None = None
+    notes: tuple[str, ...] = ()
 
     @property
     def frames(self) -> int:
