@@ -25,6 +25,7 @@ from fuzz_runner import (  # noqa: E402
     Campaign,
     catalogue,
     draw_cases,
+    exit2_messages,
     limit_memory,
     run_case,
     table,
@@ -55,6 +56,8 @@ def main() -> int:
     parser.add_argument("--shared", type=Path, default=SHARED)
     parser.add_argument("--readers", help="comma-separated readers to fuzz (default: all)")
     parser.add_argument("--replay", metavar="CASE", help="run one case and print its output")
+    parser.add_argument("--messages", action="store_true",
+                        help="also list the most frequent exit-2 messages per reader")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory(prefix="ikfusion-fuzz-") as tmp:
         root = Path(tmp)
@@ -82,6 +85,8 @@ def main() -> int:
         print(f"\n{len(outcomes)} cases in {wall:.1f} s ({args.workers} worker(s), seed "
               f"{args.seed})\n")
         print(catalogue(outcomes, REPLAY))
+        if args.messages:
+            print("\n" + exit2_messages(outcomes))
     return 0
 
 

@@ -7,8 +7,9 @@ plus the memory limit. Each case's peak resident memory is measured with ``VmHWM
 through ``/proc/self/clear_refs``. A worker that dies or stops answering is replaced and its case
 recorded as a crash or a timeout, so one bad case never stops the campaign.
 
-A case passes when it exits 0 or 2; on 2 the message names the mutated file and shows no
-traceback; on 0 no NaN or infinity reaches standard output or a CSV/JSON/YAML output file.
+A case passes when it exits 0 or 2; on 2 the message names the mutated file (or the trial
+folder, when a file of it was deleted or replaced by a folder) and shows no traceback; on 0 no NaN or infinity reaches standard output or an output file (CSV, JSON,
+YAML, MOT, BVH, MT Manager text, or a float array of an ``.npz``).
 """
 
 from __future__ import annotations
@@ -32,7 +33,8 @@ from multiprocessing.connection import Connection, wait
 from pathlib import Path
 from typing import Any
 
-from fuzz_mutators import Case, draw_mutations, mutate_file
+import numpy as np
+from fuzz_mutators import WHOLE_FILE, Case, draw_mutations, mutate_file
 from fuzz_seeds import Seed, copy_seed
 
 from ikfusion.cli import main
@@ -40,7 +42,7 @@ from ikfusion.errors import InputError
 
 #: Exit 0 outputs must hold no NaN/inf token (JSON's NaN/Infinity, numpy's nan/inf).
 _NON_FINITE = re.compile(r"(?<![A-Za-z_])[-+]?(nan|inf|infinity)(?![A-Za-z_])", re.I)
-_OUTPUT_SUFFIXES = (".csv", ".json", ".yaml", ".mot")
+_OUTPUT_SUFFIXES = (".csv", ".json", ".yaml", ".mot", ".txt", ".bvh")
 
 
 class CaseTimeout(BaseException):
@@ -108,6 +110,12 @@ def _non_finite_outputs(stdout: str, out: Path) -> str | None:
             m = _NON_FINITE.search(f.read_text(errors="replace"))
             if m:
                 return f"non-finite value in {f.name}: {m[0]!r}"
+        if f.suffix == ".npz" and f.is_file():
+            with np.load(f, allow_pickle=False) as npz:
+                for key in npz.files:
+                    a = npz[key]
+                    if a.dtype.kind in "fc" and not np.isfinite(a).all():
+                        return f"non-finite value in {f.name}[{key}]"
     return None
 
 
@@ -173,7 +181,10 @@ def run_case(case: Case, seed: Seed, workdir: Path, timeout: float,
     seconds = time.perf_counter() - start
     peak = _status_mb("VmHWM")
     err_text = stderr.getvalue()
-    problem = judge(code, seconds, timeout, err_text, stdout.getvalue(), out, target, peak,
+    names = [target.name]
+    if case.mutations[0] in WHOLE_FILE and any("{dir}" in a for a in seed.argv):
+        names.append(str(target.parent))  # a file gone from a trial: naming the trial will do
+    problem = judge(code, seconds, timeout, err_text, stdout.getvalue(), out, names, peak,
                     memory_mb)
     lines = [ln for ln in err_text.strip().splitlines() if ln.strip()]
     last = lines[-1] if lines else ""
@@ -183,7 +194,7 @@ def run_case(case: Case, seed: Seed, workdir: Path, timeout: float,
 
 
 def judge(code: int | None, seconds: float, timeout: float, stderr: str, stdout: str,
-          out: Path, target: Path, peak_mb: float = 0.0,
+          out: Path, names: Sequence[str], peak_mb: float = 0.0,
           memory_mb: float = float("inf")) -> str | None:
     """Why a case fails, or None when it passes (see the module docstring)."""
     if code is None or seconds > timeout:
@@ -195,7 +206,7 @@ def judge(code: int | None, seconds: float, timeout: float, stderr: str, stdout:
     if code == 2:
         if "Traceback" in stderr:
             return "exit 2 with a traceback"
-        if target.name not in stderr:
+        if not any(name in stderr for name in names):
             return "exit 2 without naming the mutated file"
         return None
     return _non_finite_outputs(stdout, out)
@@ -393,3 +404,17 @@ def table(outcomes: Sequence[Outcome]) -> str:
     widths = [max(len(r[k]) for r in [head, *body]) for k in range(len(head))]
     return "\n".join("  ".join(v.ljust(w) if k < 2 else v.rjust(w)
                                for k, (v, w) in enumerate(zip(r, widths))) for r in [head, *body])
+
+
+def exit2_messages(outcomes: Sequence[Outcome], top: int = 5) -> str:
+    """The most frequent exit-2 messages per reader (paths and numbers blanked)."""
+    counts: dict[str, dict[str, int]] = defaultdict(lambda: defaultdict(int))
+    for o in outcomes:
+        if o.code == 2:
+            counts[o.case.reader][normalise(o.last_line.split(": error: ", 1)[-1])] += 1
+    lines = []
+    for reader in sorted(counts):
+        lines.append(f"{reader}:")
+        ranked = sorted(counts[reader].items(), key=lambda kv: -kv[1])[:top]
+        lines += [f"  {n:4d}  {msg}" for msg, n in ranked]
+    return "\n".join(lines)

@@ -152,6 +152,11 @@ def repo_seeds(root: Path, capture: Capture) -> list[Seed]:
     for f in (imu_files[0], imu_files[13]):
         folder = _own_folder(root, "mt_trial", "sim_" + f.stem[-8:], trial)
         seeds.append(Seed("mt_trial", "sim_" + f.stem[-8:], folder, f.name, inspect_dir))
+    solve = ("solve", "--imu", "{dir}", "--map", str(cap / "sensors.yaml"), "--body",
+             str(cap / "body.yaml"), "--out", "{out}/result", "--quiet")
+    for f in (imu_files[0], imu_files[12]):  # pelvis, right lower leg: solved end to end
+        folder = _own_folder(root, "imu_solve", "sim_" + f.stem[-8:], trial)
+        seeds.append(Seed("imu_solve", "sim_" + f.stem[-8:], folder, f.name, solve))
     seeds.append(Seed("imu_csv", "sim_csv", _own_folder(
         root, "imu_csv", "sim", {"imu.csv": _imu_csv(cap, 30)}), "imu.csv", inspect_file))
 

@@ -22,8 +22,8 @@ from fuzz_seeds import Seed, repo_seeds, shared_seeds, simulate_capture
 SEED = 20261126
 REPLAY = "PYTHONPATH=. python benchmarks/bench_fuzz.py --replay"
 #: Relative frequency of each reader's cases: the slow drivers (model, evaluate, locate,
-#: simulate from a BVH) get fewer cases than the fast file readers.
-WEIGHTS = {"body": 0.25, "truth": 0.4, "toa": 0.6, "bvh": 0.15, "mvnx": 0.8}
+#: simulate from a BVH, solve of a mutated recording) get fewer cases than the fast readers.
+WEIGHTS = {"body": 0.25, "truth": 0.4, "toa": 0.6, "bvh": 0.15, "mvnx": 0.8, "imu_solve": 0.08}
 REPO_CASES = 1000
 SHARED_CASES = 1000
 
