@@ -30,7 +30,7 @@ from fuzz_runner import (  # noqa: E402
     run_case,
     table,
 )
-from fuzz_seeds import repo_seeds, shared_seeds, simulate_capture  # noqa: E402
+from fuzz_seeds import WEIGHTS, repo_seeds, shared_seeds, simulate_capture  # noqa: E402
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 REPLAY = "PYTHONPATH=. python benchmarks/bench_fuzz.py --replay"
@@ -54,6 +54,9 @@ def main() -> int:
     parser.add_argument("--timeout", type=float, default=30.0, help="per case [s]")
     parser.add_argument("--memory", type=float, default=2048.0, help="per case [MB]")
     parser.add_argument("--shared", type=Path, default=SHARED)
+    parser.add_argument("--uniform", action="store_true",
+                        help="as many cases per reader (default: the test's weights, fewer for "
+                        "the slow solve/simulate/model drivers)")
     parser.add_argument("--readers", help="comma-separated readers to fuzz (default: all)")
     parser.add_argument("--replay", metavar="CASE", help="run one case and print its output")
     parser.add_argument("--messages", action="store_true",
@@ -76,7 +79,7 @@ def main() -> int:
         if args.readers:
             keep = set(args.readers.split(","))
             seeds = [s for s in seeds if s.reader in keep]
-        cases = draw_cases(seeds, args.cases, args.seed)
+        cases = draw_cases(seeds, args.cases, args.seed, None if args.uniform else WEIGHTS)
         t0 = time.perf_counter()
         outcomes = Campaign(seeds, root / "work", workers=args.workers, timeout=args.timeout,
                             memory_mb=args.memory).run(cases)

@@ -8,14 +8,17 @@ through ``/proc/self/clear_refs``. A worker that dies or stops answering is repl
 recorded as a crash or a timeout, so one bad case never stops the campaign.
 
 A case passes when it exits 0 or 2; on 2 the message names the mutated file (or the trial
-folder, when a file of it was deleted or replaced by a folder) and shows no traceback; on 0 no NaN or infinity reaches standard output or an output file (CSV, JSON,
-YAML, MOT, BVH, MT Manager text, or a float array of an ``.npz``).
+folder, when a file of it was deleted or replaced by a folder) and shows no traceback; on 0 no
+NaN or infinity reaches standard output or an output file (CSV, JSON, YAML, MOT, BVH, MT Manager
+text, or a float array of an ``.npz``).
 """
 
 from __future__ import annotations
 
 import contextlib
 import io
+import json
+import math
 import multiprocessing as mp
 import os
 import random
@@ -34,14 +37,16 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import yaml
 from fuzz_mutators import WHOLE_FILE, Case, draw_mutations, mutate_file
 from fuzz_seeds import Seed, copy_seed
 
 from ikfusion.cli import main
 from ikfusion.errors import InputError
 
-#: Exit 0 outputs must hold no NaN/inf token (JSON's NaN/Infinity, numpy's nan/inf).
-_NON_FINITE = re.compile(r"(?<![A-Za-z_])[-+]?(nan|inf|infinity)(?![A-Za-z_])", re.I)
+#: Exit 0 outputs must hold no NaN/inf value (JSON's NaN/Infinity, numpy's nan/inf).
+_NON_FINITE = re.compile(r"[-+]?(nan|inf|infinity)", re.I)
+_FIELD_SPLIT = re.compile(r"[\s,;=:\[\]()]+")
 _OUTPUT_SUFFIXES = (".csv", ".json", ".yaml", ".mot", ".txt", ".bvh")
 
 
@@ -99,17 +104,61 @@ def _status_mb(key: str) -> float:
     return float("nan")
 
 
+def _non_finite_in(value: Any, where: str = "") -> str | None:
+    """The key path of the first NaN/inf number (or "nan"/"inf" string) in parsed JSON/YAML."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return where or "(top)"
+    if isinstance(value, str) and _NON_FINITE.fullmatch(value.strip()):
+        return where or "(top)"
+    if isinstance(value, dict):
+        items: Iterable[tuple[Any, Any]] = value.items()
+    elif isinstance(value, list):
+        items = enumerate(value)
+    else:
+        return None
+    for key, item in items:
+        found = _non_finite_in(item, f"{where}.{key}" if where else str(key))
+        if found:
+            return found
+    return None
+
+
+def _non_finite_text(text: str, suffix: str) -> str | None:
+    """Where a NaN/inf value sits in an output's text (None: nowhere).
+
+    JSON and YAML are parsed and their numbers checked (so a warning that says "NaN" is no
+    hit); tables are split into fields and a field that is exactly NaN/inf is a hit.
+    """
+    if suffix in (".json", ".yaml"):
+        try:
+            parsed = json.loads(text) if suffix == ".json" else yaml.safe_load(text)
+        except (ValueError, yaml.YAMLError):
+            parsed = None
+        if parsed is not None:
+            found = _non_finite_in(parsed)
+            return None if found is None else f"at {found}"
+    for n, line in enumerate(text.splitlines(), 1):
+        if line.lstrip().startswith(("//", "#")):
+            continue
+        for field in _FIELD_SPLIT.split(line):
+            if _NON_FINITE.fullmatch(field.strip("\"'")):
+                return f"line {n}: {line.strip()[:80]!r}"
+    return None
+
+
 def _non_finite_outputs(stdout: str, out: Path) -> str | None:
-    """Where a NaN/inf token reached an output (None: nowhere)."""
-    if _NON_FINITE.search(stdout):
-        return f"non-finite value in standard output: {_NON_FINITE.search(stdout)[0]!r}"
+    """Where a NaN/inf value reached an output (None: nowhere)."""
+    stripped = stdout.strip()
+    found = _non_finite_text(stdout, ".json" if stripped.startswith(("{", "[")) else ".txt")
+    if found:
+        return f"non-finite value in standard output {found}"
     if not out.is_dir():
         return None
     for f in sorted(out.rglob("*")):
         if f.suffix in _OUTPUT_SUFFIXES and f.is_file():
-            m = _NON_FINITE.search(f.read_text(errors="replace"))
-            if m:
-                return f"non-finite value in {f.name}: {m[0]!r}"
+            found = _non_finite_text(f.read_text(errors="replace"), f.suffix)
+            if found:
+                return f"non-finite value in {f.name} {found}"
         if f.suffix == ".npz" and f.is_file():
             with np.load(f, allow_pickle=False) as npz:
                 for key in npz.files:
@@ -351,7 +400,8 @@ def catalogue(outcomes: Sequence[Outcome], replay: str) -> str:
     groups: dict[tuple[str, str, str, str], list[Outcome]] = defaultdict(list)
     for o in outcomes:
         if o.problem is not None:
-            key = (likely_cause(o), o.case.reader, o.problem.split(" (")[0].split(" after")[0],
+            key = (likely_cause(o), o.case.reader,
+                   o.problem.split(" (")[0].split(" after")[0].split(": ...")[0],
                    normalise(o.last_line))
             groups[key].append(o)
     if not groups:
@@ -372,8 +422,10 @@ def catalogue(outcomes: Sequence[Outcome], replay: str) -> str:
             for m in set(o.case.mutations):
                 muts[m] += 1
         top = ", ".join(f"{m} {n}" for m, n in sorted(muts.items(), key=lambda kv: -kv[1])[:6])
-        lines += [f"- [{reader}] {problem} x{len(group)} (mutations: {top})",
-                  f"    last line: {group[0].last_line[:200]}",
+        lines.append(f"- [{reader}] {problem} x{len(group)} (mutations: {top})")
+        if group[0].problem != problem:
+            lines.append(f"    first: {group[0].problem}"[:240])
+        lines += [f"    last line: {group[0].last_line[:200]}",
                   f"    replay: {replay} '{group[0].case}'"]
     return "\n".join(lines)
 

@@ -22,6 +22,10 @@ import yaml
 from ikfusion.cli import main
 
 REPO = Path(__file__).resolve().parents[2]
+#: Relative frequency of each reader's cases (1 when absent): the slow drivers (model, evaluate,
+#: locate, simulate from a BVH, solve of a mutated recording) get fewer cases.
+WEIGHTS: dict[str, float] = {"body": 0.25, "truth": 0.4, "toa": 0.6, "bvh": 0.15, "mvnx": 0.8,
+                             "imu_solve": 0.08}
 CONFIGS = REPO / "configs"
 
 

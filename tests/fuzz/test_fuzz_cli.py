@@ -15,15 +15,12 @@ from pathlib import Path
 
 import pytest
 from fuzz_mutators import Case, mutate_file
-from fuzz_runner import Campaign, Outcome, catalogue, draw_cases
-from fuzz_seeds import Seed, repo_seeds, shared_seeds, simulate_capture
+from fuzz_runner import Campaign, Outcome, _non_finite_outputs, catalogue, draw_cases
+from fuzz_seeds import WEIGHTS, Seed, repo_seeds, shared_seeds, simulate_capture
 
 #: The campaign's fixed seed; change it only on purpose (the failures then differ).
 SEED = 20261126
 REPLAY = "PYTHONPATH=. python benchmarks/bench_fuzz.py --replay"
-#: Relative frequency of each reader's cases: the slow drivers (model, evaluate, locate,
-#: simulate from a BVH, solve of a mutated recording) get fewer cases than the fast readers.
-WEIGHTS = {"body": 0.25, "truth": 0.4, "toa": 0.6, "bvh": 0.15, "mvnx": 0.8, "imu_solve": 0.08}
 REPO_CASES = 1000
 SHARED_CASES = 1000
 
@@ -88,3 +85,17 @@ def test_fuzz_cli_shared_recordings(shared_data: Path, tmp_path: Path) -> None:
     cases = draw_cases(seeds, SHARED_CASES, SEED + 1, WEIGHTS)
     report = _report(Campaign(seeds, tmp_path / "work").run(cases))
     assert not baseline and not report, f"{baseline}\n{report}"
+
+
+def test_fuzz_nan_check_reads_numbers_not_words(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "summary.json").write_text('{"warnings": ["Gyr_Z missing; those are NaN"]}')
+    (out / "fixes.csv").write_text("time,x\n0.0,1.5\n")
+    assert _non_finite_outputs('{"rate": 60.0}', out) is None
+    (out / "summary.json").write_text('{"rate": NaN}')
+    assert "summary.json at rate" in str(_non_finite_outputs("", out))
+    (out / "summary.json").write_text("{}")
+    (out / "fixes.csv").write_text("time,x\n0.0,-inf\n")
+    assert "fixes.csv line 2" in str(_non_finite_outputs("", out))
+    assert "standard output" in str(_non_finite_outputs('{"q": [1, Infinity]}', tmp_path / "x"))
