@@ -108,7 +108,7 @@ def hinge_angle(R_world_parent: np.ndarray, R_world_child: np.ndarray, axis: str
 
     Maximises ``trace(M R(a, -theta))`` with ``M = R_parent^T R_child``, ``a`` the unit axis
     and ``theta = sign * k``: by Rodrigues it is ``A cos(theta) + B sin(theta) + const`` with
-    ``A = tr(M) - M_aa`` and ``B = -tr(M [a]x)`` (for ``a = e_i``: ``M_jk - M_kj`` on the cyclic
+    ``A = tr(M) - M_aa`` and ``B = -tr(M [a]x)`` (for ``a = e_i``: ``M_kj - M_jk`` on the cyclic
     pair ``(j, k)`` after ``i``).
     """
     M = R_world_parent.T @ R_world_child
