@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import ConfigError
 from ..rotations import axis_rotation
 
 _AXES = {"x": 0, "y": 1, "z": 2}
@@ -50,6 +51,9 @@ class AssumedTargets:
         segments: Segment names in the solver's order.
         joints: ``HumanModel.ball_joints`` (name -> joint with ``spec``).
         hinges: Names of the joints treated as hinges (knees, elbows).
+
+    Raises:
+        ConfigError: A hinge that is not a joint of the model.
     """
 
     def __init__(self, segments: Sequence[str], joints: Mapping[str, object],
@@ -62,7 +66,8 @@ class AssumedTargets:
         self.hinges: list[_Hinge] = []
         for name in hinges:
             if name not in joints:
-                continue
+                raise ConfigError(f"unknown joint {name!r}; joints: {', '.join(joints)}",
+                                  field="hinge_joints")
             spec = joints[name].spec  # type: ignore[attr-defined]
             flex = spec.angles[0]
             segment = index[spec.parent]

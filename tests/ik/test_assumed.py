@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from ikfusion.errors import ConfigError
 from ikfusion.ik.assumed import AssumedTargets, coverage_warning, hinge_angle, segment_coverage
 from ikfusion.model import HumanModel
 from ikfusion.rotations import axis_rotation, exp_so3
@@ -80,3 +81,8 @@ def test_coverage_lists_and_warns(model: HumanModel) -> None:
     full = ["Pelvis", "T8", "Head"] + [f"{s}{p}" for s in ("Right", "Left") for p in (
         "Shoulder", "UpperArm", "ForeArm", "Hand", "UpperLeg", "LowerLeg", "Foot")]
     assert coverage_warning(model.ball_joints, full) is None
+
+
+def test_unknown_hinge_is_a_config_error(model: HumanModel) -> None:
+    with pytest.raises(ConfigError, match="jRightKnees"):
+        AssumedTargets(model.segment_names, model.ball_joints, ["jRightKnees"])
