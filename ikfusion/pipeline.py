@@ -14,6 +14,7 @@ import numpy as np
 
 from .correction import DriftCorrection
 from .ik import Frame, Motion, Solver
+from .ik.assumed import coverage_warning
 from .imu.calibration import Calibration, calibrate_recording
 from .imu.stance import StanceThresholds, foot_still
 from .io.recording import ImuRecording
@@ -106,4 +107,7 @@ def solve_recording(recording: ImuRecording, sensor_map: Mapping[str, str], mode
     knee = knee_warning(motion)
     if knee:
         motion.warnings.append(knee)
+    assumed = coverage_warning(model.ball_joints, cal.R_sensor_segment)
+    if assumed:
+        motion.warnings.append(assumed)
     return SolvedRecording(motion, cal, motion.warnings)

@@ -30,6 +30,7 @@ import numpy as np
 from .correction import DriftCorrection
 from .errors import ConfigError
 from .ik import Motion, Solver
+from .ik.assumed import segment_coverage
 from .imu.calibration import calibrate_recording
 from .imu.mvn_calibration import calibration_from_mvnx
 from .io.mvnx import MvnxRecording, read_mvnx
@@ -152,6 +153,7 @@ def solve_actor(actor: ActorInputs, out: str | Path, uwb: UwbInputs | None = Non
                         "window_s": [cal.window[0] / recording.rate,
                                      cal.window[1] / recording.rate]},
         "uwb": summary,
+        "segments": segment_coverage(model.segment_names, cal.R_sensor_segment),
     }
     if actor.name is not None:
         extra["actor"] = actor.name

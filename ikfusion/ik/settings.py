@@ -27,6 +27,9 @@ class SolverSettings:
     posture: float = 1e-3
     posture_joints: dict[str, float] = field(default_factory=dict)
     posture_axes: dict[str, list[float]] = field(default_factory=dict)
+    assumed: float = 0.1
+    hinge_joints: list[str] = field(default_factory=lambda: [
+        "jRightKnee", "jLeftKnee", "jRightElbow", "jLeftElbow"])
     smoothness_root_translation: float = 1e-6
     smoothness_root_rotation: float = 1e-6
     smoothness_joints: float = 1e-6

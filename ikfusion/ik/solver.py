@@ -31,6 +31,7 @@ from tqdm import tqdm
 from ..errors import SolverError
 from ..model.human_model import HumanModel
 from ..rotations import axis_rotation, log_so3, matrix_to_quat_wxyz, wxyz_to_xyzw
+from .assumed import AssumedTargets
 from .compiled import SensedPoseSpec, compiled_kinematics
 from .configuration import Configuration
 from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
@@ -85,6 +86,7 @@ class Solver:
         self.posture_task = PostureTask.from_joints(model.ball_joints, s.posture_joints, s.posture,
                                                     s.posture_axes)
         self._posture_weights = self.posture_task.weights.copy()
+        self.assumed = AssumedTargets(segments, model.ball_joints, s.hinge_joints)
         self._joint_segments = [(j.spec.parent, j.spec.child) for j in model.ball_joints.values()]
         self._joint_parent = np.array([self._segment_index[a] for a, _ in self._joint_segments],
                                       dtype=int)
@@ -281,6 +283,9 @@ class Solver:
                 continue
             R[i] = R_target if self._R_heading is None else self._R_heading @ R_target
             w[i] = frame.orientation_weights.get(name, 1.0)
+        if self.settings.assumed > 0:  # open hinge parents (a thigh between pelvis and shank)
+            for i, R_assumed in self.assumed.targets(R, w > 0):
+                R[i], w[i] = R_assumed, self.settings.assumed
         self.orientation_task.set_targets(R, w)
         self._sensed_targets = self.orientation_task.targets
         tracked = self.orientation_task.weights > 0
