@@ -34,6 +34,7 @@ import numpy as np
 
 from .errors import InputError
 from .rotations import angle_between, continuous_quaternions, quat_wxyz_to_matrix
+from .sim.truth import read_truth
 
 
 @dataclass
@@ -170,9 +171,7 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
     """
     folder = Path(result_dir)
     truth_file = Path(truth_path)
-    if not truth_file.is_file():
-        raise InputError("truth file not found", path=truth_file)
-    truth = np.load(truth_file, allow_pickle=False)
+    truth = read_truth(truth_file)
     t_true = truth["time"]
     header, rows = _read_table(folder / "joint_angles.csv")
     t_est = _floats(folder / "joint_angles.csv", header, rows, ["time"])[:, 0]

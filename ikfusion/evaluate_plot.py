@@ -22,6 +22,7 @@ import numpy as np
 
 from .errors import InputError
 from .evaluate import Evaluation, _floats, _interp, _long_table, _read_table, evaluate
+from .sim.truth import read_truth
 from .uwb.constellation import Constellation, load_constellation
 from .uwb.dop import capture_area
 
@@ -102,7 +103,7 @@ def trajectory_view(result_dir: str | Path, truth_path: str | Path, evaluation: 
         readers: The constellation to draw; by default the one ``summary.json`` names.
     """
     folder = Path(result_dir)
-    truth = np.load(truth_path, allow_pickle=False)
+    truth = read_truth(truth_path)
     t_true = truth["time"]
     t_site, sites = _long_table(folder / "sites.csv", "site", ["x", "y", "z"])
     span = (t_true >= t_site[0] - 1e-6) & (t_true <= t_site[-1] + 1e-6)
@@ -177,7 +178,7 @@ def draw_joint_angles(result_dir: str | Path, truth_path: str | Path,
     """Figure of flexion angles, one row per joint, left side then right side [deg]."""
     plt = _pyplot()
     folder = Path(result_dir)
-    truth = np.load(truth_path, allow_pickle=False)
+    truth = read_truth(truth_path)
     header, rows = _read_table(folder / "joint_angles.csv")
     names = [str(n) for n in truth["joint_angle_names"]]
     t_est = _floats(folder / "joint_angles.csv", header, rows, ["time"])[:, 0]

@@ -184,4 +184,7 @@ def _parse(data: bytes, file: Path) -> list[OpenSenseSensor]:
     except expat.ExpatError as err:
         raise ConfigError(f"not valid XML: {expat.ErrorString(err.code)} (column "
                           f"{err.offset + 1})", path=file, line=err.lineno) from None
+    except (LookupError, ValueError) as err:  # an unknown encoding in the XML declaration
+        raise ConfigError(f"not valid XML: {err}", path=file, line=parser.CurrentLineNumber) \
+            from None
     return sensors

@@ -11,8 +11,10 @@ import numpy as np
 import pinocchio as pin
 
 from ..atomic import atomic_write
+from ..errors import InputError
 from ..ik.frame import Frame
 from ..imu.stance import foot_still
+from ..io.npz import read_npz
 from ..model.human_model import HumanModel
 from ..rotations import matrix_to_quat_wxyz
 
@@ -144,6 +146,43 @@ def write_truth(path: str | Path, truth: TruthMotion) -> Path:
             joint_angles=model.joint_angle_matrix(truth.q), source=np.array(truth.source),
             **extra)
     return Path(path)
+
+
+#: The arrays of ``truth.npz`` with their shapes (names of sizes: N frames, S segments, M
+#: sites, C contacts, J joint-angle columns; integers are fixed sizes).
+TRUTH_SHAPES: dict[str, tuple[str | int, ...]] = {
+    "time": ("N",), "segment_names": ("S",), "p_world_segment": ("N", "S", 3),
+    "quat_wxyz_world_segment": ("N", "S", 4), "site_names": ("M",),
+    "p_world_site": ("N", "M", 3), "contact_names": ("C",), "contacts": ("N", "C"),
+    "joint_angle_names": ("J",), "joint_angles": ("N", "J"),
+}
+
+
+def read_truth(path: str | Path) -> dict[str, np.ndarray]:
+    """The arrays of a ``truth.npz`` (see :func:`write_truth`), checked.
+
+    Raises:
+        InputError: A damaged file, a missing array, shapes that do not agree, times that do
+            not increase, or non-finite values (file and array named).
+    """
+    data = read_npz(path, TRUTH_SHAPES, "truth.npz")
+    sizes: dict[str, int] = {}
+    for name, shape in TRUTH_SHAPES.items():
+        array = data[name]
+        if array.ndim != len(shape) or any(
+                isinstance(d, int) and array.shape[k] != d for k, d in enumerate(shape)):
+            raise InputError(f"expected shape ({', '.join(map(str, shape))}), found "
+                             f"{array.shape}", path=path, field=name)
+        for k, d in enumerate(shape):
+            if isinstance(d, str) and sizes.setdefault(d, array.shape[k]) != array.shape[k]:
+                raise InputError(f"{d} = {array.shape[k]} along axis {k} disagrees with "
+                                 f"{sizes[d]} in the other arrays", path=path, field=name)
+        if array.dtype.kind in "fiub" and not np.isfinite(array.astype(float)).all():
+            raise InputError("non-finite values", path=path, field=name)
+    if sizes["N"] < 2 or not (np.diff(data["time"].astype(float)) > 0).all():
+        raise InputError("expected at least two frames with increasing times", path=path,
+                         field="time")
+    return data
 
 
 def with_feet_still(frames: list[Frame], rate: float) -> list[Frame]:

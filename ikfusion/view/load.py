@@ -26,6 +26,7 @@ import numpy as np
 from ..errors import InputError
 from ..model.layout import CONTACT_SITES, TAG_SITES
 from ..sim.skeleton_map import SEGMENT_PARENTS
+from ..sim.truth import read_truth
 from .robot import is_retarget_folder, load_retarget_actor
 from .scene import Actor, Readers, Scene
 
@@ -222,16 +223,7 @@ def load_truth_actor(path: str | Path, name: str = "truth", ghost: bool = True) 
 
     See :func:`ikfusion.sim.truth.write_truth` for its keys.
     """
-    file = Path(path)
-    if not file.is_file():
-        raise InputError("file not found", path=file)
-    need = ("time", "segment_names", "p_world_segment", "quat_wxyz_world_segment")
-    with np.load(file, allow_pickle=False) as npz:
-        missing = [k for k in need if k not in npz.files]
-        if missing:
-            raise InputError(f"not a truth.npz: missing {', '.join(missing)}", path=file,
-                             field=missing[0])
-        data = {k: npz[k] for k in npz.files}
+    data = read_truth(path)
     segments = [str(s) for s in data["segment_names"]]
     sites = tuple(str(s) for s in data.get("site_names", np.array([])))
     return Actor(

@@ -19,6 +19,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import InputError
+from ..io.npz import read_npz
 from ..rotations import matrix_to_quat_wxyz, quat_wxyz_to_matrix
 from .robot_meshes import link_poses, visual_meshes
 from .scene import Actor, LinkMeshes
@@ -43,8 +44,8 @@ def load_retarget_actor(folder: str | Path, name: str = "robot") -> Actor:
         raise InputError("missing file", path=summary_file) from None
     except json.JSONDecodeError as err:
         raise InputError(f"invalid JSON: {err.msg}", path=summary_file, line=err.lineno) from None
-    with np.load(root / "robot_motion.npz", allow_pickle=False) as npz:
-        data = {k: npz[k] for k in npz.files}
+    data = read_npz(root / "robot_motion.npz", ("fps", "root_pos", "root_quat_wxyz", "dof_pos"),
+                    "robot_motion.npz")
     robot = summary.get("robot")
     if robot == "human":
         return _human_actor(data, float(summary["height_m"]), name)

@@ -105,3 +105,27 @@ def test_plots_are_written(walk, tmp_path: Path, capsys) -> None:
     for name in ("trajectory.png", "joint_angles.png"):
         data = (tmp_path / "p" / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
+
+
+@pytest.mark.parametrize("damage", ["truncate", "junk", "empty", "nan_time", "short_array"])
+def test_a_damaged_truth_file_is_bad_input(walk, tmp_path: Path, capsys, damage: str) -> None:
+    truth_file = write_truth(tmp_path / "truth.npz", walk)
+    result = result_of(walk, walk.q, tmp_path / "result")
+    data = truth_file.read_bytes()
+    if damage == "truncate":
+        truth_file.write_bytes(data[: len(data) // 2])
+    elif damage == "junk":
+        truth_file.write_bytes(b"junk" + data[4:])
+    elif damage == "empty":
+        truth_file.write_bytes(b"")
+    else:
+        with np.load(truth_file) as npz:
+            arrays = {k: npz[k] for k in npz.files}
+        if damage == "nan_time":
+            arrays["time"][3] = np.nan
+        else:
+            arrays["joint_angles"] = arrays["joint_angles"][:-5]
+        np.savez(truth_file, **arrays)
+    assert main(["evaluate", str(result), str(truth_file)]) == 2
+    err = capsys.readouterr().err
+    assert "truth.npz" in err and "Traceback" not in err

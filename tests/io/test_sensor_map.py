@@ -181,3 +181,13 @@ def test_xml_map_under_any_name_and_bad_xml_exits_2(tmp_path: Path, capsys) -> N
     assert main(["solve", "--imu", str(export), "--map", str(path), "--out",
                  str(tmp_path / "r"), "--quiet"]) == 2
     assert "map.yaml, line 6: not valid XML" in capsys.readouterr().err
+
+
+def test_opensense_xml_with_an_unknown_encoding_is_bad_input(tmp_path: Path) -> None:
+    from ikfusion.errors import ConfigError
+    from ikfusion.io.sensor_map import load_sensor_map
+
+    xml = tmp_path / "map.xml"
+    xml.write_text('<?xml version="1.0" encoding="UTF-1e30"?>\n<OpenSimDocument/>\n')
+    with pytest.raises(ConfigError, match="map.xml"):
+        load_sensor_map(xml)
