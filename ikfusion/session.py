@@ -26,7 +26,6 @@ from typing import Any
 
 import numpy as np
 
-from .correction import DriftCorrection
 from .errors import ConfigError
 from .ik import Motion, Solver
 from .imu.calibration import calibrate_recording
@@ -35,7 +34,7 @@ from .io.sensor_map import load_sensor_map
 from .model import Body, HumanModel
 from .pipeline import solve_recording
 from .results import write_result_folder
-from .uwb_aiding import UwbInputs, drift_correction, track_recording_tags, uwb_summary
+from .uwb_aiding import UwbAiding, UwbInputs, track_recording_tags, uwb_aiding
 from .yaml_files import read_yaml
 
 
@@ -100,15 +99,17 @@ def solve_actor(actor: ActorInputs, out: str | Path, uwb: UwbInputs | None = Non
     model = actor.model()
     cal = calibrate_recording(recording, sensor_map, actor.window_s, forward=actor.forward,
                               pose=actor.pose)
-    fix: DriftCorrection | None = None
+    aiding: UwbAiding | None = None
     summary: dict[str, object] = {"used": False}
     if uwb is not None:
-        tags, tracks = track_recording_tags(recording, sensor_map, model, cal, uwb, actor.name)
-        fix = drift_correction(tags, tracks, recording.time, correction or "no-slide")
+        tracked = track_recording_tags(recording, sensor_map, model, cal, uwb, actor.name)
+        aiding = uwb_aiding(tracked, recording.time, correction or "no-slide")
+        summary = aiding.summary
+    fix = None if aiding is None else aiding.correction
     result = solve_recording(recording, sensor_map, model, solver=Solver(model),
                              progress=progress, correction=fix, calibration=cal)
-    if uwb is not None and fix is not None:
-        summary = uwb_summary(tracks, fix, uwb.smooth)
+    if aiding is not None:
+        result.motion.warnings += aiding.warnings
     extra: dict[str, Any] = {
         "calibration": {"method": cal.method, "heading_deg": float(np.degrees(cal.heading)),
                         "window_s": [cal.window[0] / recording.rate,
