@@ -66,7 +66,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "transmit time (weighted Gauss-Newton from a closed-form start), rejecting late (NLOS) "
         "receptions, and write one row per transmission: "
         "time,tag,seq,x,y,z,clock,used,rejected,status. used/rejected list reader ids "
-        "separated by ';'.",
+        "separated by ';'. A fix far outside the constellation's area (or its readers' hull), "
+        "under the floor or far above the readers is outside_area/bad_height, not ok. Exit 2, "
+        "writing nothing, when no transmission has a usable fix.",
     )
     p.add_argument("toa", metavar="TOA.csv", help="TOA log (columns time,tag,seq,reader,toa)")
     p.add_argument("--readers", required=True, metavar="FILE", help="constellation YAML")
