@@ -149,7 +149,7 @@ def _summary(shared: TrackedCapture, label: str, aiding: UwbAiding | None) -> di
     """
     cal = shared.calibration
     rate = shared.recording.rate
-    uwb = {"used": False} if aiding is None else aiding.summary
+    uwb = {"used": False} if aiding is None else aiding.summary()
     return {
         "source": f"ikfusion demo: simulated walk in circles, 17 sensors, default noise, "
                   f"{label}",

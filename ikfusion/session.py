@@ -100,16 +100,16 @@ def solve_actor(actor: ActorInputs, out: str | Path, uwb: UwbInputs | None = Non
     cal = calibrate_recording(recording, sensor_map, actor.window_s, forward=actor.forward,
                               pose=actor.pose)
     aiding: UwbAiding | None = None
-    summary: dict[str, object] = {"used": False}
     if uwb is not None:
         tracked = track_recording_tags(recording, sensor_map, model, cal, uwb, actor.name)
         aiding = uwb_aiding(tracked, recording.time, correction or "no-slide")
-        summary = aiding.summary
     fix = None if aiding is None else aiding.correction
     result = solve_recording(recording, sensor_map, model, solver=Solver(model),
                              progress=progress, correction=fix, calibration=cal)
+    summary: dict[str, object] = {"used": False}
     if aiding is not None:
         result.motion.warnings += aiding.warnings
+        summary = aiding.summary()
     extra: dict[str, Any] = {
         "calibration": {"method": cal.method, "heading_deg": float(np.degrees(cal.heading)),
                         "window_s": [cal.window[0] / recording.rate,

@@ -17,6 +17,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -145,15 +146,29 @@ class UwbAiding:
     """What UWB brings to one solve: the correction (None: IMU only), the report, warnings.
 
     Attributes:
+        tracked: The tracked tags.
         correction: Drift correction from the tags that fit the constellation, or None when
             none does.
-        summary: The ``uwb`` block of ``summary.json`` (:func:`uwb_summary`).
+        mode: Correction mode asked for.
+        fits: Tag id -> how its data fit the constellation.
+        readers: The per-reader report (:func:`ikfusion.uwb.health.reader_report`).
         warnings: Messages for ``summary.json`` warnings and the terminal.
     """
 
+    tracked: TrackedTags
     correction: DriftCorrection | None
-    summary: dict[str, object]
+    mode: str
+    fits: dict[str, TagFit]
+    readers: dict[str, dict[str, Any]]
     warnings: list[str]
+
+    def summary(self) -> dict[str, object]:
+        """The ``uwb`` block of ``summary.json`` (:func:`uwb_summary`).
+
+        Call it after the solve: the solve fills the correction's remaining gap.
+        """
+        return uwb_summary(self.tracked.tracks, self.correction, self.tracked.smoothed,
+                           fits=self.fits, readers=self.readers, mode=self.mode)
 
 
 def uwb_aiding(tracked: TrackedTags, time: np.ndarray, mode: str) -> UwbAiding:
@@ -161,7 +176,7 @@ def uwb_aiding(tracked: TrackedTags, time: np.ndarray, mode: str) -> UwbAiding:
 
     A tag whose data do not fit the constellation (:func:`ikfusion.uwb.health.tag_fit`) is
     left out, with a warning naming it and the numbers; without any tag left the solve is
-    IMU-only and ``summary["used"]`` is False.
+    IMU-only and the summary's ``used`` is False.
 
     Args:
         tracked: The tracked tags.
@@ -178,9 +193,7 @@ def uwb_aiding(tracked: TrackedTags, time: np.ndarray, mode: str) -> UwbAiding:
         warnings.append("UWB: no tag fits the constellation, the solve is IMU-only")
     readers = reader_report(list(tracked.tracks.values()), tracked.reader_ids)
     warnings += faulty_readers(readers)
-    summary = uwb_summary(tracked.tracks, correction, tracked.smoothed, fits=fits,
-                          readers=readers, mode=mode)
-    return UwbAiding(correction, summary, warnings)
+    return UwbAiding(tracked, correction, mode, fits, readers, warnings)
 
 
 def uwb_summary(tracks: Mapping[str, UnitTrack], correction: DriftCorrection | None,

@@ -59,6 +59,7 @@ def test_uwb_brings_the_head_to_the_truth(capture: Path, tmp_path: Path, mode: s
     assert head["aiding"] is True and head["problem"] is None
     assert set(uwb["readers"]) == {f"R{i}" for i in range(1, 11)}
     assert not [w for w in summary["warnings"] if "UWB" in w]  # a clean capture: no alarm
+    assert 0.0 <= uwb["gap_mean_m"] <= uwb["gap_max_m"] < 0.5  # measured during the solve
     assert head["toas_rejected"] > 0
 
 
