@@ -35,7 +35,7 @@ from .sim.gait import GaitParameters, generate_gait
 from .sim.imu import ImuNoise
 from .sim.truth import TruthMotion
 from .uwb.constellation import load_constellation
-from .uwb_aiding import TrackedCapture, drift_correction, track_capture, uwb_summary
+from .uwb_aiding import TrackedCapture, TrackedTags, UwbAiding, track_capture, uwb_aiding
 
 #: The three solves: column label, result folder, correction mode (None: IMU only). The last
 #: one is the default of ``solve`` with UWB and is written to ``result/``.
@@ -132,16 +132,20 @@ def simulate_demo_capture(folder: Path, seconds: float, seed: int, progress: boo
 def _solve_mode(shared: TrackedCapture, capture: Capture, folder: Path, label: str,
                 mode: str | None, progress: bool, force: bool = False) -> ModeResult:
     """Solve with one correction mode (None: IMU only), write its result folder, score it."""
-    correction: DriftCorrection | None = None
+    aiding: UwbAiding | None = None
     if mode is not None:
-        correction = drift_correction(shared.tags, shared.tracks, shared.recording.time, mode)
+        tracked = TrackedTags(shared.tags, shared.tracks, shared.reader_ids)
+        aiding = uwb_aiding(tracked, shared.recording.time, mode)
+    correction = None if aiding is None else aiding.correction
     start = time.perf_counter()
     solved = solve_recording(shared.recording, shared.sensor_map, shared.model,
                              progress=progress, correction=correction,
                              calibration=shared.calibration)
     elapsed = time.perf_counter() - start
+    if aiding is not None:
+        solved.motion.warnings += aiding.warnings
     written = write_result_folder(solved.motion, folder,
-                                  extra_summary=_summary(shared, label, correction),
+                                  extra_summary=_summary(shared, label, aiding),
                                   force=force)
     score = evaluate(written, capture.folder / "truth.npz",
                      align="auto" if correction is None else "none")
@@ -149,8 +153,7 @@ def _solve_mode(shared: TrackedCapture, capture: Capture, folder: Path, label: s
     return ModeResult(label, Path(written), solved.motion, score, elapsed, gap)
 
 
-def _summary(shared: TrackedCapture, label: str,
-             correction: DriftCorrection | None) -> dict[str, Any]:
+def _summary(shared: TrackedCapture, label: str, aiding: UwbAiding | None) -> dict[str, Any]:
     """The extra ``summary.json`` keys, as ``ikfusion solve`` writes them, and the source.
 
     ``calibration``: how the heading was found, the body heading [deg] and the still window [s];
@@ -158,7 +161,7 @@ def _summary(shared: TrackedCapture, label: str,
     """
     cal = shared.calibration
     rate = shared.recording.rate
-    uwb = {"used": False} if correction is None else uwb_summary(shared.tracks, correction)
+    uwb = {"used": False} if aiding is None else aiding.summary()
     return {
         "source": f"ikfusion demo: simulated walk in circles, 17 sensors, default noise, "
                   f"{label}",

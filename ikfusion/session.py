@@ -27,7 +27,6 @@ from typing import Any
 
 import numpy as np
 
-from .correction import DriftCorrection
 from .errors import ConfigError
 from .ik import Motion, Solver
 from .ik.assumed import segment_coverage
@@ -42,7 +41,7 @@ from .output_folders import check_output_folder, folder_name_problem, prepare_ou
 from .pipeline import solve_recording
 from .results import write_result_folder
 from .results.mvn_comparison import compare_with_mvn
-from .uwb_aiding import UwbInputs, drift_correction, track_recording_tags, uwb_summary
+from .uwb_aiding import UwbAiding, UwbInputs, track_recording_tags, uwb_aiding
 from .yaml_files import read_yaml
 
 
@@ -139,15 +138,17 @@ def solve_actor(actor: ActorInputs, out: str | Path, uwb: UwbInputs | None = Non
     else:
         cal = calibrate_recording(recording, sensor_map, actor.window_s, forward=actor.forward,
                                   pose=actor.pose)
-    fix: DriftCorrection | None = None
-    summary: dict[str, object] = {"used": False}
+    aiding: UwbAiding | None = None
     if uwb is not None:
-        tags, tracks = track_recording_tags(recording, sensor_map, model, cal, uwb, actor.name)
-        fix = drift_correction(tags, tracks, recording.time, correction or "no-slide")
+        tracked = track_recording_tags(recording, sensor_map, model, cal, uwb, actor.name)
+        aiding = uwb_aiding(tracked, recording.time, correction or "no-slide")
+    fix = None if aiding is None else aiding.correction
     result = solve_recording(recording, sensor_map, model, solver=Solver(model),
                              progress=progress, correction=fix, calibration=cal)
-    if uwb is not None and fix is not None:
-        summary = {**uwb_summary(tracks, fix, uwb.smooth), "readers": str(uwb.readers.resolve())}
+    summary: dict[str, object] = {"used": False}
+    if aiding is not None and uwb is not None:
+        result.motion.warnings += aiding.warnings
+        summary = {**aiding.summary(), "readers": str(uwb.readers.resolve())}
     extra: dict[str, Any] = {
         "calibration": {"method": cal.method, "heading_deg": float(np.degrees(cal.heading)),
                         "window_s": [cal.window[0] / recording.rate,

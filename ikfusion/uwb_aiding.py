@@ -5,13 +5,19 @@ Each tag is tracked by the tightly coupled filter of its IMU unit
 covariances, on the IMU timeline, become the :class:`ikfusion.correction.DriftCorrection` of the
 solve. The TOA log's ``time`` column must be on the recording's timeline (seconds from its first
 sample); the IMU world frame and the constellation frame are taken to be the same (ENU).
+
+A tag whose data do not fit the constellation (:func:`ikfusion.uwb.health.tag_fit`: almost every
+TOA rejected, e.g. permuted reader ids) does not aid the solve, which then falls back to the IMU
+for that tag (or entirely) and says so in its warnings; readers rejected more often than a
+healthy one ever is are warned about too (:mod:`ikfusion.uwb.health`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -26,6 +32,7 @@ from .model.human_model import HumanModel
 from .sim.uwb_capture import imu_units_from_recording
 from .uwb.constellation import load_constellation
 from .uwb.ekf import EkfOptions, UnitTrack
+from .uwb.health import TagFit, faulty_readers, reader_report, tag_fit
 from .uwb.toa_log import read_toa_csv
 from .uwb.tracking import TagInfo, load_tags, track_tags
 
@@ -44,10 +51,26 @@ class UwbInputs:
     smooth: bool = True
 
 
+@dataclass
+class TrackedTags:
+    """The tags of one actor tracked by their filters, and the readers they were tracked with.
+
+    Attributes:
+        tags: Tag id -> :class:`TagInfo`.
+        tracks: Tag id -> its filter's :class:`UnitTrack` (columns in ``reader_ids`` order).
+        reader_ids: The constellation's reader ids.
+        smoothed: The tracks were smoothed over the recording.
+    """
+
+    tags: dict[str, TagInfo]
+    tracks: dict[str, UnitTrack]
+    reader_ids: tuple[str, ...]
+    smoothed: bool = True
+
+
 def track_recording_tags(recording: ImuRecording, sensor_map: Mapping[str, str],
                          model: HumanModel, calibration: Calibration,
-                         files: UwbInputs, actor: str | None = None
-                         ) -> tuple[dict[str, TagInfo], dict[str, UnitTrack]]:
+                         files: UwbInputs, actor: str | None = None) -> TrackedTags:
     """Track the tags of one actor with the IMU of the segment each sits on.
 
     ``actor`` None tracks every tag of the file.
@@ -65,8 +88,8 @@ def track_recording_tags(recording: ImuRecording, sensor_map: Mapping[str, str],
     log = read_toa_csv(files.toa)
     mounting = {s: R.T for s, R in calibration.R_sensor_segment.items()}
     units = imu_units_from_recording(recording, sensor_map, tags, model, mounting)
-    return tags, track_tags(log, constellation, tags, units,
-                            options=EkfOptions(smooth=files.smooth))
+    tracks = track_tags(log, constellation, tags, units, options=EkfOptions(smooth=files.smooth))
+    return TrackedTags(tags, tracks, constellation.ids, files.smooth)
 
 
 @dataclass
@@ -79,6 +102,7 @@ class TrackedCapture:
     calibration: Calibration
     tags: dict[str, TagInfo]
     tracks: dict[str, UnitTrack]
+    reader_ids: tuple[str, ...] = field(default=())
 
 
 def track_capture(folder: str | Path, smooth: bool = True) -> TrackedCapture:
@@ -96,8 +120,9 @@ def track_capture(folder: str | Path, smooth: bool = True) -> TrackedCapture:
     model = HumanModel.from_body(Body.from_yaml(root / "body.yaml"))
     calibration = calibrate_recording(recording, sensor_map)
     files = UwbInputs(root / "toa.csv", root / "readers.yaml", root / "tags.yaml", smooth)
-    tags, tracks = track_recording_tags(recording, sensor_map, model, calibration, files)
-    return TrackedCapture(recording, sensor_map, model, calibration, tags, tracks)
+    tracked = track_recording_tags(recording, sensor_map, model, calibration, files)
+    return TrackedCapture(recording, sensor_map, model, calibration, tracked.tags,
+                          tracked.tracks, tracked.reader_ids)
 
 
 def drift_correction(tags: Mapping[str, TagInfo], tracks: Mapping[str, UnitTrack],
@@ -116,23 +141,97 @@ def drift_correction(tags: Mapping[str, TagInfo], tracks: Mapping[str, UnitTrack
     return DriftCorrection(fixes, mode=mode)
 
 
-def uwb_summary(tracks: Mapping[str, UnitTrack],
-                correction: DriftCorrection, smoothed: bool = True) -> dict[str, object]:
+@dataclass
+class UwbAiding:
+    """What UWB brings to one solve: the correction (None: IMU only), the report, warnings.
+
+    Attributes:
+        tracked: The tracked tags.
+        correction: Drift correction from the tags that fit the constellation, or None when
+            none does.
+        mode: Correction mode asked for.
+        fits: Tag id -> how its data fit the constellation.
+        readers: The per-reader report (:func:`ikfusion.uwb.health.reader_report`).
+        warnings: Messages for ``summary.json`` warnings and the terminal.
+    """
+
+    tracked: TrackedTags
+    correction: DriftCorrection | None
+    mode: str
+    fits: dict[str, TagFit]
+    readers: dict[str, dict[str, Any]]
+    warnings: list[str]
+
+    def summary(self) -> dict[str, object]:
+        """The ``uwb`` block of ``summary.json`` (:func:`uwb_summary`).
+
+        Call it after the solve: the solve fills the correction's remaining gap.
+        """
+        return uwb_summary(self.tracked.tracks, self.correction, self.tracked.smoothed,
+                           fits=self.fits, readers=self.readers, mode=self.mode)
+
+
+def uwb_aiding(tracked: TrackedTags, time: np.ndarray, mode: str) -> UwbAiding:
+    """Judge every tag's track, build the correction from those that fit, and report.
+
+    A tag whose data do not fit the constellation (:func:`ikfusion.uwb.health.tag_fit`) is
+    left out, with a warning naming it and the numbers; without any tag left the solve is
+    IMU-only and the summary's ``used`` is False.
+
+    Args:
+        tracked: The tracked tags.
+        time: The solve's frame times [s].
+        mode: Correction mode (``slide`` or ``no-slide``).
+    """
+    fits = {tag_id: tag_fit(track) for tag_id, track in tracked.tracks.items()}
+    aiding = {t: tr for t, tr in tracked.tracks.items() if fits[t].problem is None}
+    correction = drift_correction(tracked.tags, aiding, time, mode) if aiding else None
+    warnings = [f"UWB tag {t} ({tracked.tags[t].site}) does not aid the solve: {f.problem}; "
+                "check the readers file (ids, positions) and the tags file"
+                for t, f in fits.items() if f.problem is not None]
+    if not aiding:
+        warnings.append("UWB: no tag fits the constellation, the solve is IMU-only")
+    readers = reader_report(list(tracked.tracks.values()), tracked.reader_ids)
+    warnings += faulty_readers(readers)
+    return UwbAiding(tracked, correction, mode, fits, readers, warnings)
+
+
+def uwb_summary(tracks: Mapping[str, UnitTrack], correction: DriftCorrection | None,
+                smoothed: bool = True, *, fits: Mapping[str, TagFit] | None = None,
+                readers: Mapping[str, object] | None = None,
+                mode: str | None = None) -> dict[str, object]:
     """What ``summary.json`` reports about UWB.
 
-    Per tag: transmissions and TOAs used and rejected, time without UWB; whether the tracks
-    were smoothed over the recording; and the remaining horizontal gap of the correction.
+    ``used``: True only when at least one tag aided the solve. Per tag: whether it aided,
+    why not, transmissions and TOAs received, used and rejected, resets, time without UWB;
+    per reader (``readers``, :func:`ikfusion.uwb.health.reader_report`): TOAs received and
+    rejected, the rejected share and when; whether the tracks were smoothed over the
+    recording; and the remaining horizontal gap of the correction [m].
+
+    Args:
+        tracks: Tag id -> track.
+        correction: The correction built from them, or None (no tag aided).
+        smoothed: The tracks were smoothed.
+        fits: Tag id -> :class:`~ikfusion.uwb.health.TagFit` (computed when omitted).
+        readers: The per-reader report, when known.
+        mode: Correction mode, when ``correction`` is None.
     """
-    per_tag = {}
+    per_tag: dict[str, object] = {}
     for tag_id, track in tracks.items():
         t = track.totals
+        fit = fits[tag_id] if fits is not None else tag_fit(track)
         per_tag[tag_id] = {
-            "transmissions": int(t.transmissions), "transmissions_used": int(t.transmissions_used),
-            "toas": int(t.toas), "toas_used": int(t.toas_used),
+            "aiding": correction is not None and fit.problem is None, "problem": fit.problem,
+            "transmissions_received": int(t.transmissions),
+            "transmissions_used": int(t.transmissions_used),
+            "toas_received": int(t.toas), "toas_used": int(t.toas_used),
             "toas_rejected": int(t.toas_rejected), "resets": int(t.resets),
             "seconds_without_uwb": float(t.seconds_without_uwb),
         }
-    gap = correction.gap[np.isfinite(correction.gap)]
-    return {"used": True, "correction": correction.mode, "smoothed": smoothed, "tags": per_tag,
+    gap = np.zeros(0) if correction is None else correction.gap[np.isfinite(correction.gap)]
+    return {"used": correction is not None,
+            "correction": correction.mode if correction is not None else mode,
+            "smoothed": smoothed, "tags": per_tag, "readers": dict(readers or {}),
             "gap_mean_m": float(gap.mean()) if gap.size else None,
             "gap_max_m": float(gap.max()) if gap.size else None}
+

@@ -255,7 +255,7 @@ def _first_estimate(
     )
     # The first geometry is a few centimetres off: locate with the spread the data show.
     spread = estimate_range_sigma(wand_toa[:, placed], sub)
-    fixes = locate(wand_toa[:, placed], sub, sigma=spread, test_level=None)
+    fixes = locate(wand_toa[:, placed], sub, sigma=spread, test_level=None, check_bounds=False)
     p_fix = np.where(fixes.ok[:, None], fixes.p_world_tag, np.nan)
     unplaced = np.flatnonzero(~placed)
     if unplaced.size:

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..yaml_files import read_yaml
-from .constellation import finite_number
+from .constellation import MAX_COORDINATE_M, check_coordinates, finite_number
 
 
 def load_heights(path: str | Path) -> dict[str, float]:
@@ -38,7 +38,8 @@ def heights_from_mapping(value: object, *, source: Path | None = None) -> dict[s
     """Validate ``{reader id: height [m]}``.
 
     Raises:
-        ConfigError: For a non-mapping, an empty id or a height that is not a finite number.
+        ConfigError: For a non-mapping, an empty id or a height that is not a finite number of
+            at most :data:`~ikfusion.uwb.constellation.MAX_COORDINATE_M` metres.
     """
     if not isinstance(value, Mapping) or not value:
         raise ConfigError(
@@ -52,9 +53,10 @@ def heights_from_mapping(value: object, *, source: Path | None = None) -> dict[s
         if not rid:
             raise ConfigError("empty reader id", path=source, field="heights")
         z = finite_number(raw)
-        if z is None:
+        if z is None or abs(z) > MAX_COORDINATE_M:
             raise ConfigError(
-                f"expected a height in metres, found {raw!r}",
+                f"reader {rid}: expected a height in metres (at most {MAX_COORDINATE_M:g} m), "
+                f"found {raw!r}",
                 path=source,
                 field=f"heights.{rid}",
             )
@@ -99,4 +101,5 @@ def survey_from_mapping(value: object, *, source: Path | None = None) -> dict[st
                 field=f"points.{rid}",
             )
         out[rid] = np.array(numbers, dtype=float)
+        check_coordinates(out[rid], source, f"points.{rid}", f"reader {rid}")
     return out

@@ -442,7 +442,8 @@ def resect_readers(
         )  # fmt: skip
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
-            fix = locate(toa[rows, m][None, :], wand, height=float(heights[m]), test_level=None)
+            fix = locate(toa[rows, m][None, :], wand, height=float(heights[m]), test_level=None,
+                         check_bounds=False)
         if fix.ok[0]:
             p_xy[i] = fix.p_world_tag[0, :2]
             clocks[i] = fix.clock[0]

@@ -10,7 +10,8 @@ A constellation file (SPEC section 3) is YAML::
     sigma: 0.03          # optional range noise (1 sigma) [m]
     area: [[0, 0], [6, 0], [6, 8], [0, 8]]   # optional capture-area polygon (x, y) [m]
 
-Positions are ``p_world_reader`` in the world frame (Z up) in metres; clock offsets are in metres of
+Positions are ``p_world_reader`` in the world frame (Z up) in metres (at most
+:data:`MAX_COORDINATE_M` from the origin per axis); clock offsets are in metres of
 light travel (c times the reader clock's offset on the common timeline). ``position_covariance``
 (3x3, [m^2]) is the optional uncertainty of a surveyed or calibrated reader position. The keys
 ``name``, ``description`` and ``metadata`` are accepted and kept; any other key is an error, so a
@@ -35,6 +36,12 @@ from ..yaml_files import read_yaml
 
 #: Range noise used when a file does not give ``sigma`` [m].
 DEFAULT_RANGE_SIGMA = 0.03
+#: Largest reader (and area) coordinate accepted [m]: no capture hall is a kilometre across,
+#: so a larger value is a typo or a unit mix-up (millimetres, a survey's national grid).
+MAX_COORDINATE_M = 1000.0
+#: Largest clock offset accepted [m of light travel] (about an hour): beyond it a float64
+#: TOA no longer resolves a tenth of a millimetre, so such an offset is a unit mix-up.
+MAX_CLOCK_OFFSET_M = 1.0e12
 
 _TOP_KEYS = ("readers", "range", "sigma", "area", "name", "description", "metadata")
 _READER_KEYS = ("id", "position", "clock_offset", "position_covariance")
@@ -323,11 +330,13 @@ def _parse_reader(entry: object, i: int, source: Path | None) -> Reader:
     if "position" not in entry:
         raise ConfigError("missing position [x, y, z]", path=source, field=f"{where}.position")
     pos = _vector(entry["position"], 3, f"{where}.position", source)
+    check_coordinates(pos, source, f"{where}.position", f"reader {rid}")
     offset = entry.get("clock_offset", 0.0)
     offset_m = finite_number(offset)
-    if offset_m is None:
+    if offset_m is None or abs(offset_m) > MAX_CLOCK_OFFSET_M:
         raise ConfigError(
-            f"expected a finite number of metres, found {offset!r}",
+            f"reader {rid}: expected a finite number of metres of light travel, at most "
+            f"{MAX_CLOCK_OFFSET_M:.0e} m, as clock offset, found {offset!r}",
             path=source,
             field=f"{where}.clock_offset",
         )
@@ -351,6 +360,29 @@ def _vector(value: object, n: int, key: str, source: Path | None) -> np.ndarray:
             )
         out.append(number)
     return np.array(out)
+
+
+def check_coordinates(values: npt.ArrayLike, source: Path | None, key: str, what: str) -> None:
+    """Refuse coordinates beyond :data:`MAX_COORDINATE_M` [m] (a typo or a unit mix-up).
+
+    Args:
+        values: Coordinates [m], any shape.
+        source: File they came from (named in the error).
+        key: Key at fault, e.g. ``readers[2].position``.
+        what: What they place, e.g. ``reader R3``.
+
+    Raises:
+        ConfigError: Naming the file, the key and the value.
+    """
+    v = np.asarray(values, dtype=float)
+    if not np.all(np.abs(v) <= MAX_COORDINATE_M):
+        raise ConfigError(
+            f"{what}: coordinates {v.tolist()} m are beyond {MAX_COORDINATE_M:g} m from the "
+            "origin; no capture hall is that large (metres expected, check for a typo or "
+            "millimetres)",
+            path=source,
+            field=key,
+        )
 
 
 def _covariance(value: object, key: str, source: Path | None) -> np.ndarray:
@@ -393,6 +425,8 @@ def _parse_area(value: object, source: Path | None) -> np.ndarray:
             "expected a polygon of at least 3 [x, y] corners", path=source, field="area"
         )
     pts = np.stack([_vector(v, 2, f"area[{i}]", source) for i, v in enumerate(value)])
+    for i, corner in enumerate(pts):
+        check_coordinates(corner, source, f"area[{i}]", f"area corner {i}")
     x, y = pts[:, 0], pts[:, 1]
     signed = 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
     if abs(signed) < 1e-9:

@@ -209,6 +209,8 @@ class UnitTrack:
         tx_seq: Transmission numbers, shape (T,).
         tx_used: TOAs used per transmission, shape (T, M) (bool).
         tx_rejected: TOAs rejected per transmission, shape (T, M) (bool).
+        tx_heard: TOAs received per transmission, shape (T, M) (bool), evaluated or not
+            (before the start, none is).
         tx_reset: Transmissions at which the gate re-opened, shape (T,) (bool).
         totals: The :class:`UwbTotals`.
     """
@@ -221,6 +223,7 @@ class UnitTrack:
     tx_seq: np.ndarray
     tx_used: np.ndarray
     tx_rejected: np.ndarray
+    tx_heard: np.ndarray
     tx_reset: np.ndarray
     totals: UwbTotals
 
@@ -591,7 +594,7 @@ class _UnitFilter:
             seconds_without_uwb=_seconds_without(time, self.tx.time[used_tx], 0.5),
         )
         return UnitTrack(time, p_out, cov_out, quat_out, self.tx.time, self.tx.seq,
-                         self.used, self.rejected, self.reset, totals)
+                         self.used, self.rejected, heard, self.reset, totals)
 
 
 def _seconds_without(time: np.ndarray, update_times: np.ndarray, max_age: float) -> float:

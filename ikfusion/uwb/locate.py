@@ -23,6 +23,8 @@ transmit time ``tau`` ("clock free"), or only the position when ``tau`` is known
    level ``test_level`` flags fixes that stay inconsistent, and a fix that rejected two or more
    measurements, more than it kept redundant ones, is flagged as ambiguous (another set of late
    measurements would explain the data about as well); both get status ``rejected``.
+4. a fix far outside the capture area gets status ``outside_area``, one under the floor or far
+   above the readers ``bad_height`` (:mod:`ikfusion.uwb.bounds`).
 
 Everything runs as batched numpy over all transmissions at once (missing and rejected
 measurements are zero weights), so long logs locate quickly.
@@ -42,6 +44,7 @@ from scipy.stats import chi2
 
 from ..atomic import atomic_write_text
 from ..errors import InputError
+from .bounds import CaptureBounds, capture_bounds, outside
 from .constellation import Constellation
 from .initial_guess import bancroft, subset_starts
 from .linalg import inverse_batched, solve_batched
@@ -70,6 +73,8 @@ class FixStatus(enum.IntEnum):
     REJECTED = 2
     DIVERGED = 3
     BAD_GEOMETRY = 4
+    OUTSIDE_AREA = 5
+    BAD_HEIGHT = 6
 
     @property
     def label(self) -> str:
@@ -94,6 +99,10 @@ class LocateOptions:
         test_level: False-alarm probability of the final chi-square test; None disables it.
         max_iterations: Gauss-Newton iterations per fit.
         tolerance: Convergence threshold on the step length [m].
+        check_bounds: A fix outside the capture area or below the floor / far above the
+            readers (:mod:`ikfusion.uwb.bounds`) gets status ``outside_area`` / ``bad_height``
+            instead of ``ok``; off only where the "readers" are not a capture space (a wand
+            locating a reader during calibration).
     """
 
     height: float | npt.ArrayLike | None = None
@@ -105,6 +114,7 @@ class LocateOptions:
     test_level: float | None = 1e-3
     max_iterations: int = 25
     tolerance: float = 1e-5
+    check_bounds: bool = True
 
 
 @dataclass(frozen=True)
@@ -225,7 +235,21 @@ def locate(
         used[rows] = used_s
         rejected[rows] = rej_s
         status[rows] = st_s
-    return _assemble(batch, x, used, rejected, status, centre, y_shift, constellation.ids)
+    fixes = _assemble(batch, x, used, rejected, status, centre, y_shift, constellation.ids)
+    if opts.check_bounds:
+        _mark_outside(fixes, capture_bounds(constellation))
+    return fixes
+
+
+def _mark_outside(fixes: Fixes, bounds: CaptureBounds) -> None:
+    """Give fixes outside the bounds their status and no position (in place)."""
+    area, height = outside(fixes.p_world_tag, bounds)
+    fixes.status[area] = FixStatus.OUTSIDE_AREA
+    fixes.status[height & ~area] = FixStatus.BAD_HEIGHT
+    bad = area | height
+    fixes.p_world_tag[bad] = np.nan
+    fixes.clock[bad] = np.nan
+    fixes.cov[bad] = np.nan
 
 
 def estimate_range_sigma(

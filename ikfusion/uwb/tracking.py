@@ -269,5 +269,5 @@ def _empty_track(time: np.ndarray, tx: UnitTransmissions, m: int) -> UnitTrack:
                        float(time[-1] - time[0]) if n else 0.0)
     none = np.zeros((t_count, m), dtype=bool)
     return UnitTrack(time, np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan),
-                     np.full((n, 4), np.nan), tx.time, tx.seq, none, none.copy(),
+                     np.full((n, 4), np.nan), tx.time, tx.seq, none, none.copy(), heard,
                      np.zeros(t_count, dtype=bool), totals)

@@ -87,6 +87,21 @@ def test_bad_height_names_file_and_field(tmp_path, capsys):
     assert "heights.yaml" in err and "heights.R2" in err
 
 
+def test_huge_height_is_refused_naming_file_and_reader(tmp_path, capsys):
+    """A height of 1e6 m used to end in a traceback about coinciding readers."""
+    _, toa, heights = write_session(tmp_path, seconds=5.0)
+    data = yaml.safe_load(heights.read_text())
+    first = next(iter(data["heights"]))
+    data["heights"][first] = 1.0e6
+    heights.write_text(yaml.safe_dump(data), encoding="utf-8")
+    out = tmp_path / "r.yaml"
+    code = main(["calibrate-uwb", str(toa), "--heights", str(heights), "--out", str(out)])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "heights.yaml" in err and f"heights.{first}" in err and f"reader {first}" in err
+    assert "Traceback" not in err and not out.exists()
+
+
 def test_malformed_log_line_names_line_and_field(tmp_path, capsys):
     _, toa, heights = write_session(tmp_path, seconds=5.0)
     lines = toa.read_text().splitlines()

@@ -16,6 +16,7 @@ from ikfusion.uwb import (
     capture_area,
     dop_map,
     load_constellation,
+    locate,
     make_constellation,
     perimeter_layout,
     save_constellation,
@@ -199,3 +200,62 @@ def test_plan_optimize_other_count_says_what_it_starts_from(capsys):
     naive_p95 = dop_map(naive).summary().p95
     assert start_cm == pytest.approx(100 * naive_p95, abs=0.006)
     assert chosen_cm <= start_cm
+
+
+def _write_log(folder, constellation, positions, rng, nlos_fraction=0.0):
+    """readers.yaml and toa.csv of one tag at ``positions`` (T, 3) [m], one per 0.1 s."""
+    save_constellation(constellation, folder / "readers.yaml")
+    toa, _, _ = toa_matrix(constellation.positions, constellation.clock_offsets, positions, rng,
+                           sigma=0.03, nlos_fraction=nlos_fraction)  # fmt: skip
+    n = positions.shape[0]
+    log = toa_log_from_matrix(0.1 * np.arange(n), ["T1"] * n, np.arange(n) % 256, toa,
+                              constellation.ids)  # fmt: skip
+    write_toa_csv(folder / "toa.csv", log)
+    return folder / "toa.csv", folder / "readers.yaml"
+
+
+def test_locate_without_any_usable_fix_exits_2_and_writes_nothing(tmp_path, rng, capsys):
+    """Readers all at one height cannot fix a tag in 3-D: 240 of 240 fixes bad_geometry used
+    to exit 0 silently."""
+    flat = make_constellation([[0, 0, 2.5], [6, 0, 2.5], [6, 8, 2.5], [0, 8, 2.5], [3, 4, 2.5]])
+    p = np.column_stack([rng.uniform(1, 5, 240), rng.uniform(1, 7, 240), np.full(240, 1.2)])
+    toa, readers = _write_log(tmp_path, flat, p, rng)
+    out = tmp_path / "fixes.csv"
+    code = main(["locate", str(toa), "--readers", str(readers), "--out", str(out)])
+    assert code == 2
+    err = capsys.readouterr().err
+    assert "no usable fix in 240 transmissions" in err and "bad_geometry 240" in err
+    assert str(toa) in err
+    assert not out.exists() and not list(tmp_path.glob(".*.tmp"))
+
+
+def test_fixes_outside_the_area_or_under_the_floor_are_not_ok(tmp_path, rng, capsys):
+    """A tag 20 m beyond the room and one 4.7 m under the floor are located (they fit the
+    TOAs) but are no position of a person in the room: not ``ok``, and a warning counts them."""
+    room = load_constellation(configs_dir() / "constellations" / "room_6x8.yaml")
+    inside = np.column_stack([rng.uniform(1, 5, 60), rng.uniform(1, 7, 60), np.full(60, 1.2)])
+    far = np.column_stack([np.full(20, 26.0), rng.uniform(1, 7, 20), np.full(20, 1.2)])
+    under = np.column_stack([rng.uniform(1, 5, 20), rng.uniform(1, 7, 20), np.full(20, -4.7)])
+    toa, readers = _write_log(tmp_path, room, np.concatenate([inside, far, under]), rng)
+    out = tmp_path / "fixes.csv"
+    code = main(["locate", str(toa), "--readers", str(readers), "--out", str(out), "--json"])
+    assert code == 0
+    status = [r["status"] for r in _rows(out)]
+    assert status[:60] == ["ok"] * 60
+    assert set(status[60:80]) == {"outside_area"} and set(status[80:]) == {"bad_height"}
+    assert all(r["x"] == "" for r in _rows(out)[60:])
+    captured = capsys.readouterr()
+    summary = json.loads(captured.out)
+    assert summary["status"]["outside_area"] == 20 and summary["status"]["bad_height"] == 20
+    assert "warning: 40 of 100 transmissions have no usable fix" in captured.err
+    assert summary["warnings"] and "40 of 100" in summary["warnings"][0]
+
+
+def test_bounds_without_an_area_use_the_readers_hull(rng):
+    """No ``area``: the readers' hull widened by a quarter of its diameter decides."""
+    room = load_constellation(configs_dir() / "constellations" / "room_6x8.yaml")
+    open_room = make_constellation(room.positions, ids=room.ids)
+    p = np.array([[3.0, 4.0, 1.2], [-1.5, 4.0, 1.2], [3.0, 30.0, 1.2], [3.0, 4.0, 9.0]])
+    toa, _, _ = toa_matrix(open_room.positions, open_room.clock_offsets, p, rng, sigma=0.01)
+    labels = locate(toa, open_room).status_labels()
+    assert labels == ["ok", "ok", "outside_area", "bad_height"]

@@ -93,6 +93,22 @@ def test_round_trip(tmp_path):
             "readers[1].id",
             "duplicate",
         ),
+        (
+            "readers:\n  - {id: R1, position: [0, 0, 1]}\n  - {id: R2, position: [0, -1e30, 1]}",
+            "readers[1].position",
+            "reader R2: coordinates .* beyond 1000 m",
+        ),
+        ("readers:\n  - {id: R1, position: [0, 0, 1.0e+6]}", "readers[0].position", "beyond"),
+        (
+            "readers:\n  - {id: R7, position: [0, 0, 1], clock_offset: 1.0e+30}",
+            "readers[0].clock_offset",
+            "reader R7: .*at most",
+        ),
+        (
+            "readers:\n  - {id: R1, position: [0, 0, 1]}\narea: [[0, 0], [5000, 0], [0, 3]]",
+            "area[1]",
+            "beyond",
+        ),
         ("readers:\n  - {id: R1, position: [0, 0, 1]}\nrange: -3", "range", "positive"),
         ("readers:\n  - {id: R1, position: [0, 0, 1]}\nsigma: 0", "sigma", "positive"),
         (
