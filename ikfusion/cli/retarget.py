@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from ..retarget import ROBOTS, retarget
 
@@ -47,4 +48,6 @@ def run(args: argparse.Namespace) -> int:
           f"{metrics['floor_penetration_mm_max']:.2f} mm"
           + ("" if gap is None else f", closest capsules {100 * gap:.1f} cm")
           + f", relaxed frames {metrics['relaxed_frames']}")
+    for warning in metrics.get("warnings", []):
+        print(f"ikfusion retarget: warning: {warning}", file=sys.stderr)
     return 0

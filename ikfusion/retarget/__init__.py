@@ -60,6 +60,7 @@ def retarget(source: str | Path | HumanMotion, robot: str = "human", height: flo
     else:
         robot_config = load_retarget_config(robot, config)
     motion_in = source if isinstance(source, HumanMotion) else load_source(source)
+    motion_in.check()
     start = time.perf_counter()
     if robot_config is None:
         motion = retarget_human(motion_in, height or 0.0, progress=progress)
@@ -77,6 +78,7 @@ def retarget(source: str | Path | HumanMotion, robot: str = "human", height: flo
                         "config": str(robot_config.source)})
         robot_motion = robot_robot_motion(trajectory)
     metrics["source"] = motion_in.source
+    metrics["warnings"] = [*motion_in.warnings, *metrics.get("warnings", [])]
     if out is not None:
         write_robot_motion(out, robot_motion, metrics, gmr=gmr)
     return robot_motion, metrics
