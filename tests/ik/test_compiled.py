@@ -12,8 +12,7 @@ import numpy as np
 import pytest
 from motions import smooth_motion
 
-from ikfusion.ik import Configuration, Frame, Solver
-from ikfusion.ik import compiled
+from ikfusion.ik import Configuration, Frame, Solver, compiled
 from ikfusion.ik.compiled import CompiledKinematics
 from ikfusion.ik.limits import JointRangeLimit
 from ikfusion.ik.tasks import OrientationTask, PostureTask
