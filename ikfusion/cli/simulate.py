@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from ..errors import InputError
 from ..sim.capture import truth_motion, write_capture
@@ -44,4 +45,6 @@ def run(args: argparse.Namespace) -> int:
     capture = write_capture(args.out, truth, noise, args.seed, constellation=constellation)
     print(f"wrote {capture.folder}: {len(truth.time)} samples at {truth.rate:g} Hz from "
           f"{truth.source}")
+    for warning in truth.info.get("warnings", []):  # bad samples bridged in a BVH source
+        print(f"ikfusion simulate: warning: {warning}", file=sys.stderr)
     return 0

@@ -25,9 +25,10 @@ from .tasks.base import Task
 
 #: Backends the benchmark compares; the default is the exact and fastest one there.
 DEFAULT_BACKEND = "daqp"
-#: Most active-set / ADMM iterations a backend may take on one step: a step of this size
-#: (tens of variables and rows) needs far fewer, so reaching it means a broken problem.
-MAX_QP_ITERATIONS = 5000
+#: Most active-set iterations DAQP / ProxQP may take on one step (DAQP's own default, said
+#: explicitly): a step of this size (tens of variables and rows) needs far fewer, so reaching
+#: it means a broken problem, which then fails instead of running on.
+MAX_QP_ITERATIONS = 1000
 
 
 @dataclass
@@ -91,8 +92,8 @@ def assemble_qp(H: np.ndarray, c: np.ndarray, inequalities: Sequence[Inequality]
 
 def _solver_options(backend: str) -> dict[str, Any]:
     if backend == "osqp":
-        return {"eps_abs": 1e-7, "eps_rel": 1e-7, "polish": True,
-                "max_iter": 4 * MAX_QP_ITERATIONS, "verbose": False}
+        return {"eps_abs": 1e-7, "eps_rel": 1e-7, "polish": True, "max_iter": 20000,
+                "verbose": False}
     if backend == "proxqp":
         return {"max_iter": MAX_QP_ITERATIONS, "max_iter_in": MAX_QP_ITERATIONS}
     return {}

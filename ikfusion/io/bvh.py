@@ -513,8 +513,8 @@ def read_bvh(path: str | os.PathLike[str], *, bridge: bool = True) -> BvhMotion:
 
 def _bridged(motion: BvhMotion, frame_lines: np.ndarray) -> BvhMotion:
     """``motion`` with its bad channel values bridged (or InputError), see ``read_bvh``."""
-    try:
-        unit = guess_bvh_scale(motion)
+    try:  # a unit above a metre only comes from a degenerate (tiny) skeleton: not trusted
+        unit = min(guess_bvh_scale(motion), max(BVH_UNITS.values()))
     except InputError:  # no skeleton extent: allow the smallest common unit
         unit = min(BVH_UNITS.values())
     limit = FAR_BEYOND_ANY_HALL_M / unit  # [file units]
