@@ -69,4 +69,6 @@ def run(args: argparse.Namespace) -> int:
                             force=args.force)
     print(f"wrote {capture.folder}: {len(truth.time)} samples at {truth.rate:g} Hz from "
           f"{truth.source}")
+    for warning in truth.info.get("warnings", []):  # bad samples bridged in a BVH source
+        print(f"ikfusion simulate: warning: {warning}", file=sys.stderr)
     return 0

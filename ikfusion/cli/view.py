@@ -25,6 +25,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="UWB constellation YAML (default: readers.yaml next to PATH)")
     p.add_argument("--port", type=int, default=9090,
                    help="HTTP port of the viewer page (default 9090)")
+    p.add_argument("--host", default="127.0.0.1",
+                   help="interface the viewer listens on (default 127.0.0.1: this machine "
+                   "only; the page has no password, so give 0.0.0.0 only to show the motion "
+                   "to every machine of a trusted network)")
     p.add_argument("--no-browser", action="store_true", help="do not open a browser")
     p.add_argument("--save", metavar="FILE.rrd",
                    help="write a Rerun recording instead of serving; open it with `rerun FILE` "
@@ -42,6 +46,9 @@ def run(args: argparse.Namespace) -> int:
     scene = load_scene(args.path, truth=args.truth, readers=args.readers)
     actors = ", ".join(f"{a.name} ({a.frames} frames, {a.duration:.2f} s)" for a in scene.actors)
     print(f"ikfusion view: {actors}", file=sys.stderr)
+    for note in scene.notes:
+        if note.startswith("warning: ") or ": warning: " in note:
+            print(f"ikfusion view: {note}", file=sys.stderr)
     if args.save:
         out = save_recording(scene, args.save)
         print(f"wrote {out}")
@@ -52,7 +59,8 @@ def run(args: argparse.Namespace) -> int:
         print("press Ctrl+C to stop", file=sys.stderr, flush=True)
 
     try:
-        serve(scene, port=args.port, open_browser=not args.no_browser, announce=announce)
+        serve(scene, port=args.port, open_browser=not args.no_browser, announce=announce,
+              host=args.host)
     except KeyboardInterrupt:
         return 0
     return 0

@@ -31,7 +31,10 @@ The graph holds the model's *structure* only; joint and frame placements are an 
 of every size share one function. When a C compiler is on the machine the function is compiled
 once to a shared library cached under ``$IKFUSION_CACHE`` (default ``~/.cache/ikfusion``) and
 evaluates about ten times faster than CasADi's virtual machine, which is the fallback (and the
-choice when ``IKFUSION_NO_COMPILE`` is set).
+choice when ``IKFUSION_NO_COMPILE`` is set). The library's name holds a hash of this module's
+source, the CasADi version and the compiler's identity; its content hash is recorded beside it
+when it is built and checked before every load (a mismatch is rebuilt, never loaded). The first
+build says so on stderr; a failed build too, and it becomes a warning of the solve.
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ import hashlib
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -49,7 +53,7 @@ import casadi as ca
 import numpy as np
 import pinocchio as pin
 
-from ..atomic import atomic_path
+from ..atomic import atomic_path, atomic_write_text
 from ..model.ball_joints import BallJoint
 
 _AXES = {"x": 0, "y": 1, "z": 2}
@@ -173,6 +177,7 @@ class CompiledKinematics:
                  ball_joints: Sequence[BallJoint], site_frames: Sequence[int],
                  sensed: SensedPoseSpec | None = None) -> None:
         self.nv = model.nv
+        self.warnings: list[str] = []  # e.g. a failed native compile (see compiled_kinematics)
         self.segment_frames = list(segment_frames)
         self.site_frames = list(site_frames)
         q = ca.SX.sym("q", model.nq)
@@ -470,7 +475,11 @@ _BUILT: dict[str, CompiledKinematics] = {}
 def compiled_kinematics(model: pin.Model, segment_frames: Sequence[int],
                         ball_joints: Sequence[BallJoint], site_frames: Sequence[int],
                         sensed: SensedPoseSpec | None = None) -> CompiledKinematics:
-    """A (cached) :class:`CompiledKinematics`, natively compiled when a C compiler exists."""
+    """A (cached) :class:`CompiledKinematics`, natively compiled when a C compiler exists.
+
+    A failed compile leaves CasADi's virtual machine in place and says so in
+    :attr:`CompiledKinematics.warnings` (and on stderr).
+    """
     key = structure_key(model, segment_frames, ball_joints, site_frames, sensed)
     built = _BUILT.get(key)
     if built is None:
@@ -478,11 +487,13 @@ def compiled_kinematics(model: pin.Model, segment_frames: Sequence[int],
         functions = [built.function]
         if built.sensed_function is not None:
             functions.append(built.sensed_function)
-        native = _native(functions, key)
+        native, problem = native_functions(functions, key)
         if native is not None:
             built.function = native[0]
             if built.sensed_function is not None:
                 built.sensed_function = native[1]
+        if problem is not None:
+            built.warnings.append(problem)
         _BUILT[key] = built
     return built
 
@@ -496,30 +507,128 @@ def cache_dir() -> Path:
     return (Path(xdg) if xdg else Path.home() / ".cache") / "ikfusion"
 
 
-def _native(functions: Sequence[ca.Function], key: str) -> list[ca.Function] | None:
-    """The functions compiled to one shared library (cached on disk).
+def find_compiler() -> str | None:
+    """The C compiler used for step functions (``cc``, ``gcc`` or ``clang``), if any."""
+    return shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
 
-    Returns None without a C compiler.
+
+def compiler_identity(compiler: str) -> str:
+    """The compiler's resolved path and the first line of its ``--version``."""
+    try:
+        done = subprocess.run([compiler, "--version"], capture_output=True, text=True,
+                              timeout=30, check=False)
+        version = (done.stdout or done.stderr).strip().splitlines()[:1]
+    except (OSError, subprocess.SubprocessError):
+        version = []
+    return f"{os.path.realpath(compiler)} {' '.join(version)}"
+
+
+def generator_fingerprint() -> str:
+    """SHA-256 of the source that generates the step functions' expressions (this module)."""
+    return hashlib.sha256(Path(__file__).read_bytes()).hexdigest()
+
+
+def library_path(folder: Path, key: str, compiler: str) -> Path:
+    """Where the library of structure ``key`` built by ``compiler`` is cached.
+
+    The name holds the structure key, a hash of the generating source, the CasADi version and
+    the compiler identity, and the CasADi version in clear: a change of any of them builds a
+    new library instead of loading one made from other code.
+    """
+    build = hashlib.sha256("|".join([generator_fingerprint(), ca.CasadiMeta.version(),
+                                     compiler_identity(compiler)]).encode()).hexdigest()[:16]
+    return folder / f"ik_step_{key}_{build}_{ca.CasadiMeta.version()}.so"
+
+
+def _record(library: Path) -> Path:
+    """The file holding the SHA-256 of ``library``'s content, written when it was built."""
+    return library.with_name(library.name + ".sha256")
+
+
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def _load_verified(library: Path, names: Sequence[str]) -> list[ca.Function] | None:
+    """The functions of a cached library whose content matches its build record, else None.
+
+    The bytes checked are the bytes loaded: they are copied to a private temporary folder and
+    loaded from there, so the cache file cannot change between the check and the load.
+    """
+    record = _record(library)
+    if not (library.is_file() and record.is_file()):
+        return None
+    data = library.read_bytes()
+    if _sha256(data) != record.read_text().strip():
+        print(f"ikfusion: the cached step function {library} does not match the hash recorded "
+              "when it was built; it is rebuilt, not loaded", file=sys.stderr)
+        return None
+    with tempfile.TemporaryDirectory(prefix="ikfusion_step_") as private:
+        copy = Path(private) / library.name
+        copy.write_bytes(data)
+        return [ca.external(name, str(copy)) for name in names]
+
+
+def native_functions(functions: Sequence[ca.Function], key: str
+                     ) -> tuple[list[ca.Function] | None, str | None]:
+    """The functions compiled to one shared library, cached on disk and checked before loading.
+
+    A library is loaded only when its content hash equals the one recorded when it was built
+    (``<library>.sha256``); otherwise it is rebuilt. The first build says so on stderr (one
+    line); a failed build says so too and is returned as a warning.
+
+    Args:
+        functions: CasADi functions to compile together.
+        key: Their structure key (:func:`structure_key`).
+
+    Returns:
+        ``(functions loaded from the library or None, warning or None)``: None without a C
+        compiler or with ``IKFUSION_NO_COMPILE`` set (no warning), or when the build failed
+        (with a warning naming why; CasADi's virtual machine is used then).
     """
     if os.environ.get("IKFUSION_NO_COMPILE"):
-        return None
-    compiler = shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+        return None, None
+    compiler = find_compiler()
     if compiler is None:
-        return None
+        return None, None
     folder = cache_dir()
-    library = folder / f"ik_step_{key}_{ca.CasadiMeta.version()}.so"
+    names = [f.name() for f in functions]
     try:
-        if not library.exists():
-            folder.mkdir(parents=True, exist_ok=True)
-            with tempfile.TemporaryDirectory(dir=folder) as tmp, atomic_path(library) as built:
-                source = Path(tmp) / "ik_step.c"
-                generator = ca.CodeGenerator(source.name, {"with_header": False})
-                for function in functions:
-                    generator.add(function)
-                generator.generate(f"{tmp}{os.sep}")
-                subprocess.run([compiler, "-O1", "-shared", "-fPIC", str(source), "-o",
-                                str(built), "-lm"], check=True, capture_output=True,
-                               timeout=600)
-        return [ca.external(f.name(), str(library)) for f in functions]
-    except (OSError, subprocess.SubprocessError, RuntimeError):
-        return None
+        library = library_path(folder, key, compiler)
+        loaded = _load_verified(library, names)
+        if loaded is not None:
+            return loaded, None
+        print(f"ikfusion: compiling the solver's step function once ({compiler}, cached in "
+              f"{folder}) ...", file=sys.stderr, flush=True)
+        folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(dir=folder) as tmp, atomic_path(library) as built:
+            source = Path(tmp) / "ik_step.c"
+            generator = ca.CodeGenerator(source.name, {"with_header": False})
+            for function in functions:
+                generator.add(function)
+            generator.generate(f"{tmp}{os.sep}")
+            subprocess.run([compiler, "-O1", "-shared", "-fPIC", str(source), "-o",
+                            str(built), "-lm"], check=True, capture_output=True, timeout=600)
+            digest = _sha256(built.read_bytes())
+        atomic_write_text(_record(library), digest + "\n")
+        loaded = _load_verified(library, names)
+        if loaded is None:
+            raise RuntimeError("the library just built does not match its own record")
+        return loaded, None
+    except (OSError, subprocess.SubprocessError, RuntimeError) as err:
+        reason = _failure_reason(err)
+        warning = (f"compiling the solver's step function failed ({reason}); CasADi's virtual "
+                   "machine is used instead, several times slower")
+        print(f"ikfusion: warning: {warning}", file=sys.stderr, flush=True)
+        return None, warning
+
+
+def _failure_reason(err: BaseException) -> str:
+    """A short reason for a failed build (the compiler's first error line when it has one)."""
+    if isinstance(err, subprocess.CalledProcessError):
+        text = err.stderr.decode(errors="replace") if isinstance(err.stderr, bytes) \
+            else str(err.stderr or "")
+        lines = [line for line in text.splitlines() if line.strip()]
+        return f"{Path(str(err.cmd[0])).name} exit code {err.returncode}" + (
+            f": {lines[0][:200]}" if lines else "")
+    return str(err)[:200] or type(err).__name__

@@ -25,6 +25,10 @@ from .tasks.base import Task
 
 #: Backends the benchmark compares; the default is the exact and fastest one there.
 DEFAULT_BACKEND = "daqp"
+#: Most active-set iterations DAQP / ProxQP may take on one step (DAQP's own default, said
+#: explicitly): a step of this size (tens of variables and rows) needs far fewer, so reaching
+#: it means a broken problem, which then fails instead of running on.
+MAX_QP_ITERATIONS = 1000
 
 
 @dataclass
@@ -90,6 +94,8 @@ def _solver_options(backend: str) -> dict[str, Any]:
     if backend == "osqp":
         return {"eps_abs": 1e-7, "eps_rel": 1e-7, "polish": True, "max_iter": 20000,
                 "verbose": False}
+    if backend == "proxqp":
+        return {"max_iter": MAX_QP_ITERATIONS, "max_iter_in": MAX_QP_ITERATIONS}
     return {}
 
 
@@ -140,7 +146,8 @@ def _call_daqp(H: np.ndarray, c: np.ndarray, G: np.ndarray | None, h: np.ndarray
     A_all = np.vstack(rows) if rows else np.zeros((0, nv))
     sense = np.zeros(len(upper), dtype=np.intc)
     sense[n_box + n_in:] = 5
-    x, _, exitflag, _ = daqp.solve(H, c, A_all, upper, lower, sense)
+    x, _, exitflag, _ = daqp.solve(H, c, A_all, upper, lower, sense,
+                                   iter_limit=MAX_QP_ITERATIONS)
     if exitflag <= 0 or not np.all(np.isfinite(x)):
         return None
     return np.asarray(x)
@@ -155,10 +162,13 @@ def solve_qp(problem: QpProblem, backend: str = DEFAULT_BACKEND,
     """Solve the step; fall back to the penalised-slack relaxation when it is infeasible.
 
     Raises:
-        SolverError: When even the relaxed problem fails with every backend (never silently;
-            the solver then keeps the previous pose for that frame and says so).
+        SolverError: A problem holding NaN or infinite numbers (a target or the pose is not
+            finite: no backend is tried), or when even the relaxed problem fails with every
+            backend (never silently; the solver then keeps the previous pose for that frame
+            and says so).
     """
     p = problem
+    _check_finite(p)
     G = p.G if len(p.h) else None
     h = p.h if len(p.h) else None
     A = p.A if len(p.b) else None
@@ -185,6 +195,19 @@ def solve_qp(problem: QpProblem, backend: str = DEFAULT_BACKEND,
     raise SolverError(f"the relaxed IK step failed with every backend tried "
                       f"({', '.join(a for a, _ in attempts)}; {p.H.shape[0]} variables, "
                       f"{len(p.h)} inequalities, {len(p.b)} equalities)")
+
+
+def _check_finite(p: QpProblem) -> None:
+    """Raise a clear error instead of handing a backend NaN or infinite numbers."""
+    parts = {"H": p.H, "c (targets)": p.c, "h (inequalities)": p.h, "b (equalities)": p.b,
+             "G": p.G, "A": p.A}
+    bad = [name for name, m in parts.items() if not np.all(np.isfinite(m))]
+    bad += [name for name, m in (("lb", p.lb), ("ub", p.ub)) if m is not None
+            and np.any(np.isnan(m))]
+    if bad:
+        raise SolverError(
+            f"the IK step holds NaN or infinite numbers in {', '.join(bad)}: a target or the "
+            "pose is not finite (check the input motion for NaN or absurd values)")
 
 
 def _solve_relaxed(p: QpProblem, backend: str, slack_weight: float) -> QpSolution | None:

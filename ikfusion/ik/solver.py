@@ -765,7 +765,7 @@ class Solver:
                 dt = 0.0 if previous is None else float(frame.time - previous)
                 after_step(self, poses[-1], k, dt)
             previous = frame.time
-        warnings = []
+        warnings = list(self._kinematics.warnings) if self._kinematics is not None else []
         if self._failures:
             warnings.append(f"{len(self._failures)} frame(s) where no QP backend could solve a "
                             f"step (first: {self._failures[0]})")

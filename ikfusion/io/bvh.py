@@ -36,7 +36,7 @@ import math
 import os
 import re
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Literal, NamedTuple
 
@@ -46,6 +46,7 @@ import numpy.typing as npt
 from ..atomic import atomic_write_text
 from ..errors import InputError, NameNotFound
 from ..rotations import axis_rotation, matrix_to_euler
+from .bad_samples import FAR_BEYOND_ANY_HALL_M, Kind, bad_samples, bridge_channel
 
 __all__ = [
     "BVH_UNITS",
@@ -184,6 +185,7 @@ class BvhMotion:
             column order for any depth-first file; see :attr:`channel_names`); positions in
             file units, rotations in degrees.
         path: The file read, if any.
+        warnings: What the reader bridged (channels with NaN, infinite or absurd values).
     """
 
     joint_names: tuple[str, ...]
@@ -195,6 +197,7 @@ class BvhMotion:
     frame_time: float
     channels: np.ndarray
     path: Path | None = None
+    warnings: tuple[str, ...] = ()
 
     # ----------------------------------------------------------------- sizes and time
     @property
@@ -454,20 +457,24 @@ class _Tokens:
         return item
 
 
-def read_bvh(path: str | os.PathLike[str]) -> BvhMotion:
+def read_bvh(path: str | os.PathLike[str], *, bridge: bool = True) -> BvhMotion:
     """Read a BVH file.
 
     Args:
         path: The ``.bvh`` file.
+        bridge: Bridge bad values (NaN, infinite, a position far beyond any hall, an angle
+            beyond any spin) as :mod:`ikfusion.io.bad_samples` says, with a warning naming the
+            lines and the channel in :attr:`BvhMotion.warnings`. False keeps them as written.
 
     Returns:
-        The hierarchy and the channel values exactly as written.
+        The hierarchy and the channel values as written (bridged where they were bad).
 
     Raises:
         InputError: Unreadable file or a file that breaks the format, naming the line and the
             field at fault: missing ``MOTION``, an unknown channel name, a frame line with the
             wrong number of values, a value that is not a number, a ``Frames:`` count that does
-            not match the frame lines. NaN values are read as NaN.
+            not match the frame lines; with ``bridge``, a channel whose bad values cannot be
+            bridged honestly (none good, a long run, too many).
     """
     p = Path(path)
     try:
@@ -478,7 +485,7 @@ def read_bvh(path: str | os.PathLike[str]) -> BvhMotion:
     motion_line = _find_motion(lines, p)
     tokens = _tokenize(lines[: motion_line - 1])
     joints, end_parents, end_offsets = _parse_hierarchy(tokens, p)
-    frame_time, values = _parse_motion(lines, motion_line, joints, p)
+    frame_time, values, frame_lines = _parse_motion(lines, motion_line, joints, p)
     # Columns follow the order of the CHANNELS statements (depth first in every file seen);
     # store them by joint index.
     by_statement = sorted(range(len(joints)), key=lambda j: joints[j].channel_order)
@@ -490,7 +497,7 @@ def read_bvh(path: str | os.PathLike[str]) -> BvhMotion:
     columns = [
         first_column[j] + c for j in range(len(joints)) for c in range(len(joints[j].channels))
     ]
-    return BvhMotion(
+    motion = BvhMotion(
         joint_names=tuple(j.name for j in joints),
         parents=np.array([j.parent for j in joints], dtype=int),
         offsets=np.array([j.offset for j in joints], dtype=float).reshape(-1, 3),
@@ -501,6 +508,33 @@ def read_bvh(path: str | os.PathLike[str]) -> BvhMotion:
         channels=values if columns == sorted(columns) else values[:, columns],
         path=p,
     )
+    return _bridged(motion, frame_lines) if bridge else motion
+
+
+def _bridged(motion: BvhMotion, frame_lines: np.ndarray) -> BvhMotion:
+    """``motion`` with its bad channel values bridged (or InputError), see ``read_bvh``."""
+    try:  # a unit above a metre only comes from a degenerate (tiny) skeleton: not trusted
+        unit = min(guess_bvh_scale(motion), max(BVH_UNITS.values()))
+    except InputError:  # no skeleton extent: allow the smallest common unit
+        unit = min(BVH_UNITS.values())
+    limit = FAR_BEYOND_ANY_HALL_M / unit  # [file units]
+    channels = motion.channels
+    warnings: list[str] = []
+    for c, name in enumerate(motion.channel_names):
+        kind: Kind = "position" if name.endswith("position") else "angle_deg"
+        bad = bad_samples(channels[:, c], kind, limit)
+        if not bad.any():
+            continue
+        if channels is motion.channels:
+            channels = channels.copy()
+        channels[:, c], warning = bridge_channel(
+            channels[:, c], bad, rate=motion.frame_rate, path=motion.path, channel=name,
+            kind=kind, frame_lines=frame_lines)
+        if warning is not None:
+            warnings.append(warning)
+    if not warnings:
+        return motion
+    return replace(motion, channels=channels, warnings=tuple(warnings))
 
 
 def _find_motion(lines: list[str], path: Path) -> int:
@@ -688,8 +722,8 @@ def _read_channels(tokens: _Tokens, path: Path, line: int, owner: str) -> tuple[
 
 def _parse_motion(
     lines: list[str], motion_line: int, joints: list[_JointDecl], path: Path
-) -> tuple[float, np.ndarray]:
-    """Frames count, frame time and the (F, C) values in file column order."""
+) -> tuple[float, np.ndarray, np.ndarray]:
+    """Frame time, the (F, C) values in file column order and each frame's 1-based line."""
     rest = [(i + 1, lines[i]) for i in range(motion_line, len(lines)) if lines[i].strip()]
     if len(rest) < 2:
         raise InputError("MOTION needs 'Frames:' and 'Frame Time:' lines", path,
@@ -751,8 +785,9 @@ def _parse_motion(
             f"'Frames: {n_frames}' but the file holds {len(rows)} frame lines (truncated?)",
             path, line=frames_line, field="Frames",
         )
+    frame_lines = np.array([number for number, _ in data], dtype=int)
     if n_channels == 0:
-        return frame_time, np.zeros((n_frames, 0))
+        return frame_time, np.zeros((n_frames, 0)), frame_lines
     try:
         values = np.array(rows, dtype=float)
     except ValueError:
@@ -766,7 +801,7 @@ def _parse_motion(
                         line=number, field=names[c],
                     ) from None
         raise  # pragma: no cover - numpy and float() disagree on a token
-    return frame_time, values.reshape(n_frames, n_channels)
+    return frame_time, values.reshape(n_frames, n_channels), frame_lines
 
 
 # --------------------------------------------------------------------------- writer

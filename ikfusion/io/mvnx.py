@@ -23,6 +23,7 @@ trunk, legs and shoulders are the same in both conventions.
 
 from __future__ import annotations
 
+import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,6 +32,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..rotations import axis_rotation, matrix_to_quat_wxyz, quat_wxyz_to_matrix
+from .bad_samples import Kind, bad_samples, bridge_channel
 from .orientation_columns import R_from_quat
 from .recording import ImuRecording, SensorStream, build_stream
 
@@ -344,9 +346,15 @@ def _up_axis(c: _Collected) -> int:
 def read_mvnx(path: str | Path) -> MvnxRecording:
     """Read an MVNX file (version 4 layout; any XML namespace), streaming its frames.
 
+    Bad samples (NaN, infinite, a position far beyond any hall, a quaternion that is not a
+    rotation) of a segment's ``orientation`` or ``position`` are bridged over short runs as
+    :mod:`ikfusion.io.bad_samples` says, with a warning naming the frames, lines and segment;
+    bad ``sensorOrientation`` samples become missing samples (NaN), as lost packets are.
+
     Raises:
-        InputError: Not XML, no subject or no normal frames, or a frame whose arrays do not
-            match the segment, sensor and joint counts (naming the frame and element).
+        InputError: Not XML, no subject or no normal frames, a frame whose arrays do not
+            match the segment, sensor and joint counts (naming the frame and element), or a
+            segment whose bad samples cannot be bridged honestly (file, line, element).
     """
     file = Path(path)
     c = _parse(file)
@@ -388,6 +396,10 @@ def read_mvnx(path: str | Path) -> MvnxRecording:
     order = index - index[0]
     if np.any(np.diff(order) <= 0):
         raise InputError("frame indices do not increase", path=file, field="index")
+    labels = index.astype(np.int64)
+    q_seg = _bridge_segments(file, "orientation", q_seg, c.segments, rate, labels, warnings)
+    p_seg = _bridge_segments(file, "position", p_seg, c.segments, rate, labels, warnings)
+    q_sen = _drop_bad_sensor_samples(file, q_sen, c.sensors, labels, warnings)
     return MvnxRecording(
         path=file, version=c.version, frame_rate=rate, time=order / rate,
         frame_index=index.astype(np.int64), segments=c.segments, p_world_segment=p_seg,
@@ -397,6 +409,72 @@ def read_mvnx(path: str | Path) -> MvnxRecording:
         contacts=c.contacts, foot_contacts=frames["footContacts"].reshape(n, len(c.contacts)) > 0.5,
         subject=c.subject, segment_points=c.points, reference_poses=c.reference,
         warnings=warnings)
+
+
+def _bridge_segments(file: Path, element: str, values: np.ndarray, segments: list[str],
+                     rate: float, labels: np.ndarray, warnings: list[str]) -> np.ndarray:
+    """Segment orientations (N, S, 4) or positions (N, S, 3) with bad samples bridged.
+
+    Raises:
+        InputError: A segment whose bad samples cannot be bridged (file, line, element).
+    """
+    kind: Kind = "quat_wxyz" if element == "orientation" else "position"
+    bad = np.stack([bad_samples(values[:, k], kind) for k in range(len(segments))], axis=1) \
+        if segments else np.zeros((len(values), 0), dtype=bool)
+    if not bad.any():
+        return values
+    bad_frames = labels[bad.any(axis=1)]
+    lines = _element_lines(file, element, bad_frames)
+    frame_lines = np.array([lines.get(int(i), 0) for i in labels]) \
+        if len(lines) == len(set(bad_frames.tolist())) else None
+    out = values.copy()
+    for k in np.flatnonzero(bad.any(axis=0)):
+        out[:, k], warning = bridge_channel(
+            values[:, k], bad[:, k], rate=rate, path=file,
+            channel=f"{element} of {segments[k]}", kind=kind, frame_lines=frame_lines,
+            frame_labels=labels)
+        if warning is not None:
+            warnings.append(warning)
+    return out
+
+
+def _drop_bad_sensor_samples(file: Path, quat_wxyz: np.ndarray, sensors: list[str],
+                             labels: np.ndarray, warnings: list[str]) -> np.ndarray:
+    """Sensor quaternions (N, K, 4) with infinite or non-unit ones set to NaN (missing)."""
+    out = quat_wxyz.copy()
+    for k, label in enumerate(sensors):
+        q = quat_wxyz[:, k]
+        absurd = bad_samples(q, "quat_wxyz") & ~np.isnan(q).all(axis=1)
+        if absurd.any():
+            out[absurd, k] = np.nan
+            frames = labels[absurd]
+            warnings.append(f"{file}: sensorOrientation of {label}: {int(absurd.sum())} "
+                            f"samples are not rotations (first at frame {frames[0]}); read "
+                            "as missing samples")
+    return out
+
+
+def _element_lines(file: Path, element: str, frame_indices: np.ndarray) -> dict[int, int]:
+    """1-based line of ``<element>`` inside each normal frame of ``frame_indices``.
+
+    Only called when a bad sample was found, so the common case reads the file once.
+    """
+    wanted = {int(i) for i in frame_indices}
+    found: dict[int, int] = {}
+    frame_re = re.compile(r'<(?:\w+:)?frame\b[^>]*\bindex="(\d+)"')
+    current: int | None = None
+    opening = re.compile(rf"<(?:\w+:)?{element}>")
+    with file.open(encoding="utf-8", errors="replace") as handle:
+        for number, line in enumerate(handle, start=1):
+            match = frame_re.search(line)
+            if match is not None:
+                normal = "type=" not in line or 'type="normal"' in line
+                current = int(match.group(1)) if normal else None
+            if current in wanted and current not in found and opening.search(line):
+                found[current] = number
+                if len(found) == len(wanted):
+                    break
+    return found
 
 
 def _turn_quat(turn: np.ndarray, quat_wxyz: np.ndarray) -> np.ndarray:

@@ -34,18 +34,21 @@ ROBOTS = ("human", *SHIPPED_ROBOTS)
 
 def retarget(source: str | Path | HumanMotion, robot: str = "human", height: float | None = None,
              out: str | Path | None = None, gmr: bool = False, config: str | Path | None = None,
-             progress: bool = False, force: bool = False) -> tuple[RobotMotion, dict[str, Any]]:
+             progress: bool = False, force: bool = False, bvh_up: str = "z"
+             ) -> tuple[RobotMotion, dict[str, Any]]:
     """Retarget a motion onto ``robot``; write the output folder when ``out`` is given.
 
     Args:
         source: A ``solve`` result folder, a BVH file, or a loaded :class:`HumanMotion`.
         robot: ``human``, a shipped robot (see :data:`ROBOTS`) or a ``.urdf`` path.
         height: Body height of a ``human`` target [m].
-        out: Output folder (``robot_motion.npz``, ``.csv``, ``summary.json``).
+        out: Output folder (``robot_motion.npz``, ``.csv``, ``summary.json``; ``motion.bvh``
+            for a human target).
         gmr: Also write the pickle layout of RL tracking pipelines.
         config: A retarget config replacing the shipped one (needed for a URDF path).
         progress: Show a progress bar.
         force: Replace ``out`` even when ikfusion did not write it.
+        bvh_up: Up axis of the ``motion.bvh`` a human target also gets (``"z"`` or ``"y"``).
 
     Returns:
         The robot motion and the metrics.
@@ -64,6 +67,7 @@ def retarget(source: str | Path | HumanMotion, robot: str = "human", height: flo
     else:
         robot_config = load_retarget_config(robot, config)
     motion_in = source if isinstance(source, HumanMotion) else load_source(source)
+    motion_in.check()
     start = time.perf_counter()
     if robot_config is None:
         motion = retarget_human(motion_in, height or 0.0, progress=progress)
@@ -81,8 +85,9 @@ def retarget(source: str | Path | HumanMotion, robot: str = "human", height: flo
                         "config": str(robot_config.source)})
         robot_motion = robot_robot_motion(trajectory)
     metrics["source"] = motion_in.source
+    metrics["warnings"] = [*motion_in.warnings, *metrics.get("warnings", [])]
     if out is not None:
-        write_robot_motion(out, robot_motion, metrics, gmr=gmr, force=force)
+        write_robot_motion(out, robot_motion, metrics, gmr=gmr, force=force, bvh_up=bvh_up)
     return robot_motion, metrics
 
 

@@ -1,17 +1,21 @@
 """What a retarget writes (SPEC section 5) and the metrics it reports.
 
 ``robot_motion.npz``: ``fps``, ``root_pos`` (N, 3) [m], ``root_quat_wxyz`` (N, 4), ``dof_pos``
-(N, n) [rad], ``dof_names``, ``contacts`` (N, k) bool, ``contact_frames``; ``robot_motion.csv``
-(one row a frame); ``summary.json`` (the metrics); with ``gmr`` also ``robot_motion.pkl``, the
-layout RL tracking pipelines read (``fps``, ``root_pos``, ``root_rot`` as x, y, z, w,
-``dof_pos``). The folder appears whole or not at all.
+(N, n) [rad] (metres for a prismatic joint), ``dof_names``, ``contacts`` (N, k) bool,
+``contact_frames``; ``robot_motion.csv`` (one row a frame; every column name that carries a
+unit says it: ``frame,time_s,root_x_m,root_y_m,root_z_m,root_qw,root_qx,root_qy,root_qz``, then
+``<dof>_rad`` (``_m`` for a prismatic joint), e.g. ``jRightKnee_flex_rad`` for the human model,
+then ``<contact frame>_planted`` as 0/1); ``summary.json`` (the metrics); for the human model
+also ``motion.bvh`` (the retargeted body for animation tools, as ``solve`` writes it); with
+``gmr`` also ``robot_motion.pkl``, the layout RL tracking pipelines read (``fps``,
+``root_pos``, ``root_rot`` as x, y, z, w, ``dof_pos``). The folder appears whole or not at all.
 """
 
 from __future__ import annotations
 
 import json
 import pickle
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +26,7 @@ from ..evaluate import phase_slides
 from ..ik.configuration import Configuration
 from ..ik.limits import JointRangeLimit
 from ..ik.pose import Motion
+from ..results.bvh_export import write_motion_bvh
 from ..rotations import angle_between, wxyz_to_xyzw, xyzw_to_wxyz
 from ..sim.truth import site_positions
 from .capsules import CapsulePairs
@@ -31,7 +36,12 @@ from .source import HumanMotion
 
 @dataclass
 class RobotMotion:
-    """A retargeted motion in the robot-motion layout (see the module docstring)."""
+    """A retargeted motion in the robot-motion layout (see the module docstring).
+
+    ``dof_units`` gives each dof's unit (``rad``, or ``m`` for a prismatic joint); empty means
+    ``rad`` for all. ``human`` is the motion of the human model when that is the target (then
+    ``motion.bvh`` is written too).
+    """
 
     fps: float
     root_pos: np.ndarray
@@ -40,6 +50,15 @@ class RobotMotion:
     dof_names: list[str]
     contacts: np.ndarray
     contact_frames: list[str]
+    dof_units: list[str] = field(default_factory=list)
+    human: Motion | None = None
+
+    def csv_header(self) -> list[str]:
+        """Column names of ``robot_motion.csv``, each with its unit where one applies."""
+        units = self.dof_units or ["rad"] * len(self.dof_names)
+        return (["frame", "time_s", "root_x_m", "root_y_m", "root_z_m", "root_qw", "root_qx",
+                 "root_qy", "root_qz"] + [f"{n}_{u}" for n, u in zip(self.dof_names, units)]
+                + [f"{c}_planted" for c in self.contact_frames])
 
 
 def human_robot_motion(motion: Motion) -> RobotMotion:
@@ -50,7 +69,8 @@ def human_robot_motion(motion: Motion) -> RobotMotion:
     """
     return RobotMotion(motion.rate, motion.q[:, :3].copy(), xyzw_to_wxyz(motion.q[:, 3:7]),
                        np.radians(motion.joint_angles()), list(motion.model.angle_columns),
-                       motion.contacts.astype(bool), list(motion.contact_names))
+                       motion.contacts.astype(bool), list(motion.contact_names),
+                       human=motion)
 
 
 def human_metrics(motion: Motion, source: HumanMotion, seconds: float,
@@ -88,10 +108,14 @@ def human_metrics(motion: Motion, source: HumanMotion, seconds: float,
 def robot_robot_motion(trajectory: RobotTrajectory) -> RobotMotion:
     """A robot trajectory in the robot layout (contacts: the two feet's links, planted)."""
     q = trajectory.q
+    model = trajectory.robot.model
+    units = ["m" if "Prismatic" in model.joints[model.getJointId(n)].shortname() else "rad"
+             for n in trajectory.robot.dof_names]
     return RobotMotion(trajectory.rate, q[:, :3].copy(), xyzw_to_wxyz(q[:, 3:7]),
                        q[:, 7:].copy(), list(trajectory.robot.dof_names),
                        trajectory.planted.copy(),
-                       [trajectory.robot.config.feet[s].link for s in ("left", "right")])
+                       [trajectory.robot.config.feet[s].link for s in ("left", "right")],
+                       dof_units=units)
 
 
 def robot_metrics(trajectory: RobotTrajectory, seconds: float) -> dict[str, Any]:
@@ -149,20 +173,31 @@ def robot_metrics(trajectory: RobotTrajectory, seconds: float) -> dict[str, Any]
 
 
 def write_robot_motion(out_dir: str | Path, robot: RobotMotion, summary: dict[str, Any],
-                       gmr: bool = False, force: bool = False) -> Path:
-    """Write the output folder (replacing one ikfusion wrote, or any with ``force``)."""
+                       gmr: bool = False, force: bool = False, bvh_up: str = "z") -> Path:
+    """Write the output folder (replacing one ikfusion wrote, or any with ``force``).
+
+    Args:
+        out_dir: The folder.
+        robot: The motion; with :attr:`RobotMotion.human` also ``motion.bvh``.
+        summary: The metrics (``summary.json``).
+        gmr: Also write ``robot_motion.pkl``.
+        force: Replace ``out_dir`` even when ikfusion did not write it.
+        bvh_up: Up axis of ``motion.bvh`` (``"z"`` or ``"y"`` for Y-up tools).
+    """
     with atomic_folder(out_dir, "retarget", force) as tmp:
         np.savez(tmp / "robot_motion.npz", fps=robot.fps, root_pos=robot.root_pos,
                  root_quat_wxyz=robot.root_quat_wxyz, dof_pos=robot.dof_pos,
                  dof_names=np.array(robot.dof_names), contacts=robot.contacts,
                  contact_frames=np.array(robot.contact_frames))
         n = len(robot.root_pos)
-        header = (["frame", "time", "root_x", "root_y", "root_z", "root_qw", "root_qx",
-                   "root_qy", "root_qz"] + robot.dof_names + robot.contact_frames)
+        header = robot.csv_header()
         table = np.column_stack([np.arange(n), np.arange(n) / robot.fps, robot.root_pos,
                                  robot.root_quat_wxyz, robot.dof_pos, robot.contacts])
         np.savetxt(tmp / "robot_motion.csv", table, delimiter=",", fmt="%.6f",
                    header=",".join(header), comments="")
+        if robot.human is not None:
+            write_motion_bvh(tmp / "motion.bvh", robot.human.model, robot.human.q,
+                             1.0 / robot.fps, up=bvh_up)
         if gmr:
             with (tmp / "robot_motion.pkl").open("wb") as f:
                 pickle.dump({"fps": robot.fps, "root_pos": robot.root_pos,

@@ -10,12 +10,13 @@ convention, SPEC section 1) and origin [m], world frame Z up.
 from __future__ import annotations
 
 import csv
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
+from ..io.bad_samples import FAR_BEYOND_ANY_HALL_M
 from ..model.layout import CONTACT_SITES
 from ..rotations import quat_wxyz_to_matrix
 
@@ -33,6 +34,7 @@ class HumanMotion:
         contacts: (N, k) planted or not.
         hip_height: Standing height of the hip joints above the floor [m] (for scaling).
         source: Where it came from.
+        warnings: What reading it repaired (bad samples bridged), for the summary.
     """
 
     time: np.ndarray
@@ -43,6 +45,7 @@ class HumanMotion:
     contacts: np.ndarray
     hip_height: float
     source: str
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def rate(self) -> float:
@@ -51,6 +54,25 @@ class HumanMotion:
 
     def __len__(self) -> int:
         return len(self.time)
+
+    def check(self) -> None:
+        """Refuse poses that no solver can track: not finite, or far beyond any hall.
+
+        Raises:
+            InputError: Naming the source, the first bad frame and its segment.
+        """
+        with np.errstate(invalid="ignore", over="ignore"):
+            bad_p = ~np.isfinite(self.p_world_segment).all(axis=2) | (
+                np.abs(self.p_world_segment) > FAR_BEYOND_ANY_HALL_M).any(axis=2)
+            bad_R = ~np.isfinite(self.R_world_segment).all(axis=(2, 3))
+        for what, bad in (("position", bad_p), ("orientation", bad_R)):
+            if bad.any():
+                k, s = (int(i) for i in np.argwhere(bad)[0])
+                raise InputError(
+                    f"frame {k} (t = {self.time[k]:.3f} s): the {what} of {self.segments[s]} "
+                    f"is not finite or farther than {FAR_BEYOND_ANY_HALL_M:g} m; "
+                    f"{int(bad.any(axis=1).sum())} frames are affected", path=self.source,
+                    field=f"{what} of {self.segments[s]}")
 
 
 def load_source(path: str | Path) -> HumanMotion:
@@ -146,7 +168,8 @@ def _from_bvh(path: Path) -> HumanMotion:
     p, R = segment_poses(truth.model, truth.q)
     names = list(truth.contact_names) or list(CONTACT_SITES)
     return HumanMotion(truth.time, segments, p, R, names, truth.contacts.astype(bool),
-                       _standing_hip_height(segments, p), str(path))
+                       _standing_hip_height(segments, p), str(path),
+                       list(truth.info.get("warnings", [])))
 
 
 #: MVN's foot contact labels -> our contact points.
@@ -172,7 +195,7 @@ def _from_mvnx(path: Path) -> HumanMotion:
     else:  # no contacts exported: from the kinematics of the sole points
         contacts = contact_phases_from_points(soles, rec.time)
     return HumanMotion(rec.time, segments, p, R, names, contacts,
-                       _standing_hip_height(segments, p), str(path))
+                       _standing_hip_height(segments, p), str(path), list(rec.warnings))
 
 
 def _mvn_sole_points(points: dict[str, dict[str, np.ndarray]], segments: list[str],

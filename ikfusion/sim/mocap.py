@@ -151,7 +151,12 @@ def motion_from_bvh(path: str | Path, rate: float = 60.0,
         progress: Show a progress bar.
 
     Returns:
-        The truth, on the floor (lowest contact point at z = 0), with contact phases.
+        The truth, on the floor (lowest contact point at z = 0), with contact phases;
+        ``info["warnings"]`` lists the bad samples the reader bridged.
+
+    Raises:
+        InputError: A malformed file, or bad samples that cannot be bridged (file, line,
+            channel).
     """
     bvh = read_bvh(path)
     step = max(1, int(round(bvh.frame_rate / rate)))
@@ -176,4 +181,5 @@ def motion_from_bvh(path: str | Path, rate: float = 60.0,
     phases = contact_phases(model, q, time, contacts)
     return TruthMotion(model, time, q, contacts, phases, str(path), {
         "bvh_rate": bvh.frame_rate, "step": step, "missing_segments": list(mapped.missing),
-        "body": body.to_dict(), "dropped_dimensions": dropped})
+        "body": body.to_dict(), "dropped_dimensions": dropped,
+        "warnings": list(bvh.warnings)})

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..io.bvh import BvhMotion, read_bvh
 from ..model.layout import CONTACT_SITES, TAG_SITES
 from ..sim.skeleton_map import SEGMENT_PARENTS
 from ..sim.truth import read_truth
@@ -59,7 +60,9 @@ def load_scene(path: str | Path, truth: str | Path | None = None,
         raise InputError("no such file or folder", path=source)
     notes: list[str] = []
     if source.is_file() and source.suffix.lower() == ".bvh":
-        actors = [load_bvh_actor(source)]
+        motion = read_bvh(source)
+        actors = [load_bvh_actor(source, motion)]
+        notes = [f"warning: {w}" for w in motion.warnings]
         folder = source.parent
     elif source.is_file() and source.suffix.lower() == ".npz":
         actors = [load_truth_actor(source, name="truth", ghost=False)]
@@ -243,16 +246,16 @@ def load_truth_actor(path: str | Path, name: str = "truth", ghost: bool = True) 
         ghost=ghost)
 
 
-def load_bvh_actor(path: str | Path) -> Actor:
+def load_bvh_actor(path: str | Path, motion: BvhMotion | None = None) -> Actor:
     """One actor from a BVH file: its joints as segments, End Sites as tips, Z up, metres.
 
     The unit and up axis are found as for simulation (:mod:`ikfusion.sim.skeleton_map`).
+    ``motion`` is the file already read (bad samples bridged), if it was.
     """
-    from ..io.bvh import read_bvh
     from ..rotations import matrix_to_quat_wxyz
     from ..sim.skeleton_map import build_skeleton_map
 
-    motion = read_bvh(path)
+    motion = read_bvh(path) if motion is None else motion
     smap = build_skeleton_map(motion, level_feet=False)
     poses = motion.world_poses(smap.scale, smap.up)
     names = list(motion.joint_names)

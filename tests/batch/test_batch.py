@@ -355,3 +355,45 @@ def test_batch_refuses_folders_it_did_not_write(capture: Path, tmp_path: Path,
     assert main(["batch", "solve", pattern, "--out", str(out), "--workers", "1", "--quiet",
                  "--force"]) == 0
     assert_complete(out / "cap01", 30)
+
+
+def _short_clip(source: Path, target: Path, frames: int) -> Path:
+    """The first ``frames`` frames of a BVH clip."""
+    lines = source.read_text().splitlines()
+    motion = next(i for i, line in enumerate(lines) if line.strip() == "MOTION")
+    lines = lines[:motion + 3 + frames]
+    lines[motion + 1] = f"Frames: {frames}"
+    target.parent.mkdir(parents=True, exist_ok=True)
+    target.write_text("\n".join(lines) + "\n")
+    return target
+
+
+def test_batch_retarget_of_a_folder_of_clips(shared_data: Path, tmp_path: Path) -> None:
+    """A folder of BVH files was refused ("expected a solve result folder"); it expands to its
+    clips, nested folders included, and a result folder inside stays one input."""
+    clips = tmp_path / "clips"
+    walk = _short_clip(shared_data / "mocap" / "cmu_02_01_walk.bvh", clips / "walk.bvh", 90)
+    jog = _short_clip(shared_data / "mocap" / "sfu_0005_Jogging001.bvh",
+                      clips / "sfu" / "jog.bvh", 60)
+    result = clips / "solved"
+    result.mkdir()
+    (result / "segments.csv").write_text("time,segment,px,py,pz,qw,qx,qy,qz\n")
+    (result / "contacts.csv").write_text("time\n")
+    (result / "motion.bvh").write_text("part of the result folder, not a clip\n")
+    (clips / "notes.txt").write_text("not a clip\n")
+    kind = load_kind("retarget")
+    items = kind.expand([str(clips)], {"robot": "human", "height": 1.6})
+    assert [Path(i.source) for i in items] == [jog.resolve(), result.resolve(), walk.resolve()]
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(InputError, match="holds no") as info:
+        kind.expand([str(empty)], {"robot": "human", "height": 1.6})
+    assert info.value.path == empty
+    shutil.rmtree(result)
+    out = tmp_path / "batch"
+    assert main(["batch", "retarget", str(clips), "--robot", "human", "--height", "1.6",
+                 "--workers", "1", "--out", str(out)]) == 0
+    report = read_report(out)
+    assert sorted(report) == ["jog.bvh", "walk.bvh"]
+    assert all(row["status"] == "ok" for row in report.values())
+    assert len(list(out.glob("*/robot_motion.npz"))) == 2

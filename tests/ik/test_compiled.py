@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import casadi as ca
 import numpy as np
 import pytest
 from motions import smooth_motion
 
-from ikfusion.ik import Configuration, Frame, Solver
+from ikfusion.ik import Configuration, Frame, Solver, compiled
 from ikfusion.ik.compiled import CompiledKinematics
 from ikfusion.ik.limits import JointRangeLimit
 from ikfusion.ik.tasks import OrientationTask, PostureTask
@@ -80,3 +86,93 @@ def test_compiled_sensed_pose_equals_numpy(human: HumanModel, rng) -> None:
         np.testing.assert_allclose(
             p_sensed, solver._contact_positions(solver._sensed_configuration(q, tracked)),
             atol=1e-10)
+
+
+# --------------------------------------------------------------------------- the disk cache
+def _scaling(factor: float) -> ca.Function:
+    """A tiny function to compile quickly: x -> factor * x."""
+    x = ca.SX.sym("x", 2)
+    return ca.Function("ik_cache_probe", [x], [factor * x])
+
+
+def _compile_directly(function: ca.Function, library: Path) -> None:
+    """Build a library with plain CasADi and cc, independently of the code under test."""
+    work = library.parent / "direct"
+    work.mkdir()
+    generator = ca.CodeGenerator("probe.c", {"with_header": False})
+    generator.add(function)
+    generator.generate(f"{work}{os.sep}")
+    subprocess.run(["cc", "-shared", "-fPIC", str(work / "probe.c"), "-o", str(library), "-lm"],
+                   check=True, capture_output=True)
+
+
+@pytest.fixture
+def cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """An empty compile cache of this test, with a C compiler required."""
+    if compiled.find_compiler() is None or shutil.which("cc") is None:
+        pytest.skip("no C compiler on this machine")
+    folder = tmp_path / "cache"
+    monkeypatch.setenv("IKFUSION_CACHE", str(folder))
+    monkeypatch.delenv("IKFUSION_NO_COMPILE", raising=False)
+    return folder
+
+
+def test_first_build_says_so_once_and_the_second_run_loads_it(
+        cache: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    functions, warning = compiled.native_functions([_scaling(2.0)], "probe")
+    assert warning is None and functions is not None
+    np.testing.assert_allclose(np.asarray(functions[0]([1.0, 2.0])).ravel(), [2.0, 4.0])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "compiling" in lines[0]
+    again, _ = compiled.native_functions([_scaling(2.0)], "probe")
+    assert again is not None and capsys.readouterr().err == ""
+
+
+def test_a_tampered_cached_library_is_rebuilt_not_loaded(
+        cache: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    compiled.native_functions([_scaling(2.0)], "probe")
+    (library,) = cache.glob("*.so")
+    # A valid library under the same name and symbol that computes something else.
+    _compile_directly(_scaling(3.0), cache / "other.so")
+    os.replace(cache / "other.so", library)
+    capsys.readouterr()
+    functions, warning = compiled.native_functions([_scaling(2.0)], "probe")
+    assert warning is None and functions is not None
+    np.testing.assert_allclose(np.asarray(functions[0]([1.0, 2.0])).ravel(), [2.0, 4.0])
+    assert "does not match" in capsys.readouterr().err
+    np.testing.assert_allclose(  # the rebuilt library is the right one again
+        np.asarray(ca.external("ik_cache_probe", str(library))([1.0, 1.0])).ravel(), [2.0, 2.0])
+
+
+def test_the_cache_key_changes_when_the_generating_source_changes(
+        cache: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    compiler = str(compiled.find_compiler())
+    before = compiled.library_path(cache, "probe", compiler)
+    assert ca.CasadiMeta.version() in before.name
+    compiled.native_functions([_scaling(2.0)], "probe")
+    monkeypatch.setattr(compiled, "generator_fingerprint", lambda: "edited source")
+    after = compiled.library_path(cache, "probe", compiler)
+    assert after != before
+    capsys.readouterr()
+    compiled.native_functions([_scaling(2.0)], "probe")
+    assert "compiling" in capsys.readouterr().err  # built anew, the old one not reused
+    assert sorted(cache.glob("*.so")) == sorted([before, after])
+
+
+def test_a_failed_compile_is_a_warning_of_the_solve(
+        cache: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, human: HumanModel,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    fake = tmp_path / "bin"
+    fake.mkdir()
+    (fake / "cc").write_text('#!/bin/sh\nif [ "$1" = --version ]; then echo fakecc 1.0; exit 0; '
+                             'fi\necho "fatal error: disk quota exceeded" >&2\nexit 1\n')
+    (fake / "cc").chmod(0o755)
+    monkeypatch.setenv("PATH", f"{fake}{os.pathsep}{os.environ['PATH']}")
+    monkeypatch.setattr(compiled, "_BUILT", {})
+    solver = Solver(human, contacts=False)
+    err = capsys.readouterr().err
+    assert "warning" in err and "disk quota exceeded" in err
+    frame = Frame(0.0, {s: np.eye(3) for s in SENSOR_SEGMENTS})
+    motion = solver.solve([frame])
+    assert any("compiling the solver's step function failed" in w for w in motion.warnings)
+    assert not list(cache.glob("*.so"))

@@ -474,8 +474,9 @@ def test_missing_and_empty_files(tmp_path: Path) -> None:
         read_bvh(_write(tmp_path, "\n\n"))
 
 
-def test_nan_values_are_kept(tmp_path: Path) -> None:
-    motion = read_bvh(_write(tmp_path, GOOD.replace("11 21 31", "nan 21 31")))
+def test_nan_values_are_kept_on_request(tmp_path: Path) -> None:
+    """``bridge=False`` keeps bad values as written (tests/io/test_bad_samples.py: bridging)."""
+    motion = read_bvh(_write(tmp_path, GOOD.replace("11 21 31", "nan 21 31")), bridge=False)
     assert np.isnan(motion.channels[1, 6])
     poses = motion.world_poses()
     assert np.all(np.isfinite(poses.p_world_joint[0]))

@@ -12,6 +12,7 @@ import pytest
 from ikfusion.cli import main
 from ikfusion.errors import InputError
 from ikfusion.evaluate import phase_slides
+from ikfusion.io.bvh import read_bvh
 from ikfusion.model import Body, HumanModel
 from ikfusion.retarget import load_source, retarget
 from ikfusion.retarget.human import source_joint_angles
@@ -87,3 +88,38 @@ def test_bad_sources_and_options(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="line 2") as err:
         load_source(bad)
     assert "pz" in str(err.value)
+
+
+def test_human_retarget_csv_states_units_and_a_bvh_is_written(solved_walk: Path,
+                                                               tmp_path: Path) -> None:
+    """robot_motion.csv used joint_angles.csv's column names for radians; animators had no
+    BVH. Now each column says its unit and motion.bvh holds the same motion."""
+    out = tmp_path / "out"
+    assert main(["retarget", str(solved_walk), "--robot", "human", "--height", "1.6",
+                 "--out", str(out), "--quiet"]) == 0
+    data = np.load(out / "robot_motion.npz")
+    names = [str(n) for n in data["dof_names"]]
+    with (out / "robot_motion.csv").open() as f:
+        header = f.readline().strip().split(",")
+    table = np.loadtxt(out / "robot_motion.csv", delimiter=",", skiprows=1)
+    assert header[:9] == ["frame", "time_s", "root_x_m", "root_y_m", "root_z_m", "root_qw",
+                          "root_qx", "root_qy", "root_qz"]
+    assert "jRightKnee_flex_rad" in header
+    assert header[9:9 + len(names)] == [f"{n}_rad" for n in names]
+    assert header[9 + len(names):] == [f"{c}_planted" for c in data["contact_frames"]]
+    np.testing.assert_allclose(table[:, 9:9 + len(names)], data["dof_pos"], atol=1e-6)
+    np.testing.assert_allclose(table[:, 1], np.arange(len(table)) / float(data["fps"]),
+                               atol=1e-6)
+    # motion.bvh: the same frames, the pelvis path and the knees' rotations of the npz.
+    bvh = read_bvh(out / "motion.bvh")
+    assert bvh.num_frames == len(data["root_pos"])
+    assert bvh.frame_time == pytest.approx(1.0 / float(data["fps"]))
+    np.testing.assert_allclose(bvh.root_positions(up="z"), data["root_pos"], atol=1e-5)
+    model = HumanModel.from_body(Body.from_height(1.6))
+    local = bvh.local_rotations(up="z")
+    knee = bvh.joint_index("RightLowerLeg")
+    for k in range(0, bvh.num_frames, 25):
+        q = model.configuration(dict(zip(names, np.degrees(data["dof_pos"][k]))))
+        R = model.segment_rotation(q, "RightUpperLeg").T @ model.segment_rotation(
+            q, "RightLowerLeg")
+        np.testing.assert_allclose(local[k, knee], R, atol=1e-4)

@@ -161,6 +161,59 @@ def test_served_page_draws_the_body_and_plays(demo_result: Path, tmp_path: Path)
             proc.wait()
 
 
+def _lan_address() -> str | None:
+    """This machine's address on its network (not loopback), or None without one.
+
+    Connecting a UDP socket sends nothing; it only picks the interface a packet would leave by.
+    """
+    import socket
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        try:
+            s.connect(("192.0.2.1", 9))
+        except OSError:
+            return None
+        address = str(s.getsockname()[0])
+    return None if address.startswith("127.") or address == "0.0.0.0" else address
+
+
+def _accepts(address: str, port: int) -> bool:
+    import socket
+
+    try:
+        with socket.create_connection((address, port), timeout=2.0):
+            return True
+    except OSError:
+        return False
+
+
+@pytest.mark.parametrize("host", [None, "0.0.0.0"])
+def test_view_listens_on_this_machine_only_unless_told(result_folder: Path,
+                                                       host: str | None) -> None:
+    """The page has no password: by default other machines must not reach it."""
+    lan = _lan_address()
+    if lan is None:
+        pytest.skip("this machine has no network address besides loopback")
+    port = free_port()
+    command = [sys.executable, "-m", "ikfusion", "view", str(result_folder), "--no-browser",
+               "--port", str(port)] + ([] if host is None else ["--host", host])
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                            text=True)
+    try:
+        url = _read_url(proc, timeout=120)
+        grpc_port = int(url.split("%3A")[-1].split("%2F")[0])
+        assert _accepts("127.0.0.1", port) and _accepts("127.0.0.1", grpc_port)
+        reachable = _accepts(lan, port), _accepts(lan, grpc_port)
+        assert reachable == ((False, False) if host is None else (True, True)), url
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
 def test_port_in_use_is_a_usage_error(result_folder: Path) -> None:
     import socket
 
