@@ -79,14 +79,14 @@ def _pyplot():  # type: ignore[no-untyped-def]
 
 
 def summary_readers(result_dir: str | Path) -> Constellation | None:
-    """The constellation named in a result's ``summary.json`` (``uwb.readers``), if readable."""
+    """The constellation named in ``summary.json`` (``uwb.readers_file``), if readable."""
     path = Path(result_dir) / "summary.json"
     try:
         summary = json.loads(path.read_text())
     except (OSError, ValueError):
         return None
     uwb = summary.get("uwb") if isinstance(summary, dict) else None
-    name = uwb.get("readers") if isinstance(uwb, dict) else None
+    name = uwb.get("readers_file") if isinstance(uwb, dict) else None
     if not isinstance(name, str) or not Path(name).is_file():
         return None
     return load_constellation(name)

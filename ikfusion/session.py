@@ -148,7 +148,7 @@ def solve_actor(actor: ActorInputs, out: str | Path, uwb: UwbInputs | None = Non
     summary: dict[str, object] = {"used": False}
     if aiding is not None and uwb is not None:
         result.motion.warnings += aiding.warnings
-        summary = {**aiding.summary(), "readers": str(uwb.readers.resolve())}
+        summary = {**aiding.summary(), "readers_file": str(uwb.readers.resolve())}
     extra: dict[str, Any] = {
         "calibration": {"method": cal.method, "heading_deg": float(np.degrees(cal.heading)),
                         "window_s": [cal.window[0] / recording.rate,

@@ -49,7 +49,7 @@ def _capture(model, path: str, folder: Path, uwb_readers: Path | None = None):
     result = write_result_folder(motion, folder / "result")
     if uwb_readers is not None:
         summary = json.loads((result / "summary.json").read_text())
-        summary["uwb"] = {"used": True, "readers": str(uwb_readers)}
+        summary["uwb"] = {"used": True, "readers_file": str(uwb_readers)}
         (result / "summary.json").write_text(json.dumps(summary))
     return truth, truth_file, result
 
