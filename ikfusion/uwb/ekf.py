@@ -335,7 +335,7 @@ class _UnitFilter:
     def _initialise(self, start: UnitStart, k: int) -> None:
         opts = self.opts
         self.last_used = float(start.time)
-        R0 = self._aid(k)
+        R0 = self._nearest_aid(k)
         if R0 is None:
             R0 = np.eye(3)
         p_sensor = np.asarray(start.p_world_tag, dtype=float) - R0 @ self.lever
@@ -352,6 +352,20 @@ class _UnitFilter:
         P[BGYR, BGYR] = opts.initial_gyr_bias_sigma**2 * np.eye(3)
         P[CLOCK, CLOCK] = start.clock_sigma**2
         P[CLOCK_RATE, CLOCK_RATE] = start.clock_rate_sigma**2
+
+    def _nearest_aid(self, k: int) -> np.ndarray | None:
+        """The IMU's orientation at sample ``k``, else at the nearest sample that has one.
+
+        A start on a lost packet (the first rows of a sensor lost) must not start the
+        attitude at the identity with a small uncertainty.
+        """
+        aid = self.imu.R_world_sensor_aid
+        if aid is None:
+            return None
+        good = np.flatnonzero(np.isfinite(aid).all(axis=(1, 2)))
+        if not len(good):
+            return None
+        return np.asarray(aid[good[np.argmin(np.abs(good - k))]], dtype=float)
 
     def _aid(self, k: int) -> np.ndarray | None:
         aid = self.imu.R_world_sensor_aid
