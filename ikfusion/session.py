@@ -52,6 +52,8 @@ class ActorInputs:
         window_s: Calibration window [s] (None: automatic), ``pose``: ``npose``/``tpose``.
         forward: ``{segment: axis}`` overriding the heading found from the data.
         rate: Rate [Hz] for files without one.
+        causal: Solve with the past only at each instant, as live (the bridging of lost
+            samples; the UWB tag filters follow ``UwbInputs.smooth``).
     """
 
     name: str | None
@@ -63,6 +65,7 @@ class ActorInputs:
     pose: str = "npose"
     forward: dict[str, str] | None = None
     rate: float | None = None
+    causal: bool = False
 
     def model(self) -> HumanModel:
         """The actor's body model."""
@@ -106,7 +109,8 @@ def solve_actor(actor: ActorInputs, out: str | Path, uwb: UwbInputs | None = Non
         tags, tracks = track_recording_tags(recording, sensor_map, model, cal, uwb, actor.name)
         fix = drift_correction(tags, tracks, recording.time, correction or "no-slide")
     result = solve_recording(recording, sensor_map, model, solver=Solver(model),
-                             progress=progress, correction=fix, calibration=cal)
+                             progress=progress, correction=fix, calibration=cal,
+                             causal=actor.causal)
     if uwb is not None and fix is not None:
         summary = uwb_summary(tracks, fix, uwb.smooth)
     extra: dict[str, Any] = {
@@ -114,6 +118,7 @@ def solve_actor(actor: ActorInputs, out: str | Path, uwb: UwbInputs | None = Non
                         "window_s": [cal.window[0] / recording.rate,
                                      cal.window[1] / recording.rate]},
         "uwb": summary,
+        "bridged": result.bridged,
     }
     if actor.name is not None:
         extra["actor"] = actor.name
