@@ -59,6 +59,8 @@ class ActorInputs:
         window_s: Calibration window [s] (None: automatic), ``pose``: ``npose``/``tpose``.
         forward: ``{segment: axis}`` overriding the heading found from the data.
         rate: Rate [Hz] for files without one.
+        causal: Solve with the past only at each instant, as live (the bridging of lost
+            samples; the UWB tag filters follow ``UwbInputs.smooth``).
     """
 
     name: str | None
@@ -70,6 +72,7 @@ class ActorInputs:
     pose: str = "npose"
     forward: dict[str, str] | None = None
     rate: float | None = None
+    causal: bool = False
 
     def model(self, mvnx: MvnxRecording | None = None) -> HumanModel:
         """The actor's body model (an MVNX take brings its subject's dimensions)."""
@@ -144,7 +147,8 @@ def solve_actor(actor: ActorInputs, out: str | Path, uwb: UwbInputs | None = Non
         aiding = uwb_aiding(tracked, recording.time, correction or "no-slide")
     fix = None if aiding is None else aiding.correction
     result = solve_recording(recording, sensor_map, model, solver=Solver(model),
-                             progress=progress, correction=fix, calibration=cal)
+                             progress=progress, correction=fix, calibration=cal,
+                             causal=actor.causal)
     summary: dict[str, object] = {"used": False}
     if aiding is not None and uwb is not None:
         result.motion.warnings += aiding.warnings
@@ -155,6 +159,7 @@ def solve_actor(actor: ActorInputs, out: str | Path, uwb: UwbInputs | None = Non
                                      cal.window[1] / recording.rate]},
         "uwb": summary,
         "segments": segment_coverage(model.segment_names, cal.R_sensor_segment),
+        "bridged": result.bridged,
     }
     if actor.name is not None:
         extra["actor"] = actor.name

@@ -45,8 +45,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--correction", choices=["off", "slide", "no-slide"], default=None,
                    help="how UWB corrects drift")
     p.add_argument("--causal", action="store_true",
-                   help="track the UWB tags with the past only at each instant, as live (by "
-                        "default the whole recording smooths them)")
+                   help="use the past only at each instant, as live: the UWB tag filters are "
+                        "not smoothed backward, and a sensor's lost samples are bridged by "
+                        "holding it relative to its neighbour and blending it back in when it "
+                        "returns (by default the whole recording is used: tags smoothed, gaps "
+                        "interpolated across)")
     p.add_argument("--bvh-up", choices=["z", "y"], default="z", help="up axis of motion.bvh")
     p.add_argument("--out", required=True, metavar="DIR",
                    help="result folder (with --session: the folder of the actors' folders)")
@@ -114,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
     window, pose = parse_calibrate(args.calibrate)
     actor = ActorInputs(None, Path(args.imu), Path(args.map) if args.map else None,
                         Path(args.body) if args.body else None, args.height, window, pose,
-                        parse_forward(args.forward), args.rate)
+                        parse_forward(args.forward), args.rate, args.causal)
     motion = solve_actor(actor, args.out, files, args.correction, args.bvh_up,
                          progress=not args.quiet, force=args.force)
     for warning in motion.warnings:
@@ -132,8 +135,10 @@ def _run_session(args: argparse.Namespace) -> int:
     session = load_session(args.session)
     if args.correction:
         session.correction = args.correction
-    if args.causal and session.uwb is not None:
-        session.uwb = replace(session.uwb, smooth=False)
+    if args.causal:
+        session.actors = [replace(a, causal=True) for a in session.actors]
+        if session.uwb is not None:
+            session.uwb = replace(session.uwb, smooth=False)
     motions = solve_session(session, args.out, args.bvh_up, progress=not args.quiet,
                             force=args.force)
     for name, motion in motions.items():

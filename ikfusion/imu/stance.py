@@ -94,13 +94,31 @@ def foot_still(R_world_sensor: np.ndarray, rate: float, gyr: np.ndarray | None =
         thresholds: What still means.
 
     Returns:
-        (N,) 1.0 still, 0.0 moving, NaN unknown (no valid sample there).
+        (N,) 1.0 still, 0.0 moving, NaN unknown (no valid sample there). A gap of up to
+        ``min_duration`` inside a still stretch does not cut it (its speed is taken as the
+        larger on either side).
     """
     th = thresholds or StanceThresholds()
+    min_length = max(1, int(round(th.min_duration * rate)))
     speed = angular_speed(R_world_sensor, rate, gyr)
     width = max(1, int(round(th.window * rate)))
-    calm = _running_max(speed, width) < th.max_rate
-    still = _drop_short_runs(calm, max(1, int(round(th.min_duration * rate))))
+    calm = _running_max(_bridge_short_gaps(speed, min_length), width) < th.max_rate
+    still = _drop_short_runs(calm, min_length)
     out = still.astype(float)
     out[~np.isfinite(speed)] = np.nan
+    return out
+
+
+def _bridge_short_gaps(speed: np.ndarray, max_length: int) -> np.ndarray:
+    """``speed`` with short unknown runs (lost samples) set to the larger speed beside them.
+
+    Runs of up to ``max_length`` samples inside the recording are filled; a lost packet or two
+    must not cut a stance in pieces too short to count (the foot would be released and slide);
+    the larger neighbour never hides a turn that both sides show.
+    """
+    out = speed.copy()
+    edges = np.diff(np.r_[0, (~np.isfinite(speed)).astype(np.int8), 0])
+    for start, end in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+        if 0 < start and end < len(speed) and end - start <= max_length:
+            out[start:end] = max(speed[start - 1], speed[end])
     return out

@@ -75,3 +75,25 @@ def test_angular_speed_from_orientations_matches_the_rotation_rate() -> None:
     good = np.isfinite(speed)
     assert np.allclose(speed[good], w, atol=1e-9)
     assert np.isnan(speed[40]) or speed[40] == pytest.approx(w)
+
+
+def test_a_lost_sample_does_not_cut_a_short_stance() -> None:
+    """A 0.2 s stance with one lost gyroscope sample in its middle stays still (it was cut in
+    two pieces shorter than the minimum duration and reported moving: the foot let go)."""
+    rate = 60.0
+    gyr = np.tile([4.0, 0.0, 0.0], (60, 1))
+    gyr[20:32] = 0.0  # 0.2 s flat on the floor
+    gyr[26] = np.nan  # a lost packet
+    still = foot_still(np.tile(np.eye(3), (60, 1, 1)), rate, gyr)
+    assert (still[22:26] == 1.0).all() and (still[27:30] == 1.0).all(), still[18:34]
+    assert np.isnan(still[26])  # no sample: unknown
+    assert (still[:15] == 0.0).all() and (still[40:] == 0.0).all()
+
+
+def test_a_long_dropout_stays_unknown() -> None:
+    rate = 60.0
+    gyr = np.zeros((120, 3))
+    gyr[40:80] = np.nan  # 0.67 s without the sensor
+    still = foot_still(np.tile(np.eye(3), (120, 1, 1)), rate, gyr)
+    assert np.isnan(still[40:80]).all()
+    assert (still[:38] == 1.0).all() and (still[82:] == 1.0).all()
