@@ -54,7 +54,7 @@ def test_uwb_brings_the_head_to_the_truth(capture: Path, tmp_path: Path, mode: s
     summary = json.loads((aided_folder / "summary.json").read_text())
     uwb = summary["uwb"]
     assert uwb["used"] is True and uwb["correction"] == mode and uwb["smoothed"] is True
-    assert Path(uwb["readers"]) == (capture / "readers.yaml").resolve()  # for evaluate --plot
+    assert Path(uwb["readers_file"]) == (capture / "readers.yaml").resolve()  # for evaluate --plot
     head = next(t for t in uwb["tags"].values())
     assert head["toas_used"] > 0.7 * head["toas_received"]  # the NLOS ones are rejected
     assert head["aiding"] is True and head["problem"] is None
