@@ -27,11 +27,16 @@ the horizontal error is corrected.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from .ik.pose import Motion, Pose
 from .ik.solver import Solver
+from .paths import shipped_config
+from .settings_files import Overlay, load_settings
+from .yaml_files import read_yaml_document
 
 #: Correction modes.
 MODES = ("off", "slide", "no-slide")
@@ -52,6 +57,45 @@ class SiteFixes:
     cov: np.ndarray
 
 
+@dataclass(frozen=True)
+class CorrectionSettings:
+    """Thresholds of the drift correction, all from ``configs/correction.yaml``.
+
+    Attributes:
+        time_constant: Lag of the ``slide`` correction [s].
+        max_step: Largest offset of one step in ``no-slide`` [m].
+        heading_window: Travel compared for the heading error [s].
+        heading_travel: Both travels must exceed this for an estimate [m].
+        heading_deadband_deg: Errors below this are left alone [deg] (the sensors' own noise).
+        heading_rate_deg: Largest turn of the targets [deg/s].
+        heading_length_ratio: Travels whose lengths differ by more than this factor are not
+            compared (the fixes jumped or the body slid: no heading information).
+        heading_time_constant: The turn closes the error with this lag [s].
+    """
+
+    time_constant: float
+    max_step: float
+    heading_window: float
+    heading_travel: float
+    heading_deadband_deg: float
+    heading_rate_deg: float
+    heading_length_ratio: float
+    heading_time_constant: float
+
+    @classmethod
+    def load(cls, path: str | Path | None = None, **overrides: Any) -> CorrectionSettings:
+        """The shipped ``configs/correction.yaml``, overlaid by a user file; keywords win.
+
+        Raises:
+            ConfigError: An unknown key, a key in the wrong section or a value of the wrong
+                type, naming the file, the line and the key.
+        """
+        overlays = [] if path is None else [
+            Overlay(read_yaml_document(path, "correction settings"))]
+        return load_settings(cls, shipped_config("correction.yaml"), "correction settings",
+                             overlays, overrides)
+
+
 @dataclass
 class DriftCorrection:
     """Per-frame correction of a solve by tag positions (see the module docstring).
@@ -59,29 +103,14 @@ class DriftCorrection:
     Attributes:
         fixes: The measured sites.
         mode: ``off``, ``slide`` or ``no-slide``.
-        time_constant: Lag of the ``slide`` correction [s].
-        max_step: Largest offset of one step in ``no-slide`` [m].
-        heading_window: Travel compared for the heading error [s].
-        heading_travel: Both travels must exceed this for an estimate [m].
-        heading_deadband: Errors below this are left alone [rad] (the sensors' own noise).
-        heading_rate: Largest turn of the targets [rad/s].
-        heading_length_ratio: Travels whose lengths differ by more than this factor are not
-            compared (the fixes jumped or the body slid: no heading information).
-        heading_time_constant: The turn closes the error with this lag [s].
+        settings: The thresholds (:meth:`CorrectionSettings.load`).
         gap: (N,) remaining horizontal gap after each frame [m] (NaN without a fix).
         heading: (N,) accumulated heading correction after each frame [rad].
     """
 
     fixes: list[SiteFixes]
-    mode: str = "no-slide"
-    time_constant: float = 0.05
-    max_step: float = 0.10
-    heading_window: float = 1.0
-    heading_travel: float = 0.4
-    heading_deadband: float = np.radians(2.0)
-    heading_rate: float = np.radians(10.0)
-    heading_length_ratio: float = 1.25
-    heading_time_constant: float = 1.0
+    mode: str
+    settings: CorrectionSettings
     gap: np.ndarray = field(default_factory=lambda: np.zeros(0))
     heading: np.ndarray = field(default_factory=lambda: np.zeros(0))
     _placed: bool = False
@@ -130,9 +159,9 @@ class DriftCorrection:
             self._placed = True
             self._placement = (k, delta)
         elif self.mode == "slide":
-            solver.shift_anchors(delta * min(1.0, dt / self.time_constant))
+            solver.shift_anchors(delta * min(1.0, dt / self.settings.time_constant))
         else:
-            solver.set_step_offset(delta, self.max_step)
+            solver.set_step_offset(delta, self.settings.max_step)
 
     def heading_error(self, k: int, dt: float) -> float | None:
         """Angle from the solved sites' inertial travel to the tags' travel over the window [rad].
@@ -142,7 +171,8 @@ class DriftCorrection:
         (body sites') only when it has one (swing feet are led by the no-slide correction);
         None when none did (standing, turning on the spot, a jump of the fixes, no fixes).
         """
-        back = k - int(round(self.heading_window / dt)) if dt > 0 else -1
+        s = self.settings
+        back = k - int(round(s.heading_window / dt)) if dt > 0 else -1
         if back < 0:
             return None
         angles, body = [], []
@@ -152,9 +182,9 @@ class DriftCorrection:
             if not (np.isfinite(measured).all() and np.isfinite(solved).all()):
                 continue
             lengths = np.linalg.norm(measured), np.linalg.norm(solved)
-            if min(lengths) < self.heading_travel:
+            if min(lengths) < s.heading_travel:
                 continue
-            if max(lengths) > self.heading_length_ratio * min(lengths):
+            if max(lengths) > s.heading_length_ratio * min(lengths):
                 continue  # a jump of the fixes, not a turn: heading drift keeps the length
             angles.append(np.arctan2(solved[0] * measured[1] - solved[1] * measured[0],
                                      solved @ measured))
@@ -165,16 +195,18 @@ class DriftCorrection:
 
     def _correct_heading(self, solver: Solver, k: int, dt: float) -> None:
         """Turn the solver's targets toward the heading error, at a bounded rate."""
+        s = self.settings
         error = self.heading_error(k, dt)
         if error is None or dt <= 0:
             return
         # the travel was solved under the turn of mid-window; what was turned since is done
-        mid = k - int(round(0.5 * self.heading_window / dt))
+        mid = k - int(round(0.5 * s.heading_window / dt))
         error -= solver.heading_correction - self.heading[max(mid, 0)]
-        if abs(error) < self.heading_deadband:
+        if abs(error) < np.radians(s.heading_deadband_deg):
             return
-        step = error * min(1.0, dt / self.heading_time_constant)
-        solver.turn(float(np.clip(step, -self.heading_rate * dt, self.heading_rate * dt)))
+        step = error * min(1.0, dt / s.heading_time_constant)
+        rate = np.radians(s.heading_rate_deg)
+        solver.turn(float(np.clip(step, -rate * dt, rate * dt)))
 
     def place_start(self, motion: Motion) -> None:
         """Move the frames solved before the first fix by its offset (in place).

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from .correction import DriftCorrection, SiteFixes
+from .correction import CorrectionSettings, DriftCorrection, SiteFixes
 from .errors import InputError
 from .imu.calibration import Calibration, calibrate_recording
 from .io.reader import read_imu
@@ -126,8 +126,12 @@ def track_capture(folder: str | Path, smooth: bool = True) -> TrackedCapture:
 
 
 def drift_correction(tags: Mapping[str, TagInfo], tracks: Mapping[str, UnitTrack],
-                     time: np.ndarray, mode: str) -> DriftCorrection:
-    """The correction of a solve on ``time`` from the tag tracks (interpolated when needed)."""
+                     time: np.ndarray, mode: str,
+                     settings: CorrectionSettings | None = None) -> DriftCorrection:
+    """The correction of a solve on ``time`` from the tag tracks (interpolated when needed).
+
+    ``settings`` None: the shipped ``configs/correction.yaml``.
+    """
     fixes = []
     for tag_id, track in tracks.items():
         if len(track.time) == len(time) and np.allclose(track.time, time):
@@ -138,7 +142,8 @@ def drift_correction(tags: Mapping[str, TagInfo], tracks: Mapping[str, UnitTrack
             index = np.clip(np.searchsorted(track.time, time), 0, len(track.time) - 1)
             cov = track.cov[index]
         fixes.append(SiteFixes(tags[tag_id].site, p, cov))
-    return DriftCorrection(fixes, mode=mode)
+    return DriftCorrection(fixes, mode,
+                           settings if settings is not None else CorrectionSettings.load())
 
 
 @dataclass

@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 
+from ikfusion.correction import CorrectionSettings
 from ikfusion.paths import shipped_config
 from ikfusion.pipeline import solve_recording
 from ikfusion.sim.capture import add_heading_drift, truth_motion, write_capture
@@ -45,7 +44,8 @@ def _head_rms_after(drifted, correction, t0: float) -> float:  # type: ignore[no
 def test_the_drift_is_turned_back(drifted, mode: str) -> None:  # type: ignore[no-untyped-def]
     recording, _, _, _, tags, tracks, _ = drifted
     turned = drift_correction(tags, tracks, recording.time, mode)
-    still = replace(drift_correction(tags, tracks, recording.time, mode), heading_rate=0.0)
+    still = drift_correction(tags, tracks, recording.time, mode,
+                             CorrectionSettings.load(heading_rate_deg=0.0))
     with_turn = _head_rms_after(drifted, turned, 20.0)
     without = _head_rms_after(drifted, still, 20.0)
     # the targets were turned back by about the drift the sensors took

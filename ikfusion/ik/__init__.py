@@ -3,7 +3,7 @@
 from .configuration import Configuration
 from .frame import Frame
 from .pose import Motion, Pose
-from .qp import QpProblem, QpSolution, build_qp, solve_qp
+from .qp import QpProblem, QpSettings, QpSolution, build_qp, solve_qp
 from .settings import SolverSettings
 from .solver import Solver
 
@@ -13,6 +13,7 @@ __all__ = [
     "Motion",
     "Pose",
     "QpProblem",
+    "QpSettings",
     "QpSolution",
     "Solver",
     "SolverSettings",

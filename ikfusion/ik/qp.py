@@ -23,12 +23,27 @@ from .configuration import Configuration
 from .limits.base import Equality, Inequality
 from .tasks.base import Task
 
-#: Backends the benchmark compares; the default is the exact and fastest one there.
-DEFAULT_BACKEND = "daqp"
-#: Most active-set iterations DAQP / ProxQP may take on one step (DAQP's own default, said
-#: explicitly): a step of this size (tens of variables and rows) needs far fewer, so reaching
-#: it means a broken problem, which then fails instead of running on.
-MAX_QP_ITERATIONS = 1000
+
+@dataclass(frozen=True)
+class QpSettings:
+    """How the QP backends are run (from ``configs/solver.yaml``, section ``qp``).
+
+    Attributes:
+        max_iterations: Most active-set iterations DAQP / ProxQP may take on one step: a step
+            of this size (tens of variables and rows) needs far fewer, so reaching it means a
+            broken problem, which then fails instead of running on.
+        slack_weight: Quadratic penalty of the relaxed problem's slack [1/m^2 or 1/rad^2].
+        relaxed_slack_scale: The penalty is scaled by this when the first relaxation fails
+            (a heavy penalty makes the relaxed problem ill-conditioned).
+        osqp_tolerance: OSQP's absolute and relative tolerance.
+        osqp_max_iterations: OSQP's iteration limit.
+    """
+
+    max_iterations: int
+    slack_weight: float
+    relaxed_slack_scale: float
+    osqp_tolerance: float
+    osqp_max_iterations: int
 
 
 @dataclass
@@ -62,8 +77,8 @@ class QpSolution:
 
 def build_qp(configuration: Configuration, tasks: Sequence[Task],
              inequalities: Sequence[Inequality], equalities: Sequence[Equality],
-             bounds: tuple[np.ndarray, np.ndarray] | None = None,
-             damping: float = 1e-8) -> QpProblem:
+             bounds: tuple[np.ndarray, np.ndarray] | None,
+             damping: float) -> QpProblem:
     """Assemble the QP of one Gauss-Newton step at ``configuration`` from task objects."""
     nv = configuration.model.nv
     H = np.zeros((nv, nv))
@@ -75,8 +90,8 @@ def build_qp(configuration: Configuration, tasks: Sequence[Task],
 
 def assemble_qp(H: np.ndarray, c: np.ndarray, inequalities: Sequence[Inequality],
                 equalities: Sequence[Equality],
-                bounds: tuple[np.ndarray, np.ndarray] | None = None,
-                damping: float = 1e-8) -> QpProblem:
+                bounds: tuple[np.ndarray, np.ndarray] | None,
+                damping: float) -> QpProblem:
     """A :class:`QpProblem` from an accumulated objective and constraint blocks."""
     nv = H.shape[0]
     H.flat[::nv + 1] += damping  # the diagonal
@@ -90,27 +105,28 @@ def assemble_qp(H: np.ndarray, c: np.ndarray, inequalities: Sequence[Inequality]
     return QpProblem(H, c, G, h, A, b, lb, ub)
 
 
-def _solver_options(backend: str) -> dict[str, Any]:
+def _solver_options(backend: str, settings: QpSettings) -> dict[str, Any]:
     if backend == "osqp":
-        return {"eps_abs": 1e-7, "eps_rel": 1e-7, "polish": True, "max_iter": 20000,
-                "verbose": False}
+        return {"eps_abs": settings.osqp_tolerance, "eps_rel": settings.osqp_tolerance,
+                "polish": True, "max_iter": settings.osqp_max_iterations, "verbose": False}
     if backend == "proxqp":
-        return {"max_iter": MAX_QP_ITERATIONS, "max_iter_in": MAX_QP_ITERATIONS}
+        return {"max_iter": settings.max_iterations, "max_iter_in": settings.max_iterations}
     return {}
 
 
-def _call(backend: str, H: np.ndarray, c: np.ndarray, G: np.ndarray | None, h: np.ndarray | None,
-          A: np.ndarray | None, b: np.ndarray | None, lb: np.ndarray | None,
+def _call(backend: str, settings: QpSettings, H: np.ndarray, c: np.ndarray,
+          G: np.ndarray | None, h: np.ndarray | None, A: np.ndarray | None,
+          b: np.ndarray | None, lb: np.ndarray | None,
           ub: np.ndarray | None) -> np.ndarray | None:
     if backend not in qpsolvers.available_solvers:
         raise SolverError(
             f"QP backend {backend!r} is not installed; available: "
             f"{', '.join(qpsolvers.available_solvers)}")
     if backend == "daqp":
-        return _call_daqp(H, c, G, h, A, b, lb, ub)
+        return _call_daqp(settings.max_iterations, H, c, G, h, A, b, lb, ub)
     try:
         x = qpsolvers.solve_qp(H, c, G, h, A, b, lb, ub, solver=backend,
-                               **_solver_options(backend))
+                               **_solver_options(backend, settings))
     except (ValueError, qpsolvers.QPError):
         return None
     if x is None or not np.all(np.isfinite(x)):
@@ -118,9 +134,9 @@ def _call(backend: str, H: np.ndarray, c: np.ndarray, G: np.ndarray | None, h: n
     return np.asarray(x)
 
 
-def _call_daqp(H: np.ndarray, c: np.ndarray, G: np.ndarray | None, h: np.ndarray | None,
-               A: np.ndarray | None, b: np.ndarray | None, lb: np.ndarray | None,
-               ub: np.ndarray | None) -> np.ndarray | None:
+def _call_daqp(max_iterations: int, H: np.ndarray, c: np.ndarray, G: np.ndarray | None,
+               h: np.ndarray | None, A: np.ndarray | None, b: np.ndarray | None,
+               lb: np.ndarray | None, ub: np.ndarray | None) -> np.ndarray | None:
     """DAQP called directly (the same problem qpsolvers would pass, without its checks).
 
     DAQP takes simple bounds as the first rows of ``blower <= (dq, A_rows dq) <= bupper`` and
@@ -147,7 +163,7 @@ def _call_daqp(H: np.ndarray, c: np.ndarray, G: np.ndarray | None, h: np.ndarray
     sense = np.zeros(len(upper), dtype=np.intc)
     sense[n_box + n_in:] = 5
     x, _, exitflag, _ = daqp.solve(H, c, A_all, upper, lower, sense,
-                                   iter_limit=MAX_QP_ITERATIONS)
+                                   iter_limit=max_iterations)
     if exitflag <= 0 or not np.all(np.isfinite(x)):
         return None
     return np.asarray(x)
@@ -157,9 +173,13 @@ def _call_daqp(H: np.ndarray, c: np.ndarray, G: np.ndarray | None, h: np.ndarray
 _EXACT_BACKENDS = ("daqp", "proxqp")
 
 
-def solve_qp(problem: QpProblem, backend: str = DEFAULT_BACKEND,
-             slack_weight: float = 1e8) -> QpSolution:
+def solve_qp(problem: QpProblem, backend: str, settings: QpSettings) -> QpSolution:
     """Solve the step; fall back to the penalised-slack relaxation when it is infeasible.
+
+    Args:
+        problem: The step's QP.
+        backend: The QP backend (qpsolvers name) tried first.
+        settings: Iteration limits, tolerances and the slack penalties.
 
     Raises:
         SolverError: A problem holding NaN or infinite numbers (a target or the pose is not
@@ -173,23 +193,25 @@ def solve_qp(problem: QpProblem, backend: str = DEFAULT_BACKEND,
     h = p.h if len(p.h) else None
     A = p.A if len(p.b) else None
     b = p.b if len(p.b) else None
-    x = _call(backend, p.H, p.c, G, h, A, b, p.lb, p.ub)
+    x = _call(backend, settings, p.H, p.c, G, h, A, b, p.lb, p.ub)
     if x is not None:
         return QpSolution(x)
     # A numerical failure on a degenerate but feasible step (a limit active exactly where a
     # planted point holds) is not infeasibility: another exact backend first.
     for other in _EXACT_BACKENDS:
         if other != backend and other in qpsolvers.available_solvers:
-            x = _call(other, p.H, p.c, G, h, A, b, p.lb, p.ub)
+            x = _call(other, settings, p.H, p.c, G, h, A, b, p.lb, p.ub)
             if x is not None:
                 return QpSolution(x)
     # Infeasible (or a numerical failure): relax, with a milder penalty and another backend
     # before giving up, since a heavy penalty makes the relaxed problem ill-conditioned.
-    attempts = [(backend, slack_weight), (backend, slack_weight * 1e-4)]
-    attempts += [(other, slack_weight * 1e-4) for other in ("proxqp", "daqp")
+    heavy = settings.slack_weight
+    mild = heavy * settings.relaxed_slack_scale
+    attempts = [(backend, heavy), (backend, mild)]
+    attempts += [(other, mild) for other in ("proxqp", "daqp")
                  if other != backend and other in qpsolvers.available_solvers]
     for name, weight in attempts:
-        solution = _solve_relaxed(p, name, weight)
+        solution = _solve_relaxed(p, name, weight, settings)
         if solution is not None:
             return solution
     raise SolverError(f"the relaxed IK step failed with every backend tried "
@@ -210,7 +232,8 @@ def _check_finite(p: QpProblem) -> None:
             "pose is not finite (check the input motion for NaN or absurd values)")
 
 
-def _solve_relaxed(p: QpProblem, backend: str, slack_weight: float) -> QpSolution | None:
+def _solve_relaxed(p: QpProblem, backend: str, slack_weight: float,
+                   settings: QpSettings) -> QpSolution | None:
     """Every constraint row gets a slack ``s`` with cost ``slack_weight/2 * s^2``."""
     nv = p.H.shape[0]
     m_in, m_eq = len(p.h), len(p.b)
@@ -225,7 +248,8 @@ def _solve_relaxed(p: QpProblem, backend: str, slack_weight: float) -> QpSolutio
                          np.zeros(m_in), np.full(m_eq, -np.inf)])
     ub = np.concatenate([p.ub if p.ub is not None else np.full(nv, np.inf),
                          np.full(m_in + m_eq, np.inf)])
-    x = _call(backend, H, c, G, p.h if m_in else None, A, p.b if m_eq else None, lb, ub)
+    x = _call(backend, settings, H, c, G, p.h if m_in else None, A, p.b if m_eq else None, lb,
+              ub)
     if x is None:
         return None
     slack = float(np.max(np.abs(x[nv:]))) if n > nv else 0.0

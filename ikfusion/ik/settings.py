@@ -1,95 +1,106 @@
-"""Solver settings: weights, limits and thresholds from ``configs/solver.yaml``."""
+"""Solver settings: weights, limits and thresholds, all from ``configs/solver.yaml``.
+
+The dataclass has no defaults: every value is in the shipped file (its comments give the
+units), so the file and the code cannot disagree. A user file with some of the same sections
+and keys overrides them (:meth:`SolverSettings.load`).
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from ..errors import ConfigError
 from ..paths import shipped_config
-from ..yaml_files import read_yaml
+from ..settings_files import Overlay, load_settings
+from ..yaml_files import read_yaml_document
+from .qp import QpSettings
+
+__all__ = ["SolverSettings"]
 
 
 @dataclass(frozen=True)
 class SolverSettings:
     """Every tunable of :class:`ikfusion.ik.Solver` (see ``configs/solver.yaml`` for units)."""
 
-    backend: str = "daqp"
-    compiled: bool = True
-    max_iterations: int = 3
-    first_frame_iterations: int = 40
-    step_tolerance: float = 0.1
-    constraint_tolerance: float = 2e-5
-    levenberg_marquardt: float = 1e-9
-    orientation: float = 1.0
-    position: float = 1.0
-    posture: float = 1e-3
-    posture_joints: dict[str, float] = field(default_factory=dict)
-    posture_axes: dict[str, list[float]] = field(default_factory=dict)
-    assumed: float = 0.1
-    hinge_joints: list[str] = field(default_factory=lambda: [
-        "jRightKnee", "jLeftKnee", "jRightElbow", "jLeftElbow"])
-    smoothness_root_translation: float = 1e-6
-    smoothness_root_rotation: float = 1e-6
-    smoothness_joints: float = 1e-6
-    ballistic: float = 1e3
-    continuity: float = 3.0
-    continuity_placed: float = 1e2
-    swing: float = 1e2
-    lag_speed: float = 0.2
-    lag_max: float = 0.05
-    swing_speed: float = 0.4
-    lean_max: float = 0.04
-    lean_speed: float = 0.1
-    ease_speed_deg: float = 20.0
-    persistence: float = 1.0
-    joint_range_margin_deg: float = 5.0
-    max_joint_velocity: float = 30.0
-    max_root_velocity: float = 15.0
-    max_root_angular_velocity: float = 30.0
-    contacts: bool = True
-    floor_z: float = 0.0
-    enter_height: float = 0.03
-    enter_speed: float = 0.5
-    enter_relative: float = 0.03
-    leave_relative: float = 0.025
-    leave_distance: float = 0.02
-    settle_speed: float = 0.2
-    tilt_deg: float = 5.0
-    heel_rise_deg: float = 0.5
-    still_relative: float = 0.06
-    reenter_delay: float = 0.1
-    still_rate: float = 0.6
-    still_duration: float = 0.1
-    speed_window: int = 1
-    detection_smoothing: float = 0.5
+    backend: str
+    compiled: bool
+    max_iterations: int
+    first_frame_iterations: int
+    step_tolerance: float
+    constraint_tolerance: float
+    levenberg_marquardt: float
+    limit_resolves: int
+    limit_crossing_tolerance: float
+    projection_steps: int
+    qp_max_iterations: int
+    qp_slack_weight: float
+    qp_relaxed_slack_scale: float
+    osqp_tolerance: float
+    osqp_max_iterations: int
+    orientation: float
+    position: float
+    posture: float
+    posture_joints: dict[str, float]
+    posture_axes: dict[str, list[float]]
+    assumed: float
+    hinge_joints: list[str]
+    smoothness_root_translation: float
+    smoothness_root_rotation: float
+    smoothness_joints: float
+    ballistic: float
+    continuity: float
+    continuity_placed: float
+    swing: float
+    lag_speed: float
+    lag_max: float
+    swing_speed: float
+    lean_max: float
+    lean_speed: float
+    touchdown_confirm: float
+    ease_speed_deg: float
+    persistence: float
+    joint_range_margin_deg: float
+    max_joint_velocity: float
+    max_root_velocity: float
+    max_root_angular_velocity: float
+    contacts: bool
+    floor_z: float
+    enter_height: float
+    enter_speed: float
+    enter_relative: float
+    leave_relative: float
+    leave_distance: float
+    settle_speed: float
+    tilt_deg: float
+    heel_rise_deg: float
+    still_relative: float
+    reenter_delay: float
+    still_rate: float
+    still_duration: float
+    speed_window: int
+    detection_smoothing: float
 
     @classmethod
     def load(cls, path: str | Path | None = None, **overrides: Any) -> SolverSettings:
-        """Read a solver YAML (sections are flattened); keyword overrides win.
+        """The shipped ``configs/solver.yaml``, overlaid by a user file; keyword overrides win.
+
+        Args:
+            path: A user file with some of the shipped sections and keys (e.g.
+                ``limits: {lag_speed: 0.2}``); None: the shipped values only.
+            **overrides: Individual settings by field name.
 
         Raises:
-            ConfigError: Unknown keys or values of the wrong type, naming the key.
+            ConfigError: An unknown key, a key in the wrong section or a value of the wrong
+                type, naming the file, the line and the key.
         """
-        file = Path(path) if path is not None else shipped_config("solver.yaml")
-        doc = read_yaml(file, "solver settings") or {}
-        if not isinstance(doc, dict):
-            raise ConfigError("expected a mapping of sections", path=file)
-        flat: dict[str, Any] = {}
-        for section, values in doc.items():
-            if not isinstance(values, dict):
-                raise ConfigError("expected a mapping", path=file, field=str(section))
-            flat.update(values)
-        flat.update(overrides)
-        known = {f.name: f for f in fields(cls)}
-        for key, value in flat.items():
-            if key not in known:
-                raise ConfigError(f"unknown setting; known: {', '.join(known)}", path=file,
-                                  field=key)
-            default = getattr(cls(), key)
-            if isinstance(default, int | float) and not isinstance(default, bool):
-                if isinstance(value, bool) or not isinstance(value, int | float):
-                    raise ConfigError(f"expected a number, found {value!r}", path=file, field=key)
-                flat[key] = type(default)(value)
-        return replace(cls(), **flat)
+        overlays = [] if path is None else [Overlay(read_yaml_document(path, "solver settings"))]
+        return load_settings(cls, shipped_config("solver.yaml"), "solver settings", overlays,
+                             overrides)
+
+    @property
+    def qp(self) -> QpSettings:
+        """The QP backends' iteration limits, tolerances and slack weights."""
+        return QpSettings(self.qp_max_iterations, self.qp_slack_weight,
+                          self.qp_relaxed_slack_scale, self.osqp_tolerance,
+                          self.osqp_max_iterations)

@@ -112,7 +112,7 @@ class Solver:
         self.contact_names = model.sites_of_kind("contact") if s.contacts else []
         contact_ids = [model.site_frame_id(n) for n in self.contact_names]
         self.support = SupportFollower(self.contact_names, s.lag_speed, s.lag_max, s.swing_speed,
-                                       s.lean_max, s.lean_speed)
+                                       s.lean_max, s.lean_speed, s.touchdown_confirm)
         self.swing_task = PositionTask(contact_ids, self.contact_names, s.swing)
         self.contact_constraint = ContactConstraint(contact_ids, self.contact_names)
         self._heels = np.array(["Heel" in n for n in self.contact_names], dtype=bool)
@@ -561,18 +561,19 @@ class Solver:
         another limit or a bound is solved again with those rows. A relaxed step is solved
         again with every row.
         """
-        backend = self.settings.backend
-        solution = solve_qp(problem, backend)
+        s = self.settings
+        backend, tol = s.backend, s.limit_crossing_tolerance
+        solution = solve_qp(problem, backend, s.qp)
         lazy = self._lazy
         lb, ub = lazy.bounds if lazy.bounds is not None else (None, None)
-        for _ in range(4):
+        for _ in range(s.limit_resolves):
             if solution.relaxed:
                 lazy.up[:], lazy.down[:] = True, True
-            crossed_up, crossed_down = lazy.ranges.crossed(solution.dq, 1e-9)
+            crossed_up, crossed_down = lazy.ranges.crossed(solution.dq, tol)
             crossed_up &= ~lazy.up
             crossed_down &= ~lazy.down
             outside = lb is not None and ub is not None and problem.lb is None and bool(
-                np.any(solution.dq < lb - 1e-9) or np.any(solution.dq > ub + 1e-9))
+                np.any(solution.dq < lb - tol) or np.any(solution.dq > ub + tol))
             if not (solution.relaxed or outside or crossed_up.any() or crossed_down.any()):
                 return solution
             lazy.up |= crossed_up
@@ -583,12 +584,12 @@ class Solver:
             if outside or solution.relaxed:
                 problem.lb, problem.ub = lb, ub
             relaxed_before = solution.relaxed
-            solution = solve_qp(problem, backend)
+            solution = solve_qp(problem, backend, s.qp)
             if relaxed_before:
                 return solution
         return solution
 
-    def _project_on_constraints(self, conf: Configuration, max_steps: int = 4) -> bool:
+    def _project_on_constraints(self, conf: Configuration) -> bool:
         """Remove the linearisation residual of the contacts with minimum-norm steps.
 
         The Gauss-Newton loop may stop while large steps (a target out of reach) still leave a
@@ -600,6 +601,7 @@ class Solver:
             True when a step had to be relaxed.
         """
         s = self.settings
+        max_steps = s.projection_steps
         nv = self.model.model.nv
         q_start = conf.q.copy()
         for _ in range(max_steps):  # the residual is second order: minimum-norm steps suffice
@@ -622,7 +624,7 @@ class Solver:
                                [self.contact_constraint.equality(conf)], None, 0.0)
             problem.H = np.eye(nv)
             try:
-                solution = solve_qp(problem, s.backend)
+                solution = solve_qp(problem, s.backend, s.qp)
             except SolverError:
                 return True
             relaxed = relaxed or solution.relaxed

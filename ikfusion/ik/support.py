@@ -42,8 +42,8 @@ class SupportFollower:
     """
 
     def __init__(self, contact_names: Sequence[str], lag_speed: float, lag_max: float,
-                 swing_speed: float, lean_max: float = 0.0, lean_speed: float = 0.0,
-                 confirm: float = 0.2) -> None:
+                 swing_speed: float, lean_max: float, lean_speed: float,
+                 confirm: float) -> None:
         self.lag_speed = lag_speed
         self.lag_max = lag_max
         self.swing_speed = swing_speed

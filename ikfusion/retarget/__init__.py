@@ -77,7 +77,7 @@ def retarget(source: str | Path | HumanMotion, robot: str = "human", height: flo
         metrics.update({"robot": robot, "height_m": height})
         robot_motion = human_robot_motion(motion)
     else:
-        retargeter = RobotRetargeter(RobotModel(robot_config))
+        retargeter = RobotRetargeter(RobotModel(robot_config), SolverSettings.load().qp)
         start = time.perf_counter()  # frames per second of the solve, not of reading a URDF
         trajectory = retargeter.solve(motion_in, progress)
         metrics = robot_metrics(trajectory, time.perf_counter() - start)

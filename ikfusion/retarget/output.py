@@ -77,7 +77,7 @@ def human_metrics(motion: Motion, source: HumanMotion, seconds: float,
                   max_joint_velocity: float) -> dict[str, Any]:
     """Limits, velocities, foot slide, floor penetration and tracking of a human target."""
     model = motion.model
-    limits = JointRangeLimit(model.ball_joints)
+    limits = JointRangeLimit(model.ball_joints, margin_deg=0.0)  # only violations are read
     over = np.array([limits.violation_deg(q).max() for q in motion.q])
     rates = np.abs(np.diff(np.radians(motion.joint_angles()), axis=0)) * motion.rate
     points = site_positions(model, motion.q, list(source.contact_names))

@@ -11,10 +11,10 @@ robot's tangent space:
   floor, capsule pairs apart (linearised distance rows).
 
 A foot is planted while the source's foot is in contact and the robot's sole has come down
-(lowest corner within :data:`PLANT_HEIGHT` of the floor, or :data:`PLANT_WAIT` s after the
-source's touch-down); until then, a foot whose source is in contact is pulled flat onto the
-floor under the source foot's heading. Frames the constraints cannot all satisfy are solved
-with penalised slack and counted, never dropped.
+(lowest corner within ``plant_height`` of the floor, or ``plant_wait`` s after the source's
+touch-down; :class:`~ikfusion.retarget.settings.RetargetSettings`); until then, a foot whose
+source is in contact is pulled flat onto the floor under the source foot's heading. Frames the
+constraints cannot all satisfy are solved with penalised slack and counted, never dropped.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from tqdm import tqdm
 
 from ..ik.configuration import Configuration
 from ..ik.limits.base import Equality, Inequality
-from ..ik.qp import assemble_qp, solve_qp
+from ..ik.qp import QpSettings, assemble_qp, solve_qp
 from ..ik.tasks import DampingTask, OrientationTask, PositionTask
 from ..model.human_model import HumanModel
 from ..rotations import axis_rotation, euler_to_matrix, log_so3
@@ -38,35 +38,6 @@ from .robot_config import RetargetConfig
 from .robot_model import RobotModel
 from .source import HumanMotion
 
-#: Weight of each mapped link's orientation [1/rad^2].
-ORIENTATION_WEIGHT = 1.0
-#: Weight pulling a foot whose source foot is in contact flat onto the floor [1/rad^2, 1/m^2].
-FLAT_FOOT_WEIGHT = 20.0
-#: Smoothness toward the previous frame (root and joints) [1/m^2, 1/rad^2].
-SMOOTHNESS = 1e-3
-#: Pull toward the rest pose, for joints the tasks leave open [1/rad^2].
-REST_PULL = 1e-4
-#: A foot plants once its lowest sole corner is this close to the floor [m] ...
-PLANT_HEIGHT = 0.01
-#: ... or this long after its source foot touched down [s].
-PLANT_WAIT = 0.1
-#: Gauss-Newton steps per frame at most (the first frame: :data:`FIRST_FRAME_STEPS`).
-MAX_STEPS = 8
-FIRST_FRAME_STEPS = 30
-#: The first frame is solved from the rest pose and from this many minus one random poses.
-FIRST_FRAME_STARTS = 8
-#: A frame is done after a step whose largest component is below this [rad or m] ...
-STEP_TOLERANCE = 5e-2
-#: ... with planted feet held this well [m, rad].
-HOLD_TOLERANCE = 2e-5
-#: Largest joint step while capsule rows are active [rad], in a frame's first steps.
-TRUST_STEP = 0.15
-TRUSTED_STEPS = 3
-#: Capsule pairs this far apart [m] are taken not to touch after one small step (at most
-#: :data:`STEP_TOLERANCE` per joint, a few centimetres at a hand); nearer pairs have rows.
-CAPSULES_FAR = 0.06
-#: Root speed bounds per frame [m/s, rad/s].
-MAX_ROOT_VELOCITY, MAX_ROOT_ANGULAR_VELOCITY = 15.0, 30.0
 #: Sides: robot foot key -> source segment prefix.
 SIDES = {"left": "Left", "right": "Right"}
 
@@ -197,30 +168,32 @@ class RobotRetargeter:
     """Solves a source motion onto one robot (see the module docstring).
 
     Args:
-        robot: The robot model with its config.
-        backend: QP backend (qpsolvers name).
+        robot: The robot model with its config (whose ``solver`` holds the settings).
+        qp: The QP backends' iteration limits and slack weights (``configs/solver.yaml``).
     """
 
-    def __init__(self, robot: RobotModel, backend: str = "daqp") -> None:
+    def __init__(self, robot: RobotModel, qp: QpSettings) -> None:
         self.robot = robot
-        self.backend = backend
         config = robot.config
+        s = self.settings = config.solver
+        self.backend = s.backend
+        self._qp = qp
         model = robot.model
         self.segments = list(config.links)
         self.orientation_task = OrientationTask(
             [robot.frame_ids[config.links[n]] for n in self.segments], self.segments,
-            ORIENTATION_WEIGHT)
+            s.orientation_weight)
         self.feet = [config.feet[side] for side in SIDES]
         self._foot_ids = [robot.frame_ids[f.link] for f in self.feet]
         self.flat_task = OrientationTask(self._foot_ids, [f.link for f in self.feet],
-                                         FLAT_FOOT_WEIGHT)
+                                         s.flat_foot_weight)
         self.capsules = CapsulePairs(config.capsules, config.collision_pairs, robot.frame_ids)
         n = model.nv - 6
-        self.smoothness = DampingTask(np.full(model.nv, SMOOTHNESS))
-        self.rest_pull = DampingTask(np.concatenate([np.zeros(6), np.full(n, REST_PULL)]))
+        self.smoothness = DampingTask(np.full(model.nv, s.smoothness))
+        self.rest_pull = DampingTask(np.concatenate([np.zeros(6), np.full(n, s.rest_pull)]))
         self.rest_pull.set_reference(robot.rest)
-        self._max_velocity = np.concatenate([np.full(3, MAX_ROOT_VELOCITY),
-                                             np.full(3, MAX_ROOT_ANGULAR_VELOCITY),
+        self._max_velocity = np.concatenate([np.full(3, s.max_root_velocity),
+                                             np.full(3, s.max_root_angular_velocity),
                                              robot.max_velocity])
         rest_feet = [robot.placement(robot.rest, f.link) for f in self.feet]
         self._rest_feet = [T.rotation for T in rest_feet]
@@ -250,8 +223,9 @@ class RobotRetargeter:
                 q = self._first_pose(q, dt, anchors)
             if k >= 2:  # warm start: the previous frame moved on at the same velocity
                 q = self._extrapolate(q_all[k - 2], q_all[k - 1])
+            steps = self.settings.first_frame_steps if first else self.settings.max_steps
             q, relaxed[k] = self._solve_frame(q, None if first else q_all[k - 1], dt, anchors,
-                                              FIRST_FRAME_STEPS if first else MAX_STEPS)
+                                              steps)
             q_all[k] = q
             self._update_plants(targets.in_contact[k], q, anchors, waited, dt)
             planted[k] = [a is not None for a in anchors]
@@ -265,7 +239,7 @@ class RobotRetargeter:
                     anchors: list[pin.SE3 | None]) -> np.ndarray:
         """The first frame, solved from several starts; the best one.
 
-        The starts: the rest pose, and :data:`FIRST_FRAME_STARTS` - 1 poses with random arms
+        The starts: the rest pose, and ``first_frame_starts`` - 1 poses with random arms
         within their ranges (seeded).
 
         Orientation targets alone have local minima far from the answer (an arm raised with
@@ -275,11 +249,11 @@ class RobotRetargeter:
         rng = np.random.default_rng(0)
         arms = self._arm_dofs()
         best, best_cost = q_rest, np.inf
-        for start in range(FIRST_FRAME_STARTS):
+        for start in range(self.settings.first_frame_starts):
             q = q_rest.copy()
             if start:
                 q[7 + arms] = rng.uniform(self.robot.lower[arms], self.robot.upper[arms])
-            q, _ = self._solve_frame(q, None, dt, anchors, FIRST_FRAME_STEPS)
+            q, _ = self._solve_frame(q, None, dt, anchors, self.settings.first_frame_steps)
             cost = self._cost(q)
             if cost < best_cost:
                 best, best_cost = q, cost
@@ -351,6 +325,7 @@ class RobotRetargeter:
         It stops after a small step that leaves planted feet held, capsules apart and soles
         above the floor (up to the linearisation's round-off).
         """
+        s = self.settings
         conf = self._configuration
         conf.update(q)
         self.smoothness.set_reference(q_previous)
@@ -366,21 +341,22 @@ class RobotRetargeter:
             near = self.capsules.inequality(conf)
             rows = ([self._floor_rows(conf, anchors), near], [self._plant_rows(conf, anchors)])
             moving = np.flatnonzero(np.any(near.G[:, 6:] != 0.0, axis=0)) + 6 \
-                if step < TRUSTED_STEPS else np.zeros(0, dtype=int)
+                if step < s.trusted_steps else np.zeros(0, dtype=int)
             box = self._box(q, q_previous, dt, moving)
-            solution = solve_qp(assemble_qp(H.copy(), c, *rows, box, damping=1e-9),
-                                self.backend)
+            solution = solve_qp(assemble_qp(H.copy(), c, *rows, box, s.levenberg_marquardt),
+                                self.backend, self._qp)
             if solution.relaxed and len(moving):  # the trust region was too tight
                 box = self._box(q, q_previous, dt)
-                solution = solve_qp(assemble_qp(H, c, *rows, box, damping=1e-9), self.backend)
+                solution = solve_qp(assemble_qp(H, c, *rows, box, s.levenberg_marquardt),
+                                    self.backend, self._qp)
             relaxed |= solution.relaxed
             factor = self._damped(solution.dq, previous, factor)
             # The box holds to the QP's tolerance; clipped, limits hold exactly.
             dq = previous = factor * np.clip(solution.dq, *box)
             q = conf.integrate(dq)
             conf.update(q)
-            far = self.capsules.last_min_distance > CAPSULES_FAR  # at the pose stepped from
-            if np.max(np.abs(dq)) < STEP_TOLERANCE and self._settled(conf, anchors, not far):
+            far = self.capsules.last_min_distance > s.capsules_far  # at the pose stepped from
+            if np.max(np.abs(dq)) < s.step_tolerance and self._settled(conf, anchors, not far):
                 break
         return q, relaxed
 
@@ -401,9 +377,9 @@ class RobotRetargeter:
         """Planted feet held, soles above the floor and capsule pairs apart at ``conf``.
 
         ``capsules=False`` skips the pairs: after a small step from a pose where every pair
-        was :data:`CAPSULES_FAR` apart none can touch.
+        was ``capsules_far`` apart none can touch.
         """
-        return self._violation(conf, anchors, 0.0, capsules) <= HOLD_TOLERANCE
+        return self._violation(conf, anchors, 0.0, capsules) <= self.settings.hold_tolerance
 
     def _violation(self, conf: Configuration, anchors: list[pin.SE3 | None],
                    margin: float | None = None, capsules: bool = True) -> float:
@@ -431,14 +407,15 @@ class RobotRetargeter:
         """Joint limits and velocity limits as bounds on ``dq``.
 
         The ``trusted`` tangent coordinates (joints that move a capsule near another) also
-        move at most :data:`TRUST_STEP` in this step, so that the linearised distances stay
+        move at most ``trust_step`` in this step, so that the linearised distances stay
         close to the true ones.
         """
         model = self.robot.model
         lb = np.full(model.nv, -np.inf)
         ub = np.full(model.nv, np.inf)
         if trusted is not None and len(trusted):
-            lb[trusted], ub[trusted] = -TRUST_STEP, TRUST_STEP
+            step = self.settings.trust_step
+            lb[trusted], ub[trusted] = -step, step
         lb[6:] = np.maximum(lb[6:], self.robot.lower - q[7:])
         ub[6:] = np.minimum(ub[6:], self.robot.upper - q[7:])
         if q_previous is not None and dt > 0:
@@ -484,6 +461,7 @@ class RobotRetargeter:
     def _update_plants(self, in_contact: np.ndarray, q: np.ndarray,
                        anchors: list[pin.SE3 | None], waited: np.ndarray, dt: float) -> None:
         """Plant feet whose source foot is down and whose sole reached the floor; lift others."""
+        s = self.settings
         self._configuration.update(q)
         for i, (foot, fid) in enumerate(zip(self.feet, self._foot_ids)):
             if not in_contact[i]:
@@ -495,8 +473,8 @@ class RobotRetargeter:
             waited[i] += dt
             T = self._configuration.placement(fid)
             lowest = float(np.min((foot.corners @ T.rotation.T + T.translation)[:, 2]))
-            if lowest <= PLANT_HEIGHT or waited[i] >= PLANT_WAIT:
+            if lowest <= s.plant_height or waited[i] >= s.plant_wait:
                 anchor = T.copy()
-                if 0.0 < lowest <= PLANT_HEIGHT:  # set it down on the floor
+                if 0.0 < lowest <= s.plant_height:  # set it down on the floor
                     anchor.translation = T.translation - [0.0, 0.0, lowest]
                 anchors[i] = anchor

@@ -18,7 +18,8 @@ import numpy as np
 
 from ..errors import ConfigError, InputError
 from ..paths import configs_dir
-from ..yaml_files import read_yaml
+from ..yaml_files import YamlDocument, read_yaml_document
+from .settings import RetargetSettings
 
 #: Robots with a shipped config, by the name ``--robot`` takes.
 SHIPPED_ROBOTS = ("g1", "talos", "icub", "romeo")
@@ -60,6 +61,8 @@ class RetargetConfig:
         links: Human segment -> robot link whose orientation follows it.
         position_weights: Human segment -> weight of its scaled position task [1/m^2].
         feet: ``left``/``right`` -> :class:`Foot`.
+        solver: Weights, step counts and tolerances of the solve: ``configs/retarget/
+            defaults.yaml`` overlaid by the config's ``solver`` key.
         capsules: Name -> :class:`Capsule`.
         collision_pairs: Capsule pairs that must keep apart.
         locked_joints: Joint -> fixed value [rad] (removed from the model).
@@ -77,6 +80,7 @@ class RetargetConfig:
     links: dict[str, str]
     position_weights: dict[str, float]
     feet: dict[str, Foot]
+    solver: RetargetSettings
     capsules: dict[str, Capsule] = field(default_factory=dict)
     collision_pairs: list[tuple[str, str]] = field(default_factory=list)
     locked_joints: dict[str, float] = field(default_factory=dict)
@@ -138,13 +142,15 @@ def load_retarget_config(robot: str | Path, config: str | Path | None = None) ->
         raise ConfigError(f"unknown robot {robot!r}; shipped: {', '.join(SHIPPED_ROBOTS)}, "
                           f"human, or a .urdf path with --config", field="robot")
     path = Path(config) if config is not None else config_path(str(robot))
-    data = read_yaml(path, "retarget config")
-    if not isinstance(data, dict):
+    document = read_yaml_document(path, "retarget config")
+    if not isinstance(document.data, dict):
         raise ConfigError("a retarget config is a mapping of keys", path=path)
-    return _parse(data, path, urdf)
+    return _parse(document, urdf)
 
 
-def _parse(data: dict[str, Any], path: Path, urdf: Path | None) -> RetargetConfig:
+def _parse(document: YamlDocument, urdf: Path | None) -> RetargetConfig:
+    data: dict[str, Any] = document.data
+    path = document.path
     if urdf is None:
         text = _require(data, "urdf", str, path)
         urdf = Path(text) if Path(text).is_absolute() else _resolve_urdf(text, path)
@@ -177,7 +183,7 @@ def _parse(data: dict[str, Any], path: Path, urdf: Path | None) -> RetargetConfi
         links={str(k): str(v) for k, v in _require(data, "links", dict, path).items()},
         position_weights={str(k): float(v) for k, v in
                           (data.get("position_weights") or {}).items()},
-        feet=feet, capsules=capsules, collision_pairs=pairs,
+        feet=feet, solver=RetargetSettings.load(document), capsules=capsules, collision_pairs=pairs,
         locked_joints={str(k): float(v) for k, v in (data.get("locked_joints") or {}).items()},
         rest_pose={str(k): float(v) for k, v in (data.get("rest_pose") or {}).items()},
         joint_ranges={str(k): _range(v, path, f"joint_ranges.{k}")

@@ -17,7 +17,8 @@ BOTH = LEFT | RIGHT
 
 
 def _follower(**kw) -> SupportFollower:
-    args = {"lag_speed": 0.3, "lag_max": 0.05, "swing_speed": 0.6} | kw
+    args = {"lag_speed": 0.3, "lag_max": 0.05, "swing_speed": 0.6, "lean_max": 0.0,
+            "lean_speed": 0.0, "confirm": 0.2} | kw
     return SupportFollower(NAMES, **args)
 
 
@@ -100,7 +101,7 @@ def test_a_touch_down_let_go_at_once_resumes_its_swing() -> None:
 
 
 def test_a_point_that_let_go_does_not_come_back_down_at_once() -> None:
-    th = ContactThresholds.from_settings(SolverSettings())
+    th = ContactThresholds.from_settings(SolverSettings.load())
     low = _points(0.0, 0.5)
     # the right toe just let go (toe-off), still low and slow: it stays off for reenter_delay
     state = ContactState(NAMES, LEFT.copy(), low.copy(), np.zeros(4), np.array(

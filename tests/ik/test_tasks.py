@@ -64,7 +64,7 @@ def test_objective_is_gauss_newton_of_the_task(human: HumanModel, rng) -> None:
 
 
 def test_joint_range_rates_match_finite_differences(human: HumanModel, rng) -> None:
-    limits = JointRangeLimit(human.ball_joints)
+    limits = JointRangeLimit(human.ball_joints, margin_deg=25.0)
     nv = human.model.nv
     for _ in range(5):
         q = human.random_configuration(rng, margin_deg=5.0)
@@ -79,7 +79,7 @@ def test_joint_range_rates_match_finite_differences(human: HumanModel, rng) -> N
 
 
 def test_joint_range_angles_equal_model_angles(human: HumanModel, rng) -> None:
-    limits = JointRangeLimit(human.ball_joints)
+    limits = JointRangeLimit(human.ball_joints, margin_deg=25.0)
     q = human.random_configuration(rng)
     angles = human.joint_angles(q)
     ours = np.degrees(limits.angles(q))

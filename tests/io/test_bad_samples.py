@@ -17,6 +17,7 @@ import pytest
 from ikfusion.cli import main
 from ikfusion.errors import InputError, SolverError
 from ikfusion.ik.qp import QpProblem, solve_qp
+from ikfusion.ik.settings import SolverSettings
 from ikfusion.io.bad_samples import MAX_BAD_SHARE, MAX_BRIDGE_SECONDS, bridge_channel
 from ikfusion.io.bvh import read_bvh
 from ikfusion.io.mvnx import read_mvnx
@@ -216,7 +217,8 @@ def test_qp_refuses_non_finite_numbers_with_a_clear_error() -> None:
     problem = QpProblem(np.eye(n), c, np.zeros((0, n)), np.zeros(0), np.zeros((0, n)),
                         np.zeros(0))
     with pytest.raises(SolverError, match="NaN or infinite numbers in c"):
-        solve_qp(problem)
+        settings = SolverSettings.load()
+        solve_qp(problem, settings.backend, settings.qp)
 
 
 def test_retarget_refuses_a_motion_with_a_far_pose() -> None:

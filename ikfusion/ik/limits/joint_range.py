@@ -35,7 +35,7 @@ class JointRangeLimit:
             cannot reach it in one step); keeps the QP small.
     """
 
-    def __init__(self, joints: Mapping[str, BallJoint], margin_deg: float = 25.0) -> None:
+    def __init__(self, joints: Mapping[str, BallJoint], margin_deg: float) -> None:
         specs = [j.spec for j in joints.values()]
         self.names = list(joints)
         self.idx_q = np.array([j.idx_q for j in joints.values()])
