@@ -222,7 +222,7 @@ def log_actor_frames(rec: Any, actor: Actor, tag_sites: tuple[str, ...],
     if actor.meshes is not None:
         log_link_meshes(rec, base, index, actor.meshes, path_color(color))
     elif not actor.ghost and strips.shape[1]:
-        log_capsules(rec, f"{base}/capsules", index, strips, names, path_color(color))
+        log_capsules(rec, f"{base}/capsules", index, strips, names, color)
     S = len(actor.segment_names)
     send(f"{base}/joints", rr.Points3D, S,
          rr.Points3D.from_fields(radii=1.3 * radius, colors=color),
