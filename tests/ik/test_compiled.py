@@ -96,6 +96,37 @@ def test_compiled_and_reference_solvers_agree(human: HumanModel, rng) -> None:
     np.testing.assert_allclose(fast.q, reference.q, atol=1e-7)
 
 
+@pytest.mark.parametrize("evaluation", ["native", "virtual machine"])
+def test_solvers_agree_with_a_posture_reference(
+        human: HumanModel, rng, evaluation: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A non-identity posture reference reaches the compiled step (native or CasADi's VM)."""
+    if evaluation == "native":
+        if compiled.find_compiler() is None:
+            pytest.skip("no C compiler on this machine")
+        monkeypatch.delenv("IKFUSION_NO_COMPILE", raising=False)
+    else:
+        monkeypatch.setenv("IKFUSION_NO_COMPILE", "1")
+    monkeypatch.setattr(compiled, "_BUILT", {})
+    import pinocchio as pin
+
+    qs = smooth_motion(human, rng, frames=10)
+    data = human.model.createData()
+    frames = []
+    for k, q in enumerate(qs):
+        pin.framesForwardKinematics(human.model, data, q)
+        frames.append(Frame(k / 60, {s: data.oMf[human.segment_frame_id(s)].rotation.copy()
+                                     for s in SENSOR_SEGMENTS[:8]}))  # the rest: the prior
+    R_reference = exp_so3(rng.normal(scale=0.5, size=(len(human.ball_joints), 3)))
+    solvers = [Solver(human, contacts=False), Solver(human, contacts=False, compiled=False)]
+    assert solvers[0]._kinematics is not None and solvers[1]._kinematics is None
+    for solver in solvers:
+        solver.posture_task.R_reference = R_reference
+    fast, reference = (solver.solve(frames) for solver in solvers)
+    np.testing.assert_allclose(fast.q, reference.q, atol=1e-7)
+    plain = Solver(human, contacts=False, compiled=False).solve(frames)
+    assert np.abs(plain.q - reference.q).max() > 1e-3  # the reference matters
+
+
 def test_compiled_sensed_pose_equals_numpy(human: HumanModel, rng) -> None:
     """The sensed pose and its contact points: the compiled function and the NumPy version."""
     solver = Solver(human)
