@@ -216,6 +216,20 @@ def test_the_cache_key_changes_when_the_generating_source_changes(
     assert sorted(cache.glob("*.so")) == sorted([before, after])
 
 
+@pytest.mark.parametrize("module", ["rotations_casadi", "rotations"])
+def test_the_cache_key_covers_the_rotation_modules(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, module: str) -> None:
+    """The step's SO(3) maps live in the rotation modules: editing them must rebuild."""
+    import importlib
+
+    target = importlib.import_module(f"ikfusion.{module}")
+    before = compiled.generator_fingerprint()
+    edited = tmp_path / f"{module}.py"
+    edited.write_bytes(Path(str(target.__file__)).read_bytes() + b"\n# edited\n")
+    monkeypatch.setattr(target, "__file__", str(edited))
+    assert compiled.generator_fingerprint() != before
+
+
 def test_a_failed_compile_is_a_warning_of_the_solve(
         cache: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, human: HumanModel,
         capsys: pytest.CaptureFixture[str]) -> None:
