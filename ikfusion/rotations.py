@@ -12,15 +12,36 @@ Conventions (SPEC section 1):
 
 Every function accepts a single item or a stack (leading batch dimensions) and returns the same
 leading shape. Angles are radians unless the name says degrees.
+
+This module owns the SO(3) maths of the package (NumPy side). Its CasADi twin,
+:mod:`ikfusion.rotations_casadi`, writes the same formulas with the same epsilon policy for the
+compiled IK step; the tests check the two equal, also near the identity and near pi.
+
+Epsilon policy (one for every map here and in the twin):
+
+* Below :data:`SMALL_ANGLE` the maps use their truncated Taylor series in the angle
+  (``sin t / t``, ``(1 - cos t) / t^2``, ``t / sin t``, the ``Jl^-1`` coefficient); the dropped
+  terms are of order ``t^4 < 1e-16`` relative.
+* Above :data:`LARGE_ANGLE` the logarithm takes the rotation axis from the quaternion (the
+  stable one of its four algebraic forms) instead of the skew part of ``R``, which vanishes at a
+  half turn; the log is then right up to pi (at ``pi - 1e-8`` its norm is ``pi - 1e-8``).
+* ``Jl^-1`` uses the half-angle form ``cot(t/2)``, finite up to and at pi.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
 _AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
+
+#: [rad] Below this angle the SO(3) maps use truncated Taylor series (see the module notes).
+SMALL_ANGLE = 1e-4
+#: [rad] Above this angle the SO(3) logarithm takes its axis from the quaternion.
+LARGE_ANGLE = 3.0
 
 #: ``R_enu_ned``: coordinates in NED (x North, y East, z Down) to ENU (x East, y North, z Up).
 R_ENU_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
@@ -199,6 +220,9 @@ def xyzw_to_wxyz(quat_xyzw: npt.ArrayLike) -> np.ndarray:
 def skew(v: npt.ArrayLike) -> np.ndarray:
     """Skew-symmetric matrices ``[v]x`` with ``[v]x @ u = v x u``; shape ``S + (3, 3)``."""
     a = np.asarray(v, dtype=float)
+    if a.shape == (3,):  # one vector: a literal is several times faster (the EKF's case)
+        x, y, z = a.tolist()
+        return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
     S = np.zeros(a.shape[:-1] + (3, 3))
     S[..., 0, 1], S[..., 0, 2] = -a[..., 2], a[..., 1]
     S[..., 1, 0], S[..., 1, 2] = a[..., 2], -a[..., 0]
@@ -207,38 +231,128 @@ def skew(v: npt.ArrayLike) -> np.ndarray:
 
 
 def exp_so3(rotvec: npt.ArrayLike) -> np.ndarray:
-    """Exponential map: rotation vector(s) ``omega`` [rad] to ``R = exp([omega]x)`` (Rodrigues)."""
+    """Exponential map: rotation vector(s) ``omega`` [rad] to ``R = exp([omega]x)`` (Rodrigues).
+
+    Args:
+        rotvec: Shape ``S + (3,)`` [rad].
+
+    Returns:
+        Rotation matrices of shape ``S + (3, 3)``.
+    """
     w = np.asarray(rotvec, dtype=float)
     theta = np.linalg.norm(w, axis=-1)[..., None, None]
     K = skew(w)
-    small = theta < 1e-8
+    small = theta < SMALL_ANGLE
     safe = np.where(small, 1.0, theta)
     a = np.where(small, 1.0 - theta**2 / 6.0, np.sin(safe) / safe)
     b = np.where(small, 0.5 - theta**2 / 24.0, (1.0 - np.cos(safe)) / safe**2)
     return np.eye(3) + a * K + b * (K @ K)
 
 
+def rotvec_to_quat_wxyz(rotvec: npt.ArrayLike) -> np.ndarray:
+    """Unit quaternion(s) (w, x, y, z) of rotation vector(s) [rad], shape ``S + (4,)``.
+
+    ``(cos(t/2), sin(t/2) / t * rotvec)`` with ``t = |rotvec|``, the factor's series
+    ``1/2 - t^2/48`` below :data:`SMALL_ANGLE`. One vector (3,) is computed with scalar maths
+    (the same formula, several times faster: the EKF calls it per IMU sample).
+    """
+    w = np.asarray(rotvec, dtype=float)
+    if w.shape == (3,):
+        x, y, z = w.tolist()
+        t = math.sqrt(x * x + y * y + z * z)
+        k = 0.5 - t * t / 48.0 if t < SMALL_ANGLE else math.sin(0.5 * t) / t
+        return np.array([math.cos(0.5 * t), k * x, k * y, k * z])
+    theta = np.linalg.norm(w, axis=-1, keepdims=True)
+    small = theta < SMALL_ANGLE
+    safe = np.where(small, 1.0, theta)
+    scale = np.where(small, 0.5 - theta**2 / 48.0, np.sin(0.5 * safe) / safe)
+    return np.concatenate([np.cos(0.5 * theta), scale * w], axis=-1)
+
+
 def log_so3(R: npt.ArrayLike) -> np.ndarray:
     """Logarithm map: rotation matrices to rotation vectors [rad] with norm in [0, pi].
 
-    Uses the trace/skew formula, with a series near the identity and the quaternion form near a
-    half turn (where the skew part vanishes), so it is accurate everywhere.
+    The angle is ``atan2(|vee(R - R^T)| / 2, (tr R - 1) / 2)``; the vector is the skew part of
+    ``R`` scaled by ``angle / sin(angle)`` (its series below :data:`SMALL_ANGLE`), or, above
+    :data:`LARGE_ANGLE`, the quaternion's vector part scaled to the angle (the skew part vanishes
+    at a half turn). At exactly pi either of the two opposite vectors may be returned.
+
+    Args:
+        R: Rotation matrices, shape ``S + (3, 3)``.
+
+    Returns:
+        Rotation vectors of shape ``S + (3,)``.
     """
     M = np.asarray(R, dtype=float)
+    if M.shape == (3, 3):
+        return _log_so3_single(M)
     vee = 0.5 * np.stack([M[..., 2, 1] - M[..., 1, 2], M[..., 0, 2] - M[..., 2, 0],
                           M[..., 1, 0] - M[..., 0, 1]], axis=-1)
     cos = np.clip(0.5 * (M[..., 0, 0] + M[..., 1, 1] + M[..., 2, 2] - 1.0), -1.0, 1.0)
     sin = np.linalg.norm(vee, axis=-1)
     theta = np.arctan2(sin, cos)
-    scale = np.where(sin > 1e-7, theta / np.where(sin > 1e-7, sin, 1.0), 1.0 + sin**2 / 6.0)
+    small = theta < SMALL_ANGLE
+    scale = np.where(small, 1.0 + theta**2 / 6.0, theta / np.where(small, 1.0, sin))
     out = vee * scale[..., None]
-    near_pi = cos < -0.99
+    near_pi = theta > LARGE_ANGLE
     if np.any(near_pi):
         q = matrix_to_quat_wxyz(M[near_pi])
         v = q[..., 1:]
         n = np.linalg.norm(v, axis=-1, keepdims=True)
         out[near_pi] = v * (2.0 * np.arctan2(n, q[..., :1]) / n)
     return out
+
+
+def _log_so3_single(M: np.ndarray) -> np.ndarray:
+    """:func:`log_so3` of one matrix (3, 3) with scalar maths: the same formula and branches."""
+    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = M.tolist()
+    x, y, z = 0.5 * (m21 - m12), 0.5 * (m02 - m20), 0.5 * (m10 - m01)
+    cos = min(1.0, max(-1.0, 0.5 * (m00 + m11 + m22 - 1.0)))
+    sin = math.sqrt(x * x + y * y + z * z)
+    theta = math.atan2(sin, cos)
+    if theta > LARGE_ANGLE:
+        q = matrix_to_quat_wxyz(M)
+        n = math.sqrt(float(q[1:] @ q[1:]))
+        return q[1:] * (2.0 * math.atan2(n, float(q[0])) / n)
+    if math.isnan(theta):
+        return np.full(3, np.nan)
+    scale = 1.0 + theta * theta / 6.0 if theta < SMALL_ANGLE else theta / sin
+    return np.array([scale * x, scale * y, scale * z])
+
+
+def left_jacobian_inverse(e: npt.ArrayLike) -> np.ndarray:
+    """Inverse left Jacobian ``Jl^-1(e)`` of SO(3) at rotation vector(s) ``e`` [rad].
+
+    Linearises the logarithm under a left perturbation: ``log(exp(w) exp(e)) ~ e + Jl^-1(e) w``.
+    ``Jl^-1(e) = I - [e]x / 2 + (1/t^2 - cot(t/2) / (2 t)) [e]x^2`` with ``t = |e|``; the
+    coefficient is its series ``1/12 + t^2/720`` below :data:`SMALL_ANGLE`.
+
+    Args:
+        e: Shape ``S + (3,)`` [rad], norms up to pi.
+
+    Returns:
+        Shape ``S + (3, 3)``.
+    """
+    v = np.asarray(e, dtype=float)
+    theta = np.linalg.norm(v, axis=-1)[..., None, None]
+    small = theta < SMALL_ANGLE
+    t = np.where(small, 1.0, theta)
+    coeff = np.where(small, 1.0 / 12.0 + theta**2 / 720.0,
+                     1.0 / t**2 - np.cos(0.5 * t) / (2.0 * t * np.sin(0.5 * t)))
+    K = skew(v)
+    return np.eye(3) - 0.5 * K + coeff * (K @ K)
+
+
+def right_jacobian_inverse(e: npt.ArrayLike) -> np.ndarray:
+    """Inverse right Jacobian ``Jr^-1(e) = Jl^-1(-e)``: ``log(exp(e) exp(w)) ~ e + Jr^-1(e) w``.
+
+    Args:
+        e: Shape ``S + (3,)`` [rad].
+
+    Returns:
+        Shape ``S + (3, 3)``.
+    """
+    return left_jacobian_inverse(-np.asarray(e, dtype=float))
 
 
 def angle_between(R_a: npt.ArrayLike, R_b: npt.ArrayLike) -> np.ndarray:

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from so3_samples import rotation_vectors, rotation_vectors_below_pi
 
 from ikfusion import rotations as rot
 
@@ -99,3 +100,64 @@ def test_enu_conversions() -> None:
     np.testing.assert_allclose(rot.R_ENU_NWU @ [0, 1.0, 0], [-1, 0, 0])  # west
     for M in (rot.R_ENU_NED, rot.R_ENU_NWU):
         assert np.linalg.det(M) == pytest.approx(1.0)
+
+
+# --------------------------------------------------------------------------- SO(3) maps
+@given(rotation_vectors)
+def test_log_inverts_exp_near_identity_anywhere_and_near_pi(w: np.ndarray) -> None:
+    R = rot.exp_so3(w)
+    v = rot.log_so3(R)
+    assert np.linalg.norm(v) == pytest.approx(np.linalg.norm(w), abs=1e-12)
+    np.testing.assert_allclose(rot.exp_so3(v), R, atol=1e-12)
+    if np.linalg.norm(w) < np.pi - 1e-9:  # at pi, -w is the same rotation
+        np.testing.assert_allclose(v, w, atol=1e-9)
+
+
+def test_log_is_right_a_hair_below_pi() -> None:
+    axis = np.array([2.0, -1.0, 0.5]) / np.linalg.norm([2.0, -1.0, 0.5])
+    for angle in (np.pi - 1e-8, np.pi - 1e-12):
+        v = rot.log_so3(rot.exp_so3(axis * angle))
+        assert np.linalg.norm(v) == pytest.approx(angle, abs=1e-13)
+        np.testing.assert_allclose(v / np.linalg.norm(v), axis, atol=1e-12)
+
+
+@given(rotation_vectors)
+def test_one_item_and_batch_paths_agree(w: np.ndarray) -> None:
+    R = rot.exp_so3(w)
+    np.testing.assert_allclose(rot.log_so3(R), rot.log_so3(R[None])[0], atol=1e-14)
+    np.testing.assert_allclose(rot.rotvec_to_quat_wxyz(w), rot.rotvec_to_quat_wxyz(w[None])[0],
+                               atol=1e-15)
+    np.testing.assert_array_equal(rot.skew(w), rot.skew(w[None])[0])
+
+
+@given(rotation_vectors)
+def test_rotvec_quaternion_is_the_exponential(w: np.ndarray) -> None:
+    q = rot.rotvec_to_quat_wxyz(w)
+    assert np.linalg.norm(q) == pytest.approx(1.0, abs=1e-15)
+    np.testing.assert_allclose(rot.quat_wxyz_to_matrix(q), rot.exp_so3(w), atol=1e-14)
+
+
+@pytest.mark.parametrize("side", ["left", "right"])
+@given(e=rotation_vectors_below_pi)
+@settings(max_examples=60)
+def test_inverse_jacobians_match_finite_differences_on_the_manifold(
+        side: str, e: np.ndarray) -> None:
+    """``log(exp(h u) exp(e))`` (left) or ``log(exp(e) exp(h u))`` (right) moves by ``J^-1 u h``."""
+    h = 1e-6
+    R = rot.exp_so3(e)
+
+    def moved(step: np.ndarray) -> np.ndarray:
+        X = rot.exp_so3(step) @ R if side == "left" else R @ rot.exp_so3(step)
+        return rot.log_so3(X)
+
+    numeric = np.column_stack([(moved(h * u) - moved(-h * u)) / (2 * h) for u in np.eye(3)])
+    analytic = (rot.left_jacobian_inverse(e) if side == "left"
+                else rot.right_jacobian_inverse(e))
+    np.testing.assert_allclose(analytic, numeric, atol=1e-7)
+
+
+def test_inverse_jacobian_is_finite_at_pi() -> None:
+    J = rot.left_jacobian_inverse([np.pi, 0.0, 0.0])
+    # Along the axis a step changes the angle one to one; across it Jl^-1 = [[0, pi/2], ...].
+    np.testing.assert_allclose(J, [[1, 0, 0], [0, 0, np.pi / 2], [0, -np.pi / 2, 0]],
+                               atol=1e-12)

@@ -12,13 +12,17 @@ at ``dq = 0`` are needed, so the graph uses the first-order forms ``R (I + [w]x)
 same value and Jacobian there.
 
 Inputs besides ``q``, the targets and the geometry: per-row weights of the orientation
-residuals ``w_orient`` (3k) and of the posture residuals ``w_posture`` (3j) [1/rad^2]. Outputs
+residuals ``w_orient`` (3k) and of the posture residuals ``w_posture`` (3j) [1/rad^2], and the
+posture task's reference joint rotations ``R_reference`` (j, 3, 3). The SO(3) maps (log,
+``Jl^-1``, quaternions, Euler angles) are those of :mod:`ikfusion.rotations_casadi`, the twin
+of :mod:`ikfusion.rotations` that the NumPy tasks use, with one epsilon policy. Outputs
 (``k`` tracked segments, ``j`` ball joints, ``m`` sites), all in the world frame:
 
 * ``H`` (nv, nv) and ``c`` (nv): the Gauss-Newton objective ``1/2 dq^T H dq + c^T dq`` of the
   orientation and posture tasks, ``H = sum J^T W J`` and ``c = sum J^T W e``, with
   ``e_orient = log(R_world_segment R_world_target^T)``, ``J_orient = Jl^-1(e) J_angular``,
-  ``e_posture = log(R_parent_child)`` and ``J_posture`` = ``Jr^-1(e)`` on each joint's columns;
+  ``e_posture = log(R_reference^T R_parent_child)`` and ``J_posture`` = ``Jr^-1(e)`` on each
+  joint's columns (as :class:`ikfusion.ik.tasks.PostureTask`);
 * ``e_orient`` (3k) [rad];
 * ``angles`` (3j): anatomical angles [rad] in sequence order; ``E_inv`` (3j, 3): their rates
   per unit joint tangent step;
@@ -32,7 +36,8 @@ of every size share one function. When a C compiler is on the machine the functi
 once to a shared library cached under ``$IKFUSION_CACHE`` (default ``~/.cache/ikfusion``) and
 evaluates about ten times faster than CasADi's virtual machine, which is the fallback (and the
 choice when ``IKFUSION_NO_COMPILE`` is set). The library's name holds a hash of this module's
-source, the CasADi version and the compiler's identity; its content hash is recorded beside it
+source (this module and the rotation modules it builds on), the CasADi version and the
+compiler's identity; its content hash is recorded beside it
 when it is built and checked before every load (a mismatch is rebuilt, never loaded). The first
 build says so on stderr; a failed build too, and it becomes a warning of the solve.
 """
@@ -53,83 +58,20 @@ import casadi as ca
 import numpy as np
 import pinocchio as pin
 
+from .. import rotations as numpy_rotations
+from .. import rotations_casadi
 from ..atomic import atomic_path, atomic_write_text
 from ..model.ball_joints import BallJoint
-
-_AXES = {"x": 0, "y": 1, "z": 2}
-
-
-def _skew(w: ca.SX) -> ca.SX:
-    return ca.vertcat(ca.horzcat(0, -w[2], w[1]), ca.horzcat(w[2], 0, -w[0]),
-                      ca.horzcat(-w[1], w[0], 0))
-
-
-def _quat_xyzw_to_matrix(q: ca.SX) -> ca.SX:
-    x, y, z, w = q[0], q[1], q[2], q[3]
-    n = x * x + y * y + z * z + w * w
-    s = 2.0 / n
-    return ca.vertcat(
-        ca.horzcat(1 - s * (y * y + z * z), s * (x * y - w * z), s * (x * z + w * y)),
-        ca.horzcat(s * (x * y + w * z), 1 - s * (x * x + z * z), s * (y * z - w * x)),
-        ca.horzcat(s * (x * z - w * y), s * (y * z + w * x), 1 - s * (x * x + y * y)),
-    )
-
-
-def _matrix_to_quat_xyzw(R: ca.SX) -> ca.SX:
-    """Unit quaternion (x, y, z, w) with ``w >= 0`` of a rotation matrix.
-
-    Of the four algebraic forms, the one built on the largest of 4w^2, 4x^2, 4y^2, 4z^2 is
-    taken (numerically stable for every rotation).
-    """
-    t = [1 + R[0, 0] + R[1, 1] + R[2, 2], 1 + R[0, 0] - R[1, 1] - R[2, 2],
-         1 - R[0, 0] + R[1, 1] - R[2, 2], 1 - R[0, 0] - R[1, 1] + R[2, 2]]
-    a, b, c = R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]
-    d, e, f = R[0, 1] + R[1, 0], R[0, 2] + R[2, 0], R[1, 2] + R[2, 1]
-    forms = [ca.vertcat(a, b, c, t[0]), ca.vertcat(t[1], d, e, a), ca.vertcat(d, t[2], f, b),
-             ca.vertcat(e, f, t[3], c)]  # each (x, y, z, w) times 4 * its largest component
-    quat = ca.if_else(t[2] >= t[3], forms[2], forms[3])
-    quat = ca.if_else(t[1] >= ca.fmax(t[2], t[3]), forms[1], quat)
-    quat = ca.if_else(t[0] >= ca.fmax(t[1], ca.fmax(t[2], t[3])), forms[0], quat)
-    quat = quat / ca.norm_2(quat)
-    return ca.if_else(quat[3] < 0, -quat, quat)
-
-
-def _axis_rotation(axis: np.ndarray, angle: ca.SX) -> ca.SX:
-    K = ca.DM(np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]],
-                        [-axis[1], axis[0], 0.0]]))
-    return ca.DM.eye(3) + ca.sin(angle) * K + (1 - ca.cos(angle)) * (K @ K)
-
-
-def _vee_skew_part(M: ca.SX) -> ca.SX:
-    return 0.5 * ca.vertcat(M[2, 1] - M[1, 2], M[0, 2] - M[2, 0], M[1, 0] - M[0, 1])
-
-
-def _log(X: ca.SX) -> tuple[ca.SX, ca.SX]:
-    """Rotation vector of X and its angle (first-order safe near the identity)."""
-    v = _vee_skew_part(X)
-    c = 0.5 * (X[0, 0] + X[1, 1] + X[2, 2] - 1.0)
-    s = ca.sqrt(ca.sumsqr(v) + 1e-300)
-    theta = ca.atan2(s, c)
-    k = ca.if_else(s > 1e-7, theta / s, 1.0 + s * s / 6.0)
-    return k * v, theta
-
-
-def _jl_inverse(e: ca.SX, theta: ca.SX) -> ca.SX:
-    """Inverse left Jacobian of SO(3) at rotation vector e (angle theta)."""
-    K = _skew(e)
-    t = ca.if_else(theta > 1e-4, theta, 1.0)
-    c = ca.if_else(theta > 1e-4, 1.0 / (t * t) - (1.0 + ca.cos(t)) / (2.0 * t * ca.sin(t)),
-                   1.0 / 12.0 + theta * theta / 720.0)
-    return ca.DM.eye(3) - 0.5 * K + c * (K @ K)
-
-
-def _euler(sequence: str, R: ca.SX) -> ca.SX:
-    i, j, k = (_AXES[a] for a in sequence.lower())
-    parity = 1.0 if (j - i) % 3 == 1 else -1.0
-    middle = ca.asin(ca.fmin(ca.fmax(parity * R[i, k], -1.0), 1.0))
-    first = ca.atan2(-parity * R[j, k], R[k, k])
-    last = ca.atan2(-parity * R[i, j], R[i, i])
-    return ca.vertcat(first, middle, last)
+from ..rotations_casadi import (
+    left_jacobian_inverse,
+    log_so3,
+    matrix_to_euler,
+    matrix_to_quat_xyzw,
+    quat_xyzw_to_matrix,
+    right_jacobian_inverse,
+    rotation_about,
+    skew,
+)
 
 
 @dataclass(frozen=True)
@@ -195,23 +137,25 @@ class CompiledKinematics:
         for n, fid in enumerate(segment_frames):
             R, _ = self._frame(model, fid, rotations, translations, placements)
             T = ca.reshape(targets[9 * n:9 * n + 9], 3, 3)
-            e, theta = _log(R @ T.T)
+            e, theta = log_so3(R @ T.T)
             J_angular = self._jacobian(model, fid, axes, translations, None)[3:, :]
             e_orient.append(e)
-            J_orient.append(_jl_inverse(e, theta) @ J_angular)
+            J_orient.append(left_jacobian_inverse(e, theta) @ J_angular)
 
+        references = ca.SX.sym("R_reference", 9 * len(ball_joints))
         e_post, J_post, angles, E_inv = [], [], [], []
-        for joint in ball_joints:
+        for n, joint in enumerate(ball_joints):
             iq = joint.idx_q
-            R_joint = _quat_xyzw_to_matrix(q[iq:iq + 4])
-            e, theta = _log(R_joint)
+            R_joint = quat_xyzw_to_matrix(q[iq:iq + 4])
+            R_reference = ca.reshape(references[9 * n:9 * n + 9], 3, 3)
+            e, theta = log_so3(R_reference.T @ R_joint)
             e_post.append(e)
             block = ca.SX(3, model.nv)
-            block[:, joint.idx_v:joint.idx_v + 3] = _jl_inverse(-e, theta)
+            block[:, joint.idx_v:joint.idx_v + 3] = right_jacobian_inverse(e, theta)
             J_post.append(block)
             w = ca.SX.sym("w", 3)
             signs = ca.DM(joint.spec.signs)
-            a = _euler(joint.spec.sequence, R_joint @ (ca.DM.eye(3) + _skew(w))) * signs
+            a = matrix_to_euler(joint.spec.sequence, R_joint @ (ca.DM.eye(3) + skew(w))) * signs
             angles.append(ca.substitute(a, w, ca.DM.zeros(3)))
             E_inv.append(ca.substitute(ca.jacobian(a, w), w, ca.DM.zeros(3)))
 
@@ -235,10 +179,10 @@ class CompiledKinematics:
             c += WJ.T @ e_all
 
         self.function = ca.Function(
-            "ik_step_objective", [q, targets, geometry, w_orient, w_posture],
+            "ik_step_objective", [q, targets, geometry, w_orient, w_posture, references],
             [H, c, stack(e_orient, 1), stack(angles, 1), stack(E_inv, 3), stack(p_sites, 1),
              stack(J_sites, model.nv)],
-            ["q", "R_world_target", "geometry", "w_orient", "w_posture"],
+            ["q", "R_world_target", "geometry", "w_orient", "w_posture", "R_reference"],
             ["H", "c", "e_orient", "angles", "E_inv", "p_sites", "J_sites"],
         )
 
@@ -269,7 +213,7 @@ class CompiledKinematics:
             forward = target(foot)[:, 0]
             pitch = ca.atan2(-forward[2], ca.sqrt(forward[0] ** 2 + forward[1] ** 2))
             angle = ca.fmin(ca.fmax(ca.fmax(pitch, 0.0), lower), upper)
-            level = _axis_rotation(np.asarray(axis, dtype=float), angle)
+            level = rotation_about(axis, angle)
             use = tracked[foot] * (1.0 - tracked[toe]) > 0.5
             toes[j] = (use, level)
 
@@ -277,7 +221,7 @@ class CompiledKinematics:
             q_out = ca.SX(q_in)
             for j, (use, R) in rotations.items():
                 iq = quaternion_start(j)
-                quat, previous = _matrix_to_quat_xyzw(R), q_in[iq:iq + 4]
+                quat, previous = matrix_to_quat_xyzw(R), q_in[iq:iq + 4]
                 quat = ca.if_else(ca.dot(quat, previous) < 0, -quat, quat)  # keep q's hemisphere
                 q_out[iq:iq + 4] = ca.if_else(use, quat, previous)
             return q_out
@@ -332,14 +276,14 @@ class CompiledKinematics:
             p_parent = translations[parent] + rotations[parent] @ p_M
             kind = joint.shortname()
             if kind == "JointModelFreeFlyer":
-                R_local = _quat_xyzw_to_matrix(q[iq + 3:iq + 7])
+                R_local = quat_xyzw_to_matrix(q[iq + 3:iq + 7])
                 p_local = q[iq:iq + 3]
                 R_world = R_parent @ R_local
                 for k in range(3):
                     axes[iv + k] = ("linear", R_world[:, k])
                     axes[iv + 3 + k] = ("angular", R_world[:, k])
             elif kind == "JointModelSpherical":
-                R_local = _quat_xyzw_to_matrix(q[iq:iq + 4])
+                R_local = quat_xyzw_to_matrix(q[iq:iq + 4])
                 p_local = ca.SX.zeros(3)
                 R_world = R_parent @ R_local
                 for k in range(3):
@@ -349,7 +293,7 @@ class CompiledKinematics:
                 axis = (np.eye(3)[int(kind[-1] == "Y") + 2 * int(kind[-1] == "Z")]
                         if kind != "JointModelRevoluteUnaligned"
                         else np.asarray(joint.extract().axis))
-                R_local = _axis_rotation(axis, q[iq])
+                R_local = rotation_about(axis, q[iq])
                 p_local = ca.SX.zeros(3)
                 R_world = R_parent @ R_local
                 axes[iv] = ("angular", R_world @ ca.DM(axis))
@@ -391,15 +335,25 @@ class CompiledKinematics:
         return rotations[j] @ R_M, translations[j] + rotations[j] @ p_M
 
     def __call__(self, q: np.ndarray, R_world_target: np.ndarray, geometry: np.ndarray,
-                 w_orient: np.ndarray, w_posture: np.ndarray) -> list[np.ndarray]:
-        """Evaluate at ``q`` with targets (k, 3, 3) and per-row weights (3k,) and (3j,).
+                 w_orient: np.ndarray, w_posture: np.ndarray,
+                 R_reference: np.ndarray) -> list[np.ndarray]:
+        """Evaluate the step function at ``q``.
+
+        Args:
+            q: Configuration (nq,).
+            R_world_target: Segment targets (k, 3, 3).
+            geometry: Joint and frame placements (:meth:`geometry`).
+            w_orient: Per-row orientation weights (3k,) [1/rad^2].
+            w_posture: Per-row posture weights (3j,) [1/rad^2].
+            R_reference: The posture task's reference joint rotations (j, 3, 3).
 
         Returns:
             The outputs as dense arrays, overwritten by the next call (copy to keep them).
         """
         if not hasattr(self, "_step"):
             self._step = _Bound(self.function)
-        return self._step(q, _column_major(R_world_target), geometry, w_orient, w_posture)
+        return self._step(q, _column_major(R_world_target), geometry, w_orient, w_posture,
+                          _column_major(R_reference))
 
     def sensed_pose(self, q: np.ndarray, R_world_target: np.ndarray, geometry: np.ndarray,
                     tracked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -455,7 +409,7 @@ def structure_key(model: pin.Model, segment_frames: Sequence[int],
                   sensed: SensedPoseSpec | None = None) -> str:
     """A string identifying the compiled structure (not the geometry) of a step function."""
     parts = [
-        "objective-v5",
+        "objective-v6",
         repr(sensed),
         ",".join(model.joints[j].shortname() for j in range(1, model.njoints)),
         ",".join(str(p) for p in model.parents),
@@ -524,8 +478,15 @@ def compiler_identity(compiler: str) -> str:
 
 
 def generator_fingerprint() -> str:
-    """SHA-256 of the source that generates the step functions' expressions (this module)."""
-    return hashlib.sha256(Path(__file__).read_bytes()).hexdigest()
+    """SHA-256 of the source that generates the step functions' expressions.
+
+    That is this module, the CasADi rotation twin and the NumPy module holding their shared
+    epsilon policy.
+    """
+    digest = hashlib.sha256()
+    for module in (__file__, rotations_casadi.__file__, numpy_rotations.__file__):
+        digest.update(Path(str(module)).read_bytes())
+    return digest.hexdigest()
 
 
 def library_path(folder: Path, key: str, compiler: str) -> Path:

@@ -533,7 +533,8 @@ class Solver:
             return build_qp(conf, tasks, [ranges.inequality(up, down), floor],
                             [self.contact_constraint.equality(conf)], None, s.levenberg_marquardt)
         H, c, _, angles, E_inv, p_sites, J_sites = self._kinematics(
-            conf.q, self.orientation_task.targets, self._geometry, *self._row_weights)
+            conf.q, self.orientation_task.targets, self._geometry, *self._row_weights,
+            self.posture_task.R_reference)
         H, c = H.copy(), c[:, 0].copy()
         P = p_sites.reshape(-1, 3)
         J = J_sites.reshape(-1, 3, nv)

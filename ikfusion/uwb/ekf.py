@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..rotations import log_so3
 from .ekf_model import (
     ATT,
     BACC,
@@ -54,7 +55,6 @@ from .ekf_model import (
     predict_toa_unit,
     process_noise_diagonal,
     propagate_nominal,
-    rotation_log,
     tag_position,
     tag_position_jacobian,
 )
@@ -572,7 +572,7 @@ class _UnitFilter:
             return
         # World-frame residual: R_meas R^T = Exp(R dtheta), so tilt and heading separate.
         R = x.R_world_sensor
-        residual = rotation_log(R_meas @ R.T)
+        residual = log_so3(R_meas @ R.T)
         if float(residual @ residual) > math.radians(30.0) ** 2:
             return
         H = np.zeros((3, N_ERROR))

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..rotations import matrix_to_quat_wxyz
+from ..rotations import log_so3, matrix_to_quat_wxyz, rotvec_to_quat_wxyz, skew
 
 #: Gravity in the ENU world frame [m/s^2].
 GRAVITY_WORLD = np.array([0.0, 0.0, -9.81])
@@ -89,11 +89,6 @@ class NominalState:
         return quat_to_matrix(self.quat_wxyz_world_sensor)
 
 
-def skew3(v: np.ndarray) -> np.ndarray:
-    """``[v]x`` of one 3-vector (``[v]x @ u = v x u``), shape (3, 3)."""
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
 def quat_to_matrix(q: np.ndarray) -> np.ndarray:
     """Rotation matrix of one unit quaternion (w, x, y, z), shape (3, 3)."""
     w, x, y, z = (float(c) for c in q)
@@ -120,31 +115,9 @@ def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     )
 
 
-def quat_exp(rotvec: np.ndarray) -> np.ndarray:
-    """Unit quaternion (w, x, y, z) of a rotation vector [rad]."""
-    angle = math.sqrt(float(rotvec @ rotvec))
-    half = 0.5 * angle
-    scale = 0.5 - angle * angle / 48.0 if angle < 1e-6 else math.sin(half) / angle
-    return np.array([math.cos(half), scale * rotvec[0], scale * rotvec[1], scale * rotvec[2]])
-
-
 def matrix_to_quat(R: np.ndarray) -> np.ndarray:
     """Unit quaternion (w, x, y, z), ``w >= 0``, of one rotation matrix."""
     return np.asarray(matrix_to_quat_wxyz(np.asarray(R, dtype=float)), dtype=float).reshape(4)
-
-
-def rotation_exp(rotvec: np.ndarray) -> np.ndarray:
-    """``Exp(rotvec)`` as a matrix (Rodrigues), shape (3, 3)."""
-    return quat_to_matrix(quat_exp(rotvec))
-
-
-def rotation_log(R: np.ndarray) -> np.ndarray:
-    """Rotation vector [rad] of one rotation matrix (angle below pi)."""
-    vee = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    cos = min(1.0, max(-1.0, 0.5 * (R[0, 0] + R[1, 1] + R[2, 2] - 1.0)))
-    sin = math.sqrt(float(vee @ vee))
-    angle = math.atan2(sin, cos)
-    return vee * (angle / sin if sin > 1e-9 else 1.0)
 
 
 def propagate_nominal(
@@ -166,11 +139,11 @@ def propagate_nominal(
     """
     w = (w_sensor - x.b_gyr) * dt
     q0 = x.quat_wxyz_world_sensor
-    R_mid = quat_to_matrix(quat_multiply(q0, quat_exp(0.5 * w)))
+    R_mid = quat_to_matrix(quat_multiply(q0, rotvec_to_quat_wxyz(0.5 * w)))
     a_world = R_mid @ (f_sensor - x.b_acc) + GRAVITY_WORLD
     x.p_world_sensor += x.v_world_sensor * dt + (0.5 * dt * dt) * a_world
     x.v_world_sensor += a_world * dt
-    q1 = quat_multiply(q0, quat_exp(w))
+    q1 = quat_multiply(q0, rotvec_to_quat_wxyz(w))
     x.quat_wxyz_world_sensor = q1 / math.sqrt(float(q1 @ q1))
     x.clock += x.clock_rate * dt
     return R_mid
@@ -196,9 +169,9 @@ def fill_transition(
         dt: Time step [s].
     """
     F[POS, VEL] = np.eye(3) * dt
-    F[VEL, ATT] = -(R_world_sensor @ skew3(f_sensor)) * dt
+    F[VEL, ATT] = -(R_world_sensor @ skew(f_sensor)) * dt
     F[VEL, BACC] = -R_world_sensor * dt
-    F[ATT, ATT] = rotation_exp(-w_sensor * dt)
+    F[ATT, ATT] = quat_to_matrix(rotvec_to_quat_wxyz(-w_sensor * dt))  # Exp(-w dt)
     F[ATT, BGYR] = -np.eye(3) * dt
     F[CLOCK, CLOCK_RATE] = dt
 
@@ -262,7 +235,7 @@ def predict_toa_unit(
     unit = diff / dist[:, None]
     H = np.zeros((p_world_readers.shape[0], N_ERROR))
     H[:, POS] = unit
-    H[:, ATT] = -unit @ (R @ skew3(lever_sensor_tag))
+    H[:, ATT] = -unit @ (R @ skew(lever_sensor_tag))
     H[:, CLOCK] = 1.0
     toa = (tau_nominal + x.clock) + dist + reader_offsets
     return toa, H
@@ -277,7 +250,7 @@ def tag_position_jacobian(x: NominalState, lever_sensor_tag: np.ndarray) -> np.n
     """``d p_world_tag / d error``, shape (3, 17)."""
     J = np.zeros((3, N_ERROR))
     J[:, POS] = np.eye(3)
-    J[:, ATT] = -(x.R_world_sensor @ skew3(lever_sensor_tag))
+    J[:, ATT] = -(x.R_world_sensor @ skew(lever_sensor_tag))
     return J
 
 
@@ -285,7 +258,7 @@ def inject_error(x: NominalState, dx: np.ndarray) -> None:
     """Add an error-state correction ``dx`` (17,) to the nominal state in place."""
     x.p_world_sensor += dx[POS]
     x.v_world_sensor += dx[VEL]
-    q = quat_multiply(x.quat_wxyz_world_sensor, quat_exp(dx[ATT]))
+    q = quat_multiply(x.quat_wxyz_world_sensor, rotvec_to_quat_wxyz(dx[ATT]))
     x.quat_wxyz_world_sensor = q / math.sqrt(float(q @ q))
     x.b_acc += dx[BACC]
     x.b_gyr += dx[BGYR]
@@ -298,7 +271,7 @@ def state_difference(x_a: NominalState, x_b: NominalState) -> np.ndarray:
     d = np.empty(N_ERROR)
     d[POS] = x_a.p_world_sensor - x_b.p_world_sensor
     d[VEL] = x_a.v_world_sensor - x_b.v_world_sensor
-    d[ATT] = rotation_log(x_b.R_world_sensor.T @ x_a.R_world_sensor)
+    d[ATT] = log_so3(x_b.R_world_sensor.T @ x_a.R_world_sensor)
     d[BACC] = x_a.b_acc - x_b.b_acc
     d[BGYR] = x_a.b_gyr - x_b.b_gyr
     d[CLOCK] = x_a.clock - x_b.clock

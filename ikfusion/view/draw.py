@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from ..rotations import quat_wxyz_to_matrix
 from .rerun_lib import ViewerUnavailable as ViewerUnavailable
 from .rerun_lib import entity_name, require_rerun
 from .scene import Actor, Readers, Scene
@@ -120,17 +121,6 @@ def segment_rotations(actor: Actor) -> np.ndarray | None:
     if actor.quat_wxyz_world_segment is None:
         return None
     return quat_wxyz_to_matrix(actor.quat_wxyz_world_segment)
-
-
-def quat_wxyz_to_matrix(quat_wxyz: np.ndarray) -> np.ndarray:
-    """Rotation matrices (..., 3, 3) of quaternions (..., 4) in (w, x, y, z) order."""
-    q = quat_wxyz / np.linalg.norm(quat_wxyz, axis=-1, keepdims=True)
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
 
 
 def bone_strips(actor: Actor) -> np.ndarray:

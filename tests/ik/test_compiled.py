@@ -17,11 +17,24 @@ from ikfusion.ik.compiled import CompiledKinematics
 from ikfusion.ik.limits import JointRangeLimit
 from ikfusion.ik.tasks import OrientationTask, PostureTask
 from ikfusion.model import SENSOR_SEGMENTS, Body, HumanModel
-from ikfusion.rotations import random_rotations
+from ikfusion.rotations import exp_so3, random_rotations
 
 
-@pytest.mark.parametrize("height", [1.55, 1.95])
-def test_compiled_residuals_equal_reference(rng, height: float) -> None:
+def _near_half_turns(n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` rotations by angles in [pi - 1e-6, pi] about random axes."""
+    axes = rng.normal(size=(n, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    return exp_so3(axes * (np.pi - rng.uniform(0.0, 1e-6, n))[:, None])
+
+
+@pytest.mark.parametrize(("height", "case"), [(1.55, "random"), (1.95, "random"),
+                                              (1.75, "near pi")])
+def test_compiled_residuals_equal_reference(rng, height: float, case: str) -> None:
+    """The compiled outputs equal the NumPy tasks, limits and Pinocchio's kinematics.
+
+    The posture references are random (not the identity); in the "near pi" case every
+    orientation error and every posture error is a rotation by pi - 1e-6 or more.
+    """
     model = HumanModel.from_body(Body.from_height(height))
     segments = list(SENSOR_SEGMENTS)
     frames = [model.segment_frame_id(s) for s in segments]
@@ -31,22 +44,35 @@ def test_compiled_residuals_equal_reference(rng, height: float) -> None:
     orientation = OrientationTask(frames, segments)
     posture = PostureTask.from_joints(model.ball_joints, {}, 1.0)
     limits = JointRangeLimit(model.ball_joints, margin_deg=25.0)
+    n_joints = len(model.ball_joints)
     for _ in range(5):
         q = model.random_configuration(rng, p_world_pelvis=rng.normal(size=3))
-        T = random_rotations(len(segments), rng)
-        orientation.set_targets(T, np.ones(len(segments)))
         conf = Configuration(model.model, q)
-        w_or = rng.uniform(0.0, 2.0, 3 * len(segments))
-        w_post = rng.uniform(0.0, 2.0, 3 * len(model.ball_joints))
-        H, c, e_or, angles, E_inv, p, J = kin(q, T, geometry, w_or, w_post)
-        np.testing.assert_allclose(e_or[:, 0], orientation.compute_error(conf), atol=1e-10)
-        J_or = orientation.compute_jacobian(conf)
-        J_post = posture.compute_jacobian(conf)
-        e_post = posture.compute_error(conf)
-        H_ref = J_or.T @ (w_or[:, None] * J_or) + J_post.T @ (w_post[:, None] * J_post)
-        c_ref = J_or.T @ (w_or * e_or[:, 0]) + J_post.T @ (w_post * e_post)
-        np.testing.assert_allclose(H, H_ref, atol=1e-9)
-        np.testing.assert_allclose(c[:, 0], c_ref, atol=1e-9)
+        if case == "near pi":  # R T^T and R_ref^T R_joint are half turns, or nearly
+            T = np.swapaxes(_near_half_turns(len(segments), rng), 1, 2) @ conf.rotations(frames)
+            R_joint = posture._joint_rotations(q)
+            R_ref = R_joint @ np.swapaxes(_near_half_turns(n_joints, rng), 1, 2)
+        else:
+            T = random_rotations(len(segments), rng)
+            R_ref = random_rotations(n_joints, rng)
+        w_frames = rng.uniform(0.0, 2.0, len(segments))
+        orientation.set_targets(T, w_frames)
+        posture.R_reference = R_ref
+        posture.axis_weights = rng.uniform(0.0, 2.0, (n_joints, 3))  # per-row weights
+        w_or, w_post = orientation.row_weights(), posture.row_weights()
+        H, c, e_or, angles, E_inv, p, J = kin(q, T, geometry, w_or, w_post, R_ref)
+        e_or_ref = orientation.compute_error(conf)
+        if case == "near pi":
+            e_post = posture.compute_error(conf).reshape(-1, 3)
+            assert np.all(np.linalg.norm(e_or_ref.reshape(-1, 3), axis=1) > np.pi - 2e-6)
+            assert np.all(np.linalg.norm(e_post, axis=1) > np.pi - 2e-6)
+        np.testing.assert_allclose(e_or[:, 0], e_or_ref, atol=1e-8)
+        # The objective the NumPy solver assembles from the same tasks.
+        H_ref, c_ref = np.zeros_like(H), np.zeros(len(c))
+        orientation.add_objective(conf, H_ref, c_ref)
+        posture.add_objective(conf, H_ref, c_ref)
+        np.testing.assert_allclose(H, H_ref, atol=1e-8 * np.abs(H_ref).max())
+        np.testing.assert_allclose(c[:, 0], c_ref, atol=1e-8 * np.abs(c_ref).max())
         a = limits.angles(q)
         np.testing.assert_allclose(angles.reshape(-1, 3), a, atol=1e-10)
         np.testing.assert_allclose(E_inv.reshape(-1, 3, 3), limits.rate_matrices(a), atol=1e-9)
@@ -68,6 +94,37 @@ def test_compiled_and_reference_solvers_agree(human: HumanModel, rng) -> None:
     fast = Solver(human, contacts=False).solve(frames)
     reference = Solver(human, contacts=False, compiled=False).solve(frames)
     np.testing.assert_allclose(fast.q, reference.q, atol=1e-7)
+
+
+@pytest.mark.parametrize("evaluation", ["native", "virtual machine"])
+def test_solvers_agree_with_a_posture_reference(
+        human: HumanModel, rng, evaluation: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A non-identity posture reference reaches the compiled step (native or CasADi's VM)."""
+    if evaluation == "native":
+        if compiled.find_compiler() is None:
+            pytest.skip("no C compiler on this machine")
+        monkeypatch.delenv("IKFUSION_NO_COMPILE", raising=False)
+    else:
+        monkeypatch.setenv("IKFUSION_NO_COMPILE", "1")
+    monkeypatch.setattr(compiled, "_BUILT", {})
+    import pinocchio as pin
+
+    qs = smooth_motion(human, rng, frames=10)
+    data = human.model.createData()
+    frames = []
+    for k, q in enumerate(qs):
+        pin.framesForwardKinematics(human.model, data, q)
+        frames.append(Frame(k / 60, {s: data.oMf[human.segment_frame_id(s)].rotation.copy()
+                                     for s in SENSOR_SEGMENTS[:8]}))  # the rest: the prior
+    R_reference = exp_so3(rng.normal(scale=0.5, size=(len(human.ball_joints), 3)))
+    solvers = [Solver(human, contacts=False), Solver(human, contacts=False, compiled=False)]
+    assert solvers[0]._kinematics is not None and solvers[1]._kinematics is None
+    for solver in solvers:
+        solver.posture_task.R_reference = R_reference
+    fast, reference = (solver.solve(frames) for solver in solvers)
+    np.testing.assert_allclose(fast.q, reference.q, atol=1e-7)
+    plain = Solver(human, contacts=False, compiled=False).solve(frames)
+    assert np.abs(plain.q - reference.q).max() > 1e-3  # the reference matters
 
 
 def test_compiled_sensed_pose_equals_numpy(human: HumanModel, rng) -> None:
@@ -157,6 +214,20 @@ def test_the_cache_key_changes_when_the_generating_source_changes(
     compiled.native_functions([_scaling(2.0)], "probe")
     assert "compiling" in capsys.readouterr().err  # built anew, the old one not reused
     assert sorted(cache.glob("*.so")) == sorted([before, after])
+
+
+@pytest.mark.parametrize("module", ["rotations_casadi", "rotations"])
+def test_the_cache_key_covers_the_rotation_modules(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, module: str) -> None:
+    """The step's SO(3) maps live in the rotation modules: editing them must rebuild."""
+    import importlib
+
+    target = importlib.import_module(f"ikfusion.{module}")
+    before = compiled.generator_fingerprint()
+    edited = tmp_path / f"{module}.py"
+    edited.write_bytes(Path(str(target.__file__)).read_bytes() + b"\n# edited\n")
+    monkeypatch.setattr(target, "__file__", str(edited))
+    assert compiled.generator_fingerprint() != before
 
 
 def test_a_failed_compile_is_a_warning_of_the_solve(

@@ -7,9 +7,8 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
-from ...rotations import log_so3
+from ...rotations import left_jacobian_inverse, log_so3
 from ..configuration import Configuration
-from ..so3_jacobians import left_jacobian_inverse
 from .base import Task
 
 

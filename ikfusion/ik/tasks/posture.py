@@ -13,9 +13,8 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import numpy.typing as npt
 
-from ...rotations import log_so3, quat_wxyz_to_matrix, xyzw_to_wxyz
+from ...rotations import log_so3, quat_wxyz_to_matrix, right_jacobian_inverse, xyzw_to_wxyz
 from ..configuration import Configuration
-from ..so3_jacobians import right_jacobian_inverse
 from .base import Task
 
 
