@@ -5,7 +5,8 @@ Run: ``PYTHONPATH=. .venv/bin/python benchmarks/bench_motions.py [--seconds S] [
 [--out DIR]``
 
 The library is ``benchmarks/motions/library.yaml`` (clips and their origins in
-``benchmarks/motions/ATTRIBUTION.md``): CMU motion capture and walks of the procedural generator.
+``benchmarks/motions/ATTRIBUTION.md``): CMU motion capture, DeepMimic clips and walks of the
+procedural generator.
 Each clip is simulated as ``ikfusion simulate --readers configs/constellations/room_6x8.yaml``
 does it (17 IMUs with the default errors or perfect ones, UWB tags on the head and both feet,
 10 readers, sigma 3 cm, 10 % NLOS receptions; the motion placed inside the room), cut to
