@@ -88,15 +88,17 @@ class GaitParameters:
 
 
 #: Named walks of ``ikfusion simulate --motion gait:<name>`` (each fits a 6 m x 8 m room):
-#: keyword arguments of :class:`GaitParameters` besides ``duration`` and ``stand``.
+#: keyword arguments of :class:`GaitParameters` besides ``duration`` and ``stand``. Faster
+#: walks (1.5 m/s and more) or tighter turns (radius 1 m and less) make the generator's solve
+#: jump now and then (the pelvis moves centimetres in one frame): the presets stay below that.
 GAIT_PRESETS: dict[str, dict[str, Any]] = {
     "circle": {"path": "circle", "radius": 1.5, "speed": 1.1, "step_length": 0.6},
     "straight": {"path": "straight", "radius": 1.5, "speed": 1.1, "step_length": 0.6},
-    "turns": {"path": "turns", "leg_length": 2.5, "radius": 0.75, "speed": 1.1,
+    "turns": {"path": "turns", "leg_length": 1.5, "radius": 1.5, "speed": 1.1,
               "step_length": 0.6},
     "slow": {"path": "circle", "radius": 1.5, "speed": 0.6, "step_length": 0.45},
-    "fast": {"path": "turns", "leg_length": 2.5, "radius": 1.0, "speed": 1.7,
-             "step_length": 0.8, "arm_swing_deg": 25.0},
+    "fast": {"path": "circle", "radius": 2.0, "speed": 1.4, "step_length": 0.6,
+             "arm_swing_deg": 25.0},
     "backwards": {"path": "circle", "radius": 1.5, "speed": 0.6, "step_length": 0.4,
                   "facing_deg": 180.0, "heel_strike_deg": 5.0, "toe_off_deg": 15.0,
                   "arm_swing_deg": 8.0},
@@ -106,7 +108,7 @@ GAIT_PRESETS: dict[str, dict[str, Any]] = {
     "turn-on-spot": {"path": "circle", "radius": 0.1, "speed": 0.08, "step_length": 0.05,
                      "heel_strike_deg": 0.0, "toe_off_deg": 10.0, "clearance": 0.05,
                      "arm_swing_deg": 4.0},
-    "start-stop": {"path": "turns", "leg_length": 2.5, "radius": 0.75, "speed": 1.1,
+    "start-stop": {"path": "turns", "leg_length": 1.5, "radius": 1.5, "speed": 1.1,
                    "step_length": 0.6, "pauses": tuple((t, 2.0) for t in range(7, 600, 7))},
 }
 
