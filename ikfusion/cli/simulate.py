@@ -9,6 +9,7 @@ from ..errors import InputError
 from ..output_folders import check_output_folder
 from ..sim.area_fit import DEFAULT_MARGIN, place_in_area
 from ..sim.capture import truth_motion, write_capture
+from ..sim.gait import GAIT_PRESETS
 from ..sim.imu import ImuNoise
 from ..uwb.constellation import load_constellation
 from ..uwb.dop import capture_area
@@ -24,8 +25,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "heading wander, specific force and rate) on a procedural walk or a BVH clip, and write "
         "imu/ (MT Manager files), sensors.yaml, body.yaml and truth.npz.",
     )
-    p.add_argument("--motion", default="gait", metavar="gait|gait:straight|FILE.bvh",
-                   help="procedural walk (in circles by default) or a BVH clip")
+    p.add_argument("--motion", default="gait", metavar="gait|gait:WALK|FILE.bvh",
+                   help="procedural walk (in circles by default; WALK is one of "
+                   f"{', '.join(GAIT_PRESETS)}) or a BVH clip (.bvh or gzip-compressed .bvh.gz)")
     p.add_argument("--seconds", type=float, default=30.0, metavar="S",
                    help="length of a procedural walk [s]")
     p.add_argument("--rate", type=float, default=60.0, metavar="HZ", help="sensor rate [Hz]")

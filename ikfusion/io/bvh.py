@@ -32,9 +32,11 @@ Conventions used here (they match what Blender, MotionBuilder and bvhio do):
 
 from __future__ import annotations
 
+import gzip
 import math
 import os
 import re
+import zlib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -74,6 +76,7 @@ BVH_UNITS: Mapping[str, float] = {
 _CHANNEL_NAMES = ("Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation")
 _KEYWORDS = frozenset({"root", "joint", "end", "offset", "channels", "{", "}", "motion"})
 _FRAMES_RE = re.compile(r"^\s*frames\s*:?\s*(\S*)\s*$", re.IGNORECASE)
+_GZIP_MAGIC = b"\x1f\x8b"
 _FRAME_TIME_RE = re.compile(r"^\s*frame\s+time\s*:?\s*(\S*)\s*$", re.IGNORECASE)
 
 
@@ -461,7 +464,8 @@ def read_bvh(path: str | os.PathLike[str], *, bridge: bool = True) -> BvhMotion:
     """Read a BVH file.
 
     Args:
-        path: The ``.bvh`` file.
+        path: The ``.bvh`` file, or a gzip-compressed one (``.bvh.gz``; line numbers in
+            errors are those of the decompressed text).
         bridge: Bridge bad values (NaN, infinite, a position far beyond any hall, an angle
             beyond any spin) as :mod:`ikfusion.io.bad_samples` says, with a warning naming the
             lines and the channel in :attr:`BvhMotion.warnings`. False keeps them as written.
@@ -477,11 +481,7 @@ def read_bvh(path: str | os.PathLike[str], *, bridge: bool = True) -> BvhMotion:
             bridged honestly (none good, a long run, too many).
     """
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8-sig", errors="replace")
-    except OSError as err:
-        raise InputError(f"cannot read the BVH file: {err.strerror or err}", p) from err
-    lines = text.splitlines()
+    lines = _bvh_text(p).splitlines()
     motion_line = _find_motion(lines, p)
     tokens = _tokenize(lines[: motion_line - 1])
     joints, end_parents, end_offsets = _parse_hierarchy(tokens, p)
@@ -509,6 +509,19 @@ def read_bvh(path: str | os.PathLike[str], *, bridge: bool = True) -> BvhMotion:
         path=p,
     )
     return _bridged(motion, frame_lines) if bridge else motion
+
+
+def _bvh_text(path: Path) -> str:
+    """The text of a BVH file, plain or gzip-compressed (recognised by its magic bytes)."""
+    try:
+        raw = path.read_bytes()
+        if raw[:2] == _GZIP_MAGIC:
+            raw = gzip.decompress(raw)
+    except OSError as err:  # unreadable, or a damaged gzip stream (BadGzipFile is an OSError)
+        raise InputError(f"cannot read the BVH file: {err.strerror or err}", path) from err
+    except (EOFError, zlib.error) as err:
+        raise InputError(f"cannot read the BVH file: damaged gzip data ({err})", path) from err
+    return raw.decode("utf-8-sig", errors="replace")
 
 
 def _bridged(motion: BvhMotion, frame_lines: np.ndarray) -> BvhMotion:

@@ -21,7 +21,7 @@ from ..io.mtmanager_writer import write_mtmanager
 from ..model import SENSOR_SEGMENTS
 from ..rotations import axis_rotation
 from ..uwb.constellation import Constellation
-from .gait import GaitParameters, generate_gait
+from .gait import gait_preset, generate_gait
 from .imu import ImuNoise, simulate_imus
 from .mocap import lead_in, motion_from_bvh
 from .truth import TruthMotion, write_truth
@@ -60,15 +60,22 @@ def sensor_ids(segments: list[str]) -> dict[str, str]:
 
 
 def truth_motion(motion: str, seconds: float, rate: float, progress: bool = False) -> TruthMotion:
-    """The truth of ``"gait"`` (circles), ``"gait:straight"`` or a BVH path.
+    """The truth of ``"gait"`` (circles), ``"gait:<walk>"`` or a BVH path (``.bvh``, ``.bvh.gz``).
 
+    ``<walk>`` names a walk of :data:`ikfusion.sim.gait.GAIT_PRESETS` (``straight``, ``turns``,
+    ``slow``, ``fast``, ``backwards``, ``sidestep``, ``turn-on-spot``, ``start-stop``, ...).
     Walks start with a 2 s N-pose; a BVH clip gets a 2 s N-pose and a 1 s transition into its
     first frame.
+
+    Raises:
+        InputError: An unknown walk name (the message lists the known ones).
     """
-    if motion.startswith("gait"):
-        path = motion.split(":", 1)[1] if ":" in motion else "circle"
-        params = GaitParameters(path=path, radius=1.5, duration=seconds, stand=2.0, speed=1.1,
-                                step_length=0.6)
+    if motion == "gait" or motion.startswith("gait:"):
+        name = motion.split(":", 1)[1] if ":" in motion else "circle"
+        try:
+            params = gait_preset(name, seconds)
+        except ValueError as err:
+            raise InputError(str(err), field="motion") from None
         from ..model import HumanModel
 
         return generate_gait(HumanModel.default(), params, rate=rate, progress=progress)

@@ -10,7 +10,11 @@ itself, so the ground truth is a kinematically exact motion of the model:
   the foot with the toes flat (heel-off); each swing follows a smooth arc with clearance;
 * pelvis bobbing, sway and rotation, thorax counter-rotation, arm swing, elbow flexion;
 * contact phases (heel and toe separately) are given to the solver as hints, so planted points
-  are held exactly (hard no-slip constraints) and the truth never slides.
+  are held exactly (hard no-slip constraints) and the truth never slides;
+* variations beyond a forward walk: the body may face away from the walking direction
+  (``facing_deg``: 180 walks backwards, 90 side-steps), and the walk may pause (``pauses``): the
+  gait clock slows down, holds still in a double stance (front foot flat, rear foot on its
+  toes) and starts again. A tiny circle is a turn on the spot. :data:`GAIT_PRESETS` names them.
 
 All positions in metres, angles in degrees where named ``_deg``; world frame Z up.
 """
@@ -18,6 +22,7 @@ All positions in metres, angles in degrees where named ``_deg``; world frame Z u
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
@@ -51,6 +56,13 @@ class GaitParameters:
         toe_off_deg: Foot pitch (heel up) at toe-off [deg].
         arm_swing_deg: Shoulder flexion amplitude [deg].
         start_heading_deg: Initial walking direction [deg] (0 = +X).
+        facing_deg: Body heading relative to the walking direction [deg]: 0 forward, 180
+            backwards, +90 side steps towards the body's right (the body faces left of the
+            path).
+        pauses: Stops as ``(time, length)`` pairs [s]: around ``time`` the walk slows to a halt
+            within ``pause_ramp`` s, stands still for ``length`` s and starts again. The halt is
+            moved to the nearest double stance.
+        pause_ramp: Time to slow down from full speed to a halt, and back [s].
     """
 
     path: str = "straight"
@@ -65,11 +77,51 @@ class GaitParameters:
     toe_off_deg: float = 30.0
     arm_swing_deg: float = 18.0
     start_heading_deg: float = 0.0
+    facing_deg: float = 0.0
+    pauses: tuple[tuple[float, float], ...] = ()
+    pause_ramp: float = 1.2
 
     @property
     def cycle(self) -> float:
         """Gait cycle (stride) duration [s]."""
         return 2.0 * self.step_length / self.speed
+
+
+#: Named walks of ``ikfusion simulate --motion gait:<name>`` (each fits a 6 m x 8 m room):
+#: keyword arguments of :class:`GaitParameters` besides ``duration`` and ``stand``. Faster
+#: walks (1.5 m/s and more) or tighter turns (radius 1 m and less) make the generator's solve
+#: jump now and then (the pelvis moves centimetres in one frame): the presets stay below that.
+GAIT_PRESETS: dict[str, dict[str, Any]] = {
+    "circle": {"path": "circle", "radius": 1.5, "speed": 1.1, "step_length": 0.6},
+    "straight": {"path": "straight", "radius": 1.5, "speed": 1.1, "step_length": 0.6},
+    "turns": {"path": "turns", "leg_length": 1.5, "radius": 1.5, "speed": 1.1,
+              "step_length": 0.6},
+    "slow": {"path": "circle", "radius": 1.5, "speed": 0.6, "step_length": 0.45},
+    "fast": {"path": "circle", "radius": 2.0, "speed": 1.4, "step_length": 0.6,
+             "arm_swing_deg": 25.0},
+    "backwards": {"path": "circle", "radius": 1.5, "speed": 0.6, "step_length": 0.4,
+                  "facing_deg": 180.0, "heel_strike_deg": 5.0, "toe_off_deg": 15.0,
+                  "arm_swing_deg": 8.0},
+    "sidestep": {"path": "circle", "radius": 1.5, "speed": 0.35, "step_length": 0.15,
+                 "facing_deg": 90.0, "heel_strike_deg": 0.0, "toe_off_deg": 10.0,
+                 "clearance": 0.05, "arm_swing_deg": 4.0},
+    "turn-on-spot": {"path": "circle", "radius": 0.1, "speed": 0.08, "step_length": 0.05,
+                     "heel_strike_deg": 0.0, "toe_off_deg": 10.0, "clearance": 0.05,
+                     "arm_swing_deg": 4.0},
+    "start-stop": {"path": "turns", "leg_length": 1.5, "radius": 1.5, "speed": 1.1,
+                   "step_length": 0.6, "pauses": tuple((t, 2.0) for t in range(7, 600, 7))},
+}
+
+
+def gait_preset(name: str, duration: float, stand: float = 2.0) -> GaitParameters:
+    """The walk ``name`` of :data:`GAIT_PRESETS`, lasting ``duration`` [s] after ``stand`` [s].
+
+    Raises:
+        ValueError: An unknown name (the message lists the known ones).
+    """
+    if name not in GAIT_PRESETS:
+        raise ValueError(f"unknown walk {name!r}; use one of {', '.join(GAIT_PRESETS)}")
+    return GaitParameters(duration=duration, stand=stand, **GAIT_PRESETS[name])
 
 
 class _Path:
@@ -146,8 +198,41 @@ class GaitPlanner:
         v = parameters.speed * _smoothstep((self._s_grid - parameters.stand) / self.ramp)
         self._dist = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(
             self._s_grid))])
+        self._clock_t, self._clock_c = self._gait_clock()
 
     # ---------------------------------------------------------------- timing
+    def _gait_clock(self) -> tuple[np.ndarray, np.ndarray]:
+        """Time [s] -> gait clock [s] table: the clock stands still during the pauses."""
+        p = self.p
+        T = p.cycle
+        n = max(int(p.duration * 200), 2)
+        t = np.linspace(0.0, p.duration, n)
+        rate = np.ones(n)
+        lag = 0.0  # how far the clock is behind the time [s]
+        for start, length in sorted(p.pauses):
+            # the halt: the clock at a double stance (front foot flat, rear foot on its toes)
+            k = np.round((start - lag - p.stand - 0.49 * T) / T)
+            halt = p.stand + (k + 0.49) * T
+            if halt <= p.stand + T:
+                continue
+            # the rate falls from 1 to 0 over the ramp (the clock advances ramp/2 meanwhile),
+            # stays 0 for ``length``, and rises back to 1
+            t_stop = halt + lag - 0.5 * p.pause_ramp
+            x_down = (t - t_stop) / p.pause_ramp
+            x_up = (t - t_stop - p.pause_ramp - length) / p.pause_ramp
+            rate -= _smoothstep(x_down) - _smoothstep(x_up)
+            lag += p.pause_ramp + length
+        rate = np.clip(rate, 0.0, 1.0)  # pauses closer than their ramps merge
+        clock = np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t))])
+        return t, clock
+
+    def clock(self, t: float) -> float:
+        """The gait clock at time ``t`` [s]: the time the walk has advanced to."""
+        if not self.p.pauses:
+            return t
+        return float(np.interp(t, self._clock_t, self._clock_c, right=t - (
+            self._clock_t[-1] - self._clock_c[-1])))
+
     def distance(self, t: float) -> float:
         """Arc length walked by the pelvis at time ``t`` [m]."""
         return float(np.interp(t, self._s_grid, self._dist))
@@ -164,10 +249,11 @@ class GaitPlanner:
             land = (0.4 if side == "Right" else 0.9) * T + k * T
             s = self.distance(self.p.stand + land + 0.22 * T)
         c, heading = self.path.at(s)
-        lateral = np.array([-np.sin(heading), np.cos(heading)])
+        body = heading + np.radians(self.p.facing_deg)
+        lateral = np.array([-np.sin(body), np.cos(body)])
         sign = 1.0 if side == "Left" else -1.0
         xy = c + sign * self.half_width * lateral
-        return np.array([xy[0], xy[1], self.ankle_height]), heading
+        return np.array([xy[0], xy[1], self.ankle_height]), body
 
     def _phase(self, side: str, t: float) -> tuple[str, int, float]:
         """(``"stance"`` or ``"swing"``, footprint index, fraction of the phase)."""
@@ -250,6 +336,7 @@ class GaitPlanner:
             "jL5S1_flex": 2.0 * walking,
             "jT1C7_rot": 3.0 * walking * np.cos(phase),
         }
+        heading = heading + np.radians(self.p.facing_deg)
         pelvis_yaw = heading + np.radians(4.0 * walking * np.cos(phase))
         R_pelvis = (axis_rotation("z", pelvis_yaw)
                     @ axis_rotation("x", np.radians(-3.0 * walking * np.sin(phase)))
@@ -263,6 +350,7 @@ class GaitPlanner:
 
     def frame(self, t: float) -> Frame:
         """All targets and contact hints at time ``t``."""
+        t_frame, t = t, self.clock(t)
         q = self.upper_body(t)
         data = self.model.forward(q)
         orientations = {s: data.oMf[self.model.segment_frame_id(s)].rotation.copy()
@@ -278,7 +366,7 @@ class GaitPlanner:
             positions[f"{side}Heel"], positions[f"{side}Toe"] = heel, toe
             weights[f"{side}Heel"] = weights[f"{side}Toe"] = 1e4
             hints[f"{side}Heel"], hints[f"{side}Toe"] = heel_on, toe_on
-        return Frame(t, orientations, positions, hints, orientation_weights={
+        return Frame(t_frame, orientations, positions, hints, orientation_weights={
             **{f"{s}Foot": 10.0 for s in ("Right", "Left")},
             **{f"{s}Toe": 10.0 for s in ("Right", "Left")}}, position_weights=weights,
             root_position=q[:3].copy(), root_position_weight=1e2)

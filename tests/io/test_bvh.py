@@ -481,3 +481,35 @@ def test_nan_values_are_kept_on_request(tmp_path: Path) -> None:
     poses = motion.world_poses()
     assert np.all(np.isfinite(poses.p_world_joint[0]))
     assert np.all(np.isnan(poses.p_world_end_site[1]))
+
+
+def test_gzip_compressed_file_reads_as_the_plain_one(tmp_path: Path) -> None:
+    """A ``.bvh.gz`` (the benchmark's motion library) reads exactly like its plain text."""
+    import gzip
+
+    plain = _write(tmp_path, GOOD)
+    packed = tmp_path / "clip.bvh.gz"
+    packed.write_bytes(gzip.compress(GOOD.encode()))
+    a, b = read_bvh(plain), read_bvh(packed)
+    assert a.joint_names == b.joint_names
+    np.testing.assert_array_equal(a.channels, b.channels)
+    assert b.frame_time == a.frame_time and b.path == packed
+    # a bad value inside the compressed text is reported with its line, as in a plain file
+    broken = tmp_path / "broken.bvh.gz"
+    broken.write_bytes(gzip.compress(GOOD.replace("11 21 31", "11 x 31").encode()))
+    with pytest.raises(InputError, match="'x' is not a number") as info:
+        read_bvh(broken)
+    assert info.value.line == 20 and info.value.path == broken
+
+
+def test_damaged_gzip_file_is_bad_input(tmp_path: Path) -> None:
+    import gzip
+
+    data = gzip.compress(GOOD.encode())
+    for name, raw in (("cut.bvh.gz", data[: len(data) // 2]),
+                      ("garbled.bvh.gz", data[:12] + bytes(40) + data[52:])):
+        path = tmp_path / name
+        path.write_bytes(raw)
+        with pytest.raises(InputError, match="cannot read the BVH file") as info:
+            read_bvh(path)
+        assert info.value.path == path
