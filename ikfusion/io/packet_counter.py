@@ -96,6 +96,7 @@ def place_counter(raw: np.ndarray, fine: np.ndarray | None, lines: np.ndarray, h
         rows, values = rows[~too_wide], values[~too_wide]
     counter = values.astype(np.int64)
     wrap = COUNTER_WRAP if wraps else FINE_WRAP
+    fine = _valid_fine(fine, lines, path, warnings)
     _check_steps_of_one(counter, wrap, fine, header_line, path, name)
     f = None if fine is None else fine[rows]
     keep = ~_outliers(counter, f, wrap, hz)
@@ -143,6 +144,25 @@ def _check_steps_of_one(counter: np.ndarray, wrap: int, fine: np.ndarray | None,
                          "correct the header line", path=path, line=header_line, field=name)
 
 
+def _valid_fine(fine: np.ndarray | None, lines: np.ndarray, path: Path,
+                warnings: list[str]) -> np.ndarray | None:
+    """SampleTimeFine with impossible values (not a whole 32-bit tick count) made unknown.
+
+    Such a value cannot confirm a gap: left in, a single corrupted tick count would "confirm"
+    millions of lost packets.
+    """
+    if fine is None:
+        return None
+    known = np.isfinite(fine)
+    bad = known & ((fine < 0) | (fine >= FINE_WRAP) | (fine != np.round(fine)))
+    if not bad.any():
+        return fine
+    warnings.append(f"{path.name}: {int(bad.sum())} SampleTimeFine value(s) that are not a "
+                    "32-bit tick count are ignored "
+                    f"({unplaceable_lines(lines, np.flatnonzero(bad))})")
+    return np.where(bad, np.nan, fine)
+
+
 def _fine_packets(fine: np.ndarray, hz: float) -> np.ndarray:
     """Packets elapsed between consecutive rows by SampleTimeFine (signed; NaN when unknown)."""
     ticks = signed_step(np.diff(fine), FINE_WRAP)
@@ -183,7 +203,9 @@ def _steps(counter: np.ndarray, fine: np.ndarray | None, wrap: int, hz: float,
     turns = np.zeros(len(step))
     turns[known] = np.round((expected[known] - step[known]) / COUNTER_WRAP)
     candidate = step + COUNTER_WRAP * turns.astype(np.int64)
-    tolerance = np.maximum(0.5, 0.01 * np.abs(np.nan_to_num(expected)))
+    # Half a packet, and the sensor clock's drift against the sample clock (1e-4 is 100 ppm,
+    # ten times a crystal's): a wider tolerance lets a corrupted tick count confirm a gap.
+    tolerance = 0.5 + 1e-4 * np.abs(np.nan_to_num(expected))
     confirmed = known & (np.abs(expected - candidate) <= tolerance)
     step = np.where(confirmed, candidate, step)
     off = known & ~confirmed

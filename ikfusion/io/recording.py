@@ -206,8 +206,11 @@ def check_sensor_ids(sensor_map: Mapping[str, str], found: Iterable[str],
     missing = [s for s in wanted if s not in ids]
     if missing:
         listed = ", ".join(f"{s} ({wanted[s]})" for s in missing)
-        raise InputError(f"the sensor map's sensors {listed} are not in the recording; sensors "
-                         f"found: {', '.join(ids) or 'none'}", path=source, field="sensors")
+        map_file = getattr(sensor_map, "path", None)
+        named = f" {map_file}" if map_file is not None else ""
+        raise InputError(f"the sensors {listed} of the sensor map{named} are not in the "
+                         f"recording; sensors found: {', '.join(ids) or 'none'}", path=source,
+                         field="sensors")
     return [f"sensor {s} is in the recording but not in the sensor map (not used)"
             for s in ids if s not in wanted]
 

@@ -155,3 +155,21 @@ def test_files_of_different_recordings_are_refused(tmp_path: Path, rng) -> None:
     with pytest.raises(InputError, match="do not come from one recording") as err:
         read_mtmanager(tmp_path / "M_")
     assert err.value.path == far
+
+
+@pytest.mark.parametrize("bad_tick", [1e30, -5.0, 2.0**32 + 7, 123.5])
+def test_an_impossible_sample_time_fine_confirms_no_gap(tmp_path: Path, bad_tick: float) -> None:
+    """Found by the fuzz campaign: one SampleTimeFine of 1e30 "confirmed" a gap of millions of
+    packets (a 5 M-sample timeline, 2 GB). A value that is not a 32-bit tick count is ignored."""
+    counter = 1000 + np.arange(200)
+    fine = 5_000_000 + counter * 100.0
+    fine[57] = bad_tick
+    path = tmp_path / "F_00B40009.txt"
+    head = "PacketCounter\tSampleTimeFine\tAcc_X\tAcc_Y\tAcc_Z"
+    rows = [f"{c:05d}\t{f:.10g}\t0.1\t0.0\t9.8" for c, f in zip(counter, fine)]
+    path.write_text(f"// Update Rate: 100Hz\n{head}\n" + "\n".join(rows) + "\n")
+    rec = read_mtmanager(tmp_path / "F_")
+    s = rec.sensors["00B40009"]
+    assert len(rec) == 200 and s.lost == 0
+    assert any("SampleTimeFine value(s) that are not a 32-bit tick count" in w and "line 60" in w
+               for w in rec.warnings)

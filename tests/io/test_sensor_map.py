@@ -191,3 +191,15 @@ def test_opensense_xml_with_an_unknown_encoding_is_bad_input(tmp_path: Path) -> 
     xml.write_text('<?xml version="1.0" encoding="UTF-1e30"?>\n<OpenSimDocument/>\n')
     with pytest.raises(ConfigError, match="map.xml"):
         load_sensor_map(xml)
+
+
+def test_a_map_naming_sensors_not_recorded_names_the_map(tmp_path: Path, capsys) -> None:
+    """Found by the fuzz campaign: the message named only the recording, not the map at fault."""
+    export = tmp_path / "T_00B40001.txt"
+    export.write_text("// Update Rate: 60.0Hz\nPacketCounter\tQuat_q0\tQuat_q1\tQuat_q2\tQuat_q3\n"
+                      "1\t1\t0\t0\t0\n2\t1\t0\t0\t0\n")
+    sensor_map = tmp_path / "map.yaml"
+    sensor_map.write_text("sensors:\n  00B40001: Pelvis\n  00B4XX09: Head\n")
+    assert main(["inspect", str(export), "--map", str(sensor_map)]) == 2
+    err = capsys.readouterr().err
+    assert str(sensor_map) in err and "00B4XX09" in err
