@@ -118,9 +118,9 @@ def test_solvers_agree_with_a_posture_reference(
                                      for s in SENSOR_SEGMENTS[:8]}))  # the rest: the prior
     R_reference = exp_so3(rng.normal(scale=0.5, size=(len(human.ball_joints), 3)))
     solvers = [Solver(human, contacts=False), Solver(human, contacts=False, compiled=False)]
-    assert solvers[0]._kinematics is not None and solvers[1]._kinematics is None
+    assert solvers[0].compiled is not None and solvers[1].compiled is None
     for solver in solvers:
-        solver.posture_task.R_reference = R_reference
+        solver.tasks.posture.R_reference = R_reference
     fast, reference = (solver.solve(frames) for solver in solvers)
     np.testing.assert_allclose(fast.q, reference.q, atol=1e-7)
     plain = Solver(human, contacts=False, compiled=False).solve(frames)
@@ -130,18 +130,19 @@ def test_solvers_agree_with_a_posture_reference(
 def test_compiled_sensed_pose_equals_numpy(human: HumanModel, rng) -> None:
     """The sensed pose and its contact points: the compiled function and the NumPy version."""
     solver = Solver(human)
-    assert solver._kinematics is not None and solver._kinematics.sensed_function is not None
+    assert solver.compiled is not None
+    assert solver.compiled.kinematics.sensed_function is not None
+    sensed = solver.sensed
     n = len(human.segment_names)
     for trial in range(6):
         q = human.random_configuration(rng, p_world_pelvis=rng.normal(size=3))
         T = random_rotations(n, rng)
         tracked = rng.random(n) < (0.3, 0.6, 0.9, 1.0, 1.0, 1.0)[trial]
-        solver.orientation_task.set_targets(T, tracked.astype(float))
-        q_sensed, p_sensed = solver._sensed_pose(q, tracked)
-        np.testing.assert_allclose(q_sensed, solver._sensed_configuration(q, tracked, False),
+        q_sensed, p_sensed = sensed.pose(q, T, tracked)
+        np.testing.assert_allclose(q_sensed, sensed.configuration(q, T, tracked, False),
                                    atol=1e-10)
         np.testing.assert_allclose(
-            p_sensed, solver._contact_positions(solver._sensed_configuration(q, tracked)),
+            p_sensed, sensed.contact_positions(sensed.configuration(q, T, tracked)),
             atol=1e-10)
 
 
