@@ -154,8 +154,9 @@ class Solver:
             active.append(tasks.root)
         q, iterations, relaxed = self._solve(frame, targets, q, active,
                                              self.settings.max_iterations)
-        contacts_now = {n: bool(a and not r) for n, a, r in zip(  # a rising heel is held
-            self.contact_names, tasks.contact.active, tasks.contact.free_z)}  # but not standing
+        # a rising heel is held against slipping but no longer stands on the floor
+        contacts_now = {n: bool(a and not r) for n, a, r in zip(
+            self.contact_names, tasks.contact.active, tasks.contact.free_z)}
         contacts.touch_down(frame, self._configuration.positions(self._contact_frames), q[:3])
         velocity = (q[:3] - last.q[:3]) / dt if dt > 0 else last.root_velocity
         return self._finish(frame, targets, q, q_warm, velocity, contacts_now, start,
@@ -179,16 +180,12 @@ class Solver:
                                              self.settings.first_frame_iterations)
         q = place_on_floor(self._configuration, q, self._contact_frames, self.settings.floor_z)
         self._configuration.update(q)
-        contacts_now = {n: bool(a and not r) for n, a, r in zip(
-            self.contact_names, tasks.contact.active, tasks.contact.free_z)}
         if self._contact_frames:
             contacts.start(self.sensed.pose(q, targets.R_sensed, targets.tracked)[1],
                            contacts.foot_pitch(q, targets.R_sensed, targets.tracked))
-            contacts.touch_down(frame, self._configuration.positions(self._contact_frames),
-                                q[:3])
-            contacts_now = contacts.state.as_dict()
-        return self._finish(frame, targets, q, q_warm, np.zeros(3), contacts_now, start,
-                            iterations, relaxed)
+        contacts.touch_down(frame, self._configuration.positions(self._contact_frames), q[:3])
+        return self._finish(frame, targets, q, q_warm, np.zeros(3), contacts.state.as_dict(),
+                            start, iterations, relaxed)
 
     def _apply_world_moves(self) -> None:
         """Apply the drift correction's moves of the solved state since the last frame."""
