@@ -34,6 +34,7 @@ import numpy as np
 
 from .ik.pose import Motion, Pose
 from .ik.solver import Solver
+from .ik.world_offset import WorldOffset
 from .paths import shipped_config
 from .settings_files import Overlay, load_settings
 from .yaml_files import read_yaml_document
@@ -115,6 +116,7 @@ class DriftCorrection:
     heading: np.ndarray = field(default_factory=lambda: np.zeros(0))
     _placed: bool = False
     _placement: tuple[int, np.ndarray] | None = None
+    _body: list[bool] = field(default_factory=list)  # per fix: on the body, not on a foot
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -141,12 +143,15 @@ class DriftCorrection:
 
     def after_frame(self, solver: Solver, pose: Pose, k: int, dt: float) -> None:
         """Compare frame ``k`` with the fixes and steer the solver's feet for the next frames."""
-        shifted = solver.shifted[:2]  # the sites' travel without the corrections' moves
+        world = solver.world  # the only part of the solver a correction touches
+        if len(self._body) != len(self.fixes):  # sites on the body, not on a foot
+            self._body = [solver.topology.foot_of(f.site) is None for f in self.fixes]
+        shifted = world.shifted[:2]  # the sites' travel without the corrections' moves
         for i, f in enumerate(self.fixes):
             self._solved[i, k] = pose.site_position(f.site)[:2] - shifted
         if self.mode != "off" and self._placed:
-            self._correct_heading(solver, k, dt)
-        self.heading[k] = solver.heading_correction
+            self._correct_heading(world, k, dt)
+        self.heading[k] = world.heading
         error = self.horizontal_error(pose, k)
         if error is None:
             return
@@ -155,13 +160,13 @@ class DriftCorrection:
         if self.mode == "off":
             return
         if not self._placed:
-            solver.translate(delta)
+            world.translate(delta)
             self._placed = True
             self._placement = (k, delta)
         elif self.mode == "slide":
-            solver.shift_anchors(delta * min(1.0, dt / self.settings.time_constant))
+            world.slide(delta * min(1.0, dt / self.settings.time_constant))
         else:
-            solver.set_step_offset(delta, self.settings.max_step)
+            world.lead_steps(delta, self.settings.max_step)
 
     def heading_error(self, k: int, dt: float) -> float | None:
         """Angle from the solved sites' inertial travel to the tags' travel over the window [rad].
@@ -188,12 +193,12 @@ class DriftCorrection:
                 continue  # a jump of the fixes, not a turn: heading drift keeps the length
             angles.append(np.arctan2(solved[0] * measured[1] - solved[1] * measured[0],
                                      solved @ measured))
-            body.append("Foot" not in f.site)
+            body.append(self._body[i])  # set by after_frame from the model's topology
         if any(body):  # swing feet are led by the no-slide correction: trust the head first
             angles = [a for a, b in zip(angles, body) if b]
         return float(np.median(angles)) if angles else None
 
-    def _correct_heading(self, solver: Solver, k: int, dt: float) -> None:
+    def _correct_heading(self, world: WorldOffset, k: int, dt: float) -> None:
         """Turn the solver's targets toward the heading error, at a bounded rate."""
         s = self.settings
         error = self.heading_error(k, dt)
@@ -201,12 +206,12 @@ class DriftCorrection:
             return
         # the travel was solved under the turn of mid-window; what was turned since is done
         mid = k - int(round(0.5 * s.heading_window / dt))
-        error -= solver.heading_correction - self.heading[max(mid, 0)]
+        error -= world.heading - self.heading[max(mid, 0)]
         if abs(error) < np.radians(s.heading_deadband_deg):
             return
         step = error * min(1.0, dt / s.heading_time_constant)
         rate = np.radians(s.heading_rate_deg)
-        solver.turn(float(np.clip(step, -rate * dt, rate * dt)))
+        world.turn(float(np.clip(step, -rate * dt, rate * dt)))
 
     def place_start(self, motion: Motion) -> None:
         """Move the frames solved before the first fix by its offset (in place).

@@ -31,36 +31,23 @@ of :mod:`ikfusion.rotations` that the NumPy tasks use, with one epsilon policy. 
 Summing ``J^T W J`` inside the graph uses the Jacobians' sparsity (a segment's rows touch only
 the joints that carry it) and removes the per-step NumPy work of assembling the objective.
 
-The graph holds the model's *structure* only; joint and frame placements are an input, so bodies
-of every size share one function. When a C compiler is on the machine the function is compiled
-once to a shared library cached under ``$IKFUSION_CACHE`` (default ``~/.cache/ikfusion``) and
-evaluates about ten times faster than CasADi's virtual machine, which is the fallback (and the
-choice when ``IKFUSION_NO_COMPILE`` is set). The library's name holds a hash of this module's
-source (this module and the rotation modules it builds on), the CasADi version and the
-compiler's identity; its content hash is recorded beside it
-when it is built and checked before every load (a mismatch is rebuilt, never loaded). The first
-build says so on stderr; a failed build too, and it becomes a warning of the solve.
+The graph holds the model's *structure* only (:mod:`.casadi_kinematics`); joint and frame
+placements are an input, so bodies of every size share one function. When a C compiler is on the
+machine the function is compiled once (:mod:`.native`) and evaluates about ten times faster than
+CasADi's virtual machine, which is the fallback. The first build says so on stderr; a failed
+build too, and it becomes a warning of the solve.
 """
 
 from __future__ import annotations
 
 import hashlib
-import os
-import shutil
-import subprocess
-import sys
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
 import pinocchio as pin
 
-from .. import rotations as numpy_rotations
-from .. import rotations_casadi
-from ..atomic import atomic_path, atomic_write_text
 from ..model.ball_joints import BallJoint
 from ..rotations_casadi import (
     left_jacobian_inverse,
@@ -72,6 +59,8 @@ from ..rotations_casadi import (
     rotation_about,
     skew,
 )
+from .casadi_kinematics import forward, frame_pose, jacobian, symbolic_placements
+from .native import BoundFunction, column_major, native_functions
 
 
 @dataclass(frozen=True)
@@ -128,17 +117,17 @@ class CompiledKinematics:
                         | set(sensed.points if sensed else ()))
         geometry = ca.SX.sym("geometry", 12 * (model.njoints - 1 + len(frames)))
         self._geometry_frames = frames
-        placements = self._placements(geometry, model.njoints - 1, frames)
-        rotations, translations, axes = self._forward(model, q, placements)
+        placements = symbolic_placements(geometry, model.njoints - 1, frames)
+        rotations, translations, axes = forward(model, q, placements)
         self.sensed_function = (None if sensed is None else
                                 self._sensed(model, sensed, q, targets, geometry, placements))
 
         e_orient, J_orient = [], []
         for n, fid in enumerate(segment_frames):
-            R, _ = self._frame(model, fid, rotations, translations, placements)
+            R, _ = frame_pose(model, fid, rotations, translations, placements)
             T = ca.reshape(targets[9 * n:9 * n + 9], 3, 3)
             e, theta = log_so3(R @ T.T)
-            J_angular = self._jacobian(model, fid, axes, translations, None)[3:, :]
+            J_angular = jacobian(model, fid, axes, translations, None)[3:, :]
             e_orient.append(e)
             J_orient.append(left_jacobian_inverse(e, theta) @ J_angular)
 
@@ -161,9 +150,9 @@ class CompiledKinematics:
 
         p_sites, J_sites = [], []
         for fid in site_frames:
-            _, p = self._frame(model, fid, rotations, translations, placements)
+            _, p = frame_pose(model, fid, rotations, translations, placements)
             p_sites.append(p)
-            J_sites.append(self._jacobian(model, fid, axes, translations, p)[:3, :])
+            J_sites.append(jacobian(model, fid, axes, translations, p)[:3, :])
 
         def stack(parts: list[ca.SX], cols: int) -> ca.SX:
             return ca.vertcat(*parts) if parts else ca.SX(0, cols)
@@ -210,8 +199,8 @@ class CompiledKinematics:
             choices[j] = (tracked[parent] * tracked[child] > 0.5,
                           target(parent).T @ target(child))
         for j, foot, toe, axis, lower, upper in spec.toes:
-            forward = target(foot)[:, 0]
-            pitch = ca.atan2(-forward[2], ca.sqrt(forward[0] ** 2 + forward[1] ** 2))
+            foot_x = target(foot)[:, 0]
+            pitch = ca.atan2(-foot_x[2], ca.sqrt(foot_x[0] ** 2 + foot_x[1] ** 2))
             angle = ca.fmin(ca.fmax(ca.fmax(pitch, 0.0), lower), upper)
             level = rotation_about(axis, angle)
             use = tracked[foot] * (1.0 - tracked[toe]) > 0.5
@@ -227,23 +216,13 @@ class CompiledKinematics:
             return q_out
 
         q_sensed = replace(q, choices)
-        rotations, translations, _ = self._forward(model, replace(q_sensed, toes), placements)
-        points = [self._frame(model, f, rotations, translations, placements)[1]
+        rotations, translations, _ = forward(model, replace(q_sensed, toes), placements)
+        points = [frame_pose(model, f, rotations, translations, placements)[1]
                   for f in spec.points]
         return ca.Function("ik_sensed_pose", [q, targets, geometry, tracked],
                            [q_sensed, ca.vertcat(*points) if points else ca.SX(0, 1)],
                            ["q", "R_world_target", "geometry", "tracked"],
                            ["q_sensed", "p_points"])
-
-    @staticmethod
-    def _placements(geometry: ca.SX, n_joints: int, frames: list[int]) -> dict:
-        """Symbolic placements: ("joint", j) and ("frame", f) -> (R (3, 3), p (3,))."""
-        out = {}
-        keys = [("joint", j) for j in range(1, n_joints + 1)] + [("frame", f) for f in frames]
-        for n, key in enumerate(keys):
-            g = geometry[12 * n:12 * n + 12]
-            out[key] = (ca.reshape(g[:9], 3, 3), g[9:12])
-        return out
 
     def geometry(self, model: pin.Model) -> np.ndarray:
         """The geometry input of ``model`` (joint and frame placements; column-major R, then p).
@@ -256,83 +235,6 @@ class CompiledKinematics:
         for M in placements:
             blocks.append(np.concatenate([M.rotation.T.reshape(-1), M.translation]))
         return np.concatenate(blocks)
-
-    @staticmethod
-    def _forward(model: pin.Model, q: ca.SX, placements: dict) -> tuple[list, list, dict]:
-        """World rotation and origin of every joint frame, and each tangent column's motion.
-
-        Returns ``axes``: tangent index -> ("angular", world axis) or ("linear", world axis),
-        the world-frame motion of the joint frame per unit step of that coordinate.
-        """
-        rotations: list = [ca.DM.eye(3)]
-        translations: list = [ca.DM.zeros(3)]
-        axes: dict[int, tuple[str, ca.SX]] = {}
-        for j in range(1, model.njoints):
-            joint = model.joints[j]
-            iq, iv = model.idx_qs[j], model.idx_vs[j]
-            R_M, p_M = placements[("joint", j)]
-            parent = model.parents[j]
-            R_parent = rotations[parent] @ R_M
-            p_parent = translations[parent] + rotations[parent] @ p_M
-            kind = joint.shortname()
-            if kind == "JointModelFreeFlyer":
-                R_local = quat_xyzw_to_matrix(q[iq + 3:iq + 7])
-                p_local = q[iq:iq + 3]
-                R_world = R_parent @ R_local
-                for k in range(3):
-                    axes[iv + k] = ("linear", R_world[:, k])
-                    axes[iv + 3 + k] = ("angular", R_world[:, k])
-            elif kind == "JointModelSpherical":
-                R_local = quat_xyzw_to_matrix(q[iq:iq + 4])
-                p_local = ca.SX.zeros(3)
-                R_world = R_parent @ R_local
-                for k in range(3):
-                    axes[iv + k] = ("angular", R_world[:, k])
-            elif kind in ("JointModelRX", "JointModelRY", "JointModelRZ",
-                          "JointModelRevoluteUnaligned"):
-                axis = (np.eye(3)[int(kind[-1] == "Y") + 2 * int(kind[-1] == "Z")]
-                        if kind != "JointModelRevoluteUnaligned"
-                        else np.asarray(joint.extract().axis))
-                R_local = rotation_about(axis, q[iq])
-                p_local = ca.SX.zeros(3)
-                R_world = R_parent @ R_local
-                axes[iv] = ("angular", R_world @ ca.DM(axis))
-            else:
-                raise NotImplementedError(f"joint type {kind} is not compiled")
-            rotations.append(R_world)
-            translations.append(p_parent + R_parent @ p_local)
-        return rotations, translations, axes
-
-    @staticmethod
-    def _jacobian(model: pin.Model, fid: int, axes: dict, translations: list,
-                  point: ca.SX | None) -> ca.SX:
-        """Geometric Jacobian (6, nv) of a frame in the world frame.
-
-        Linear rows (of ``point``) first, then angular rows; only the columns of the frame's
-        supporting joints are filled.
-        """
-        J = ca.SX(6, model.nv)
-        joint = model.frames[fid].parentJoint
-        for j in model.supports[joint]:
-            if j == 0:
-                continue
-            origin = translations[j]
-            for iv in range(model.idx_vs[j], model.idx_vs[j] + model.nvs[j]):
-                kind, axis = axes[iv]
-                if kind == "linear":
-                    J[0:3, iv] = axis
-                else:
-                    J[3:6, iv] = axis
-                    if point is not None:
-                        J[0:3, iv] = ca.cross(axis, point - origin)
-        return J
-
-    @staticmethod
-    def _frame(model: pin.Model, fid: int, rotations: list, translations: list,
-               placements: dict) -> tuple:
-        j = model.frames[fid].parentJoint
-        R_M, p_M = placements[("frame", fid)]
-        return rotations[j] @ R_M, translations[j] + rotations[j] @ p_M
 
     def __call__(self, q: np.ndarray, R_world_target: np.ndarray, geometry: np.ndarray,
                  w_orient: np.ndarray, w_posture: np.ndarray,
@@ -351,9 +253,9 @@ class CompiledKinematics:
             The outputs as dense arrays, overwritten by the next call (copy to keep them).
         """
         if not hasattr(self, "_step"):
-            self._step = _Bound(self.function)
-        return self._step(q, _column_major(R_world_target), geometry, w_orient, w_posture,
-                          _column_major(R_reference))
+            self._step = BoundFunction(self.function)
+        return self._step(q, column_major(R_world_target), geometry, w_orient, w_posture,
+                          column_major(R_reference))
 
     def sensed_pose(self, q: np.ndarray, R_world_target: np.ndarray, geometry: np.ndarray,
                     tracked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -367,41 +269,9 @@ class CompiledKinematics:
         if self.sensed_function is None:
             raise ValueError("built without a SensedPoseSpec")
         if not hasattr(self, "_sensed_call"):
-            self._sensed_call = _Bound(self.sensed_function)
-        q_sensed, points = self._sensed_call(q, _column_major(R_world_target), geometry, tracked)
+            self._sensed_call = BoundFunction(self.sensed_function)
+        q_sensed, points = self._sensed_call(q, column_major(R_world_target), geometry, tracked)
         return q_sensed[:, 0].copy(), points.reshape(-1, 3).copy()
-
-
-def _column_major(R: np.ndarray) -> np.ndarray:
-    """Stacked rotations (k, 3, 3) as CasADi's column-major vector (9k,)."""
-    return np.swapaxes(R, 1, 2).reshape(-1)
-
-
-class _Bound:
-    """A CasADi function evaluated on preallocated NumPy buffers (no per-call allocation)."""
-
-    def __init__(self, function: ca.Function) -> None:
-        self._buffer, self._evaluate = function.buffer()
-        self._inputs = [np.zeros(function.nnz_in(i)) for i in range(function.n_in())]
-        for i, arr in enumerate(self._inputs):
-            self._buffer.set_arg(i, memoryview(arr))  # type: ignore[arg-type,call-arg]
-        self._nonzeros, self._dense, self._flat = [], [], []
-        for i in range(function.n_out()):
-            sp = function.sparsity_out(i)
-            nz = np.zeros(sp.nnz())
-            self._buffer.set_res(i, memoryview(nz))  # type: ignore[arg-type,call-arg]
-            rows, cols = (np.array(v, dtype=int) for v in sp.get_triplet())
-            self._nonzeros.append(nz)
-            self._dense.append(np.zeros((sp.size1(), sp.size2())))
-            self._flat.append(rows * sp.size2() + cols)
-
-    def __call__(self, *inputs: np.ndarray) -> list[np.ndarray]:
-        for buffer, value in zip(self._inputs, inputs):
-            buffer[:] = value
-        self._evaluate()
-        for dense, flat, nz in zip(self._dense, self._flat, self._nonzeros):
-            dense.put(flat, nz)
-        return self._dense
 
 
 def structure_key(model: pin.Model, segment_frames: Sequence[int],
@@ -450,146 +320,3 @@ def compiled_kinematics(model: pin.Model, segment_frames: Sequence[int],
             built.warnings.append(problem)
         _BUILT[key] = built
     return built
-
-
-def cache_dir() -> Path:
-    """Folder of compiled step functions."""
-    base = os.environ.get("IKFUSION_CACHE")
-    if base:
-        return Path(base)
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    return (Path(xdg) if xdg else Path.home() / ".cache") / "ikfusion"
-
-
-def find_compiler() -> str | None:
-    """The C compiler used for step functions (``cc``, ``gcc`` or ``clang``), if any."""
-    return shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
-
-
-def compiler_identity(compiler: str) -> str:
-    """The compiler's resolved path and the first line of its ``--version``."""
-    try:
-        done = subprocess.run([compiler, "--version"], capture_output=True, text=True,
-                              timeout=30, check=False)
-        version = (done.stdout or done.stderr).strip().splitlines()[:1]
-    except (OSError, subprocess.SubprocessError):
-        version = []
-    return f"{os.path.realpath(compiler)} {' '.join(version)}"
-
-
-def generator_fingerprint() -> str:
-    """SHA-256 of the source that generates the step functions' expressions.
-
-    That is this module, the CasADi rotation twin and the NumPy module holding their shared
-    epsilon policy.
-    """
-    digest = hashlib.sha256()
-    for module in (__file__, rotations_casadi.__file__, numpy_rotations.__file__):
-        digest.update(Path(str(module)).read_bytes())
-    return digest.hexdigest()
-
-
-def library_path(folder: Path, key: str, compiler: str) -> Path:
-    """Where the library of structure ``key`` built by ``compiler`` is cached.
-
-    The name holds the structure key, a hash of the generating source, the CasADi version and
-    the compiler identity, and the CasADi version in clear: a change of any of them builds a
-    new library instead of loading one made from other code.
-    """
-    build = hashlib.sha256("|".join([generator_fingerprint(), ca.CasadiMeta.version(),
-                                     compiler_identity(compiler)]).encode()).hexdigest()[:16]
-    return folder / f"ik_step_{key}_{build}_{ca.CasadiMeta.version()}.so"
-
-
-def _record(library: Path) -> Path:
-    """The file holding the SHA-256 of ``library``'s content, written when it was built."""
-    return library.with_name(library.name + ".sha256")
-
-
-def _sha256(data: bytes) -> str:
-    return hashlib.sha256(data).hexdigest()
-
-
-def _load_verified(library: Path, names: Sequence[str]) -> list[ca.Function] | None:
-    """The functions of a cached library whose content matches its build record, else None.
-
-    The bytes checked are the bytes loaded: they are copied to a private temporary folder and
-    loaded from there, so the cache file cannot change between the check and the load.
-    """
-    record = _record(library)
-    if not (library.is_file() and record.is_file()):
-        return None
-    data = library.read_bytes()
-    if _sha256(data) != record.read_text().strip():
-        print(f"ikfusion: the cached step function {library} does not match the hash recorded "
-              "when it was built; it is rebuilt, not loaded", file=sys.stderr)
-        return None
-    with tempfile.TemporaryDirectory(prefix="ikfusion_step_") as private:
-        copy = Path(private) / library.name
-        copy.write_bytes(data)
-        return [ca.external(name, str(copy)) for name in names]
-
-
-def native_functions(functions: Sequence[ca.Function], key: str
-                     ) -> tuple[list[ca.Function] | None, str | None]:
-    """The functions compiled to one shared library, cached on disk and checked before loading.
-
-    A library is loaded only when its content hash equals the one recorded when it was built
-    (``<library>.sha256``); otherwise it is rebuilt. The first build says so on stderr (one
-    line); a failed build says so too and is returned as a warning.
-
-    Args:
-        functions: CasADi functions to compile together.
-        key: Their structure key (:func:`structure_key`).
-
-    Returns:
-        ``(functions loaded from the library or None, warning or None)``: None without a C
-        compiler or with ``IKFUSION_NO_COMPILE`` set (no warning), or when the build failed
-        (with a warning naming why; CasADi's virtual machine is used then).
-    """
-    if os.environ.get("IKFUSION_NO_COMPILE"):
-        return None, None
-    compiler = find_compiler()
-    if compiler is None:
-        return None, None
-    folder = cache_dir()
-    names = [f.name() for f in functions]
-    try:
-        library = library_path(folder, key, compiler)
-        loaded = _load_verified(library, names)
-        if loaded is not None:
-            return loaded, None
-        print(f"ikfusion: compiling the solver's step function once ({compiler}, cached in "
-              f"{folder}) ...", file=sys.stderr, flush=True)
-        folder.mkdir(mode=0o700, parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(dir=folder) as tmp, atomic_path(library) as built:
-            source = Path(tmp) / "ik_step.c"
-            generator = ca.CodeGenerator(source.name, {"with_header": False})
-            for function in functions:
-                generator.add(function)
-            generator.generate(f"{tmp}{os.sep}")
-            subprocess.run([compiler, "-O1", "-shared", "-fPIC", str(source), "-o",
-                            str(built), "-lm"], check=True, capture_output=True, timeout=600)
-            digest = _sha256(built.read_bytes())
-        atomic_write_text(_record(library), digest + "\n")
-        loaded = _load_verified(library, names)
-        if loaded is None:
-            raise RuntimeError("the library just built does not match its own record")
-        return loaded, None
-    except (OSError, subprocess.SubprocessError, RuntimeError) as err:
-        reason = _failure_reason(err)
-        warning = (f"compiling the solver's step function failed ({reason}); CasADi's virtual "
-                   "machine is used instead, several times slower")
-        print(f"ikfusion: warning: {warning}", file=sys.stderr, flush=True)
-        return None, warning
-
-
-def _failure_reason(err: BaseException) -> str:
-    """A short reason for a failed build (the compiler's first error line when it has one)."""
-    if isinstance(err, subprocess.CalledProcessError):
-        text = err.stderr.decode(errors="replace") if isinstance(err.stderr, bytes) \
-            else str(err.stderr or "")
-        lines = [line for line in text.splitlines() if line.strip()]
-        return f"{Path(str(err.cmd[0])).name} exit code {err.returncode}" + (
-            f": {lines[0][:200]}" if lines else "")
-    return str(err)[:200] or type(err).__name__

@@ -15,11 +15,12 @@ kinematic threshold missed by a few centimetres cannot hold a swinging foot on t
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
 
 import numpy as np
+
+from ..model.topology import FootLayout
 
 
 @dataclass
@@ -85,7 +86,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
                      foot_pitch: np.ndarray | None = None,
                      foot_still: np.ndarray | None = None,
                      p_solved: np.ndarray | None = None,
-                     placed: np.ndarray | None = None) -> ContactState:
+                     placed: np.ndarray | None = None, *,
+                     layout: FootLayout) -> ContactState:
     """Let go of planted points the current frame's sensed pose lifts (run before solving).
 
     With ``foot_still``, also plant the points of still feet and hand the body over to them.
@@ -104,6 +106,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
             planted by stance are anchored (on or above the floor; anchors settle down).
         placed: (k, 3) offsets [m] by which anchors were placed on purpose away from where the
             sensed legs put them (a swing foot led by the drift correction): not drift.
+        layout: Which points share a foot (:meth:`BodyTopology.foot_layout`).
 
     Returns:
         A new state: the same anchors for the points that stay, fewer active points, and
@@ -112,7 +115,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     th = thresholds
     active = state.active.copy()
     height_rel = p_sensed[:, 2] - p_sensed[:, 2].min()
-    tilted = _tilted(state.names, foot_pitch, np.radians(th.tilt_deg))
+    tilted = _tilted(layout, foot_pitch, np.radians(th.tilt_deg))
     still = np.zeros(len(active), dtype=bool)
     handed_over = np.zeros(len(active), dtype=bool)
     plant = np.zeros(len(active), dtype=bool)
@@ -122,13 +125,13 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         # A moving foot lets go once the other foot stands planted and still; a still foot
         # low in the sensed pose is planted while the other foot holds the body (after a
         # flight the usual touch-down, near the floor and slow, plants the landing feet).
-        handed_over = active & moving & _other_foot(state.names, active & still)
+        handed_over = active & moving & _other_foot(layout, active & still)
         plant = (~active & still & (height_rel < th.still_relative) & ~tilted
-                 & _other_foot(state.names, active))
-        handed_over |= active & moving & _other_foot(state.names, plant)
+                 & _other_foot(layout, active))
+        handed_over |= active & moving & _other_foot(layout, plant)
     staying = active & ~handed_over
     held = state.anchors if placed is None else state.anchors - placed
-    drift, other_age = _drift_from_other_foot(state.names, staying, held, p_sensed, state.age)
+    drift, other_age = _drift_from_other_foot(layout, staying, held, p_sensed, state.age)
     # Two planted feet that disagree: the foot planted earlier lets go (toe-off), even a
     # still one (its anchor is out of date); a still foot ignores the sensed height and pitch.
     pulled = (drift > th.leave_distance) & (state.age >= other_age)
@@ -145,11 +148,11 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     anchors, age = state.anchors.copy(), state.age.copy()
     if plant.any():
         if p_solved is not None:
-            anchors[plant] = _landing_anchors(state.names, active & ~leave, anchors, p_solved,
+            anchors[plant] = _landing_anchors(layout, active & ~leave, anchors, p_solved,
                                               plant)
         else:
             reference = active & ~leave if (active & ~leave).any() else active
-            same = _layout(tuple(state.names))[0]
+            same = layout.same_foot
             for j in np.flatnonzero(plant):
                 # the point's own foot, when planted, keeps that foot's anchors in shape
                 own = reference & same[j]
@@ -162,27 +165,9 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     return ContactState(state.names, (active & ~leave) | plant, anchors, age, released)
 
 
-@functools.lru_cache(maxsize=16)
-def _layout(names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(k, k) same-foot matrix, (k,) heel mask and (k,) toe mask of the contact points."""
-    feet = np.array([_foot_of(n) for n in names])
-    same = feet[:, None] == feet[None, :]
-    heel = np.array(["Heel" in n for n in names])
-    toe = np.array(["Toe" in n for n in names])
-    for a in (same, heel, toe):
-        a.setflags(write=False)
-    return same, heel, toe
-
-
-def _same_foot_mask(names: Sequence[str], mask: np.ndarray) -> np.ndarray:
-    """Per point: does its own foot have a point in ``mask``?"""
-    same = _layout(tuple(names))[0]
-    return np.asarray((same & mask[None, :]).any(axis=1))
-
-
-def _other_foot(names: Sequence[str], mask: np.ndarray) -> np.ndarray:
+def _other_foot(layout: FootLayout, mask: np.ndarray) -> np.ndarray:
     """Per point: does the *other* foot have a point in ``mask``?"""
-    same = _layout(tuple(names))[0]
+    same = layout.same_foot
     return np.asarray((~same & mask[None, :]).any(axis=1))
 
 
@@ -200,7 +185,7 @@ def _sensed_offset(p_sensed: np.ndarray, anchors: np.ndarray, reference: np.ndar
 def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.ndarray,
                p_sensed: np.ndarray, dt: float, thresholds: ContactThresholds,
                hints: Mapping[str, bool] | None = None,
-               foot_pitch: np.ndarray | None = None) -> ContactState:
+               foot_pitch: np.ndarray | None = None, *, layout: FootLayout) -> ContactState:
     """Plant the points that reached the floor this frame (run after solving).
 
     A point enters contact when it is near the floor, slow, among the lowest points of the
@@ -215,6 +200,7 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
         thresholds: Hysteresis thresholds.
         hints: Name -> in contact, overriding the detection for those points.
         foot_pitch: See :func:`release_contacts`.
+        layout: See :func:`release_contacts`.
 
     Returns:
         A new state; anchors above the floor settle toward it at ``settle_speed``.
@@ -225,7 +211,7 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     height_rel = p_sensed[:, 2] - p_sensed[:, 2].min()
     speed = (np.linalg.norm(p_solved - p_solved_previous, axis=1) / dt
              if dt > 0 else np.zeros(len(active)))
-    tilted = _tilted(state.names, foot_pitch, np.radians(th.tilt_deg))
+    tilted = _tilted(layout, foot_pitch, np.radians(th.tilt_deg))
     released = np.where(active, state.released, state.released + max(dt, 0.0))
     # a point that just let go (toe-off) does not come back down at once while it is low
     enter = (~active & (p_solved[:, 2] < th.floor_z + th.enter_height)
@@ -236,7 +222,7 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
             enter[i] = (not active[i]) and bool(hints[name])
     if not active.any() and not enter.any() and not hints:
         enter[int(np.argmin(p_sensed[:, 2]))] = True
-    anchors[enter] = _landing_anchors(state.names, active, anchors, p_solved, enter)
+    anchors[enter] = _landing_anchors(layout, active, anchors, p_solved, enter)
     active |= enter
     anchors[enter, 2] = np.maximum(anchors[enter, 2], th.floor_z)
     anchors[:, 2] = np.maximum(anchors[:, 2] - th.settle_speed * max(dt, 0.0), th.floor_z)
@@ -245,7 +231,7 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     return ContactState(state.names, active, anchors, age, released)
 
 
-def _landing_anchors(names: Sequence[str], active: np.ndarray, anchors: np.ndarray,
+def _landing_anchors(layout: FootLayout, active: np.ndarray, anchors: np.ndarray,
                      p_solved: np.ndarray, enter: np.ndarray) -> np.ndarray:
     """Anchors [m] of the ``enter`` points: where they were solved, shifted with their foot.
 
@@ -254,7 +240,7 @@ def _landing_anchors(names: Sequence[str], active: np.ndarray, anchors: np.ndarr
     offset), so the foot's anchors keep its shape even when the planted points were not held
     exactly (a relaxed frame, a touch-down offset of the drift correction).
     """
-    same = _layout(tuple(names))[0]
+    same = layout.same_foot
     out = p_solved[enter].copy()
     for row, i in enumerate(np.flatnonzero(enter)):
         planted = same[i] & active
@@ -263,20 +249,16 @@ def _landing_anchors(names: Sequence[str], active: np.ndarray, anchors: np.ndarr
     return out
 
 
-def _tilted(names: Sequence[str], foot_pitch: np.ndarray | None, limit: float) -> np.ndarray:
+def _tilted(layout: FootLayout, foot_pitch: np.ndarray | None, limit: float) -> np.ndarray:
     """Points whose foot pitch rules them out: heels when toe-down, toes when toe-up."""
     if foot_pitch is None:
-        return np.zeros(len(names), dtype=bool)
-    _, heel, toe = _layout(tuple(names))
+        return np.zeros(len(layout.on_foot), dtype=bool)
+    heel, toe = layout.on_foot, layout.below_foot
     pitch = np.asarray(foot_pitch, dtype=float)  # NaN (unknown) compares False: not tilted
     return (heel & (pitch > limit)) | (toe & (pitch < -limit))
 
 
-def _foot_of(name: str) -> str:
-    return "Left" if name.startswith("Left") else "Right" if name.startswith("Right") else name
-
-
-def _drift_from_other_foot(names: Sequence[str], active: np.ndarray, anchors: np.ndarray,
+def _drift_from_other_foot(layout: FootLayout, active: np.ndarray, anchors: np.ndarray,
                            p_sensed: np.ndarray, age: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """How far each planted point is pulled from its anchor by the other foot.
 
@@ -285,7 +267,7 @@ def _drift_from_other_foot(names: Sequence[str], active: np.ndarray, anchors: np
     the other foot has no planted point). Also returns the longest contact age of the other
     foot's planted points [s] (+inf when none).
     """
-    same = _layout(tuple(names))[0]
+    same = layout.same_foot
     others = active[:, None] & active[None, :] & ~same  # row i: the other foot's planted points
     count = others.sum(axis=1)
     has = count > 0

@@ -23,16 +23,16 @@ foot that was placed leaning.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import numpy as np
+
+from ..model.topology import FootLayout
 
 
 class SupportFollower:
     """Pelvis lag across hand-overs and swing-foot offsets (see the module docstring).
 
     Args:
-        contact_names: Contact point names (``Left...`` / ``Right...``).
+        layout: The contact points' feet (two; :meth:`BodyTopology.foot_layout`).
         lag_speed: The lag shrinks at this speed [m/s].
         lag_max: ... and is never longer than this [m] (larger disagreements are jumped over).
         swing_speed: A swing foot moves toward its offset at this speed [m/s].
@@ -41,7 +41,7 @@ class SupportFollower:
         confirm: A touch-down counts once the foot stayed planted this long [s].
     """
 
-    def __init__(self, contact_names: Sequence[str], lag_speed: float, lag_max: float,
+    def __init__(self, layout: FootLayout, lag_speed: float, lag_max: float,
                  swing_speed: float, lean_max: float, lean_speed: float,
                  confirm: float) -> None:
         self.lag_speed = lag_speed
@@ -50,10 +50,11 @@ class SupportFollower:
         self.lean_max = lean_max
         self.lean_speed = lean_speed
         self.confirm = confirm
-        left = np.array([n.startswith("Left") for n in contact_names], dtype=bool)
-        self._feet = (left, ~left)
+        k = len(layout.on_foot)
+        feet = [np.asarray(f, dtype=bool) for f in layout.feet]
+        self._feet = tuple(feet + [np.zeros(k, dtype=bool)] * (2 - len(feet)))
         # the swing foot is led by its heels: points on the foot itself, not on the unsensed toes
-        self._led = np.array(["Heel" in n for n in contact_names], dtype=bool)
+        self._led = np.asarray(layout.on_foot, dtype=bool)
         self.reset()
 
     def reset(self) -> None:

@@ -5,6 +5,7 @@ from .body import Body
 from .human_model import HumanModel, SiteInfo
 from .joints import ANGLE_NAMES, JOINTS, SEGMENTS, AngleSpec, JointSpec, load_joint_specs
 from .layout import CONTACT_SITES, SENSOR_SEGMENTS, TAG_SITES, BodyLayout, build_layout
+from .topology import BodyTopology, FootLayout
 from .urdf import body_to_urdf, write_urdf
 
 __all__ = [
@@ -18,7 +19,9 @@ __all__ = [
     "BallJoint",
     "Body",
     "BodyLayout",
+    "BodyTopology",
     "HumanModel",
+    "FootLayout",
     "JointSpec",
     "SiteInfo",
     "body_to_urdf",

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from motions import smooth_motion
 
-from ikfusion.ik import Configuration, Frame, Solver, compiled
+from ikfusion.ik import Configuration, Frame, Solver, compiled, native
 from ikfusion.ik.compiled import CompiledKinematics
 from ikfusion.ik.limits import JointRangeLimit
 from ikfusion.ik.tasks import OrientationTask, PostureTask
@@ -101,7 +101,7 @@ def test_solvers_agree_with_a_posture_reference(
         human: HumanModel, rng, evaluation: str, monkeypatch: pytest.MonkeyPatch) -> None:
     """A non-identity posture reference reaches the compiled step (native or CasADi's VM)."""
     if evaluation == "native":
-        if compiled.find_compiler() is None:
+        if native.find_compiler() is None:
             pytest.skip("no C compiler on this machine")
         monkeypatch.delenv("IKFUSION_NO_COMPILE", raising=False)
     else:
@@ -118,9 +118,9 @@ def test_solvers_agree_with_a_posture_reference(
                                      for s in SENSOR_SEGMENTS[:8]}))  # the rest: the prior
     R_reference = exp_so3(rng.normal(scale=0.5, size=(len(human.ball_joints), 3)))
     solvers = [Solver(human, contacts=False), Solver(human, contacts=False, compiled=False)]
-    assert solvers[0]._kinematics is not None and solvers[1]._kinematics is None
+    assert solvers[0].compiled is not None and solvers[1].compiled is None
     for solver in solvers:
-        solver.posture_task.R_reference = R_reference
+        solver.tasks.posture.R_reference = R_reference
     fast, reference = (solver.solve(frames) for solver in solvers)
     np.testing.assert_allclose(fast.q, reference.q, atol=1e-7)
     plain = Solver(human, contacts=False, compiled=False).solve(frames)
@@ -130,18 +130,19 @@ def test_solvers_agree_with_a_posture_reference(
 def test_compiled_sensed_pose_equals_numpy(human: HumanModel, rng) -> None:
     """The sensed pose and its contact points: the compiled function and the NumPy version."""
     solver = Solver(human)
-    assert solver._kinematics is not None and solver._kinematics.sensed_function is not None
+    assert solver.compiled is not None
+    assert solver.compiled.kinematics.sensed_function is not None
+    sensed = solver.sensed
     n = len(human.segment_names)
     for trial in range(6):
         q = human.random_configuration(rng, p_world_pelvis=rng.normal(size=3))
         T = random_rotations(n, rng)
         tracked = rng.random(n) < (0.3, 0.6, 0.9, 1.0, 1.0, 1.0)[trial]
-        solver.orientation_task.set_targets(T, tracked.astype(float))
-        q_sensed, p_sensed = solver._sensed_pose(q, tracked)
-        np.testing.assert_allclose(q_sensed, solver._sensed_configuration(q, tracked, False),
+        q_sensed, p_sensed = sensed.pose(q, T, tracked)
+        np.testing.assert_allclose(q_sensed, sensed.configuration(q, T, tracked, False),
                                    atol=1e-10)
         np.testing.assert_allclose(
-            p_sensed, solver._contact_positions(solver._sensed_configuration(q, tracked)),
+            p_sensed, sensed.contact_positions(sensed.configuration(q, T, tracked)),
             atol=1e-10)
 
 
@@ -166,7 +167,7 @@ def _compile_directly(function: ca.Function, library: Path) -> None:
 @pytest.fixture
 def cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     """An empty compile cache of this test, with a C compiler required."""
-    if compiled.find_compiler() is None or shutil.which("cc") is None:
+    if native.find_compiler() is None or shutil.which("cc") is None:
         pytest.skip("no C compiler on this machine")
     folder = tmp_path / "cache"
     monkeypatch.setenv("IKFUSION_CACHE", str(folder))
@@ -176,24 +177,24 @@ def cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
 
 def test_first_build_says_so_once_and_the_second_run_loads_it(
         cache: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    functions, warning = compiled.native_functions([_scaling(2.0)], "probe")
+    functions, warning = native.native_functions([_scaling(2.0)], "probe")
     assert warning is None and functions is not None
     np.testing.assert_allclose(np.asarray(functions[0]([1.0, 2.0])).ravel(), [2.0, 4.0])
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and "compiling" in lines[0]
-    again, _ = compiled.native_functions([_scaling(2.0)], "probe")
+    again, _ = native.native_functions([_scaling(2.0)], "probe")
     assert again is not None and capsys.readouterr().err == ""
 
 
 def test_a_tampered_cached_library_is_rebuilt_not_loaded(
         cache: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    compiled.native_functions([_scaling(2.0)], "probe")
+    native.native_functions([_scaling(2.0)], "probe")
     (library,) = cache.glob("*.so")
     # A valid library under the same name and symbol that computes something else.
     _compile_directly(_scaling(3.0), cache / "other.so")
     os.replace(cache / "other.so", library)
     capsys.readouterr()
-    functions, warning = compiled.native_functions([_scaling(2.0)], "probe")
+    functions, warning = native.native_functions([_scaling(2.0)], "probe")
     assert warning is None and functions is not None
     np.testing.assert_allclose(np.asarray(functions[0]([1.0, 2.0])).ravel(), [2.0, 4.0])
     assert "does not match" in capsys.readouterr().err
@@ -203,31 +204,33 @@ def test_a_tampered_cached_library_is_rebuilt_not_loaded(
 
 def test_the_cache_key_changes_when_the_generating_source_changes(
         cache: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
-    compiler = str(compiled.find_compiler())
-    before = compiled.library_path(cache, "probe", compiler)
+    compiler = str(native.find_compiler())
+    before = native.library_path(cache, "probe", compiler)
     assert ca.CasadiMeta.version() in before.name
-    compiled.native_functions([_scaling(2.0)], "probe")
-    monkeypatch.setattr(compiled, "generator_fingerprint", lambda: "edited source")
-    after = compiled.library_path(cache, "probe", compiler)
+    native.native_functions([_scaling(2.0)], "probe")
+    monkeypatch.setattr(native, "generator_fingerprint", lambda: "edited source")
+    after = native.library_path(cache, "probe", compiler)
     assert after != before
     capsys.readouterr()
-    compiled.native_functions([_scaling(2.0)], "probe")
+    native.native_functions([_scaling(2.0)], "probe")
     assert "compiling" in capsys.readouterr().err  # built anew, the old one not reused
     assert sorted(cache.glob("*.so")) == sorted([before, after])
 
 
-@pytest.mark.parametrize("module", ["rotations_casadi", "rotations"])
+@pytest.mark.parametrize("module", ["rotations_casadi", "rotations", "ik.compiled",
+                                    "ik.casadi_kinematics", "ik.native"])
 def test_the_cache_key_covers_the_rotation_modules(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, module: str) -> None:
-    """The step's SO(3) maps live in the rotation modules: editing them must rebuild."""
+    """The step's expressions live in these modules (SO(3) maps, the kinematics graph, the
+    step and its build): editing any of them must rebuild."""
     import importlib
 
     target = importlib.import_module(f"ikfusion.{module}")
-    before = compiled.generator_fingerprint()
+    before = native.generator_fingerprint()
     edited = tmp_path / f"{module}.py"
     edited.write_bytes(Path(str(target.__file__)).read_bytes() + b"\n# edited\n")
     monkeypatch.setattr(target, "__file__", str(edited))
-    assert compiled.generator_fingerprint() != before
+    assert native.generator_fingerprint() != before
 
 
 def test_a_failed_compile_is_a_warning_of_the_solve(

@@ -106,7 +106,7 @@ def test_unreachable_contacts_relax_instead_of_failing(human: HumanModel) -> Non
 
 
 def test_a_failing_qp_never_crashes_the_solve(human: HumanModel, rng, monkeypatch) -> None:
-    import ikfusion.ik.solver as solver_module
+    import ikfusion.ik.active_set as solver_module
     from ikfusion.errors import SolverError
 
     qs = smooth_motion(human, rng, frames=12)

@@ -8,8 +8,11 @@ import pytest
 from ikfusion.ik.contacts import ContactState, ContactThresholds, touch_down
 from ikfusion.ik.settings import SolverSettings
 from ikfusion.ik.support import SupportFollower
+from ikfusion.model import HumanModel
+from ikfusion.model.topology import BodyTopology
 
 NAMES = ["LeftHeel", "LeftToe", "RightHeel", "RightToe"]
+LAYOUT = BodyTopology.of(HumanModel.default()).foot_layout(NAMES)
 DT = 1.0 / 60.0
 LEFT = np.array([True, True, False, False])
 RIGHT = ~LEFT
@@ -19,7 +22,7 @@ BOTH = LEFT | RIGHT
 def _follower(**kw) -> SupportFollower:
     args = {"lag_speed": 0.3, "lag_max": 0.05, "swing_speed": 0.6, "lean_max": 0.0,
             "lean_speed": 0.0, "confirm": 0.2} | kw
-    return SupportFollower(NAMES, **args)
+    return SupportFollower(LAYOUT, **args)
 
 
 def _points(x_left: float, x_right: float) -> np.ndarray:
@@ -108,11 +111,11 @@ def test_a_point_that_let_go_does_not_come_back_down_at_once() -> None:
         [np.inf, np.inf, np.inf, 0.0]))
     frames = 0
     while not state.active[3]:
-        state = touch_down(state, low, low, low, DT, th)
+        state = touch_down(state, low, low, low, DT, th, layout=LAYOUT)
         frames += 1
         assert frames < 60
     assert frames * DT == pytest.approx(th.reenter_delay, abs=DT)
     # a point never in contact lands at once
     fresh = touch_down(ContactState(NAMES, LEFT.copy(), low.copy(), np.zeros(4)), low, low,
-                       low, DT, th)
+                       low, DT, th, layout=LAYOUT)
     assert fresh.active.all()

@@ -1,0 +1,78 @@
+"""The lazy active set: a step's QP holds only the limit rows it is likely to need.
+
+Few of the ranges of motion and velocity bounds are ever active, and every row costs the QP
+solver time. So a step's QP holds the limits of the angles near a limit (and the floor) and no
+velocity bounds; a step that would cross another limit or a bound is solved again with those
+rows. A relaxed step is solved again with every row.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .limits import Inequality
+from .limits.joint_range import LinearisedRanges
+from .qp import QpProblem, QpSettings, QpSolution, solve_qp
+
+
+@dataclass
+class LimitRows:
+    """The limit rows of a step: those in its QP and those left out.
+
+    Attributes:
+        ranges: The linearised ranges of motion (every row).
+        up: (m,) upper limits in the QP.
+        down: (m,) lower limits in the QP.
+        floor: The floor rows (always in the QP; kept to rebuild it).
+        bounds: The velocity bounds on the step (lower, upper) (nv,) [rad or m], or None.
+    """
+
+    ranges: LinearisedRanges
+    up: np.ndarray
+    down: np.ndarray
+    floor: Inequality
+    bounds: tuple[np.ndarray, np.ndarray] | None
+
+
+def solve_with_active_set(problem: QpProblem, rows: LimitRows, backend: str,
+                          settings: QpSettings, tolerance: float, resolves: int) -> QpSolution:
+    """Solve a step's QP, adding the rows it left out only when the step needs them.
+
+    Args:
+        problem: The QP (its inequalities: the ranges in ``rows`` and the floor); changed in
+            place when rows are added.
+        rows: Its limit rows; ``up`` and ``down`` grow with the rows added.
+        backend: QP backend.
+        settings: QP settings.
+        tolerance: A limit or bound is crossed when the step passes it by more [rad or m].
+        resolves: At most this many solves again.
+
+    Raises:
+        SolverError: No backend could solve the QP.
+    """
+    solution = solve_qp(problem, backend, settings)
+    lb, ub = rows.bounds if rows.bounds is not None else (None, None)
+    for _ in range(resolves):
+        if solution.relaxed:
+            rows.up[:], rows.down[:] = True, True
+        crossed_up, crossed_down = rows.ranges.crossed(solution.dq, tolerance)
+        crossed_up &= ~rows.up
+        crossed_down &= ~rows.down
+        outside = lb is not None and ub is not None and problem.lb is None and bool(
+            np.any(solution.dq < lb - tolerance) or np.any(solution.dq > ub + tolerance))
+        if not (solution.relaxed or outside or crossed_up.any() or crossed_down.any()):
+            return solution
+        rows.up |= crossed_up
+        rows.down |= crossed_down
+        ranges = rows.ranges.inequality(rows.up, rows.down)
+        problem.G = np.vstack([ranges.G, rows.floor.G])
+        problem.h = np.concatenate([ranges.h, rows.floor.h])
+        if outside or solution.relaxed:
+            problem.lb, problem.ub = lb, ub
+        relaxed_before = solution.relaxed
+        solution = solve_qp(problem, backend, settings)
+        if relaxed_before:
+            return solution
+    return solution

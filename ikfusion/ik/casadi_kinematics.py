@@ -1,0 +1,105 @@
+"""Pinocchio's forward kinematics and frame Jacobians written as a CasADi ``SX`` graph.
+
+The graph follows the Pinocchio model exactly (same joint placements and joint types: free-flyer,
+spherical, revolute); joint and frame placements are symbolic inputs (the *geometry*), so bodies
+of every size share one graph. Used by :mod:`.compiled` to build the step function.
+
+Tangent steps follow Pinocchio: a free-flyer moves by ``M exp(v)`` in its local frame, a
+spherical joint by ``R exp(w)``, a revolute joint by adding to its angle.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pinocchio as pin
+
+from ..rotations_casadi import quat_xyzw_to_matrix, rotation_about
+
+
+def symbolic_placements(geometry: ca.SX, n_joints: int, frames: list[int]) -> dict:
+    """Symbolic placements: ("joint", j) and ("frame", f) -> (R (3, 3), p (3,))."""
+    out = {}
+    keys = [("joint", j) for j in range(1, n_joints + 1)] + [("frame", f) for f in frames]
+    for n, key in enumerate(keys):
+        g = geometry[12 * n:12 * n + 12]
+        out[key] = (ca.reshape(g[:9], 3, 3), g[9:12])
+    return out
+
+
+def forward(model: pin.Model, q: ca.SX, placements: dict) -> tuple[list, list, dict]:
+    """World rotation and origin of every joint frame, and each tangent column's motion.
+
+    Returns ``axes``: tangent index -> ("angular", world axis) or ("linear", world axis),
+    the world-frame motion of the joint frame per unit step of that coordinate.
+    """
+    rotations: list = [ca.DM.eye(3)]
+    translations: list = [ca.DM.zeros(3)]
+    axes: dict[int, tuple[str, ca.SX]] = {}
+    for j in range(1, model.njoints):
+        joint = model.joints[j]
+        iq, iv = model.idx_qs[j], model.idx_vs[j]
+        R_M, p_M = placements[("joint", j)]
+        parent = model.parents[j]
+        R_parent = rotations[parent] @ R_M
+        p_parent = translations[parent] + rotations[parent] @ p_M
+        kind = joint.shortname()
+        if kind == "JointModelFreeFlyer":
+            R_local = quat_xyzw_to_matrix(q[iq + 3:iq + 7])
+            p_local = q[iq:iq + 3]
+            R_world = R_parent @ R_local
+            for k in range(3):
+                axes[iv + k] = ("linear", R_world[:, k])
+                axes[iv + 3 + k] = ("angular", R_world[:, k])
+        elif kind == "JointModelSpherical":
+            R_local = quat_xyzw_to_matrix(q[iq:iq + 4])
+            p_local = ca.SX.zeros(3)
+            R_world = R_parent @ R_local
+            for k in range(3):
+                axes[iv + k] = ("angular", R_world[:, k])
+        elif kind in ("JointModelRX", "JointModelRY", "JointModelRZ",
+                      "JointModelRevoluteUnaligned"):
+            axis = (np.eye(3)[int(kind[-1] == "Y") + 2 * int(kind[-1] == "Z")]
+                    if kind != "JointModelRevoluteUnaligned"
+                    else np.asarray(joint.extract().axis))
+            R_local = rotation_about(axis, q[iq])
+            p_local = ca.SX.zeros(3)
+            R_world = R_parent @ R_local
+            axes[iv] = ("angular", R_world @ ca.DM(axis))
+        else:
+            raise NotImplementedError(f"joint type {kind} is not compiled")
+        rotations.append(R_world)
+        translations.append(p_parent + R_parent @ p_local)
+    return rotations, translations, axes
+
+
+def jacobian(model: pin.Model, fid: int, axes: dict, translations: list,
+              point: ca.SX | None) -> ca.SX:
+    """Geometric Jacobian (6, nv) of a frame in the world frame.
+
+    Linear rows (of ``point``) first, then angular rows; only the columns of the frame's
+    supporting joints are filled.
+    """
+    J = ca.SX(6, model.nv)
+    joint = model.frames[fid].parentJoint
+    for j in model.supports[joint]:
+        if j == 0:
+            continue
+        origin = translations[j]
+        for iv in range(model.idx_vs[j], model.idx_vs[j] + model.nvs[j]):
+            kind, axis = axes[iv]
+            if kind == "linear":
+                J[0:3, iv] = axis
+            else:
+                J[3:6, iv] = axis
+                if point is not None:
+                    J[0:3, iv] = ca.cross(axis, point - origin)
+    return J
+
+
+def frame_pose(model: pin.Model, fid: int, rotations: list, translations: list,
+               placements: dict) -> tuple:
+    """World rotation and origin of frame ``fid`` from the joint frames of :func:`forward`."""
+    j = model.frames[fid].parentJoint
+    R_M, p_M = placements[("frame", fid)]
+    return rotations[j] @ R_M, translations[j] + rotations[j] @ p_M

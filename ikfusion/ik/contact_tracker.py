@@ -1,0 +1,204 @@
+"""Contact orchestration from frame to frame: which points are planted, and what follows.
+
+Before a frame is solved, planted points that the frame's sensed pose lifts let go
+(:func:`.contacts.release_contacts`, with the feet's stance from their IMUs), a planted heel
+whose foot rolls toe-down may rise, the legs that let go ease back to their sensors
+(:mod:`.release`) and the body is carried by its support (:mod:`.support`). After it is solved,
+points that reached the floor are planted (:func:`.contacts.touch_down`).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+
+import numpy as np
+
+from ..model.human_model import HumanModel
+from ..model.topology import BodyTopology
+from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
+from .frame import Frame
+from .release import ReleaseEasing
+from .settings import SolverSettings
+from .support import SupportFollower
+from .tasks import PositionTask, Task
+
+
+class ContactTracker:
+    """The contact state of a solve and what depends on it (see the module docstring).
+
+    Args:
+        model: The human model.
+        topology: Its :class:`BodyTopology` (feet and legs of the contact points).
+        names: Contact point names (none: no contacts).
+        settings: Thresholds, speeds and weights.
+    """
+
+    def __init__(self, model: HumanModel, topology: BodyTopology, names: Sequence[str],
+                 settings: SolverSettings) -> None:
+        s = settings
+        self.model = model
+        self.names = list(names)
+        self.layout = topology.foot_layout(self.names)
+        self.thresholds = ContactThresholds.from_settings(s)
+        self.settings = s
+        segments = model.segment_names
+        self._foot_names = [topology.foot_of(n) for n in self.names]
+        self._feet = np.array([segments.index(f) if f is not None else -1
+                               for f in self._foot_names], dtype=int)
+        self.support = SupportFollower(self.layout, s.lag_speed, s.lag_max, s.swing_speed,
+                                       s.lean_max, s.lean_speed, s.touchdown_confirm)
+        legs = [np.array([segments.index(g) for g in topology.chain(f)] if f else [], dtype=int)
+                for f in self._foot_names]
+        self.easing = ReleaseEasing(legs, len(segments), np.radians(s.ease_speed_deg))
+        self.reset()
+
+    def reset(self) -> None:
+        """No point planted, no history."""
+        self.state = ContactState.empty(self.names)
+        self._history: deque[tuple[float, np.ndarray]] = deque(
+            maxlen=max(2, self.settings.speed_window + 1))
+        self._p_sensed = np.zeros((len(self.names), 3))
+        self._pitch = np.zeros(len(self.names))
+        self.support.reset()
+        self.easing.reset()
+
+    # ------------------------------------------------------------------ world moves
+    def move(self, kind: str, delta: np.ndarray) -> None:
+        """Move the anchors by ``delta`` (3,) [m]: ``"planted"`` ones, or ``"all"`` with history."""
+        if kind == "planted":
+            anchors = self.state.anchors.copy()
+            anchors[self.state.active] += delta
+            self.state = replace(self.state, anchors=anchors)
+            return
+        self.state = replace(self.state, anchors=self.state.anchors + delta)
+        self._history = deque(((t, p + delta) for t, p in self._history),
+                              maxlen=self._history.maxlen)
+
+    # ------------------------------------------------------------------ per frame
+    def foot_pitch(self, q: np.ndarray, R_world_sensed: np.ndarray,
+                   tracked: np.ndarray) -> np.ndarray:
+        """Pitch [rad] (toe down positive) of the foot of each contact point.
+
+        From the foot's sensed target when tracked, else from ``q``; NaN without a foot.
+        """
+        forward = np.full((len(self._feet), 3), np.nan)
+        for i, k in enumerate(self._feet):
+            if k < 0:
+                continue
+            R = (R_world_sensed[k] if tracked[k]
+                 else self.model.segment_rotation(q, self.model.segment_names[k]))
+            forward[i] = R[:, 0]
+        return np.arctan2(-forward[:, 2], np.hypot(forward[:, 0], forward[:, 1]))
+
+    def start(self, p_sensed: np.ndarray, pitch: np.ndarray) -> None:
+        """The first frame's sensed contact points (c, 3) [m] and foot pitches (c,) [rad]."""
+        self._p_sensed, self._pitch = p_sensed, pitch
+
+    def release(self, frame: Frame, p_sensed: np.ndarray,
+                pitch: np.ndarray) -> np.ndarray | None:
+        """Let go of the points this frame's sensed pose lifts; plant those of still feet.
+
+        Args:
+            frame: The frame (contact hints, feet stance).
+            p_sensed: (c, 3) contact points of its sensed pose [m] (any translation).
+            pitch: (c,) foot pitch of each point [rad] (:meth:`foot_pitch`).
+
+        Returns:
+            (c,) planted heels that may rise (held against slipping only), None without
+            contact points.
+        """
+        if not self.names:
+            return None
+        a = self.settings.detection_smoothing  # sensor noise is white: smooth the evidence
+        self._p_sensed = a * self._p_sensed + (1.0 - a) * p_sensed
+        self._pitch = a * self._pitch + (1.0 - a) * pitch
+        still = self._feet_still(frame)
+        self.state = release_contacts(self.state, self._p_sensed, self.thresholds,
+                                      frame.contacts, self._pitch, still,
+                                      self._history[-1][1],
+                                      self.support.placed_offsets(self.state.active),
+                                      layout=self.layout)
+        # a planted heel whose foot already rolls toe-down may rise (it still cannot slip),
+        # unless its IMU says the foot stands still
+        rising = self.layout.on_foot & (pitch > np.radians(self.settings.heel_rise_deg))
+        if still is not None:
+            rising &= still != 1.0
+        return np.asarray(rising)
+
+    def ease(self, held: np.ndarray, bend: Callable[[np.ndarray], np.ndarray],
+             R_world_sensed: np.ndarray, dt: float) -> np.ndarray | None:
+        """Legs of points ``held`` in the last solve and not now ease back to their sensors.
+
+        Args:
+            held: (c,) points held by the contact constraint in the last solve.
+            bend: See :meth:`ReleaseEasing.release`.
+            R_world_sensed: (n, 3, 3) this frame's sensed orientation targets.
+            dt: Time since the last frame [s].
+
+        Returns:
+            The eased orientation targets (n, 3, 3), None when no leg eases.
+        """
+        if self.names:
+            self.easing.release(held & ~self.state.active, bend)
+        return self.easing.apply(R_world_sensed, dt)
+
+    def follow(self, p_sensed: np.ndarray, dt: float) -> np.ndarray | None:
+        """The support offset (3,) [m] putting the sensed pose on its anchors; None in flight."""
+        if self.state.active.any():
+            return self.support.follow(self.state.active, self.state.anchors, p_sensed, dt)
+        self.support.lose_support()
+        return None
+
+    def support_tasks(self, q: np.ndarray, p_warm: np.ndarray, root: PositionTask,
+                      swing: PositionTask) -> list[Task]:
+        """The pelvis at its warm start plus the lag; swing feet led to their offsets.
+
+        Args:
+            q: The warm start (sensed pose on the support).
+            p_warm: (c, 3) its contact points [m].
+            root: The pelvis position task (its targets are set here).
+            swing: The swing-feet position task (its targets are set here).
+        """
+        s, support = self.settings, self.support
+        tasks: list[Task] = []
+        share = support.placed_share
+        weight = (1.0 - share) * s.continuity + share * s.continuity_placed
+        target = support.pelvis_target(q[:3])
+        if weight > 0 and (support.lag.any() or support.lean.any()):
+            root.set_targets(target[None], [weight])
+            tasks.append(root)
+        targets, weights = support.swing_targets(p_warm + support.lag + support.lean)
+        if weights.any():
+            swing.set_targets(targets, weights)
+            tasks.append(swing)
+        return tasks
+
+    def touch_down(self, frame: Frame, p_contacts: np.ndarray, p_root: np.ndarray) -> None:
+        """After solving: plant the points that reached the floor.
+
+        Args:
+            frame: The frame (contact hints).
+            p_contacts: (c, 3) solved contact points [m].
+            p_root: (3,) solved pelvis position [m].
+        """
+        if not self.names:
+            return
+        self._history.append((frame.time, p_contacts))
+        self.support.record(p_contacts, p_root)
+        t_old, p_old = self._history[0]
+        self.state = touch_down(self.state, p_contacts, p_old, self._p_sensed,
+                                frame.time - t_old, self.thresholds, frame.contacts,
+                                self._pitch, layout=self.layout)
+
+    def _feet_still(self, frame: Frame) -> np.ndarray | None:
+        """1 where each point's foot stands still by its IMU, 0 moving, NaN unknown."""
+        if not frame.feet_still:
+            return None
+        out = np.full(len(self.names), np.nan)
+        for i, foot in enumerate(self._foot_names):
+            still = frame.feet_still.get(foot) if foot is not None else None
+            if still is not None:
+                out[i] = float(still)
+        return out

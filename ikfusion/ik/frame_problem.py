@@ -1,0 +1,176 @@
+"""One Gauss-Newton step of a frame as a value: its QP and the limit rows it left out.
+
+:class:`FrameTasks` holds the solver's tasks and limits, made once per model; each frame sets
+their targets. :func:`build_frame_problem` linearises them at a configuration into a
+:class:`FrameProblem`, with the compiled step function (:mod:`.compiled`) when there is one,
+else with the NumPy tasks (the same numbers, slower).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..model.human_model import HumanModel
+from .active_set import LimitRows
+from .compiled import CompiledKinematics, SensedPoseSpec, compiled_kinematics
+from .configuration import Configuration
+from .limits import ContactConstraint, FloorLimit, JointRangeLimit, VelocityLimit
+from .qp import QpProblem, assemble_qp, build_qp
+from .settings import SolverSettings
+from .tasks import DampingTask, OrientationTask, PositionTask, PostureTask, Task
+
+
+@dataclass
+class FrameProblem:
+    """The QP of one step and its limit rows (:func:`.active_set.solve_with_active_set`)."""
+
+    qp: QpProblem
+    rows: LimitRows
+
+
+@dataclass
+class CompiledStep:
+    """The compiled step function and the model geometry it is evaluated with."""
+
+    kinematics: CompiledKinematics
+    geometry: np.ndarray
+
+
+@dataclass
+class FrameTasks:
+    """The solver's tasks and limits; each frame sets their targets.
+
+    Attributes:
+        orientation: Segment orientations (IMU).
+        position: Site positions (UWB, markers).
+        posture: The prior on joints the sensors leave open.
+        damping: Smoothness toward the previous frame.
+        persistence: The bend of sensed joints kept (:class:`.sensed_pose.Persistence`).
+        root: The pelvis position (aiding, flight, support).
+        swing: Swing feet led by the correction.
+        contact: Planted points held at their anchors.
+        floor: Contact points above the floor.
+        joint_range: Ranges of motion.
+        velocity: Bounds on the step.
+        contact_rows: (k,) rows of the contact points among the position task's sites.
+    """
+
+    orientation: OrientationTask
+    position: PositionTask
+    posture: PostureTask
+    damping: DampingTask
+    persistence: DampingTask
+    root: PositionTask
+    swing: PositionTask
+    contact: ContactConstraint
+    floor: FloorLimit
+    joint_range: JointRangeLimit
+    velocity: VelocityLimit
+    contact_rows: np.ndarray
+
+    @classmethod
+    def create(cls, model: HumanModel, s: SolverSettings, contact_names: Sequence[str],
+               persistence: DampingTask) -> FrameTasks:
+        """The tasks and limits of ``model`` weighted by the settings ``s``."""
+        segments, sites = model.segment_names, model.site_names
+        nv = model.model.nv
+        contact_ids = [model.site_frame_id(n) for n in contact_names]
+        site_index = {n: i for i, n in enumerate(sites)}
+        return cls(
+            orientation=OrientationTask([model.segment_frame_id(n) for n in segments], segments,
+                                        s.orientation),
+            position=PositionTask([model.site_frame_id(n) for n in sites], sites, s.position),
+            posture=PostureTask.from_joints(model.ball_joints, s.posture_joints, s.posture,
+                                            s.posture_axes),
+            damping=DampingTask(tangent_vector(nv, s.smoothness_root_translation,
+                                               s.smoothness_root_rotation, s.smoothness_joints)),
+            persistence=persistence,
+            root=PositionTask([model.segment_frame_id(segments[0])], [segments[0]]),
+            swing=PositionTask(contact_ids, contact_names, s.swing),
+            contact=ContactConstraint(contact_ids, contact_names),
+            floor=FloorLimit(contact_ids, s.floor_z),
+            joint_range=JointRangeLimit(model.ball_joints, s.joint_range_margin_deg),
+            velocity=VelocityLimit(tangent_vector(nv, s.max_root_velocity,
+                                                  s.max_root_angular_velocity,
+                                                  s.max_joint_velocity)),
+            contact_rows=np.array([site_index[n] for n in contact_names], dtype=int))
+
+    def site_frames(self) -> list[int]:
+        """The frames of the compiled step's points: the sites, then the root."""
+        return list(self.position.frame_ids) + list(self.root.frame_ids)
+
+
+def tangent_vector(nv: int, root_linear: float, root_angular: float,
+                   joints: float) -> np.ndarray:
+    """A tangent-space vector (nv,): root translation, root rotation, then every joint."""
+    v = np.full(nv, joints, dtype=float)
+    v[:3], v[3:6] = root_linear, root_angular
+    return v
+
+
+def compiled_step(model: HumanModel, tasks: FrameTasks,
+                  sensed: SensedPoseSpec) -> CompiledStep | None:
+    """The compiled step of ``model``; None when the model is beyond the code generator.
+
+    None is not an error: the NumPy tasks give the same numbers, more slowly.
+    """
+    try:
+        kinematics = compiled_kinematics(model.model, tasks.orientation.frame_ids,
+                                         list(model.ball_joints.values()), tasks.site_frames(),
+                                         sensed)
+        return CompiledStep(kinematics, kinematics.geometry(model.model))
+    except NotImplementedError:
+        return None
+
+
+def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Task],
+                        row_weights: tuple[np.ndarray, np.ndarray],
+                        compiled: CompiledStep | None, levenberg_marquardt: float
+                        ) -> FrameProblem:
+    """The QP of one Gauss-Newton step at ``conf``.
+
+    Args:
+        conf: The configuration linearised at.
+        tasks: The solver's tasks and limits, targets set.
+        active: The tasks of this frame (the orientation, position, posture, damping and
+            persistence tasks, with the root or swing task when they are set).
+        row_weights: Per-row weights of the orientation and the posture task.
+        compiled: The compiled step, or None for the NumPy tasks.
+        levenberg_marquardt: Damping of the step [1/rad^2].
+    """
+    previous = tasks.velocity.q_previous  # also the damping task's reference
+    moved = None if previous is None else conf.difference(previous)
+    bounds = tasks.velocity.bounds(conf, moved)
+    nv = conf.model.nv
+    limits = tasks.joint_range
+    if compiled is None:
+        ranges = limits.linearise(limits.angles(conf.q), None, nv)
+        up, down = ranges.near(limits.margin)
+        floor = tasks.floor.inequality(conf)
+        qp = build_qp(conf, active, [ranges.inequality(up, down), floor],
+                      [tasks.contact.equality(conf)], None, levenberg_marquardt)
+        return FrameProblem(qp, LimitRows(ranges, up, down, floor, bounds))
+    H, c, _, angles, E_inv, p_sites, J_sites = compiled.kinematics(
+        conf.q, tasks.orientation.targets, compiled.geometry, *row_weights,
+        tasks.posture.R_reference)
+    H, c = H.copy(), c[:, 0].copy()
+    P = p_sites.reshape(-1, 3)
+    J = J_sites.reshape(-1, 3, nv)
+    tasks.position.add_rows(P[:-1], J[:-1], H, c)
+    if tasks.root in active:
+        tasks.root.add_rows(P[-1:], J[-1:], H, c)
+    same = tasks.damping.q_reference is previous
+    tasks.damping.add_objective(conf, H, c, moved if same else None)
+    tasks.persistence.add_objective(conf, H, c)
+    Pc, Jc = P[tasks.contact_rows], J[tasks.contact_rows]
+    if tasks.swing in active:
+        tasks.swing.add_rows(Pc, Jc, H, c)
+    ranges = limits.linearise(angles.reshape(-1, 3), E_inv.reshape(-1, 3, 3), nv)
+    up, down = ranges.near(limits.margin)
+    floor = tasks.floor.rows(Pc, Jc)
+    qp = assemble_qp(H, c, [ranges.inequality(up, down), floor],
+                     [tasks.contact.rows(Pc, Jc)], None, levenberg_marquardt)
+    return FrameProblem(qp, LimitRows(ranges, up, down, floor, bounds))

@@ -1,0 +1,103 @@
+"""Loading a frame's targets into the solver's tasks.
+
+Orientation targets (turned by the heading correction), assumed targets of open hinge parents
+(a thigh between a sensed pelvis and shank), site position targets, and the posture prior
+switched off on the joints between two sensed segments.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..model.human_model import HumanModel
+from .assumed import AssumedTargets
+from .frame import Frame
+from .frame_problem import FrameTasks
+from .sensed_pose import SensedPose
+from .settings import SolverSettings
+
+
+@dataclass(frozen=True)
+class FrameTargets:
+    """What a frame's targets say, as the solver's steps use it.
+
+    Attributes:
+        R_sensed: (n, 3, 3) the segments' orientation targets ``R_world_segment`` as sensed
+            (before any release easing).
+        tracked: (n,) segments with a target this frame.
+        sensed_joints: Tangent columns of the joints between two tracked segments.
+        row_weights: Per-row weights of the orientation task and the posture task.
+    """
+
+    R_sensed: np.ndarray
+    tracked: np.ndarray
+    sensed_joints: np.ndarray
+    row_weights: tuple[np.ndarray, np.ndarray]
+
+
+class TargetLoader:
+    """Sets the tasks' targets from frames (see the module docstring).
+
+    Args:
+        model: The human model.
+        tasks: The solver's tasks.
+        sensed: The sensed pose (which joints link which segments).
+        settings: The assumed-target weight and the hinge joints.
+    """
+
+    def __init__(self, model: HumanModel, tasks: FrameTasks, sensed: SensedPose,
+                 settings: SolverSettings) -> None:
+        self.model = model
+        self.tasks = tasks
+        self.sensed = sensed
+        self.assumed_weight = settings.assumed
+        segments = model.segment_names
+        self._segment_index = {n: i for i, n in enumerate(segments)}
+        self._site_index = {n: i for i, n in enumerate(model.site_names)}
+        self.assumed = AssumedTargets(segments, model.ball_joints, settings.hinge_joints)
+        self._posture_weights = tasks.posture.weights.copy()
+        self._identities = np.tile(np.eye(3), (len(segments), 1, 1))
+        self._positions_set = True  # the position task starts without targets: clear it once
+
+    def load(self, frame: Frame, R_heading: np.ndarray | None) -> FrameTargets:
+        """Set the tasks' targets from ``frame``, orientations turned by ``R_heading``."""
+        tasks = self.tasks
+        n = len(self._segment_index)
+        R = self._identities.copy()
+        w = np.zeros(n)
+        for name, R_target in frame.orientations.items():
+            i = self._segment_index.get(name)
+            if i is None:
+                self.model.segment_frame_id(name)  # raises NameNotFound with the valid names
+                continue
+            R[i] = R_target if R_heading is None else R_heading @ R_target
+            w[i] = frame.orientation_weights.get(name, 1.0)
+        if self.assumed_weight > 0:  # open hinge parents (a thigh between pelvis and shank)
+            for i, R_assumed in self.assumed.targets(R, w > 0):
+                R[i], w[i] = R_assumed, self.assumed_weight
+        tasks.orientation.set_targets(R, w)
+        tracked = tasks.orientation.weights > 0
+        if frame.positions or self._positions_set:
+            self._load_positions(frame)
+        self._positions_set = bool(frame.positions)
+        both = self.sensed.both_tracked(tracked)
+        tasks.posture.weights = np.where(both, 0.0, self._posture_weights)
+        return FrameTargets(tasks.orientation.targets, tracked,
+                            self.sensed.joint_v_cols[both].ravel(),
+                            (tasks.orientation.row_weights(), tasks.posture.row_weights()))
+
+    def _load_positions(self, frame: Frame) -> None:
+        """Load a frame's site position targets (sites without one get zero information)."""
+        m = len(self._site_index)
+        p = np.zeros((m, 3))
+        info = np.zeros((m, 3, 3))
+        for name, p_target in frame.positions.items():
+            if name not in self._site_index:
+                self.model.site_frame_id(name)
+            i = self._site_index[name]
+            p[i] = p_target
+            weight = np.asarray(frame.position_weights.get(name, 1.0), dtype=float)
+            info[i] = weight * np.eye(3) if weight.ndim == 0 else weight
+        self.tasks.position.set_targets(p, info)

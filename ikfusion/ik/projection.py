@@ -1,0 +1,90 @@
+"""Projection of a solved frame onto its contacts and the floor.
+
+The Gauss-Newton loop may stop while large steps (a target out of reach) still leave a
+second-order error on planted points; :func:`project_on_contacts` removes it, so planted feet
+never slide. :func:`place_on_floor` puts the first frame's body on the floor.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..errors import SolverError
+from .configuration import Configuration
+from .limits import ContactConstraint, FloorLimit, JointRangeLimit
+from .qp import QpSettings, build_qp, solve_qp
+
+
+def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: FloorLimit,
+                        ranges: JointRangeLimit, contact_frames: Sequence[int],
+                        tolerance: float, max_steps: int, backend: str,
+                        qp: QpSettings) -> bool:
+    """Remove the linearisation residual of the contacts from ``conf`` (in place).
+
+    A few minimum-norm steps on the contact rows (or, if those do not converge or leave a
+    point below the floor, QPs with only the constraints, the ranges, the floor and
+    ``1/2 |dq|^2``) bring every planted point within ``tolerance`` [m] of its anchor.
+
+    Args:
+        conf: The solved configuration; updated to the projected one.
+        contact: The contact constraint, anchors set.
+        floor: The floor limit.
+        ranges: The ranges of motion.
+        contact_frames: Frame index of each contact point.
+        tolerance: The constraint tolerance [m].
+        max_steps: At most this many steps of each kind.
+        backend: QP backend.
+        qp: QP settings.
+
+    Returns:
+        True when a step had to be relaxed (or no backend could solve one).
+    """
+    nv = conf.model.nv
+    q_start = conf.q.copy()
+    for _ in range(max_steps):  # the residual is second order: minimum-norm steps suffice
+        P = conf.positions(contact_frames)
+        slide = contact.slide_m(conf, P)
+        if not np.any(slide[np.isfinite(slide)] > tolerance):
+            if above_floor(P, floor.floor_z, tolerance):
+                return False
+            break
+        A, b = contact.equality(conf)
+        conf.update(conf.integrate(np.linalg.lstsq(A, b, rcond=None)[0]))
+    conf.update(q_start)
+    relaxed = False
+    for _ in range(max_steps):  # ... unless they fail: the QP with the limits
+        slide = contact.slide_m(conf)
+        if not np.any(slide[np.isfinite(slide)] > tolerance):
+            break
+        problem = build_qp(conf, [], [ranges.inequality(conf), floor.inequality(conf)],
+                           [contact.equality(conf)], None, 0.0)
+        problem.H = np.eye(nv)
+        try:
+            solution = solve_qp(problem, backend, qp)
+        except SolverError:
+            return True
+        relaxed = relaxed or solution.relaxed
+        conf.update(conf.integrate(solution.dq))
+    return relaxed
+
+
+def above_floor(p_contacts: np.ndarray, floor_z: float, tolerance: float) -> bool:
+    """No contact point (c, 3) [m] below the floor ``floor_z`` [m] by more than ``tolerance``."""
+    return bool(np.all(p_contacts[:, 2] >= floor_z - tolerance))
+
+
+def place_on_floor(conf: Configuration, q: np.ndarray, contact_frames: Sequence[int],
+                   floor_z: float) -> np.ndarray:
+    """``q`` lifted or lowered so that its lowest contact point is on the floor ``floor_z`` [m].
+
+    For the first frame, which has no anchors yet. ``conf`` is set to ``q`` (not moved).
+    """
+    conf.update(q)
+    if not contact_frames:
+        return q
+    z = conf.positions(contact_frames)[:, 2]
+    q = q.copy()
+    q[2] += floor_z - z.min()
+    return q

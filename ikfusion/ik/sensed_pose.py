@@ -1,0 +1,195 @@
+"""The sensed pose: what the sensors say before any constraint bends the body.
+
+Every joint between two tracked segments is set from their orientation targets, and the root
+from the root's target; joints with an unsensed side keep their angle from the given
+configuration. It is the warm start of each frame (one Gauss-Newton step is then usually
+enough), the evidence of contact release (a planted point cannot reveal lift-off by its own
+motion), and the reference of the *persistence* task: a joint that the contacts, limits or
+support tasks bent away from its sensors keeps that bend from frame to frame.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import pinocchio as pin
+
+from ..model.human_model import HumanModel
+from ..model.topology import BodyTopology
+from ..rotations import log_so3, matrix_to_quat_wxyz, wxyz_to_xyzw
+from .compiled import CompiledKinematics, SensedPoseSpec
+from .tasks import DampingTask
+
+
+class SensedPose:
+    """The sensed configuration and its contact points (see the module docstring).
+
+    Args:
+        model: The human model.
+        topology: Its :class:`BodyTopology` (which joints are toe joints).
+        segment_frames: Frame index of each segment, in :attr:`HumanModel.segment_names` order.
+        contact_frames: Frame index of each contact point.
+    """
+
+    def __init__(self, model: HumanModel, topology: BodyTopology, segment_frames: Sequence[int],
+                 contact_frames: Sequence[int]) -> None:
+        self.model = model
+        index = {n: i for i, n in enumerate(model.segment_names)}
+        joints = list(model.ball_joints.values())
+        self.joint_parent = np.array([index[j.spec.parent] for j in joints], dtype=int)
+        self.joint_child = np.array([index[j.spec.child] for j in joints], dtype=int)
+        self.joint_q_cols = np.array([j.idx_q for j in joints], dtype=int)[:, None] + np.arange(4)
+        self.joint_v_cols = np.array([j.idx_v for j in joints], dtype=int)[:, None] + np.arange(3)
+        # unsensed toes under a sensed foot: (joint, foot segment) and the flexion axis and range
+        self.toe_joints = [(k, index[j.spec.parent]) for k, j in enumerate(joints)
+                           if topology.is_toe_joint(j.spec.parent, j.spec.child)
+                           and j.spec.angles[0].name == "flex"]
+        self.toe_flexion = {}
+        for k, _ in self.toe_joints:
+            flex = joints[k].spec.angles[0]
+            axis = np.eye(3)["xyz".index(flex.axis)] * flex.sign
+            self.toe_flexion[k] = (axis, np.radians(flex.lower_deg), np.radians(flex.upper_deg))
+        self.segment_frames = list(segment_frames)
+        self.contact_frames = list(contact_frames)
+        self._data = model.model.createData()
+        self._compiled: tuple[CompiledKinematics, np.ndarray] | None = None  # and geometry
+
+    def spec(self) -> SensedPoseSpec:
+        """What :meth:`configuration` does, for the compiled sensed-pose function."""
+        model = self.model.model
+        root_joint = model.frames[self.segment_frames[0]].parentJoint
+        joints = list(self.model.ball_joints.values())
+        toes = []
+        for k, foot in self.toe_joints:
+            axis, lower, upper = self.toe_flexion[k]
+            x, y, z = (float(a) for a in axis)
+            toes.append((joints[k].joint_id, foot, int(self.joint_child[k]), (x, y, z),
+                         float(lower), float(upper)))
+        return SensedPoseSpec(
+            root=(root_joint, 0),
+            joints=tuple((j.joint_id, int(p), int(c)) for j, p, c in
+                         zip(joints, self.joint_parent, self.joint_child)),
+            toes=tuple(toes), points=tuple(self.contact_frames))
+
+    def use_compiled(self, kinematics: CompiledKinematics, geometry: np.ndarray) -> None:
+        """Evaluate :meth:`pose` with the compiled function of ``kinematics`` when it has one."""
+        if kinematics.sensed_function is not None:
+            self._compiled = (kinematics, geometry)
+
+    def both_tracked(self, tracked: np.ndarray) -> np.ndarray:
+        """(joints,) joints whose parent and child segments are both tracked."""
+        return np.asarray(tracked[self.joint_parent] & tracked[self.joint_child])
+
+    def pose(self, q: np.ndarray, R_world_target: np.ndarray,
+             tracked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The sensed configuration at ``q`` and its contact points (c, 3) [m].
+
+        The configuration keeps the toes of ``q`` (the posture prior decides them); the points
+        are those with level toes (see :meth:`configuration`).
+
+        Args:
+            q: The configuration whose unsensed joints are kept.
+            R_world_target: (n, 3, 3) the segments' sensed orientation targets.
+            tracked: (n,) which segments are tracked.
+        """
+        if self._compiled is not None:
+            kinematics, geometry = self._compiled
+            return kinematics.sensed_pose(q, R_world_target, geometry, tracked.astype(float))
+        return (self.configuration(q, R_world_target, tracked, level_toes=False),
+                self.contact_positions(self.configuration(q, R_world_target, tracked)))
+
+    def configuration(self, q: np.ndarray, R_world_target: np.ndarray, tracked: np.ndarray,
+                      level_toes: bool = True) -> np.ndarray:
+        """``q`` with the root and every joint between two tracked segments set from targets.
+
+        With ``level_toes``, unsensed toes under a sensed foot lie flat on heel-off.
+        """
+        qs = q.copy()
+        T = R_world_target
+        both = self.both_tracked(tracked)
+        if tracked[0]:
+            qs[3:7] = wxyz_to_xyzw(matrix_to_quat_wxyz(T[0]))
+        if both.any():
+            R = np.swapaxes(T[self.joint_parent[both]], 1, 2) @ T[self.joint_child[both]]
+            qs[self.joint_q_cols[both]] = wxyz_to_xyzw(matrix_to_quat_wxyz(R))
+        for joint, foot in self.toe_joints if level_toes else ():
+            if tracked[foot] and not tracked[self.joint_child[joint]]:
+                qs[self.joint_q_cols[joint]] = self._level_toe(T[foot], joint)
+        # q and -q are one rotation: keep the hemisphere of q, so that q stays continuous
+        blocks = np.vstack([np.arange(3, 7)[None], self.joint_q_cols])
+        flip = np.einsum("ij,ij->i", qs[blocks], q[blocks]) < 0.0
+        qs[blocks[flip]] *= -1.0
+        return qs
+
+    def _level_toe(self, R_world_foot: np.ndarray, joint: int) -> np.ndarray:
+        """Toe joint quaternion (x, y, z, w) keeping an unsensed toe level on heel-off.
+
+        While the foot pitches toe-down, the toes stay flat on the floor: the toe joint flexes
+        by the foot's pitch (within its range), about the joint's flexion axis.
+        """
+        forward = R_world_foot[:, 0]
+        pitch = np.arctan2(-forward[2], np.hypot(forward[0], forward[1]))
+        axis, lower, upper = self.toe_flexion[joint]
+        half = 0.5 * float(np.clip(max(pitch, 0.0), lower, upper))
+        return np.concatenate([np.sin(half) * axis, [np.cos(half)]])
+
+    def contact_positions(self, q: np.ndarray) -> np.ndarray:
+        """The contact points (c, 3) [m] at ``q``."""
+        data = self._data
+        pin.forwardKinematics(self.model.model, data, q)
+        return np.array([pin.updateFramePlacement(self.model.model, data, f).translation
+                         for f in self.contact_frames]).reshape(-1, 3)
+
+    def bend(self, q: np.ndarray, R_world_sensed: np.ndarray,
+             segments: np.ndarray) -> np.ndarray:
+        """How far ``q`` turns ``segments`` (m,) from their sensed orientations.
+
+        ``Log(R_world_sensed^T R_world_solved)`` (m, 3) [rad], in the segment frames.
+        """
+        data = self._data
+        pin.forwardKinematics(self.model.model, data, q)
+        ids = [self.segment_frames[i] for i in segments]
+        R_solved = np.array([pin.updateFramePlacement(self.model.model, data, f).rotation
+                             for f in ids]).reshape(-1, 3, 3)
+        return log_so3(np.swapaxes(R_world_sensed[segments], 1, 2) @ R_solved)
+
+
+class Persistence:
+    """Joints between two sensed segments stay bent as they were in the last frame.
+
+    Contacts, limits and the support tasks bend joints away from what the sensors say (the
+    sensed pose); a soft task keeps that bend (tangent [rad]) from frame to frame, so it changes
+    gradually when a constraint comes or goes. Joints with an unsensed side are left out: their
+    warm start is the last solved angle, and keeping a change of it would keep a velocity.
+
+    Args:
+        model: The Pinocchio model.
+        weight: The task's weight (0: off).
+    """
+
+    def __init__(self, model: pin.Model, weight: float) -> None:
+        self.model = model
+        self.weight = weight
+        self.task = DampingTask(np.zeros(model.nv))
+
+    def hold(self, q_warm: np.ndarray, sensed_joints: np.ndarray,
+             bent: np.ndarray | None) -> None:
+        """Keep the joints ``sensed_joints`` (tangent columns) bent by ``bent`` from ``q_warm``.
+
+        Args:
+            q_warm: The sensed pose this frame starts from.
+            sensed_joints: Tangent columns of the joints between two sensed segments.
+            bent: The last frame's bend (nv) [rad]; None: nothing kept (the first frame).
+        """
+        weights = np.zeros(self.model.nv)
+        weights[sensed_joints] = self.weight
+        self.task.weights = weights
+        self.task.set_reference(None if self.weight <= 0 or bent is None
+                                else pin.integrate(self.model, q_warm, bent))
+
+    def bend(self, q_warm: np.ndarray, q: np.ndarray, sensed_joints: np.ndarray) -> np.ndarray:
+        """``q ⊖ q_warm`` (nv) on the ``sensed_joints`` columns, zero elsewhere."""
+        bent = np.zeros(self.model.nv)
+        bent[sensed_joints] = pin.difference(self.model, q_warm, q)[sensed_joints]
+        return bent

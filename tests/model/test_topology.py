@@ -1,0 +1,47 @@
+"""Body topology from the model's tree and the sites' segments, never from names."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ikfusion.model import HumanModel
+from ikfusion.model.topology import BodyTopology
+
+
+def test_feet_legs_and_toe_joints_of_the_default_model() -> None:
+    model = HumanModel.default()
+    topology = BodyTopology.of(model)
+    points = model.sites_of_kind("contact")
+    assert {p: topology.foot_of(p) for p in points} == {
+        "LeftHeel": "LeftFoot", "LeftToe": "LeftFoot",
+        "RightHeel": "RightFoot", "RightToe": "RightFoot"}
+    assert topology.chain("LeftFoot") == ["LeftFoot", "LeftLowerLeg", "LeftUpperLeg"]
+    assert topology.foot_of("HeadTop") is None and topology.foot_of("LeftFootTop") == "LeftFoot"
+    toes = [j.name for j in model.ball_joints.values()
+            if topology.is_toe_joint(j.spec.parent, j.spec.child)]
+    assert sorted(toes) == ["jLeftBallFoot", "jRightBallFoot"]
+    layout = topology.foot_layout(points)
+    assert layout.on_foot.tolist() == ["Heel" in p for p in points]
+    assert layout.below_foot.tolist() == ["Toe" in p for p in points]
+
+
+def test_the_topology_does_not_read_names() -> None:
+    """Segments and sites named in another language: the same feet, heels and legs."""
+    parent = {"tronc": "bassin", "cuisse_a": "bassin", "jambe_a": "cuisse_a",
+              "pied_a": "jambe_a", "orteils_a": "pied_a", "cuisse_b": "bassin",
+              "jambe_b": "cuisse_b", "pied_b": "jambe_b", "orteils_b": "pied_b"}
+    sites = {"talon_b": "pied_b", "bout_b": "orteils_b", "talon_a": "pied_a",
+             "bout_a": "orteils_a", "tete": "tronc"}
+    points = ("talon_b", "bout_b", "talon_a", "bout_a")
+    topology = BodyTopology(("bassin", *parent), parent, sites, points)
+    assert [topology.foot_of(p) for p in points] == ["pied_b", "pied_b", "pied_a", "pied_a"]
+    assert topology.foot_of("tete") is None
+    assert topology.chain("pied_a") == ["pied_a", "jambe_a", "cuisse_a"]
+    assert topology.is_toe_joint("pied_b", "orteils_b")
+    assert not topology.is_toe_joint("jambe_b", "pied_b")
+    layout = topology.foot_layout(points)
+    assert layout.on_foot.tolist() == [True, False, True, False]
+    np.testing.assert_array_equal(layout.same_foot, [[1, 1, 0, 0], [1, 1, 0, 0],
+                                                     [0, 0, 1, 1], [0, 0, 1, 1]])
+    np.testing.assert_array_equal(layout.feet, [[1, 1, 0, 0], [0, 0, 1, 1]])
+    assert topology.foot_layout([]).feet.shape == (0, 0)
