@@ -58,6 +58,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+#: Warning of a ``--correction`` given without UWB files.
+NO_UWB_CORRECTION = "--correction has no effect without UWB (--toa/--readers/--tags)"
+
+
 def parse_calibrate(text: str) -> tuple[tuple[float, float] | None, str]:
     """``--calibrate`` as (window [s] or None for automatic, pose ``npose``/``tpose``).
 
@@ -112,8 +116,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("give --map (only an MVNX file solves without one)", field="map")
     files = _uwb_files(args)
     if files is None and args.correction:
-        print("warning: --correction has no effect without UWB (--toa/--readers/--tags)",
-              file=sys.stderr)
+        print(f"warning: {NO_UWB_CORRECTION}", file=sys.stderr)
     window, pose = parse_calibrate(args.calibrate)
     actor = ActorInputs(None, Path(args.imu), Path(args.map) if args.map else None,
                         Path(args.body) if args.body else None, args.height, window, pose,
