@@ -33,10 +33,10 @@ import numpy as np
 from ikfusion.cli import main as cli
 from ikfusion.correction import DriftCorrection
 from ikfusion.evaluate import joint_angle_jump, phase_slides
+from ikfusion.mocap.model_motion import site_positions
 from ikfusion.model import HumanModel
 from ikfusion.paths import shipped_config
 from ikfusion.pipeline import solve_recording
-from ikfusion.sim.truth import site_positions
 from ikfusion.uwb_aiding import TrackedCapture, drift_correction, track_capture
 
 GAP_M = 1.0

@@ -45,11 +45,11 @@ import yaml
 
 from ikfusion.cli import main as ikfusion_main
 from ikfusion.evaluate import evaluate
+from ikfusion.mocap.model_motion import TruthMotion
 from ikfusion.paths import shipped_config
 from ikfusion.sim.area_fit import DEFAULT_MARGIN, place_in_area
 from ikfusion.sim.capture import truth_motion, write_capture
 from ikfusion.sim.imu import ImuNoise
-from ikfusion.sim.truth import TruthMotion
 from ikfusion.uwb.constellation import load_constellation
 from ikfusion.uwb.dop import capture_area
 

@@ -53,11 +53,11 @@ import numpy as np
 
 from ikfusion.cli import main as ikfusion_main
 from ikfusion.evaluate import Evaluation, evaluate
+from ikfusion.mocap.model_motion import TruthMotion, site_positions
 from ikfusion.paths import shipped_config
 from ikfusion.sim.capture import add_heading_drift, truth_motion, write_capture
 from ikfusion.sim.imu import ImuNoise
 from ikfusion.sim.session_capture import circling_pair, write_session_capture
-from ikfusion.sim.truth import TruthMotion, site_positions
 from ikfusion.sim.uwb_capture import Blockage, UwbCaptureOptions
 from ikfusion.uwb import load_constellation, make_constellation
 from ikfusion.uwb.constellation import Constellation

@@ -25,6 +25,7 @@ import numpy as np
 from .correction import DriftCorrection
 from .evaluate import Evaluation, evaluate
 from .ik import Motion
+from .mocap.model_motion import TruthMotion
 from .model import HumanModel
 from .output_folders import check_output_folder, prepare_output_folder
 from .paths import shipped_config
@@ -33,7 +34,6 @@ from .results import write_result_folder
 from .sim.capture import Capture, write_capture
 from .sim.gait import GaitParameters, generate_gait
 from .sim.imu import ImuNoise
-from .sim.truth import TruthMotion
 from .uwb.constellation import load_constellation
 from .uwb_aiding import TrackedCapture, TrackedTags, UwbAiding, track_capture, uwb_aiding
 

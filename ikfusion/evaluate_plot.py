@@ -22,7 +22,7 @@ import numpy as np
 
 from .errors import InputError
 from .evaluate import Evaluation, _floats, _interp, _long_table, _read_table, evaluate
-from .sim.truth import read_truth
+from .io.truth_npz import read_truth
 from .uwb.constellation import Constellation, load_constellation
 from .uwb.dop import capture_area
 

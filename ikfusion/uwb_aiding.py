@@ -29,10 +29,10 @@ from .io.recording import ImuRecording
 from .io.sensor_map import SensorMap, load_sensor_map
 from .model import Body
 from .model.human_model import HumanModel
-from .sim.uwb_capture import imu_units_from_recording
 from .uwb.constellation import load_constellation
 from .uwb.ekf import EkfOptions, UnitTrack
 from .uwb.health import TagFit, faulty_readers, reader_report, tag_fit
+from .uwb.imu_units import imu_units_from_recording
 from .uwb.toa_log import read_toa_csv
 from .uwb.tracking import TagInfo, load_tags, track_tags
 

@@ -16,6 +16,7 @@ import yaml
 
 from ..atomic import atomic_folder
 from ..errors import InputError
+from ..mocap.model_motion import TruthMotion, moved_configurations
 from ..model import Body, HumanModel
 from ..output_folders import folder_name_problem
 from ..rotations import axis_rotation
@@ -25,7 +26,6 @@ from ..uwb.tracking import TagInfo, save_tags
 from .capture import write_capture
 from .gait import GaitParameters, generate_gait
 from .imu import ImuNoise
-from .truth import TruthMotion, moved_configurations
 from .uwb_capture import UwbCaptureOptions, default_tags, simulate_uwb, smooth_truth
 
 
