@@ -7,9 +7,9 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from ..app.session import ActorInputs, load_session, solve_actor, solve_session
+from ..app.uwb_aiding import UwbInputs
 from ..errors import InputError
-from ..session import ActorInputs, load_session, solve_actor, solve_session
-from ..uwb_aiding import UwbInputs
 from . import add_force_option
 
 

@@ -21,8 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from ..app.evaluate import phase_slides
 from ..atomic import atomic_folder
-from ..evaluate import phase_slides
 from ..ik.configuration import Configuration
 from ..ik.limits import JointRangeLimit
 from ..ik.pose import Motion

@@ -3,7 +3,7 @@
 Each actor gets its own capture folder (``<name>/imu``, ``sensors.yaml``, ``body.yaml``,
 ``truth.npz``) as :func:`ikfusion.sim.capture.write_capture` writes it; their tags (head and both
 feet, ids ``<name>-T1..T3``) transmit into one TOA log on the shared timeline, and
-``session.yaml`` names it all for ``ikfusion solve --session`` (see :mod:`ikfusion.session`).
+``session.yaml`` names it all for ``ikfusion solve --session`` (see :mod:`ikfusion.app.session`).
 """
 
 from __future__ import annotations

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from ikfusion.app.evaluate import evaluate
 from ikfusion.cli import main
-from ikfusion.evaluate import evaluate
 from ikfusion.ik import Motion
 from ikfusion.mocap.model_motion import moved_configurations
 from ikfusion.model import HumanModel
@@ -23,7 +23,7 @@ pytest.importorskip("matplotlib", reason="plots need the plot extra (matplotlib)
 
 from matplotlib.image import imread  # noqa: E402
 
-from ikfusion.evaluate_plot import (  # noqa: E402
+from ikfusion.app.evaluate_plot import (  # noqa: E402
     draw_joint_angles,
     draw_trajectory,
     trajectory_view,

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from motions import frames_from
 
-from ikfusion.evaluate import phase_slides
+from ikfusion.app.evaluate import phase_slides
 from ikfusion.ik import Solver
 from ikfusion.mocap.model_motion import site_positions
 from ikfusion.model import HumanModel

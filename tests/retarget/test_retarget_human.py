@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from ikfusion.app.evaluate import phase_slides
 from ikfusion.cli import main
 from ikfusion.errors import InputError
-from ikfusion.evaluate import phase_slides
 from ikfusion.io.bvh import read_bvh
 from ikfusion.mocap.model_motion import site_positions
 from ikfusion.model import Body, HumanModel

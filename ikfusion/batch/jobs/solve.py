@@ -7,7 +7,7 @@ MVNX or an IMU CSV) solved with the ``--map`` of the batch command line. Options
 command line win over a capture folder's files (``--map`` over ``sensors.yaml``, ``--body`` or
 ``--height`` over ``body.yaml``); ``--no-uwb`` ignores the UWB files.
 
-Each input is solved in-process by :func:`ikfusion.session.solve_actor`, the function behind
+Each input is solved in-process by :func:`ikfusion.app.session.solve_actor`, the function behind
 ``ikfusion solve`` (same defaults, same result folder), so a batch output equals what
 ``ikfusion solve`` writes. The options are parsed once, when the inputs are expanded.
 """
@@ -20,10 +20,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ...app.session import ActorInputs, solve_actor
+from ...app.uwb_aiding import UwbInputs
 from ...errors import InputError
 from ...results.folder import RESULT_FILES
-from ...session import ActorInputs, solve_actor
-from ...uwb_aiding import UwbInputs
 from ..kinds import BatchInput, JobKind, JobOutput, Option, expand_paths, files_under
 
 #: The UWB files of a capture folder, as (solve option, file name).
@@ -73,7 +73,7 @@ class SolveJob:
     settings: SolveSettings
 
     def actor(self) -> ActorInputs:
-        """The actor :func:`ikfusion.session.solve_actor` solves."""
+        """The actor :func:`ikfusion.app.session.solve_actor` solves."""
         s, f = self.settings, self.files
         body = None if s.height is not None or f.body is None else Path(f.body)
         return ActorInputs(None, Path(f.imu), Path(f.map), body, s.height, s.window_s, s.pose,
