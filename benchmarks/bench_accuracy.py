@@ -15,10 +15,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from ikfusion.evaluate import evaluate
+from ikfusion.app.evaluate import evaluate
+from ikfusion.app.pipeline import solve_recording
 from ikfusion.io import load_sensor_map, read_mtmanager
 from ikfusion.model import Body, HumanModel
-from ikfusion.pipeline import solve_recording
 from ikfusion.results import write_result_folder
 from ikfusion.sim.capture import truth_motion, write_capture
 from ikfusion.sim.imu import ImuNoise

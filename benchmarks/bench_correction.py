@@ -13,7 +13,7 @@ with the same mode's solve without the gap [deg/frame] (it also counts contacts 
 frame earlier or later in one of the two), the time until the remaining gap is below 5 cm [s],
 and the pop (below) while it closes [deg/frame]; ``pop deg``: the largest error of a per-frame
 change of a body joint angle against the truth's change in the same frame [deg/frame]
-(``ikfusion.evaluate.joint_angle_jump``, toes left out), which angle and when.
+(``ikfusion.app.evaluate.joint_angle_jump``, toes left out), which angle and when.
 
 The whole table is printed twice: with the default sensor errors, whose orientation noise alone
 changes joint angles by up to about 1.5 deg from one frame to the next, and with perfect sensors,
@@ -30,14 +30,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ikfusion.app.correction import DriftCorrection
+from ikfusion.app.evaluate import joint_angle_jump, phase_slides
+from ikfusion.app.pipeline import solve_recording
+from ikfusion.app.uwb_aiding import TrackedCapture, drift_correction, track_capture
 from ikfusion.cli import main as cli
-from ikfusion.correction import DriftCorrection
-from ikfusion.evaluate import joint_angle_jump, phase_slides
+from ikfusion.mocap.model_motion import site_positions
 from ikfusion.model import HumanModel
 from ikfusion.paths import shipped_config
-from ikfusion.pipeline import solve_recording
-from ikfusion.sim.truth import site_positions
-from ikfusion.uwb_aiding import TrackedCapture, drift_correction, track_capture
 
 GAP_M = 1.0
 

@@ -23,11 +23,11 @@ import time
 
 import numpy as np
 
+from ikfusion.mocap.model_motion import site_positions
 from ikfusion.model import HumanModel
 from ikfusion.paths import shipped_config
 from ikfusion.sim.gait import GaitParameters, generate_gait
 from ikfusion.sim.imu import simulate_imus
-from ikfusion.sim.truth import site_positions
 from ikfusion.sim.uwb_capture import (
     Blockage,
     UwbCaptureOptions,

@@ -17,7 +17,7 @@ does it (17 IMUs with the default errors or perfect ones, UWB tags on the head a
   the recording;
 * ``no-slide-causal``: ``--correction no-slide --causal`` (tag tracks from the past only).
 
-Columns (``ikfusion.evaluate`` against the truth, whole capture): head (HeadTop) 3-D RMS [cm];
+Columns (``ikfusion.app.evaluate`` against the truth, whole capture): head (HeadTop) 3-D RMS [cm];
 slide of planted contact points per contact phase of the truth, mean and max [mm]; joint-angle
 RMS [deg]; the largest error of a frame-to-frame joint-angle change against the truth's
 [deg] (``joint_angle_jump_max_deg``, toes left out); frames solved per second of wall time
@@ -43,13 +43,13 @@ from pathlib import Path
 
 import yaml
 
+from ikfusion.app.evaluate import evaluate
 from ikfusion.cli import main as ikfusion_main
-from ikfusion.evaluate import evaluate
+from ikfusion.mocap.model_motion import TruthMotion
 from ikfusion.paths import shipped_config
 from ikfusion.sim.area_fit import DEFAULT_MARGIN, place_in_area
 from ikfusion.sim.capture import truth_motion, write_capture
 from ikfusion.sim.imu import ImuNoise
-from ikfusion.sim.truth import TruthMotion
 from ikfusion.uwb.constellation import load_constellation
 from ikfusion.uwb.dop import capture_area
 

@@ -5,7 +5,7 @@ sensor errors) is simulated once; then its MT Manager files lose rows as the Awi
 loses packets (gaps in the PacketCounter): 0, 2, 5, 10 and 20 % of the rows of every sensor at
 random, and, separately, the left foot sensor silent for 2 s (rows removed). Each variant is read,
 calibrated, its tags tracked, and solved IMU-only and with UWB (``no-slide`` correction); the
-result folders are compared with the truth by ``ikfusion.evaluate``.
+result folders are compared with the truth by ``ikfusion.app.evaluate``.
 
 Columns: joint-angle RMS against the truth [deg] (UWB solve), head 3-D RMS IMU-only (start
 aligned as ``evaluate`` does) [m] and with UWB [cm], foot slide per contact phase of the truth
@@ -25,13 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ikfusion.app.evaluate import evaluate
+from ikfusion.app.pipeline import solve_recording
+from ikfusion.app.uwb_aiding import drift_correction, track_capture
 from ikfusion.cli import main as cli
-from ikfusion.evaluate import evaluate
 from ikfusion.io.sensor_map import load_sensor_map
 from ikfusion.paths import shipped_config
-from ikfusion.pipeline import solve_recording
 from ikfusion.results import write_result_folder
-from ikfusion.uwb_aiding import drift_correction, track_capture
 
 LOSSES = (0.0, 0.02, 0.05, 0.10, 0.20)
 DROPOUT_S = 2.0

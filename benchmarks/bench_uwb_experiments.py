@@ -25,7 +25,7 @@ Each capture is solved five times with ``ikfusion solve``: IMU only (evaluated a
 default start alignment), with UWB ``--correction slide`` and ``no-slide``, each with the tag
 tracks smoothed over the recording (the default) and ``causal`` (evaluated as they are,
 in the readers' frame). Columns: head (HeadTop) 3-D RMS [cm], joint-angle RMS [deg], foot slide
-mean/max [mm] (``ikfusion.evaluate`` on the truth cut to the scored span), head RMS over every
+mean/max [mm] (``ikfusion.app.evaluate`` on the truth cut to the scored span), head RMS over every
 frame of the capture (``head all``), the correction's remaining horizontal gap mean/max [cm]
 (``summary.json``: ``uwb.gap_mean_m``, ``uwb.gap_max_m``, every frame), and the paper's head
 error. The scored span of (a) and (c) starts at ``--skip`` s. The IMU-only start alignment is
@@ -51,13 +51,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ikfusion.app.evaluate import Evaluation, evaluate
 from ikfusion.cli import main as ikfusion_main
-from ikfusion.evaluate import Evaluation, evaluate
+from ikfusion.mocap.model_motion import TruthMotion, site_positions
 from ikfusion.paths import shipped_config
 from ikfusion.sim.capture import add_heading_drift, truth_motion, write_capture
 from ikfusion.sim.imu import ImuNoise
 from ikfusion.sim.session_capture import circling_pair, write_session_capture
-from ikfusion.sim.truth import TruthMotion, site_positions
 from ikfusion.sim.uwb_capture import Blockage, UwbCaptureOptions
 from ikfusion.uwb import load_constellation, make_constellation
 from ikfusion.uwb.constellation import Constellation

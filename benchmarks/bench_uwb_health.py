@@ -15,6 +15,7 @@ import argparse
 import tempfile
 from pathlib import Path
 
+from ikfusion.app.uwb_aiding import track_capture
 from ikfusion.paths import shipped_config
 from ikfusion.sim.capture import truth_motion, write_capture
 from ikfusion.sim.imu import ImuNoise
@@ -26,7 +27,6 @@ from ikfusion.uwb.health import (
     reader_report,
     tag_fit,
 )
-from ikfusion.uwb_aiding import track_capture
 
 
 def main() -> None:

@@ -1,6 +1,6 @@
 """Settings dataclasses filled from shipped YAML files, with one source for every value.
 
-A settings class (:class:`ikfusion.ik.SolverSettings`, :class:`ikfusion.correction.
+A settings class (:class:`ikfusion.ik.SolverSettings`, :class:`ikfusion.app.correction.
 CorrectionSettings`, :class:`ikfusion.retarget.settings.RetargetSettings`) has no defaults of
 its own: its values come from a shipped file under ``configs/``, grouped in sections (one level
 of mappings, e.g. ``limits: {lag_speed: 0.3}``), then from user overlays holding the same

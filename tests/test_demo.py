@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ikfusion.app.evaluate import evaluate, phase_slides
 from ikfusion.cli import main
-from ikfusion.evaluate import evaluate, phase_slides
 
 
 def test_demo_writes_results_and_prints_the_table(tmp_path: Path, capsys) -> None:

@@ -11,14 +11,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ikfusion.evaluate import joint_angle_jump, phase_slides
+from ikfusion.app.evaluate import joint_angle_jump, phase_slides
+from ikfusion.app.pipeline import solve_recording
+from ikfusion.app.uwb_aiding import drift_correction, track_capture
+from ikfusion.mocap.model_motion import site_positions
 from ikfusion.paths import shipped_config
-from ikfusion.pipeline import solve_recording
 from ikfusion.sim.capture import truth_motion, write_capture
 from ikfusion.sim.imu import ImuNoise
-from ikfusion.sim.truth import site_positions
 from ikfusion.uwb.constellation import load_constellation
-from ikfusion.uwb_aiding import drift_correction, track_capture
 
 GAP_M = 1.0
 INJECT_S = 6.0

@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ikfusion.correction import CorrectionSettings
+from ikfusion.app.correction import CorrectionSettings
+from ikfusion.app.pipeline import solve_recording
+from ikfusion.app.uwb_aiding import drift_correction, track_capture
+from ikfusion.mocap.model_motion import site_positions
 from ikfusion.paths import shipped_config
-from ikfusion.pipeline import solve_recording
 from ikfusion.sim.capture import add_heading_drift, truth_motion, write_capture
 from ikfusion.sim.imu import ImuNoise
-from ikfusion.sim.truth import site_positions
 from ikfusion.uwb.constellation import load_constellation
-from ikfusion.uwb_aiding import drift_correction, track_capture
 
 DRIFT_DEG = 12.0  # turned into the sensors' headings between 6 s and 18 s
 

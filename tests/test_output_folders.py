@@ -16,9 +16,9 @@ from pathlib import Path
 import pytest
 import yaml
 
+from ikfusion.app.session import load_session
 from ikfusion.cli import main
 from ikfusion.errors import ConfigError, InputError
-from ikfusion.session import load_session
 
 MARKER_NAME = ".ikfusion.json"
 

@@ -14,12 +14,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from ikfusion.app.evaluate import joint_angle_jump
+from ikfusion.app.pipeline import solve_recording
 from ikfusion.cli import main as cli
-from ikfusion.evaluate import joint_angle_jump
 from ikfusion.io.reader import read_imu
 from ikfusion.io.sensor_map import load_sensor_map
 from ikfusion.model import Body, HumanModel
-from ikfusion.pipeline import solve_recording
 from ikfusion.sim.capture import Capture, truth_motion, write_capture
 from ikfusion.sim.imu import ImuNoise
 from ikfusion.sim.uwb_capture import smooth_truth

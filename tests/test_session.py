@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 import yaml
 
+from ikfusion.app.session import load_session
 from ikfusion.cli import main
 from ikfusion.errors import ConfigError
+from ikfusion.mocap.model_motion import TruthMotion, site_positions
 from ikfusion.paths import shipped_config
-from ikfusion.session import load_session
 from ikfusion.sim.imu import ImuNoise
 from ikfusion.sim.session_capture import circling_pair, write_session_capture
-from ikfusion.sim.truth import TruthMotion, site_positions
 from ikfusion.uwb.constellation import load_constellation
 from ikfusion.view import load_scene
 

@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 import yaml
 
-from ikfusion.correction import CorrectionSettings
+from ikfusion.app.correction import CorrectionSettings
 from ikfusion.errors import ConfigError
 from ikfusion.ik.qp import QpSettings
 from ikfusion.ik.settings import SolverSettings

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import yaml
 
+from ikfusion.app.evaluate import evaluate
 from ikfusion.cli import main
-from ikfusion.evaluate import evaluate
 
 ROOM = Path(__file__).resolve().parents[1] / "configs" / "constellations" / "room_6x8.yaml"
 

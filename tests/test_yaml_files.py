@@ -9,12 +9,12 @@ from typing import Any
 
 import pytest
 
+from ikfusion.app.session import load_session
 from ikfusion.cli import main
 from ikfusion.errors import ConfigError
 from ikfusion.ik.settings import SolverSettings
 from ikfusion.io import load_sensor_map
 from ikfusion.model.body import Body
-from ikfusion.session import load_session
 from ikfusion.uwb import load_constellation, load_heights, load_tags
 from ikfusion.yaml_files import read_yaml, read_yaml_document
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..demo import run_demo, table
+from ..app.demo import run_demo, table
 from . import add_force_option
 
 

@@ -6,7 +6,7 @@ import argparse
 import json
 import sys
 
-from ..evaluate import evaluate
+from ..app.evaluate import evaluate
 from ..uwb.constellation import load_constellation
 
 
@@ -39,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
     result = evaluate(args.result, args.truth, align=args.align)
     metrics = result.as_dict()
     if args.plot is not None:
-        from ..evaluate_plot import plot_evaluation
+        from ..app.evaluate_plot import plot_evaluation
 
         readers = load_constellation(args.readers) if args.readers else None
         for path in plot_evaluation(args.result, args.truth, args.plot or args.result,

@@ -7,9 +7,9 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from ..app.session import ActorInputs, load_session, solve_actor, solve_session
+from ..app.uwb_aiding import UwbInputs
 from ..errors import InputError
-from ..session import ActorInputs, load_session, solve_actor, solve_session
-from ..uwb_aiding import UwbInputs
 from . import add_force_option
 
 
@@ -56,6 +56,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_force_option(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
+
+
+#: Warning of a ``--correction`` given without UWB files.
+NO_UWB_CORRECTION = "--correction has no effect without UWB (--toa/--readers/--tags)"
 
 
 def parse_calibrate(text: str) -> tuple[tuple[float, float] | None, str]:
@@ -112,8 +116,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("give --map (only an MVNX file solves without one)", field="map")
     files = _uwb_files(args)
     if files is None and args.correction:
-        print("warning: --correction has no effect without UWB (--toa/--readers/--tags)",
-              file=sys.stderr)
+        print(f"warning: {NO_UWB_CORRECTION}", file=sys.stderr)
     window, pose = parse_calibrate(args.calibrate)
     actor = ActorInputs(None, Path(args.imu), Path(args.map) if args.map else None,
                         Path(args.body) if args.body else None, args.height, window, pose,

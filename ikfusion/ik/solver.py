@@ -262,7 +262,7 @@ class Solver:
             progress: Show a progress bar (tqdm).
             total: Number of frames, for the progress bar.
             after_step: Called as ``after_step(solver, pose, k, dt)`` after frame ``k`` (e.g.
-                :meth:`ikfusion.correction.DriftCorrection.after_frame`).
+                :meth:`ikfusion.app.correction.DriftCorrection.after_frame`).
 
         Returns:
             The :class:`Motion`.

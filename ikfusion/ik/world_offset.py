@@ -1,7 +1,7 @@
 """Where the drift correction has put the solved body in the world: the only thing it touches.
 
 Inertial tracking places the body by chaining contacts, and drifts. A drift correction
-(:mod:`ikfusion.correction`) moves it toward absolute positions in four ways, all through a
+(:mod:`ikfusion.app.correction`) moves it toward absolute positions in four ways, all through a
 :class:`WorldOffset`:
 
 * :meth:`~WorldOffset.translate`: the whole solved state moves (body, anchors, contact history),

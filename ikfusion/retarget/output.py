@@ -21,14 +21,14 @@ from typing import Any
 
 import numpy as np
 
+from ..app.evaluate import phase_slides
 from ..atomic import atomic_folder
-from ..evaluate import phase_slides
 from ..ik.configuration import Configuration
 from ..ik.limits import JointRangeLimit
 from ..ik.pose import Motion
+from ..mocap.model_motion import site_positions
 from ..results.bvh_export import write_motion_bvh
 from ..rotations import angle_between, wxyz_to_xyzw, xyzw_to_wxyz
-from ..sim.truth import site_positions
 from .capsules import CapsulePairs
 from .robot import RobotTrajectory
 from .source import HumanMotion

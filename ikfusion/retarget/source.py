@@ -160,8 +160,8 @@ def _standing_hip_height(segments: list[str], p_world_segment: np.ndarray) -> fl
 
 
 def _from_bvh(path: Path) -> HumanMotion:
-    from ..sim.mocap import motion_from_bvh
-    from ..sim.truth import segment_poses
+    from ..mocap.from_bvh import motion_from_bvh
+    from ..mocap.model_motion import segment_poses
 
     truth = motion_from_bvh(path)
     segments = list(truth.model.segment_names)
@@ -179,7 +179,7 @@ _MVN_CONTACTS = {"LeftFoot_Heel": "LeftHeel", "LeftFoot_Toe": "LeftToe",
 
 def _from_mvnx(path: Path) -> HumanMotion:
     from ..io.mvnx import read_mvnx
-    from ..sim.truth import contact_phases_from_points
+    from ..mocap.model_motion import contact_phases_from_points
 
     rec = read_mvnx(path)
     segments = list(rec.segments)

@@ -21,9 +21,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..mocap.model_motion import TruthMotion, moved_configurations
 from ..rotations import axis_rotation
 from ..uwb.geometry import polygon_contains
-from .truth import TruthMotion, moved_configurations
 
 #: Default clearance between the ground track and the area border [m] (a body's half width
 #: and a step's reach beyond the pelvis).

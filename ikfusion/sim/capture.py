@@ -12,19 +12,21 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import yaml
 
 from ..atomic import atomic_folder
 from ..errors import InputError
 from ..io.mtmanager import read_mtmanager
 from ..io.mtmanager_writer import write_mtmanager
+from ..mocap.from_bvh import motion_from_bvh
+from ..mocap.model_motion import TruthMotion, contact_phases
 from ..model import SENSOR_SEGMENTS
 from ..rotations import axis_rotation
 from ..uwb.constellation import Constellation
 from .gait import gait_preset, generate_gait
 from .imu import ImuNoise, simulate_imus
-from .mocap import lead_in, motion_from_bvh
-from .truth import TruthMotion, write_truth
+from .truth import write_truth
 from .uwb_capture import UwbCaptureOptions, simulate_uwb, smooth_truth, write_uwb_files
 
 #: Trial prefix of simulated MT Manager files.
@@ -138,3 +140,32 @@ def add_heading_drift(imu_folder: str | Path, start: float, end: float,
         gyr = stream.gyr + rate[:, None] * R[:, 2, :]  # R^T e_z is the third row of R
         write_mtmanager(imu_folder, PREFIX, sensor_id, stream.packet_counter, R, recording.rate,
                         acc=stream.acc, gyr=gyr)
+
+
+def lead_in(truth: TruthMotion, npose_seconds: float = 2.0,
+            transition_seconds: float = 1.0) -> TruthMotion:
+    """Prepend a still N-pose and a smooth transition into the first frame.
+
+    A real session starts so; the N-pose faces the first frame's heading at its place on the
+    floor.
+    """
+    model = truth.model
+    rate = truth.rate
+    first = truth.q[0]
+    R0 = model.segment_rotation(first, model.segment_names[0])
+    yaw = float(np.arctan2(R0[1, 0], R0[0, 0]))
+    q_npose = model.neutral()
+    q_npose[:2] = first[:2]
+    q_npose[3:7] = pin.Quaternion(pin.utils.rotate("z", yaw)).coeffs()
+    n_still = int(round(npose_seconds * rate))
+    n_move = int(round(transition_seconds * rate))
+    blend = 0.5 - 0.5 * np.cos(np.pi * np.arange(1, n_move + 1) / (n_move + 1))
+    moving = [pin.interpolate(model.model, q_npose, first, float(a)) for a in blend]
+    q = np.vstack([np.repeat(q_npose[None], n_still, axis=0), np.array(moving).reshape(
+        -1, len(first)), truth.q])
+    time = np.arange(len(q)) / rate
+    contacts = contact_phases(model, q, time, truth.contact_names)
+    contacts[:n_still] = True
+    contacts[n_still + n_move:] = truth.contacts
+    return TruthMotion(model, time, q, truth.contact_names, contacts, truth.source,
+                       {**truth.info, "lead_in_s": npose_seconds + transition_seconds})

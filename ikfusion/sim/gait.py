@@ -29,9 +29,9 @@ from tqdm import tqdm
 
 from ..ik.frame import Frame
 from ..ik.solver import Solver
+from ..mocap.model_motion import TruthMotion
 from ..model.human_model import HumanModel
 from ..rotations import axis_rotation
-from .truth import TruthMotion
 
 _CONTACTS = ("LeftHeel", "LeftToe", "RightHeel", "RightToe")
 #: Segments whose orientation the plan dictates (legs follow from the feet positions).

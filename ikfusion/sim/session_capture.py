@@ -3,7 +3,7 @@
 Each actor gets its own capture folder (``<name>/imu``, ``sensors.yaml``, ``body.yaml``,
 ``truth.npz``) as :func:`ikfusion.sim.capture.write_capture` writes it; their tags (head and both
 feet, ids ``<name>-T1..T3``) transmit into one TOA log on the shared timeline, and
-``session.yaml`` names it all for ``ikfusion solve --session`` (see :mod:`ikfusion.session`).
+``session.yaml`` names it all for ``ikfusion solve --session`` (see :mod:`ikfusion.app.session`).
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ import yaml
 
 from ..atomic import atomic_folder
 from ..errors import InputError
+from ..mocap.model_motion import TruthMotion, moved_configurations
 from ..model import Body, HumanModel
 from ..output_folders import folder_name_problem
 from ..rotations import axis_rotation
@@ -25,7 +26,6 @@ from ..uwb.tracking import TagInfo, save_tags
 from .capture import write_capture
 from .gait import GaitParameters, generate_gait
 from .imu import ImuNoise
-from .truth import TruthMotion, moved_configurations
 from .uwb_capture import UwbCaptureOptions, default_tags, simulate_uwb, smooth_truth
 
 

@@ -11,8 +11,8 @@ silence all of them.
 
 The IMU unit of a tag is the sensor of the segment that carries its site (Head, LeftFoot,
 RightFoot), with the lever arm from that sensor to the tag: :func:`imu_units_from_simulation`
-builds the input of :func:`ikfusion.uwb.tracking.track_tags` from simulated IMUs and
-:func:`imu_units_from_recording` from a real recording.
+builds the input of :func:`ikfusion.uwb.tracking.track_tags` from simulated IMUs
+(:func:`ikfusion.uwb.imu_units.imu_units_from_recording` does so from a real recording).
 """
 
 from __future__ import annotations
@@ -25,15 +25,14 @@ import numpy as np
 import pinocchio as pin
 
 from ..errors import InputError
-from ..io.recording import ImuRecording
-from ..model.human_model import HumanModel
+from ..mocap.model_motion import TruthMotion, site_positions
 from ..rotations import continuous_quaternions
 from ..uwb.constellation import Constellation, save_constellation
+from ..uwb.imu_units import FOOT_TAG_SITES, tag_segment
 from ..uwb.simulate import simulate_toa
 from ..uwb.toa_log import ToaLog, write_toa_csv
 from ..uwb.tracking import SPEED_OF_LIGHT, ImuUnit, TagInfo, save_tags
 from .imu import SimulatedImus
-from .truth import TruthMotion, site_positions
 
 
 @dataclass(frozen=True)
@@ -199,15 +198,6 @@ def write_uwb_files(folder: str | Path, sim: SimulatedUwb) -> dict[str, Path]:
             "tags": save_tags(sim.tags, out / "tags.yaml")}
 
 
-#: Tag sites on the feet (their units get zero-velocity updates in stance).
-FOOT_TAG_SITES = ("LeftFootTop", "RightFootTop")
-
-
-def tag_segment(model: HumanModel, site: str) -> str:
-    """Segment carrying a tag site (its sensor is the tag's IMU unit)."""
-    return model.site(site).segment
-
-
 def imu_units_from_simulation(truth: TruthMotion, imus: SimulatedImus,
                               tags: Mapping[str, TagInfo],
                               with_height: bool = True) -> dict[str, ImuUnit]:
@@ -241,56 +231,6 @@ def imu_units_from_simulation(truth: TruthMotion, imus: SimulatedImus,
             height = site_positions(model, truth.q, [tag.site])[:, 0, 2]
         out[tag_id] = ImuUnit(imus.time, imus.R_world_sensor[i], imus.acc[i], imus.gyr[i],
                               lever, height, foot=tag.site in FOOT_TAG_SITES)
-    return out
-
-
-def imu_units_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str],
-                             tags: Mapping[str, TagInfo], model: HumanModel,
-                             R_segment_sensor: Mapping[str, np.ndarray] | None = None,
-                             heights: Mapping[str, np.ndarray] | None = None,
-                             ) -> dict[str, ImuUnit]:
-    """The IMU units of the tags from a real recording and its sensor map.
-
-    The lever arm comes from the model in its neutral pose (segment frames parallel to the
-    world) and the sensor-to-segment calibration ``R_segment_sensor``; without a calibration
-    for a segment the sensor is taken as aligned with it.
-
-    Args:
-        recording: The IMU recording (orientation, acc and gyr of each sensor).
-        sensor_map: Sensor id -> segment.
-        tags: The tags.
-        model: The subject's model (site positions).
-        R_segment_sensor: Segment -> mounting rotation (3, 3), e.g. from ``solve``'s
-            calibration.
-        heights: Tag id -> tag height per sample (N,) [m] for the height aid.
-
-    Raises:
-        InputError: A tag whose segment has no sensor, or a sensor without acc/gyr.
-    """
-    streams = recording.segment_streams(sensor_map)
-    data = model.model.createData()
-    pin.framesForwardKinematics(model.model, data, model.neutral())
-    out = {}
-    for tag_id, tag in tags.items():
-        segment = tag_segment(model, tag.site)
-        stream = streams.get(segment)
-        if stream is None:
-            raise InputError(f"tag {tag_id} on {tag.site} needs a sensor on {segment}; the map "
-                             f"covers {', '.join(sorted(streams))}", field="sensors")
-        if stream.acc is None or stream.gyr is None:
-            raise InputError(f"sensor {stream.sensor_id} ({segment}) has no Acc/Gyr columns; "
-                             "the UWB filter needs both", path=stream.path, field="Acc_X")
-        R_ws = data.oMf[model.segment_frame_id(segment)].rotation
-        mounting = np.eye(3) if R_segment_sensor is None else np.asarray(
-            R_segment_sensor.get(segment, np.eye(3)), dtype=float)
-        p_tag = data.oMf[model.site_frame_id(tag.site)].translation
-        p_sensor = data.oMf[model.site_frame_id(segment)].translation
-        lever = (R_ws @ mounting).T @ (p_tag - p_sensor)
-        acc = np.where(stream.valid[:, None], stream.acc, np.nan)
-        gyr = np.where(stream.valid[:, None], stream.gyr, np.nan)
-        out[tag_id] = ImuUnit(recording.time, stream.R_world_sensor, acc, gyr, lever,
-                              None if heights is None else heights.get(tag_id),
-                              foot=tag.site in FOOT_TAG_SITES)
     return out
 
 

@@ -25,9 +25,9 @@ import numpy as np
 
 from ..errors import InputError
 from ..io.bvh import BvhMotion, read_bvh
+from ..io.truth_npz import read_truth
+from ..mocap.skeleton_map import SEGMENT_PARENTS
 from ..model.layout import CONTACT_SITES, TAG_SITES
-from ..sim.skeleton_map import SEGMENT_PARENTS
-from ..sim.truth import read_truth
 from .robot import is_retarget_folder, load_retarget_actor
 from .scene import Actor, Readers, Scene
 
@@ -249,11 +249,11 @@ def load_truth_actor(path: str | Path, name: str = "truth", ghost: bool = True) 
 def load_bvh_actor(path: str | Path, motion: BvhMotion | None = None) -> Actor:
     """One actor from a BVH file: its joints as segments, End Sites as tips, Z up, metres.
 
-    The unit and up axis are found as for simulation (:mod:`ikfusion.sim.skeleton_map`).
+    The unit and up axis are found as for simulation (:mod:`ikfusion.mocap.skeleton_map`).
     ``motion`` is the file already read (bad samples bridged), if it was.
     """
+    from ..mocap.skeleton_map import build_skeleton_map
     from ..rotations import matrix_to_quat_wxyz
-    from ..sim.skeleton_map import build_skeleton_map
 
     motion = read_bvh(path) if motion is None else motion
     smap = build_skeleton_map(motion, level_feet=False)

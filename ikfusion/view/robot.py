@@ -108,8 +108,8 @@ def _robot_actor(data: dict[str, np.ndarray], robot: str, config_file: str | Non
 
 
 def _human_actor(data: dict[str, np.ndarray], height: float, name: str) -> Actor:
+    from ..mocap.model_motion import segment_poses, site_positions
     from ..model import Body, HumanModel
-    from ..sim.truth import segment_poses, site_positions
     from .load import MODEL_SEGMENT_TIPS, model_parents
 
     model = HumanModel.from_body(Body.from_height(height))

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ikfusion.evaluate import evaluate
+from ikfusion.app.evaluate import evaluate
 from ikfusion.io.bvh import read_bvh
 from ikfusion.sim.gait import GAIT_PRESETS
 

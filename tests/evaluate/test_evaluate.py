@@ -9,9 +9,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from ikfusion.app.evaluate import evaluate
 from ikfusion.cli import main
 from ikfusion.errors import InputError
-from ikfusion.evaluate import evaluate
 from ikfusion.ik import Motion
 from ikfusion.model import HumanModel
 from ikfusion.results import write_result_folder

@@ -8,21 +8,22 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from ikfusion.app.evaluate import evaluate
 from ikfusion.cli import main
-from ikfusion.evaluate import evaluate
 from ikfusion.ik import Motion
+from ikfusion.mocap.model_motion import moved_configurations
 from ikfusion.model import HumanModel
 from ikfusion.paths import configs_dir
 from ikfusion.results import write_result_folder
 from ikfusion.sim.gait import GaitParameters, generate_gait
-from ikfusion.sim.truth import moved_configurations, write_truth
+from ikfusion.sim.truth import write_truth
 from ikfusion.uwb import load_constellation
 
 pytest.importorskip("matplotlib", reason="plots need the plot extra (matplotlib)")
 
 from matplotlib.image import imread  # noqa: E402
 
-from ikfusion.evaluate_plot import (  # noqa: E402
+from ikfusion.app.evaluate_plot import (  # noqa: E402
     draw_joint_angles,
     draw_trajectory,
     trajectory_view,
@@ -55,7 +56,7 @@ def _capture(model, path: str, folder: Path, uwb_readers: Path | None = None):
 
 
 def _head_xy(truth) -> np.ndarray:
-    from ikfusion.sim.truth import site_positions
+    from ikfusion.mocap.model_motion import site_positions
 
     return site_positions(truth.model, truth.q, ["HeadTop"])[:, 0, :2]
 

@@ -140,7 +140,7 @@ def _renamed_capture(root: Path, cap: Path, sensor_map: Path, name: str) -> Path
 
 def repo_seeds(root: Path, capture: Capture) -> list[Seed]:
     """Seeds from the repository's configs and the simulated capture (always available)."""
-    from ikfusion.session import load_session
+    from ikfusion.app.session import load_session
     from ikfusion.uwb.calibration_files import load_heights
     from ikfusion.uwb.tracking import load_tags
 

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from motions import frames_from
 
-from ikfusion.evaluate import phase_slides
+from ikfusion.app.evaluate import phase_slides
 from ikfusion.ik import Solver
+from ikfusion.mocap.model_motion import site_positions
 from ikfusion.model import HumanModel
 from ikfusion.sim.gait import GaitParameters, generate_gait
-from ikfusion.sim.truth import site_positions
 
 
 def stride_path_length(q: np.ndarray, every: int) -> float:

@@ -9,15 +9,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from ikfusion.app.evaluate import phase_slides
 from ikfusion.cli import main
 from ikfusion.errors import InputError
-from ikfusion.evaluate import phase_slides
 from ikfusion.io.bvh import read_bvh
+from ikfusion.mocap.model_motion import site_positions
 from ikfusion.model import Body, HumanModel
 from ikfusion.retarget import load_source, retarget
 from ikfusion.retarget.human import source_joint_angles
 from ikfusion.rotations import quat_wxyz_to_matrix
-from ikfusion.sim.truth import site_positions
 
 
 @pytest.fixture(scope="module")

@@ -13,9 +13,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from ikfusion.app.evaluate import phase_slides
 from ikfusion.cli import main
 from ikfusion.errors import ConfigError
-from ikfusion.evaluate import phase_slides
 from ikfusion.ik.configuration import Configuration
 from ikfusion.paths import robots_dir
 from ikfusion.retarget import load_source, retarget

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from ikfusion.cli import main
+from ikfusion.mocap.model_motion import TruthMotion, site_positions
 from ikfusion.model import HumanModel
 from ikfusion.sim.gait import GAIT_PRESETS, gait_preset, generate_gait
-from ikfusion.sim.truth import TruthMotion, site_positions
 
 RATE = 30.0  # [Hz] enough to see the motion, quick to generate
 

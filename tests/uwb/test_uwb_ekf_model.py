@@ -187,10 +187,11 @@ def test_synthetic_unit_tracks_with_missing_samples_and_readers(rng: np.random.G
 
 def test_imu_units_from_recording_match_simulation() -> None:
     from ikfusion.io.recording import ImuRecording, SensorStream
+    from ikfusion.mocap.model_motion import TruthMotion
     from ikfusion.model import HumanModel
     from ikfusion.sim.imu import simulate_imus
-    from ikfusion.sim.truth import TruthMotion
-    from ikfusion.sim.uwb_capture import imu_units_from_recording, imu_units_from_simulation
+    from ikfusion.sim.uwb_capture import imu_units_from_simulation
+    from ikfusion.uwb.imu_units import imu_units_from_recording
 
     model = HumanModel.default()
     n = 20

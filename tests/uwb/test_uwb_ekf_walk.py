@@ -13,10 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from ikfusion.mocap.model_motion import TruthMotion, site_positions
 from ikfusion.model import HumanModel
 from ikfusion.sim.gait import GaitParameters, generate_gait
 from ikfusion.sim.imu import SimulatedImus, simulate_imus
-from ikfusion.sim.truth import TruthMotion, site_positions
 from ikfusion.sim.uwb_capture import (
     Blockage,
     SimulatedUwb,

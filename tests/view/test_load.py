@@ -10,10 +10,11 @@ import pytest
 from view_motion import FRAMES, RATE, stepping_motion
 
 from ikfusion.errors import InputError
+from ikfusion.mocap.model_motion import TruthMotion
 from ikfusion.model import HumanModel
 from ikfusion.results import write_result_folder
 from ikfusion.rotations import matrix_to_quat_wxyz
-from ikfusion.sim.truth import TruthMotion, write_truth
+from ikfusion.sim.truth import write_truth
 from ikfusion.view import load_scene
 from ikfusion.view.draw import bone_strips, floor_lines
 from ikfusion.view.load import MODEL_SEGMENT_PARENTS

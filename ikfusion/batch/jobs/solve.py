@@ -7,22 +7,21 @@ MVNX or an IMU CSV) solved with the ``--map`` of the batch command line. Options
 command line win over a capture folder's files (``--map`` over ``sensors.yaml``, ``--body`` or
 ``--height`` over ``body.yaml``); ``--no-uwb`` ignores the UWB files.
 
-Each input is solved in-process by the ``solve`` command's own code (same parser, same
-defaults, same result folder), so a batch output equals what ``ikfusion solve`` writes.
+Each input is solved in-process by :func:`ikfusion.app.session.solve_actor`, the function behind
+``ikfusion solve`` (same defaults, same result folder), so a batch output equals what
+``ikfusion solve`` writes. The options are parsed once, when the inputs are expanded.
 """
 
 from __future__ import annotations
 
-import argparse
-import contextlib
 import glob
-import io
-import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ...app.session import ActorInputs, solve_actor
+from ...app.uwb_aiding import UwbInputs
 from ...errors import InputError
 from ...results.folder import RESULT_FILES
 from ..kinds import BatchInput, JobKind, JobOutput, Option, expand_paths, files_under
@@ -34,7 +33,7 @@ UWB_FILES: tuple[tuple[str, str], ...] = (
 
 @dataclass(frozen=True)
 class SolveSource:
-    """The files one ``solve`` reads (absolute or as given; ``None`` when not used)."""
+    """The files one ``solve`` reads (absolute paths; ``None`` when not used)."""
 
     imu: str
     map: str
@@ -42,6 +41,50 @@ class SolveSource:
     toa: str | None = None
     readers: str | None = None
     tags: str | None = None
+
+
+@dataclass(frozen=True)
+class SolveSettings:
+    """The batch options that shape every solve, parsed once (see :func:`parse_options`).
+
+    Attributes:
+        height: Body height [m] (wins over a body file), or None.
+        window_s: Calibration window [s] (None: automatic); ``pose``: ``npose``/``tpose``.
+        forward: ``{segment: axis}`` overriding the heading found from the data, or None.
+        rate: Rate [Hz] for files without one, or None.
+        correction: How UWB corrects drift (None: the default of ``solve``).
+        bvh_up: Up axis of ``motion.bvh`` (``z`` or ``y``).
+    """
+
+    height: float | None = None
+    window_s: tuple[float, float] | None = None
+    pose: str = "npose"
+    forward: dict[str, str] | None = None
+    rate: float | None = None
+    correction: str | None = None
+    bvh_up: str = "z"
+
+
+@dataclass(frozen=True)
+class SolveJob:
+    """One input's solve: its files and the batch's parsed settings (pickles to workers)."""
+
+    files: SolveSource
+    settings: SolveSettings
+
+    def actor(self) -> ActorInputs:
+        """The actor :func:`ikfusion.app.session.solve_actor` solves."""
+        s, f = self.settings, self.files
+        body = None if s.height is not None or f.body is None else Path(f.body)
+        return ActorInputs(None, Path(f.imu), Path(f.map), body, s.height, s.window_s, s.pose,
+                           s.forward, s.rate)
+
+    def uwb(self) -> UwbInputs | None:
+        """The UWB files, when the input has all three."""
+        f = self.files
+        if f.toa is None or f.readers is None or f.tags is None:
+            return None
+        return UwbInputs(Path(f.toa), Path(f.readers), Path(f.tags))
 
 
 def is_capture(path: Path) -> bool:
@@ -60,19 +103,30 @@ def _check_file(path: str | None, option: str) -> None:
         raise InputError(f"--{option} must be an existing file", path=path, field=option)
 
 
-def check_options(options: Mapping[str, Any]) -> None:
-    """Validate the options once for the whole batch (the same rules as ``ikfusion solve``)."""
+def parse_options(options: Mapping[str, Any]) -> SolveSettings:
+    """Validate and parse the options once for the whole batch (the rules of ``solve``).
+
+    Raises:
+        InputError: A missing ``--map``/``--body`` file, both ``--body`` and ``--height``, a
+            bad ``--calibrate`` or ``--forward``.
+    """
     from ...cli import solve as cli_solve
 
     _check_file(options.get("map"), "map")
     _check_file(options.get("body"), "body")
     if options.get("body") and options.get("height") is not None:
         raise InputError("give --body or --height, not both", field="body")
-    cli_solve.parse_calibrate(str(options.get("calibrate", "auto")))
-    cli_solve.parse_forward(options.get("forward"))
+    window, pose = cli_solve.parse_calibrate(str(options.get("calibrate") or "auto"))
+    height, rate = options.get("height"), options.get("rate")
+    return SolveSettings(
+        height=None if height is None else float(height), window_s=window, pose=pose,
+        forward=cli_solve.parse_forward(options.get("forward")),
+        rate=None if rate is None else float(rate), correction=options.get("correction"),
+        bvh_up=str(options.get("bvh_up") or "z"))
 
 
-def _capture_input(folder: Path, options: Mapping[str, Any]) -> BatchInput:
+def _capture_input(folder: Path, options: Mapping[str, Any],
+                   settings: SolveSettings) -> BatchInput:
     """A capture folder: its IMU files, sensor map and, when present, body and UWB files."""
     files = files_under(folder / "imu")
     sensor_map = options.get("map") or str(folder / "sensors.yaml")
@@ -87,7 +141,7 @@ def _capture_input(folder: Path, options: Mapping[str, Any]) -> BatchInput:
     files += [Path(p) for p in used if p is not None]
     source = SolveSource(imu=str(folder.resolve() / "imu"), map=str(_absolute(sensor_map)),
                          body=_absolute(body), **{k: _absolute(v) for k, v in uwb.items()})
-    return BatchInput(str(folder), folder.name, tuple(files), source)
+    return BatchInput(str(folder), folder.name, tuple(files), SolveJob(source, settings))
 
 
 def _recording_files(path: Path) -> list[Path]:
@@ -107,7 +161,8 @@ def _recording_stem(path: Path) -> str:
     return path.name.strip("_-. ") or path.parent.name
 
 
-def _recording_input(path: Path, options: Mapping[str, Any]) -> BatchInput:
+def _recording_input(path: Path, options: Mapping[str, Any],
+                     settings: SolveSettings) -> BatchInput:
     """An IMU recording solved with the batch's ``--map``."""
     files = _recording_files(path)
     if not files:
@@ -122,65 +177,30 @@ def _recording_input(path: Path, options: Mapping[str, Any]) -> BatchInput:
     files += [Path(p) for p in (sensor_map, body) if p is not None]
     source = SolveSource(imu=str(path.resolve()), map=str(_absolute(sensor_map)),
                          body=_absolute(body))
-    return BatchInput(str(path), _recording_stem(path), tuple(files), source)
+    return BatchInput(str(path), _recording_stem(path), tuple(files), SolveJob(source, settings))
 
 
 def expand(inputs: Sequence[str], options: Mapping[str, Any]) -> list[BatchInput]:
     """Expand INPUTS (files, folders, globs) into capture folders and IMU recordings."""
-    check_options(options)
-    return [_capture_input(p, options) if is_capture(p) else _recording_input(p, options)
-            for p in expand_paths(inputs)]
+    settings = parse_options(options)
+    return [_capture_input(p, options, settings) if is_capture(p)
+            else _recording_input(p, options, settings) for p in expand_paths(inputs)]
 
 
-def solve_argv(source: SolveSource, out_dir: Path, options: Mapping[str, Any]) -> list[str]:
-    """The ``ikfusion solve`` arguments that solve ``source`` into ``out_dir``."""
-    argv = ["solve", "--imu", source.imu, "--map", source.map]
-    if options.get("height") is not None:
-        argv += ["--height", repr(float(options["height"]))]
-    elif source.body is not None:
-        argv += ["--body", source.body]
-    for name in ("calibrate", "forward", "correction"):
-        if options.get(name) is not None:
-            argv += [f"--{name}", str(options[name])]
-    if options.get("rate") is not None:
-        argv += ["--rate", repr(float(options["rate"]))]
-    for name, _ in UWB_FILES:
-        value = getattr(source, name)
-        if value is not None:
-            argv += [f"--{name}", value]
-    argv += ["--bvh-up", str(options.get("bvh_up") or "z"), "--out", str(out_dir), "--quiet"]
-    return argv
-
-
-def _solve_args(argv: list[str]) -> argparse.Namespace:
-    """Parse ``argv`` with the ``solve`` command's own parser (its defaults included)."""
-    from ...cli import solve as cli_solve
-
-    parser = argparse.ArgumentParser(prog="ikfusion")
-    cli_solve.register(parser.add_subparsers(dest="command"))
-    errors = io.StringIO()
-    try:
-        with contextlib.redirect_stderr(errors):
-            return parser.parse_args(argv)
-    except SystemExit:
-        raise InputError(f"ikfusion solve rejected the options: {errors.getvalue().strip()}",
-                         field="options") from None
-
-
-def run(source: SolveSource, out_dir: Path, options: Mapping[str, Any]) -> JobOutput:
+def run(job: SolveJob, out_dir: Path, options: Mapping[str, Any]) -> JobOutput:
     """Solve one input into ``out_dir`` as ``ikfusion solve`` does; return frames and warnings.
 
-    What ``solve`` prints is captured (workers run one task per thread, see
-    :func:`ikfusion.batch.runner.dask_client`); its warnings come back in the output.
+    ``options`` were parsed into ``job.settings`` by :func:`expand`.
     """
-    args = _solve_args(solve_argv(source, out_dir, options))
-    errors = io.StringIO()
-    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(errors):
-        args.func(args)
-    summary = json.loads((out_dir / "summary.json").read_text())
-    warnings = tuple(line.removeprefix("warning: ") for line in errors.getvalue().splitlines()
-                     if line.startswith("warning: "))
-    return JobOutput(frames=int(summary.get("frames", 0)), warnings=warnings)
+    from ...cli.solve import NO_UWB_CORRECTION
+
+    uwb = job.uwb()
+    motion = solve_actor(job.actor(), out_dir, uwb, job.settings.correction,
+                         job.settings.bvh_up)
+    warnings = list(motion.warnings)
+    if uwb is None and job.settings.correction:
+        warnings.insert(0, NO_UWB_CORRECTION)
+    return JobOutput(frames=len(motion), warnings=tuple(warnings))
 
 
 KIND = JobKind(

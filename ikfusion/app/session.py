@@ -27,22 +27,22 @@ from typing import Any
 
 import numpy as np
 
-from .errors import ConfigError
-from .ik import Motion, Solver
-from .ik.assumed import segment_coverage
-from .imu.calibration import calibrate_recording
-from .imu.mvn_calibration import calibration_from_mvnx
-from .io.mvnx import MvnxRecording, read_mvnx
-from .io.reader import read_imu
-from .io.recording import check_sensor_ids
-from .io.sensor_map import load_sensor_map
-from .model import Body, HumanModel
-from .output_folders import check_output_folder, folder_name_problem, prepare_output_folder
+from ..errors import ConfigError
+from ..ik import Motion, Solver
+from ..ik.assumed import segment_coverage
+from ..imu.calibration import calibrate_recording
+from ..imu.mvn_calibration import calibration_from_mvnx
+from ..io.mvnx import MvnxRecording, read_mvnx
+from ..io.reader import read_imu
+from ..io.recording import check_sensor_ids
+from ..io.sensor_map import load_sensor_map
+from ..model import Body, HumanModel
+from ..output_folders import check_output_folder, folder_name_problem, prepare_output_folder
+from ..results import write_result_folder
+from ..results.mvn_comparison import compare_with_mvn
+from ..yaml_files import read_yaml
 from .pipeline import solve_recording
-from .results import write_result_folder
-from .results.mvn_comparison import compare_with_mvn
 from .uwb_aiding import UwbAiding, UwbInputs, track_recording_tags, uwb_aiding
-from .yaml_files import read_yaml
 
 
 @dataclass

@@ -2,7 +2,7 @@
 
 Each tag is tracked by the tightly coupled filter of its IMU unit
 (:func:`ikfusion.uwb.tracking.track_tags`, raw TOAs, NLOS gating); the tracked positions and
-covariances, on the IMU timeline, become the :class:`ikfusion.correction.DriftCorrection` of the
+covariances, on the IMU timeline, become the :class:`ikfusion.app.correction.DriftCorrection` of the
 solve. The TOA log's ``time`` column must be on the recording's timeline (seconds from its first
 sample); the IMU world frame and the constellation frame are taken to be the same (ENU).
 
@@ -21,20 +21,20 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import InputError
+from ..imu.calibration import Calibration, calibrate_recording
+from ..io.reader import read_imu
+from ..io.recording import ImuRecording
+from ..io.sensor_map import SensorMap, load_sensor_map
+from ..model import Body
+from ..model.human_model import HumanModel
+from ..uwb.constellation import load_constellation
+from ..uwb.ekf import EkfOptions, UnitTrack
+from ..uwb.health import TagFit, faulty_readers, reader_report, tag_fit
+from ..uwb.imu_units import imu_units_from_recording
+from ..uwb.toa_log import read_toa_csv
+from ..uwb.tracking import TagInfo, load_tags, track_tags
 from .correction import CorrectionSettings, DriftCorrection, SiteFixes
-from .errors import InputError
-from .imu.calibration import Calibration, calibrate_recording
-from .io.reader import read_imu
-from .io.recording import ImuRecording
-from .io.sensor_map import SensorMap, load_sensor_map
-from .model import Body
-from .model.human_model import HumanModel
-from .sim.uwb_capture import imu_units_from_recording
-from .uwb.constellation import load_constellation
-from .uwb.ekf import EkfOptions, UnitTrack
-from .uwb.health import TagFit, faulty_readers, reader_report, tag_fit
-from .uwb.toa_log import read_toa_csv
-from .uwb.tracking import TagInfo, load_tags, track_tags
 
 
 @dataclass

@@ -10,6 +10,14 @@ import pytest
 
 from ikfusion.errors import InputError
 from ikfusion.io.bvh import BvhSkeleton, read_bvh, write_bvh
+from ikfusion.mocap.skeleton_map import (
+    MODEL_SEGMENTS,
+    SEGMENT_PROXIMAL_JOINTS,
+    build_skeleton_map,
+    default_aliases,
+    map_motion,
+    normalize_joint_name,
+)
 from ikfusion.model.layout import HEEL_BEHIND_ANKLE
 from ikfusion.rotations import (
     angle_between,
@@ -18,14 +26,6 @@ from ikfusion.rotations import (
     matrix_to_quat_wxyz,
     quat_wxyz_to_matrix,
     slerp,
-)
-from ikfusion.sim.skeleton_map import (
-    MODEL_SEGMENTS,
-    SEGMENT_PROXIMAL_JOINTS,
-    build_skeleton_map,
-    default_aliases,
-    map_motion,
-    normalize_joint_name,
 )
 
 CLIPS = [

@@ -32,9 +32,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
-from .rotations import angle_between, continuous_quaternions, quat_wxyz_to_matrix
-from .sim.truth import read_truth
+from ..errors import InputError
+from ..io.truth_npz import read_truth
+from ..rotations import angle_between, continuous_quaternions, quat_wxyz_to_matrix
 
 
 @dataclass

@@ -674,7 +674,7 @@ def _require(found: _Found, motion: BvhMotion) -> None:
         raise InputError(
             f"cannot map this BVH skeleton onto the model: no joint found for "
             f"{', '.join(lacking)}. Joint names in the file: {', '.join(motion.joint_names)}. "
-            "Pass aliases= with these names (see ikfusion.sim.skeleton_map.default_aliases).",
+            "Pass aliases= with these names (see ikfusion.mocap.skeleton_map.default_aliases).",
             motion.path, field="HIERARCHY",
         )
 

@@ -32,12 +32,12 @@ from typing import Any
 
 import numpy as np
 
-from .ik.pose import Motion, Pose
-from .ik.solver import Solver
-from .ik.world_offset import WorldOffset
-from .paths import shipped_config
-from .settings_files import Overlay, load_settings
-from .yaml_files import read_yaml_document
+from ..ik.pose import Motion, Pose
+from ..ik.solver import Solver
+from ..ik.world_offset import WorldOffset
+from ..paths import shipped_config
+from ..settings_files import Overlay, load_settings
+from ..yaml_files import read_yaml_document
 
 #: Correction modes.
 MODES = ("off", "slide", "no-slide")

@@ -1,6 +1,6 @@
 """Plots of an evaluation: top-view trajectories (truth vs estimate) and joint angles.
 
-The plots show what :func:`ikfusion.evaluate.evaluate` scored: the estimate carries the same
+The plots show what :func:`ikfusion.app.evaluate.evaluate` scored: the estimate carries the same
 start shift as the metrics (none when the result was not aligned, e.g. UWB results in the
 readers' frame) and the legend says which. The top view draws the readers and the capture area
 when they are known (``summary.json``'s ``uwb.readers`` file, or ``readers=``), on equal axes
@@ -20,11 +20,11 @@ from typing import Any
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
+from ..io.truth_npz import read_truth
+from ..uwb.constellation import Constellation, load_constellation
+from ..uwb.dop import capture_area
 from .evaluate import Evaluation, _floats, _interp, _long_table, _read_table, evaluate
-from .sim.truth import read_truth
-from .uwb.constellation import Constellation, load_constellation
-from .uwb.dop import capture_area
 
 #: Flexion angles drawn per side, top to bottom.
 JOINT_FLEXIONS = ("Hip_flex", "Knee_flex", "Ankle_flex", "Shoulder_flex")

@@ -1,6 +1,6 @@
-"""Real motion capture as ground truth: a BVH clip solved into configurations of the model.
+"""A BVH clip solved into configurations of the model (real motion capture as a motion).
 
-The clip's skeleton is mapped onto the 23 segments (:mod:`ikfusion.sim.skeleton_map`), the
+The clip's skeleton is mapped onto the 23 segments (:mod:`ikfusion.mocap.skeleton_map`), the
 body is scaled to the skeleton's proportions, and every frame is solved with the whole-body
 solver from the mapped segment orientations and the pelvis position. Contact phases come from
 the resulting kinematics (points near the floor and nearly still), so a clip whose feet slide in
@@ -23,8 +23,8 @@ from ..io.bvh import read_bvh
 from ..model.body import Body
 from ..model.human_model import HumanModel
 from ..rotations import angle_between
+from .model_motion import TruthMotion, contact_phases, moved_configurations, site_positions
 from .skeleton_map import map_motion
-from .truth import TruthMotion, contact_phases, moved_configurations, site_positions
 
 
 def body_from_dims(dims: dict[str, float]) -> tuple[Body, list[str]]:
@@ -44,35 +44,6 @@ def body_from_dims(dims: dict[str, float]) -> tuple[Body, list[str]]:
                 raise
             dropped.append(err.field)
             kept.pop(err.field)
-
-
-def lead_in(truth: TruthMotion, npose_seconds: float = 2.0,
-            transition_seconds: float = 1.0) -> TruthMotion:
-    """Prepend a still N-pose and a smooth transition into the first frame.
-
-    A real session starts so; the N-pose faces the first frame's heading at its place on the
-    floor.
-    """
-    model = truth.model
-    rate = truth.rate
-    first = truth.q[0]
-    R0 = model.segment_rotation(first, model.segment_names[0])
-    yaw = float(np.arctan2(R0[1, 0], R0[0, 0]))
-    q_npose = model.neutral()
-    q_npose[:2] = first[:2]
-    q_npose[3:7] = pin.Quaternion(pin.utils.rotate("z", yaw)).coeffs()
-    n_still = int(round(npose_seconds * rate))
-    n_move = int(round(transition_seconds * rate))
-    blend = 0.5 - 0.5 * np.cos(np.pi * np.arange(1, n_move + 1) / (n_move + 1))
-    moving = [pin.interpolate(model.model, q_npose, first, float(a)) for a in blend]
-    q = np.vstack([np.repeat(q_npose[None], n_still, axis=0), np.array(moving).reshape(
-        -1, len(first)), truth.q])
-    time = np.arange(len(q)) / rate
-    contacts = contact_phases(model, q, time, truth.contact_names)
-    contacts[:n_still] = True
-    contacts[n_still + n_move:] = truth.contacts
-    return TruthMotion(model, time, q, truth.contact_names, contacts, truth.source,
-                       {**truth.info, "lead_in_s": npose_seconds + transition_seconds})
 
 
 #: Lowest contact points slower than this stand on the floor [m/s] ...

@@ -22,19 +22,19 @@ from typing import Any
 
 import numpy as np
 
+from ..ik import Motion
+from ..mocap.model_motion import TruthMotion
+from ..model import HumanModel
+from ..output_folders import check_output_folder, prepare_output_folder
+from ..paths import shipped_config
+from ..results import write_result_folder
+from ..sim.capture import Capture, write_capture
+from ..sim.gait import GaitParameters, generate_gait
+from ..sim.imu import ImuNoise
+from ..uwb.constellation import load_constellation
 from .correction import DriftCorrection
 from .evaluate import Evaluation, evaluate
-from .ik import Motion
-from .model import HumanModel
-from .output_folders import check_output_folder, prepare_output_folder
-from .paths import shipped_config
 from .pipeline import solve_recording
-from .results import write_result_folder
-from .sim.capture import Capture, write_capture
-from .sim.gait import GaitParameters, generate_gait
-from .sim.imu import ImuNoise
-from .sim.truth import TruthMotion
-from .uwb.constellation import load_constellation
 from .uwb_aiding import TrackedCapture, TrackedTags, UwbAiding, track_capture, uwb_aiding
 
 #: The three solves: column label, result folder, correction mode (None: IMU only). The last
@@ -157,7 +157,7 @@ def _summary(shared: TrackedCapture, label: str, aiding: UwbAiding | None) -> di
     """The extra ``summary.json`` keys, as ``ikfusion solve`` writes them, and the source.
 
     ``calibration``: how the heading was found, the body heading [deg] and the still window [s];
-    ``uwb``: ``{"used": false}`` or :func:`ikfusion.uwb_aiding.uwb_summary`.
+    ``uwb``: ``{"used": false}`` or :func:`ikfusion.app.uwb_aiding.uwb_summary`.
     """
     cal = shared.calibration
     rate = shared.recording.rate
@@ -206,7 +206,7 @@ def _rows(result: DemoResult) -> list[tuple[str, list[str]]]:
 def table(result: DemoResult) -> str:
     """The accuracy and speed table printed by ``ikfusion demo``, one column per mode.
 
-    Metrics are those of :func:`ikfusion.evaluate.evaluate` over the whole capture (foot slide
+    Metrics are those of :func:`ikfusion.app.evaluate.evaluate` over the whole capture (foot slide
     over the truth's contact phases); speed is frames per second of wall time of the solve and
     the median solver time per frame [ms].
     """

@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 
 from ikfusion.ik import Frame, Solver
+from ikfusion.mocap.from_bvh import floor_plane, level_on_floor, motion_from_bvh
+from ikfusion.mocap.model_motion import site_positions
 from ikfusion.model import SENSOR_SEGMENTS
 from ikfusion.sim.imu import ImuNoise, simulate_imus
-from ikfusion.sim.mocap import floor_plane, level_on_floor, motion_from_bvh
-from ikfusion.sim.truth import site_positions, write_truth
+from ikfusion.sim.truth import write_truth
 
 
 @pytest.fixture(scope="module")
@@ -85,10 +86,10 @@ def test_bvh_to_model_to_bvh_keeps_positions_within_a_millimetre(tmp_path) -> No
     """The model's own BVH, mapped back onto a body scaled to it and written again, lands on the
     same joint and End Site positions (the body dimensions are recovered from the skeleton)."""
     from ikfusion.io.bvh import read_bvh
+    from ikfusion.mocap.from_bvh import motion_from_bvh
     from ikfusion.model import HumanModel
     from ikfusion.results.bvh_export import write_motion_bvh
     from ikfusion.sim.gait import GaitParameters, generate_gait
-    from ikfusion.sim.mocap import motion_from_bvh
 
     model = HumanModel.default()
     walk = generate_gait(model, GaitParameters(duration=2.5), rate=60.0)

@@ -14,14 +14,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..ik import Frame, Motion, Solver
+from ..ik.assumed import coverage_warning
+from ..imu.bridging import BridgedSegments, BridgingSettings, bridge_segments
+from ..imu.calibration import Calibration, calibrate_recording
+from ..imu.stance import StanceThresholds, foot_still
+from ..io.recording import ImuRecording
+from ..model.human_model import HumanModel
 from .correction import DriftCorrection
-from .ik import Frame, Motion, Solver
-from .ik.assumed import coverage_warning
-from .imu.bridging import BridgedSegments, BridgingSettings, bridge_segments
-from .imu.calibration import Calibration, calibrate_recording
-from .imu.stance import StanceThresholds, foot_still
-from .io.recording import ImuRecording
-from .model.human_model import HumanModel
 
 
 @dataclass

@@ -1,0 +1,102 @@
+"""A motion of the human model and its kinematics: segment poses, site positions, contacts.
+
+Simulation builds its ground truth on it (:mod:`ikfusion.sim`), and real-data code reads motion
+capture onto it (:mod:`ikfusion.mocap.from_bvh`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pinocchio as pin
+
+from ..model.human_model import HumanModel
+
+
+@dataclass
+class TruthMotion:
+    """A motion of the model that simulated sensors are computed from.
+
+    Attributes:
+        model: The human model it moves.
+        time: (N,) [s].
+        q: (N, nq) configurations.
+        contact_names: Contact points (columns of ``contacts``).
+        contacts: (N, k) true contact phases.
+        source: Where it came from (``gait:circle``, a BVH path, ...).
+        info: Anything else worth keeping (gait parameters, BVH mapping notes).
+    """
+
+    model: HumanModel
+    time: np.ndarray
+    q: np.ndarray
+    contact_names: list[str]
+    contacts: np.ndarray
+    source: str = ""
+    info: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def rate(self) -> float:
+        """Sample rate [Hz]."""
+        return float(1.0 / np.mean(np.diff(self.time))) if len(self.time) > 1 else 0.0
+
+
+def moved_configurations(q: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Configurations (N, nq) of a free-flyer model moved rigidly: ``p -> R p + t``.
+
+    The root position and orientation turn by ``R`` (3, 3) and shift by ``t`` (3,) [m];
+    joint coordinates are unchanged.
+    """
+    out = q.copy()
+    out[:, :3] = q[:, :3] @ np.asarray(R).T + np.asarray(t)
+    for k in range(len(q)):
+        out[k, 3:7] = pin.Quaternion(R @ pin.Quaternion(q[k, 3:7]).matrix()).coeffs()
+    return out
+
+
+def contact_phases(model: HumanModel, q: np.ndarray, time: np.ndarray,
+                   names: list[str], height: float = 0.03, speed: float = 0.3) -> np.ndarray:
+    """Contact phases from kinematics: a point near the floor (z = 0) that is nearly still."""
+    return contact_phases_from_points(site_positions(model, q, names), time, height, speed)
+
+
+def contact_phases_from_points(P: np.ndarray, time: np.ndarray, height: float = 0.03,
+                               speed: float = 0.3) -> np.ndarray:
+    """(N, k) contact phases of points (N, k, 3) [m].
+
+    A point is in contact below ``height`` [m] and slower than ``speed`` [m/s].
+    """
+    if len(time) < 2:
+        return P[..., 2] < height
+    v = np.linalg.norm(np.gradient(P, float(np.mean(np.diff(time))), axis=0), axis=2)
+    return (P[..., 2] < height) & (v < speed)
+
+
+def segment_poses(model: HumanModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every segment's world origin (N, S, 3) [m] and rotation (N, S, 3, 3) along ``q``.
+
+    Segments in ``model.segment_names`` order; ``q`` is (N, nq).
+    """
+    data = model.model.createData()
+    ids = [model.segment_frame_id(s) for s in model.segment_names]
+    p = np.empty((len(q), len(ids), 3))
+    R = np.empty((len(q), len(ids), 3, 3))
+    for k, qk in enumerate(q):
+        pin.framesForwardKinematics(model.model, data, qk)
+        for i, f in enumerate(ids):
+            p[k, i], R[k, i] = data.oMf[f].translation, data.oMf[f].rotation
+    return p, R
+
+
+def site_positions(model: HumanModel, q: np.ndarray, names: list[str]) -> np.ndarray:
+    """World positions (N, k, 3) [m] of sites along configurations (N, nq)."""
+    data = model.model.createData()
+    ids = [model.site_frame_id(n) for n in names]
+    out = np.empty((len(q), len(ids), 3))
+    for k, qk in enumerate(q):
+        pin.framesForwardKinematics(model.model, data, qk)
+        for i, f in enumerate(ids):
+            out[k, i] = data.oMf[f].translation
+    return out
