@@ -83,6 +83,8 @@ class ContactTracker:
 
         From the foot's sensed target when tracked, else from ``q``; NaN without a foot.
         """
+        if not len(self._feet):  # no contact points
+            return np.zeros(0)
         forward = np.full((len(self._feet), 3), np.nan)
         for i, k in enumerate(self._feet):
             if k < 0:

@@ -42,23 +42,28 @@ class BoundFunction:
         self._inputs = [np.zeros(function.nnz_in(i)) for i in range(function.n_in())]
         for i, arr in enumerate(self._inputs):
             self._buffer.set_arg(i, memoryview(arr))  # type: ignore[arg-type,call-arg]
-        self._nonzeros, self._dense, self._flat = [], [], []
+        self._dense: list[np.ndarray] = []
+        self._scattered: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         for i in range(function.n_out()):
             sp = function.sparsity_out(i)
-            nz = np.zeros(sp.nnz())
-            self._buffer.set_res(i, memoryview(nz))  # type: ignore[arg-type,call-arg]
-            rows, cols = (np.array(v, dtype=int) for v in sp.get_triplet())
-            self._nonzeros.append(nz)
-            self._dense.append(np.zeros((sp.size1(), sp.size2())))
-            self._flat.append(rows * sp.size2() + cols)
+            dense = np.zeros((sp.size1(), sp.size2()))
+            if sp.is_dense() and min(sp.size1(), sp.size2()) == 1:
+                # a dense vector: CasADi's column-major nonzeros are the array itself
+                self._buffer.set_res(i, memoryview(dense))  # type: ignore[arg-type,call-arg]
+            else:
+                nz = np.zeros(sp.nnz())
+                self._buffer.set_res(i, memoryview(nz))  # type: ignore[arg-type,call-arg]
+                rows, cols = (np.array(v, dtype=int) for v in sp.get_triplet())
+                self._scattered.append((dense.reshape(-1), rows * sp.size2() + cols, nz))
+            self._dense.append(dense)
 
     def __call__(self, *inputs: np.ndarray) -> list[np.ndarray]:
         """The outputs as dense arrays, overwritten by the next call."""
         for buffer, value in zip(self._inputs, inputs):
             buffer[:] = value
         self._evaluate()
-        for dense, flat, nz in zip(self._dense, self._flat, self._nonzeros):
-            dense.put(flat, nz)
+        for flat_dense, flat, nz in self._scattered:
+            flat_dense[flat] = nz
         return self._dense
 
 

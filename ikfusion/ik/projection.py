@@ -41,6 +41,8 @@ def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: 
     Returns:
         True when a step had to be relaxed (or no backend could solve one).
     """
+    if not contact_frames:
+        return False
     nv = conf.model.nv
     q_start = conf.q.copy()
     for _ in range(max_steps):  # the residual is second order: minimum-norm steps suffice

@@ -148,23 +148,25 @@ def _call_daqp(max_iterations: int, H: np.ndarray, c: np.ndarray, G: np.ndarray 
     n_box = nv if lb is not None or ub is not None else 0
     n_in = 0 if h is None else len(h)
     n_eq = 0 if b is None else len(b)
-    upper = np.empty(n_box + n_in + n_eq)
-    lower = np.full(n_box + n_in + n_eq, -1e30)
+    end_in = n_box + n_in
+    upper = np.empty(end_in + n_eq)
+    lower = np.empty(end_in + n_eq)
     if n_box:
         upper[:nv] = 1e30 if ub is None else ub
         lower[:nv] = -1e30 if lb is None else lb
     if n_in:
-        upper[n_box:n_box + n_in] = h
+        upper[n_box:end_in] = h
+        lower[n_box:end_in] = -1e30
     if n_eq:
-        upper[n_box + n_in:] = b
-        lower[n_box + n_in:] = b
+        upper[end_in:] = b
+        lower[end_in:] = b
     rows = [m for m in (G, A) if m is not None]
-    A_all = np.vstack(rows) if rows else np.zeros((0, nv))
+    A_all = np.vstack(rows) if rows else np.zeros((0, nv))  # a copy: DAQP may scale its rows
     sense = np.zeros(len(upper), dtype=np.intc)
-    sense[n_box + n_in:] = 5
+    sense[end_in:] = 5
     x, _, exitflag, _ = daqp.solve(H, c, A_all, upper, lower, sense,
                                    iter_limit=max_iterations)
-    if exitflag <= 0 or not np.all(np.isfinite(x)):
+    if exitflag <= 0 or not np.isfinite(x).all():
         return None
     return np.asarray(x)
 
@@ -221,11 +223,11 @@ def solve_qp(problem: QpProblem, backend: str, settings: QpSettings) -> QpSoluti
 
 def _check_finite(p: QpProblem) -> None:
     """Raise a clear error instead of handing a backend NaN or infinite numbers."""
-    parts = {"H": p.H, "c (targets)": p.c, "h (inequalities)": p.h, "b (equalities)": p.b,
-             "G": p.G, "A": p.A}
-    bad = [name for name, m in parts.items() if not np.all(np.isfinite(m))]
+    bad = [name for name, m in (("H", p.H), ("c (targets)", p.c), ("h (inequalities)", p.h),
+                                ("b (equalities)", p.b), ("G", p.G), ("A", p.A))
+           if not np.isfinite(m).all()]
     bad += [name for name, m in (("lb", p.lb), ("ub", p.ub)) if m is not None
-            and np.any(np.isnan(m))]
+            and np.isnan(m).any()]
     if bad:
         raise SolverError(
             f"the IK step holds NaN or infinite numbers in {', '.join(bad)}: a target or the "

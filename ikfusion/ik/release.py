@@ -58,6 +58,8 @@ class ReleaseEasing:
 
     def apply(self, R_world_sensed: np.ndarray, dt: float) -> np.ndarray | None:
         """Shrink the offsets by ``speed * dt``; the offset targets (n, 3, 3), None if none."""
+        if not self.offsets.any():  # the usual case: no leg eases
+            return None
         norm = np.linalg.norm(self.offsets, axis=1)
         keep = np.maximum(0.0, 1.0 - self.speed * dt / np.where(norm > 0, norm, 1.0))
         self.offsets *= np.where(norm > 0, keep, 0.0)[:, None]
