@@ -76,6 +76,18 @@ def with_line(err: ConfigError, line: int | None) -> ConfigError:
     return ConfigError(err.reason, path=err.path, line=line, field=err.field)
 
 
+def read_user_file(path: Path, what: str) -> bytes:
+    """The bytes of a file the user gave.
+
+    Raises:
+        ConfigError: The file cannot be read (missing, a folder, no permission), naming it.
+    """
+    try:
+        return path.read_bytes()
+    except OSError as err:
+        raise ConfigError(f"cannot read {what}: {err.strerror}", path=path) from err
+
+
 def decode_text(data: bytes, path: Path) -> str:
     """The text of a user file: UTF-8, or UTF-8/16/32 after a byte-order mark.
 
@@ -126,11 +138,7 @@ def read_yaml_document(path: str | Path, what: str = "file",
         ConfigError: As :func:`read_yaml`.
     """
     file = Path(path)
-    try:
-        data = file.read_bytes()
-    except OSError as err:
-        raise ConfigError(f"cannot read {what}: {err.strerror}", path=file) from err
-    text = decode_text(data, file)
+    text = decode_text(read_user_file(file, what), file)
     try:
         parser = loader(text)  # checks the characters
         try:

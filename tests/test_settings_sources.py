@@ -19,6 +19,7 @@ from ikfusion.app.correction import CorrectionSettings
 from ikfusion.errors import ConfigError
 from ikfusion.ik.qp import QpSettings
 from ikfusion.ik.settings import SolverSettings
+from ikfusion.imu.bridging import BridgingSettings
 from ikfusion.paths import shipped_config
 from ikfusion.retarget.settings import RetargetSettings
 from ikfusion.settings_files import load_settings
@@ -28,6 +29,7 @@ SOURCES: dict[type, Path] = {
     SolverSettings: shipped_config("solver.yaml"),
     CorrectionSettings: shipped_config("correction.yaml"),
     RetargetSettings: shipped_config("retarget", "defaults.yaml"),
+    BridgingSettings: shipped_config("bridging.yaml"),
 }
 
 

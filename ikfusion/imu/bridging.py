@@ -18,8 +18,8 @@ Offline (the whole recording is known), per gap of a segment's valid samples:
 Causal (``causal=True``, no look-ahead, as live): during a gap the relative orientation to the
 neighbour continues with the last relative rate, decaying with time constant ``rate_decay_s``;
 when the sensor returns, the difference between the bridged and the measured relative
-orientation is removed at ``blend_rate`` [rad/s] at most. A gap at the very start stays
-untracked (nothing is known yet).
+orientation is removed at ``blend_rate_deg`` [deg/s] at most. A gap at the very start stays
+untracked (nothing is known yet). The thresholds are in ``configs/bridging.yaml``.
 
 :func:`bridge_segments` returns the filled orientations, which samples were bridged, a
 ``summary.json`` block (``bridged``) and warnings for segments with much bridging or a long gap.
@@ -29,10 +29,15 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from ..paths import shipped_config
 from ..rotations import exp_so3, log_so3, matrix_to_quat_wxyz, quat_wxyz_to_matrix, slerp
+from ..settings_files import Overlay, load_settings
+from ..yaml_files import read_yaml_document
 
 __all__ = ["BridgedSegments", "BridgingSettings", "SegmentBridging", "bridge_segments",
            "runs_of"]
@@ -45,8 +50,8 @@ class BridgingSettings:
     Attributes:
         short_gap_s: Offline, gaps inside the recording up to this long are slerped in the world
             frame [s]; longer ones follow the neighbour.
-        blend_rate: Causal, the largest rate at which a returning sensor's offset from the
-            bridged orientation is removed [rad/s].
+        blend_rate_deg: Causal, the largest rate at which a returning sensor's offset from the
+            bridged orientation is removed [deg/s].
         rate_decay_s: Causal, time constant of the decay of the last relative rate [s].
         warn_share: Share of bridged samples of a segment above which a warning is given.
         warn_gap_s: Gap length above which a warning is given [s].
@@ -54,13 +59,31 @@ class BridgingSettings:
         merge_s: Gaps closer than this are listed as one [s].
     """
 
-    short_gap_s: float = 0.1
-    blend_rate: float = float(np.radians(90.0))
-    rate_decay_s: float = 0.2
-    warn_share: float = 0.03
-    warn_gap_s: float = 0.5
-    listed_gaps: int = 20
-    merge_s: float = 0.25
+    short_gap_s: float
+    blend_rate_deg: float
+    rate_decay_s: float
+    warn_share: float
+    warn_gap_s: float
+    listed_gaps: int
+    merge_s: float
+
+    @property
+    def blend_rate(self) -> float:
+        """``blend_rate_deg`` in [rad/s]."""
+        return float(np.radians(self.blend_rate_deg))
+
+    @classmethod
+    def load(cls, path: str | Path | None = None, **overrides: Any) -> BridgingSettings:
+        """The shipped ``configs/bridging.yaml``, overlaid by a user file; keywords win.
+
+        Raises:
+            ConfigError: An unknown key, a key in the wrong section or a value of the wrong
+                type, naming the file, the line and the key.
+        """
+        overlays = [] if path is None else [
+            Overlay(read_yaml_document(path, "bridging settings"))]
+        return load_settings(cls, shipped_config("bridging.yaml"), "bridging settings",
+                             overlays, overrides)
 
 
 @dataclass
@@ -321,7 +344,7 @@ def bridge_segments(R_world_segment: Mapping[str, np.ndarray], valid: Mapping[st
     Returns:
         The :class:`BridgedSegments`.
     """
-    st = settings or BridgingSettings()
+    st = settings or BridgingSettings.load()
     time = np.asarray(time, dtype=float)
     n = len(time)
     rate = float((n - 1) / (time[-1] - time[0])) if n > 1 and time[-1] > time[0] else 1.0

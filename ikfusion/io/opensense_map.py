@@ -28,6 +28,7 @@ from pathlib import Path
 from xml.parsers import expat
 
 from ..errors import ConfigError
+from ..yaml_files import read_user_file
 
 __all__ = ["OPENSIM_BODY_SEGMENTS", "OpenSenseSensor", "is_xml_file", "read_opensense_mapping"]
 
@@ -116,11 +117,7 @@ def read_opensense_mapping(path: str | Path) -> dict[str, tuple[str, int]]:
             sensor listed twice; naming the file and the line.
     """
     file = Path(path)
-    try:
-        data = file.read_bytes()
-    except OSError as err:
-        raise ConfigError(f"cannot read the sensor map: {err.strerror}", path=file) from err
-    sensors = _parse(data, file)
+    sensors = _parse(read_user_file(file, "the sensor map"), file)
     if not sensors:
         raise ConfigError(
             "no <ExperimentalSensor name=\"_<sensor id>\"><name_in_model>pelvis_imu"

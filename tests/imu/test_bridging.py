@@ -64,7 +64,7 @@ def test_causal_return_is_blended_at_a_bounded_rate(seconds_away: float) -> None
     valid = {s: np.ones(len(time), dtype=bool) for s in R}
     gap = slice(120, 120 + int(round(seconds_away * RATE)))
     valid["UpperLeg"][gap] = False
-    settings = BridgingSettings()
+    settings = BridgingSettings.load()
     out = bridge_segments(R, valid, time, PARENTS, causal=True, settings=settings)
     hip = np.swapaxes(R["Pelvis"], -1, -2) @ out.R_world_segment["UpperLeg"]
     true_hip = np.swapaxes(R["Pelvis"], -1, -2) @ R["UpperLeg"]
