@@ -8,7 +8,7 @@ Two measures, per sensor and window:
 * the mean angular speed [rad/s] from the gyroscope, when it was recorded.
 
 A window is still when no sensor exceeds either threshold. :func:`find_still_window` returns the
-stillest window of 2 s (else 1.5 s, else 1 s) within the first seconds of the recording.
+stillest window of 2 s (else 1.5 s, else 1 s) in the first still stretch of the recording.
 """
 
 from __future__ import annotations
@@ -143,11 +143,12 @@ def find_still_window(R_world_sensor: Mapping[str, np.ndarray], rate: float,
                       gyr: Mapping[str, np.ndarray | None] | None = None,
                       seconds: tuple[float, ...] = (2.0, 1.5, 1.0), search: float = 10.0,
                       thresholds: StillThresholds | None = None) -> tuple[int, int]:
-    """The stillest window near the start of a recording.
+    """The still window at the start of a recording (the calibration pose).
 
-    Every window of each length in ``seconds`` (longest first) that starts within the first
-    ``search`` seconds is scored by its most moving sensor (spread and angular speed, each
-    divided by its threshold); the first length whose best window is still wins.
+    Every window of each length in ``seconds`` that starts within the first ``search`` seconds
+    is scored by its most moving sensor (spread and angular speed, each divided by its
+    threshold; <= 1 is still). The first still stretch of the recording is the pose: the
+    longest length that fits in it wins, with its stillest window there.
 
     Args:
         R_world_sensor: Sensor (or segment) -> (N, 3, 3) orientations.
@@ -165,34 +166,70 @@ def find_still_window(R_world_sensor: Mapping[str, np.ndarray], rate: float,
     """
     limits = thresholds or StillThresholds()
     n = min(len(R) for R in R_world_sensor.values())
-    best: tuple[float, int, int] | None = None
+    scores = {}
     for length in seconds:
         width = max(2, int(round(length * rate)))
-        if width > n:
-            continue
-        starts = min(n - width + 1, max(1, int(round(search * rate)) + 1))
-        score = np.zeros(starts)
-        for name, R in R_world_sensor.items():
-            score = np.maximum(score, spread_per_window(R[:starts + width - 1], width)[:starts]
-                               / limits.spread_deg)
-            g = None if gyr is None else gyr.get(name)
-            if g is not None and np.isfinite(g).any():
-                speed = gyr_per_window(g[:starts + width - 1], width)[:starts]
-                score = np.maximum(score, np.where(np.isfinite(speed), speed, 0.0) / limits.gyr)
-        k = int(np.argmin(score))
-        if best is None or score[k] < best[0]:
-            best = (float(score[k]), k, k + width)
-        if score[k] <= 1.0:
-            return k, k + width
-    if best is None:
+        if width <= n:
+            starts = min(n - width + 1, max(1, int(round(search * rate)) + 1))
+            scores[width] = _window_scores(R_world_sensor, gyr, width, starts, limits)
+    if not scores:
         raise InputError(f"the recording ({n} samples) is shorter than a "
                          f"{min(seconds):g} s calibration window", field="calibrate")
-    window = (best[1], best[2])
+    stretch = _first_still_stretch(scores)
+    if stretch is not None:
+        for width in sorted(scores, reverse=True):
+            score = scores[width][stretch[0]:max(stretch[0], stretch[1] - width + 1)]
+            if len(score) and score.min() <= 1.0:
+                k = stretch[0] + int(np.argmin(score))
+                return k, k + width
+    width = min(scores)
+    k = int(np.argmin(scores[width]))
+    window = (k, k + width)
     moved = moved_sensors(window_motion(R_world_sensor, window, gyr), limits)
     raise InputError(f"no still window of {min(seconds):g} s in the first {search:g} s: in the "
                      f"stillest one ({window[0] / rate:.2f}-{window[1] / rate:.2f} s) "
                      f"{', '.join(moved) or 'the sensors'} moved; stand still at the start or "
                      "give the window (--calibrate T0:T1)", field="calibrate")
+
+
+def _window_scores(R_world_sensor: Mapping[str, np.ndarray],
+                   gyr: Mapping[str, np.ndarray | None] | None, width: int, starts: int,
+                   limits: StillThresholds) -> np.ndarray:
+    """Scores of the windows of ``width`` samples starting at 0 .. ``starts - 1``.
+
+    A window's score is its most moving sensor's spread and angular speed, each divided by its
+    threshold: <= 1 is still.
+    """
+    score = np.zeros(starts)
+    for name, R in R_world_sensor.items():
+        score = np.maximum(score, spread_per_window(R[:starts + width - 1], width)[:starts]
+                           / limits.spread_deg)
+        g = None if gyr is None else gyr.get(name)
+        if g is not None and np.isfinite(g).any():
+            speed = gyr_per_window(g[:starts + width - 1], width)[:starts]
+            score = np.maximum(score, np.where(np.isfinite(speed), speed, 0.0) / limits.gyr)
+    return score
+
+
+def _first_still_stretch(scores: Mapping[int, np.ndarray]) -> tuple[int, int] | None:
+    """Samples ``(start, end)`` of the first still stretch, None when nothing is still.
+
+    The N-pose is the first still moment of a recording; a later pause (standing in a stride
+    between walks, a rest between trials) can be stiller but is not the calibration pose. The
+    stretch begins with the earliest still window of any length and ends where windows of that
+    length stop being still.
+    """
+    first: tuple[int, int] | None = None
+    for width, score in scores.items():
+        still = np.flatnonzero(score <= 1.0)
+        if len(still) and (first is None or still[0] < first[0]):
+            first = (int(still[0]), width)
+    if first is None:
+        return None
+    start, width = first
+    moving = np.flatnonzero(scores[width][start:] > 1.0)
+    run = int(moving[0]) if len(moving) else len(scores[width]) - start
+    return start, start + run - 1 + width
 
 
 def mean_rotation(R: np.ndarray) -> np.ndarray:

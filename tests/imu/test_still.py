@@ -78,3 +78,22 @@ def test_missing_data_in_the_window(rng) -> None:
         check_still(R, (250, 300), 100.0)
     with pytest.raises(InputError, match="not inside the recording"):
         check_still(R, (700, 900), 100.0)
+
+
+def test_the_pose_at_the_start_wins_over_a_stiller_pause_later(rng) -> None:
+    """Start-stop walking: a pause in a stride later on can be stiller than the N-pose; the
+    calibration pose is the first still moment (gen-start-stop picked its 8 s pause before)."""
+    rate = 100.0
+    t = np.arange(int(10 * rate)) / rate
+    pose = t < 2.5                      # the N-pose: still, with small sensor noise
+    pause = (t >= 6.0) & (t < 8.5)      # a pause in a stride: perfectly still
+    angle = np.where(pose | pause, 0.0, 0.8 * np.sin(3 * t))[:, None]
+    R = {}
+    for k in range(3):
+        axis = rng.normal(size=3)
+        noise = exp_so3(np.where(pose[:, None], rng.normal(scale=np.radians(0.3), size=(len(t), 3)),
+                                 0.0))
+        R[f"S{k}"] = random_rotations(1, rng)[0] @ exp_so3(angle * axis / np.linalg.norm(axis)) \
+            @ noise
+    start, end = find_still_window(R, rate)
+    assert end <= 250
