@@ -128,3 +128,13 @@ def test_vmc_sends_only_the_chosen_actor(result_poses, vmc_server) -> None:
     assert sink.sent == 1
     hips = world_bones(frames[0]["bones"])["Hips"][0]
     np.testing.assert_allclose(M.T @ hips, other.p_world_segment[0], atol=1e-4)
+
+
+def test_missing_python_osc_is_a_clear_error(monkeypatch) -> None:
+    import sys
+
+    from ikfusion.errors import InputError
+
+    monkeypatch.setitem(sys.modules, "pythonosc", None)
+    with pytest.raises(InputError, match="python-osc"):
+        VmcSink("127.0.0.1", 9)
