@@ -13,6 +13,7 @@ from ikfusion.live.samples import ImuSample, ToaSample
 from ikfusion.live.udp_source import (
     UdpDecoder,
     UdpSource,
+    UdpStats,
     encode_datagrams,
     encode_record,
     encode_samples,
@@ -56,19 +57,24 @@ def send_all(port: int, datagrams: list[bytes]) -> None:
             s.sendto(d, ("127.0.0.1", port))
 
 
+def through_udp(datagrams: list[bytes]) -> tuple[list, UdpStats]:
+    """Send the datagrams to a UdpSource on localhost; its samples until the end record."""
+    source = UdpSource(0, host="127.0.0.1", idle_timeout_s=5.0)
+    try:
+        send_all(source.port, datagrams)
+        return list(source.samples()), source.stats
+    finally:
+        source.close()
+
+
 def test_round_trip_over_udp(rng) -> None:
     sent = make_samples(rng)
     datagrams = encode_samples(sent) + encode_datagrams([end_record()])
     assert len(datagrams) < len(sent) / 5  # several samples per datagram
-    source = UdpSource(0, host="127.0.0.1", idle_timeout_s=5.0)
-    try:
-        send_all(source.port, datagrams)
-        got = list(source.samples())
-    finally:
-        source.close()
+    got, stats = through_udp(datagrams)
     assert_same(got, sent)
-    assert source.stats.malformed == 0 and source.stats.skipped == 0
-    assert source.stats.samples == len(sent)
+    assert stats.malformed == 0 and stats.skipped == 0
+    assert stats.samples == len(sent)
 
 
 def test_malformed_datagrams_are_counted_and_skipped_good_data_kept(rng) -> None:
@@ -90,16 +96,11 @@ def test_malformed_datagrams_are_counted_and_skipped_good_data_kept(rng) -> None
         encode_datagrams(records[7:20])[0][:-3],  # truncated: its last record is lost
         encode_datagrams([end_record()])[0],
     ]
-    source = UdpSource(0, host="127.0.0.1", idle_timeout_s=5.0)
-    try:
-        send_all(source.port, datagrams)
-        got = list(source.samples())
-    finally:
-        source.close()
+    got, stats = through_udp(datagrams)
     assert_same(got, good[0:7] + good[7:19])
-    assert source.stats.datagrams == len(datagrams)
-    assert source.stats.malformed == 5  # empty, magic, version, size, truncated
-    assert source.stats.skipped == 2  # bad UTF-8 name, unknown kind
+    assert stats.datagrams == len(datagrams)
+    assert stats.malformed == 5  # empty, magic, version, size, truncated
+    assert stats.skipped == 2  # bad UTF-8 name, unknown kind
 
 
 @settings(max_examples=300, deadline=None)
