@@ -21,29 +21,34 @@ bytes  type  field
 22-23  u16   payload size of this datagram [bytes]
 ====== ===== ==========================================================================
 
-Messages (payloads big-endian; a *string* is an i32 byte count then UTF-8 bytes):
+Messages (payloads big-endian; a *string* is an i32 byte count then UTF-8 bytes, spec 2.5.12):
 
-* ``MXTP02`` pose, quaternion: per segment i32 segment id, position x, y, z (f32, metres),
-  orientation q1..q4 (f32, scalar first: ``R_world_segment`` as w, x, y, z). The world frame
-  is MVN's: right-handed, Z up, metres, i.e. ours (SPEC section 1), so nothing is converted.
-* ``MXTP12`` character meta data: text lines ``key:value``, each ended by a newline
-  (``name`` = the actor's name, ``timeOffset`` = 0).
-* ``MXTP13`` scale information: i32 segment count, then per segment a string (name) and the
-  segment origin in the null pose (3 f32, metres; all segment frames parallel to the world);
-  i32 point count, then per point u16 segment id, u16 point id, a string (name), i32
-  characteristics (0) and the point's position relative to its segment origin (3 f32, metres).
-  Our points are the joints' connection points on the parent segment (named like the joint,
-  point ids 1, 2, ... per segment); point 0 of a segment is its own origin.
-* ``MXTP20`` joint angles: per joint i32 parent connection id (256 x parent segment id + point
-  id), i32 child connection id (256 x child segment id + 0) and the rotation about x, y, z
-  (3 f32, degrees) = (abduction/adduction, internal/external rotation, flexion/extension).
-* ``MXTP25`` time code: a string ``HH:MM:SS.mmm`` (the capture time).
+* ``MXTP02`` pose, quaternion: per segment i32 segment id, position x, y, z (f32) and
+  orientation q1..q4 (f32, scalar first: ``R_world_segment`` as w, x, y, z), Z up,
+  right-handed: our world frame (SPEC section 1), so nothing is converted. Positions are in
+  metres: the spec's section 2.5.6 still says centimetres, but MVN sends metres in this message
+  (MVN user manual, "position units are in meters") and Xsens' own receivers read metres.
+* ``MXTP12`` character meta data: tag lines ``tag:value``, each ended by a newline: ``name``
+  (the actor's name) and ``timeOffset`` (0; read by Xsens' Blender receiver).
+* ``MXTP13`` scale information: i32 segment count, then per segment a string (name) and its
+  origin with every segment orientation the identity (our N-pose; 3 f32, metres); i32 point
+  count, then per point u16 segment id, u16 point id, a string (name), u32 characteristics (0)
+  and the point relative to its segment origin (3 f32, metres). As the spec says, the first
+  datagram holds the segments (point count 0) and the next ones the points (segment count 0),
+  each datagram a whole payload. Our points are the joints' connection points on the parent
+  segment (named like the joint, point ids 1, 2, ... per segment); a joint's child connection
+  is point 0 of the child, its origin.
+* ``MXTP20`` joint angles: per joint i32 parent connection point id (256 x segment id + point
+  id), i32 child connection point id, then the rotation about the segment's x, y and z axes
+  (3 f32, degrees, right-handed): our anatomical angles placed on their axes with their signs
+  (``configs/joints.yaml``: e.g. ``jRightKnee_flex`` about y, ``-jRightKnee_abd`` about x).
+* ``MXTP25`` time code: the string ``HH:MM:SS.mmm`` (capture time; sent with its i32 length as
+  every protocol string, which is how Xsens' receivers read it).
 
-A message larger than ``max_payload`` bytes is split over several datagrams with the same
-sample counter: item messages (02, 20) between items, the others anywhere in the byte stream;
-a receiver concatenates the payloads in datagram-counter order up to the one with bit 7 set.
-For messages that are not lists of items (12, 13, 25) the number of items is the number of
-body segments. Meta data and scale are sent with an actor's first frame and then every
+Item messages (02, 20) larger than ``max_payload`` bytes are split between items over several
+datagrams with the same sample counter (spec 2.4.1.3). For messages that are not lists of
+items (12, 13, 25) the number of items is the number of segments (13: of segments + points in
+that datagram). Meta data and scale are sent with an actor's first frame and then every
 ``meta_period_s`` seconds of capture time, so a receiver started later picks them up.
 """
 
@@ -51,18 +56,16 @@ from __future__ import annotations
 
 import socket
 import struct
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from ..model.joints import JOINTS, SEGMENTS
+from ..model.joints import SEGMENTS, JointSpec, load_joint_specs
 from ..rotations import matrix_to_quat_wxyz
 from .actor_pose import ActorPose
 
 #: MVN segment ids (the protocol's numbering, Pelvis = 1 ... LeftToe = 23) by segment name.
 MVN_SEGMENT_IDS: dict[str, int] = {name: i + 1 for i, name in enumerate(SEGMENTS)}
-#: The segment each MVN joint moves (its child), by joint name.
-JOINT_CHILD: dict[str, str] = dict(zip(JOINTS, SEGMENTS[1:]))
 
 HEADER = struct.Struct(">6sIBBIBBBBHH")
 POSE_ITEM = struct.Struct(">i3f4f")
@@ -71,6 +74,7 @@ LAST_DATAGRAM = 0x80
 #: Default payload bound: a datagram stays under a 1500-byte Ethernet MTU.
 MAX_PAYLOAD = 1400
 DEFAULT_PORT = 9763
+_AXES = {"x": 0, "y": 1, "z": 2}
 
 
 def mvn_string(text: str) -> bytes:
@@ -89,12 +93,11 @@ def time_code(time_s: float) -> str:
 
 
 def null_pose_from(pose: ActorPose) -> np.ndarray:
-    """Segment origins in the null (N-) pose, rebuilt from one solved pose.
+    """Segment origins with every segment orientation the identity, from one solved pose.
 
-    The offset of a segment's origin in its parent's frame is fixed by the skeleton; in the
-    null pose every frame is parallel to the world, so the origins are those offsets chained
-    from the pelvis. The pelvis is placed above the world origin with the lowest origin at
-    z = 0.
+    The offset of a segment's origin in its parent's frame is fixed by the skeleton; with
+    identity orientations (our N-pose) the origins are those offsets chained from the pelvis.
+    The pelvis is placed above the world origin with the lowest origin at z = 0.
 
     Returns:
         (S, 3) origins [m] in the order of ``pose.segments``.
@@ -126,18 +129,28 @@ class MvnDatagrams:
     """Builds the datagrams of one actor's messages (no socket; see :class:`MvnStreamSink`).
 
     Args:
-        max_payload: Largest payload of one datagram [bytes]; bigger messages are split.
+        max_payload: Largest payload of one datagram [bytes]; bigger item messages are split
+            (the scale message's segment datagram, ~650 bytes for 23 segments, is one datagram
+            whatever the bound, as the spec has it).
+        joints: Joint definitions (parent, child, angle axes and signs); the shipped
+            ``configs/joints.yaml`` by default.
     """
 
-    def __init__(self, max_payload: int = MAX_PAYLOAD) -> None:
+    def __init__(self, max_payload: int = MAX_PAYLOAD,
+                 joints: Mapping[str, JointSpec] | None = None) -> None:
         if max_payload < POSE_ITEM.size:
             raise ValueError(f"max_payload must hold one pose item ({POSE_ITEM.size} bytes), "
                              f"got {max_payload}")
         self.max_payload = max_payload
+        self.joints = dict(load_joint_specs() if joints is None else joints)
+        self._points: dict[str, int] = {}
+        for name, spec in self.joints.items():  # point ids 1, 2, ... on each parent segment
+            self._points[name] = 1 + sum(s.parent == spec.parent for s in self.joints.values()
+                                         if s.name in self._points)
 
     def _datagrams(self, kind: int, pose: ActorPose,
-                   groups: list[tuple[bytes, int]]) -> list[bytes]:
-        """Header + payload for each (payload, number of items) group of one message."""
+                   groups: Sequence[tuple[bytes, int]]) -> list[bytes]:
+        """Header + payload for each (payload, number of items) part of one message."""
         out = []
         n_segments = min(len(pose.segments), 255)
         for k, (payload, n_items) in enumerate(groups):
@@ -153,11 +166,6 @@ class MvnDatagrams:
         groups = _chunks(items, self.max_payload)
         return self._datagrams(kind, pose, [(b"".join(g), len(g)) for g in groups])
 
-    def _bytes(self, kind: int, pose: ActorPose, payload: bytes) -> list[bytes]:
-        step = self.max_payload
-        parts = [payload[i:i + step] for i in range(0, len(payload), step)] or [b""]
-        return self._datagrams(kind, pose, [(part, len(pose.segments)) for part in parts])
-
     def pose_quaternion(self, pose: ActorPose) -> list[bytes]:
         """``MXTP02``: every MVN segment's position [m] and orientation (w, x, y, z)."""
         quats = matrix_to_quat_wxyz(pose.R_world_segment)
@@ -168,53 +176,52 @@ class MvnDatagrams:
     def meta_data(self, pose: ActorPose) -> list[bytes]:
         """``MXTP12``: the actor's name."""
         text = f"name:{pose.actor}\ntimeOffset:0\n"
-        return self._bytes(12, pose, text.encode("utf-8"))
+        return self._datagrams(12, pose, [(text.encode("utf-8"), len(pose.segments))])
 
-    def _connection_points(self, pose: ActorPose) -> dict[str, tuple[int, int]]:
-        """Joint -> (parent segment index, point id on the parent) for the joints present."""
-        index = {name: i for i, name in enumerate(pose.segments)}
-        points: dict[str, tuple[int, int]] = {}
-        used: dict[int, int] = {}
-        for joint, child in JOINT_CHILD.items():
-            if child not in index or pose.parents[index[child]] < 0:
-                continue
-            parent = pose.parents[index[child]]
-            used[parent] = used.get(parent, 0) + 1
-            points[joint] = (parent, used[parent])
-        return points
+    def _present(self, pose: ActorPose) -> list[JointSpec]:
+        """The joints whose parent and child segments the pose has."""
+        names = set(pose.segments)
+        return [s for s in self.joints.values()
+                if s.parent in names and s.child in names and s.parent in MVN_SEGMENT_IDS
+                and s.child in MVN_SEGMENT_IDS]
 
     def scale(self, pose: ActorPose, null_pose: np.ndarray) -> list[bytes]:
-        """``MXTP13``: null-pose segment origins [m] and the joints' connection points."""
+        """``MXTP13``: null-pose segment origins [m], then the joints' connection points."""
         index = {name: i for i, name in enumerate(pose.segments)}
-        parts = [struct.pack(">i", len(pose.segments))]
-        for i, name in enumerate(pose.segments):
-            parts.append(mvn_string(name) + struct.pack(">3f", *null_pose[i]))
-        points = self._connection_points(pose)
-        parts.append(struct.pack(">i", len(points)))
-        for joint, (parent, point_id) in points.items():
-            child = index[JOINT_CHILD[joint]]
-            offset = null_pose[child] - null_pose[parent]
-            parts.append(struct.pack(">HH", MVN_SEGMENT_IDS[pose.segments[parent]], point_id)
-                         + mvn_string(joint) + struct.pack(">i3f", 0, *offset))
-        return self._bytes(13, pose, b"".join(parts))
+        segments = b"".join(mvn_string(name) + struct.pack(">3f", *null_pose[i])
+                            for i, name in enumerate(pose.segments))
+        parts = [(struct.pack(">i", len(pose.segments)) + segments + struct.pack(">i", 0),
+                  len(pose.segments))]
+        points = []
+        for spec in self._present(pose):
+            offset = null_pose[index[spec.child]] - null_pose[index[spec.parent]]
+            points.append(struct.pack(">HH", MVN_SEGMENT_IDS[spec.parent], self._points[spec.name])
+                          + mvn_string(spec.name) + struct.pack(">I3f", 0, *offset))
+        room = self.max_payload - 8  # the two counts
+        for group in _chunks(points, room) if points else []:
+            parts.append((struct.pack(">ii", 0, len(group)) + b"".join(group), len(group)))
+        return self._datagrams(13, pose, parts)
 
     def joint_angles(self, pose: ActorPose) -> list[bytes]:
-        """``MXTP20``: per joint (abduction, rotation, flexion) [deg] about x, y, z."""
+        """``MXTP20``: per joint the rotation [deg] about the segment's x, y and z axes."""
         column = {name: k for k, name in enumerate(pose.joint_names)}
         items = []
-        for joint, (parent, point_id) in self._connection_points(pose).items():
-            keys = (f"{joint}_abd", f"{joint}_rot", f"{joint}_flex")
+        for spec in self._present(pose):
+            keys = [spec.column(a.name) for a in spec.angles]
             if not all(k in column for k in keys):
                 continue
-            angles = [float(pose.joint_angles_deg[column[k]]) for k in keys]
-            parent_id = 256 * MVN_SEGMENT_IDS[pose.segments[parent]] + point_id
-            child_id = 256 * MVN_SEGMENT_IDS[JOINT_CHILD[joint]]
-            items.append(JOINT_ITEM.pack(parent_id, child_id, *angles))
+            about = [0.0, 0.0, 0.0]
+            for a, key in zip(spec.angles, keys):
+                about[_AXES[a.axis]] = a.sign * float(pose.joint_angles_deg[column[key]])
+            parent_id = 256 * MVN_SEGMENT_IDS[spec.parent] + self._points[spec.name]
+            child_id = 256 * MVN_SEGMENT_IDS[spec.child]
+            items.append(JOINT_ITEM.pack(parent_id, child_id, *about))
         return self._items(20, pose, items) if items else []
 
     def time_code(self, pose: ActorPose) -> list[bytes]:
         """``MXTP25``: the capture time as ``HH:MM:SS.mmm``."""
-        return self._bytes(25, pose, mvn_string(time_code(pose.time_s)))
+        return self._datagrams(25, pose, [(mvn_string(time_code(pose.time_s)),
+                                           len(pose.segments))])
 
 
 class MvnStreamSink:
@@ -228,7 +235,7 @@ class MvnStreamSink:
         host: Receiver host name or address.
         port: Receiver UDP port (MVN's default is 9763).
         meta_period_s: Capture time between two repeats of meta data and scale [s].
-        max_payload: Largest payload of one datagram [bytes].
+        max_payload: Largest payload of one datagram [bytes] (see :class:`MvnDatagrams`).
         null_pose: Segment name -> null-pose origin [m] (MXTP13); by default rebuilt from each
             actor's first pose (:func:`null_pose_from`).
     """

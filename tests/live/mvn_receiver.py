@@ -70,6 +70,7 @@ def decode_meta(payload: bytes) -> dict[str, str]:
 
 
 def decode_scale(payload: bytes) -> dict[str, Any]:
+    """One scale datagram's payload (each is whole: segments and/or points)."""
     (n_seg,) = struct.unpack_from(">i", payload, 0)
     at = 4
     null_pose = {}
@@ -83,7 +84,7 @@ def decode_scale(payload: bytes) -> dict[str, Any]:
     for _ in range(n_points):
         seg_id, point_id = struct.unpack_from(">HH", payload, at)
         name, at = _string(payload, at + 4)
-        flags, x, y, z = struct.unpack_from(">i3f", payload, at)
+        flags, x, y, z = struct.unpack_from(">I3f", payload, at)
         at += 16
         points.append({"segment": SPEC_SEGMENT_IDS[seg_id], "point_id": point_id, "name": name,
                        "flags": flags, "position": (x, y, z)})
@@ -102,7 +103,9 @@ def decode_joint_angles(payload: bytes) -> list[dict[str, Any]]:
 
 
 def decode_time_code(payload: bytes) -> str:
+    """A protocol string (i32 length + 12 characters, as Xsens' receivers read it)."""
     text, _ = _string(payload, 0)
+    assert len(text) == 12
     return text
 
 
@@ -140,11 +143,15 @@ class MvnReceiver:
         del self._parts[key]
         parts.sort(key=lambda p: p[0].datagram_index)
         assert [p[0].datagram_index for p in parts] == list(range(len(parts))), "lost part"
-        whole = b"".join(p[1] for p in parts)
+        if header.message_type == "13":  # spec 2.6.2: every datagram a whole payload
+            decoded = [decode_scale(p[1]) for p in parts]
+            content: Any = {"null_pose": {k: v for d in decoded for k, v in d["null_pose"].items()},
+                            "points": [pt for d in decoded for pt in d["points"]]}
+        else:
+            content = DECODERS[header.message_type](b"".join(p[1] for p in parts))
         self.messages.append(Message(header.message_type, header.character_id,
                                      header.sample_counter, header.time_code_ms, len(parts),
-                                     sum(p[0].items for p in parts),
-                                     DECODERS[header.message_type](whole)))
+                                     sum(p[0].items for p in parts), content))
 
     def receive(self, sock: socket.socket, count: int) -> None:
         """Read ``count`` datagrams from a bound socket."""

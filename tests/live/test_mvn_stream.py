@@ -9,7 +9,8 @@ import pytest
 from mvn_receiver import MvnReceiver
 
 from ikfusion.live.mvn_stream import MvnStreamSink
-from ikfusion.model import JOINTS
+from ikfusion.model import load_joint_specs
+from ikfusion.rotations import axis_rotation
 
 
 def send_and_receive(sink: MvnStreamSink, frames, sock) -> MvnReceiver:
@@ -56,19 +57,24 @@ def test_every_message_type_decodes_and_poses_match_the_result_folder(result_pos
         assert msg.time_code_ms == round(pose.time_s * 1000)
         assert_pose_matches(msg.content, pose)
 
+    # joint angles: the scale message's points name each joint; the rotations about the
+    # segment axes, composed in the joint's Euler order (configs/joints.yaml), rebuild
+    # R_parent_child of the result folder's segment orientations
+    specs = load_joint_specs()
+    point_names = {(p["segment"], p["point_id"]): p["name"]
+                   for p in by_type["13"][0].content["points"]}
     for pose, msg in zip(result_poses, by_type["20"]):
         assert len(msg.content) == 22
-        column = {n: k for k, n in enumerate(pose.joint_names)}
         for joint in msg.content:
-            parent_seg, child_seg = joint["parent"][0], joint["child"][0]
-            i_child = pose.segments.index(child_seg)
-            assert pose.segments[pose.parents[i_child]] == parent_seg
-            assert joint["child"][1] == 0
-            # SPEC section 2: joint k moves segment k + 1
-            jname = JOINTS[i_child - 1]
-            expected = [pose.joint_angles_deg[column[f"{jname}_{a}"]]
-                        for a in ("abd", "rot", "flex")]
-            np.testing.assert_allclose(joint["rotation_deg"], expected, atol=1e-4)
+            spec = specs[point_names[joint["parent"]]]
+            assert (joint["parent"][0], joint["child"]) == (spec.parent, (spec.child, 0))
+            about = dict(zip("xyz", np.deg2rad(joint["rotation_deg"])))
+            R = np.eye(3)
+            for angle in spec.angles:
+                R = R @ axis_rotation(angle.axis, about[angle.axis])
+            i, j = pose.segments.index(spec.parent), pose.segments.index(spec.child)
+            R_parent_child = pose.R_world_segment[i].T @ pose.R_world_segment[j]
+            np.testing.assert_allclose(R, R_parent_child, atol=1e-4)
 
     for pose, msg in zip(result_poses, by_type["25"]):
         h, m, s = msg.content.split(":")
@@ -85,6 +91,11 @@ def test_every_message_type_decodes_and_poses_match_the_result_folder(result_pos
                            scale["null_pose"][pose.segments[parent]])
         assert abs(np.linalg.norm(null) - bone) < 1e-4
     assert len(scale["points"]) == 22
+    for point in scale["points"]:  # each joint point sits at its child's origin
+        spec = specs[point["name"]]
+        np.testing.assert_allclose(
+            point["position"], np.subtract(scale["null_pose"][spec.child],
+                                           scale["null_pose"][spec.parent]), atol=1e-6)
 
 
 def test_large_messages_are_split_and_joined(result_poses, udp_receiver) -> None:
@@ -98,7 +109,8 @@ def test_large_messages_are_split_and_joined(result_poses, udp_receiver) -> None
     for pose, msg in zip(result_poses, poses):
         assert_pose_matches(msg.content, pose)
     scale = next(m for m in receiver.messages if m.message_type == "13")
-    assert scale.datagrams > 1 and len(scale.content["null_pose"]) == 23
+    assert scale.datagrams > 2 and len(scale.content["null_pose"]) == 23
+    assert len(scale.content["points"]) == 22
 
 
 def test_one_character_id_per_actor(result_poses, udp_receiver) -> None:
