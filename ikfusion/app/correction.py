@@ -6,10 +6,12 @@ positions (horizontal error, weighted by the measurements' covariances) and acts
 
 * ``slide``: every planted point is moved toward the correction at once (a first-order lag of
   ``time_constant``); the body follows at once, planted feet slide.
-* ``no-slide``: planted points never move; each swing foot is led during its swing toward the
-  correction (at most ``max_step`` per step), the pelvis leans toward it a little and follows
-  each foot it is handed to gradually (:class:`ikfusion.ik.support.SupportFollower`), so the
-  body walks into place step by step without a jump.
+* ``no-slide``: planted points never move; the tag fixes are soft position tasks of each frame's
+  QP on what the contacts leave free (swing feet, the whole body in flight) at a bounded rate
+  (:mod:`.tag_tasks`); each swing foot is also led toward the mean correction (at most
+  ``max_step`` per step), the pelvis leans toward it a little and follows each foot it is
+  handed to gradually (:class:`ikfusion.ik.support.SupportFollower`), so the body walks (runs,
+  jumps) into place step by step without a jump.
 * ``off``: tags are only reported.
 
 A heading drift of the sensors (a magnetically disturbed area) makes the body walk the wrong
@@ -22,22 +24,30 @@ The first fix places the body in the tag frame at once (there is nothing to slid
 frames solved before it are moved by the same offset afterwards (:meth:`DriftCorrection.
 place_start`), so the whole motion is in the tag frame. Heights come from the floor, so only
 the horizontal error is corrected.
+
+In ``slide`` and ``no-slide``, stretches where a solved tag site stays more than ``far_distance``
+from its fix for longer than ``far_duration`` are reported (:mod:`.far_from_tags`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..ik.frame import Frame
 from ..ik.pose import Motion, Pose
-from ..ik.solver import Solver
+from ..ik.solver import GRAVITY, Solver
 from ..ik.world_offset import WorldOffset
 from ..paths import shipped_config
 from ..settings_files import Overlay, load_settings
 from ..yaml_files import read_yaml_document
+from .far_from_tags import FarInterval, far_intervals
+from .tag_release import FootRelease
+from .tag_tasks import SolvedTags, TagTaskSettings, flight_root_target, planted_feet, tag_targets
 
 #: Correction modes.
 MODES = ("off", "slide", "no-slide")
@@ -72,6 +82,16 @@ class CorrectionSettings:
         heading_length_ratio: Travels whose lengths differ by more than this factor are not
             compared (the fixes jumped or the body slid: no heading information).
         heading_time_constant: The turn closes the error with this lag [s].
+        tag_speed: ``no-slide``: the tag tasks move a site at most this fast [m/s].
+        tag_weight: ... with the fixes' information scaled by this.
+        tag_sigma: ... with this uncertainty [m] added to the fixes' ...
+        tag_vertical: ... pulling heights too (else horizontally only).
+        tag_time_constant: In flight the pelvis closes the gap to the tags with this lag [s].
+        release_distance: ``no-slide``: a planted foot whose tag moved farther than this [m]
+            is let go (:mod:`.tag_release`) ...
+        release_speed: ... until its tag moves slower than this [m/s].
+        far_distance: A tag site farther than this from its fix [m] ...
+        far_duration: ... for longer than this [s] is reported.
     """
 
     time_constant: float
@@ -82,6 +102,15 @@ class CorrectionSettings:
     heading_rate_deg: float
     heading_length_ratio: float
     heading_time_constant: float
+    tag_speed: float
+    tag_weight: float
+    tag_sigma: float
+    tag_vertical: bool
+    tag_time_constant: float
+    release_distance: float
+    release_speed: float
+    far_distance: float
+    far_duration: float
 
     @classmethod
     def load(cls, path: str | Path | None = None, **overrides: Any) -> CorrectionSettings:
@@ -107,6 +136,9 @@ class DriftCorrection:
         settings: The thresholds (:meth:`CorrectionSettings.load`).
         gap: (N,) remaining horizontal gap after each frame [m] (NaN without a fix).
         heading: (N,) accumulated heading correction after each frame [rad].
+        distance: (n_fixes, N) horizontal distance of each solved tag site to its fix after
+            each frame [m] (NaN without a fix).
+        time: (N,) the frame times [s].
     """
 
     fixes: list[SiteFixes]
@@ -114,9 +146,16 @@ class DriftCorrection:
     settings: CorrectionSettings
     gap: np.ndarray = field(default_factory=lambda: np.zeros(0))
     heading: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    distance: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    time: np.ndarray = field(default_factory=lambda: np.zeros(0))
     _placed: bool = False
     _placement: tuple[int, np.ndarray] | None = None
     _body: list[bool] = field(default_factory=list)  # per fix: on the body, not on a foot
+    _feet: list[str | None] = field(default_factory=list)  # per fix: the foot carrying it
+    _foot_of_point: dict[str, str | None] = field(default_factory=dict)
+    _last: SolvedTags | None = None  # what the next frame's tag tasks take from the last
+    _ballistic: float = 0.0  # the solver's weight of the pelvis path in flight
+    _release: list[FootRelease | None] = field(default_factory=list)  # per fix on a foot
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -125,6 +164,8 @@ class DriftCorrection:
         n = len(self.fixes[0].p_world) if self.fixes else 0
         self.gap = np.full(n, np.nan)
         self.heading = np.zeros(n)
+        self.distance = np.full((len(self.fixes), n), np.nan)
+        self.time = np.full(n, np.nan)
         self._solved = np.full((len(self.fixes), n, 2), np.nan)  # solved sites, horizontal
 
     def horizontal_error(self, pose: Pose, k: int) -> np.ndarray | None:
@@ -145,10 +186,30 @@ class DriftCorrection:
         """Compare frame ``k`` with the fixes and steer the solver's feet for the next frames."""
         world = solver.world  # the only part of the solver a correction touches
         if len(self._body) != len(self.fixes):  # sites on the body, not on a foot
-            self._body = [solver.topology.foot_of(f.site) is None for f in self.fixes]
+            topology = solver.topology
+            self._feet = [topology.foot_of(f.site) for f in self.fixes]
+            self._body = [foot is None for foot in self._feet]
+            self._foot_of_point = {p: topology.foot_of(p) for p in solver.contact_names}
+            s = self.settings
+            self._release = [None if foot is None else
+                             FootRelease(s.release_distance, s.release_speed)
+                             for foot in self._feet]
+        p_root = np.asarray(pose.q[:3], dtype=float).copy()
+        v_root = (p_root - self._last.p_root) / dt if self._last is not None and dt > 0 \
+            else np.zeros(3)
+        self._last = SolvedTags(dict(pose.contacts), p_root, v_root,
+                                np.array([pose.site_position(f.site) for f in self.fixes]))
+        self._ballistic = solver.settings.ballistic
+        planted = planted_feet(self._last.contacts, self._foot_of_point)
+        for f, foot, release in zip(self.fixes, self._feet, self._release):
+            if release is not None:
+                release.update(foot in planted, f.p_world[k], f.cov[k], dt)
+        self.time[k] = pose.time
         shifted = world.shifted[:2]  # the sites' travel without the corrections' moves
         for i, f in enumerate(self.fixes):
-            self._solved[i, k] = pose.site_position(f.site)[:2] - shifted
+            p_site = pose.site_position(f.site)
+            self._solved[i, k] = p_site[:2] - shifted
+            self.distance[i, k] = float(np.linalg.norm(f.p_world[k, :2] - p_site[:2]))
         if self.mode != "off" and self._placed:
             self._correct_heading(world, k, dt)
         self.heading[k] = world.heading
@@ -167,6 +228,72 @@ class DriftCorrection:
             world.slide(delta * min(1.0, dt / self.settings.time_constant))
         else:
             world.lead_steps(delta, self.settings.max_step)
+
+    def frames(self, frames: Iterable[Frame]) -> Iterator[Frame]:
+        """``frames`` with the tag tasks of ``no-slide`` (:mod:`.tag_tasks`), lazily.
+
+        Each frame is made when the solver asks for it, after :meth:`after_frame` of the one
+        before: which feet are planted comes from there. Other modes pass frames unchanged, and
+        so does ``no-slide`` until the first fix placed the body.
+        """
+        s = self.settings
+        tag_settings = TagTaskSettings(s.tag_speed, s.tag_weight, s.tag_sigma, s.tag_vertical,
+                                       s.tag_time_constant)
+        sites = [f.site for f in self.fixes]
+        previous: float | None = None
+        for k, frame in enumerate(frames):
+            dt = 0.0 if previous is None else float(frame.time - previous)
+            previous = float(frame.time)
+            last = self._last
+            if self.mode != "no-slide" or not self._placed or last is None or dt <= 0:
+                yield frame
+                continue
+            p_fix = np.array([f.p_world[k] for f in self.fixes])
+            cov = np.array([f.cov[k] for f in self.fixes])
+            hints = self._hints(frame)
+            if last.flight and frame.root_position is None:
+                p_root = flight_root_target(last, self._body, p_fix, cov, dt, GRAVITY,
+                                            tag_settings)
+                yield replace(frame, contacts=hints) if p_root is None else replace(
+                    frame, contacts=hints, root_position=p_root,
+                    root_position_weight=self._ballistic)
+                continue
+            positions, weights = tag_targets(
+                sites, self._feet, p_fix, cov, planted_feet(last.contacts, self._foot_of_point),
+                tag_settings)
+            if not positions:
+                yield replace(frame, contacts=hints)
+                continue
+            yield replace(frame, positions={**frame.positions, **positions},
+                          position_weights={**frame.position_weights, **weights},
+                          position_reach=s.tag_speed * dt, contacts=hints)
+
+    def _hints(self, frame: Frame) -> dict[str, bool] | None:
+        """The frame's contact hints with the points of released feet let go."""
+        released = {foot for foot, r in zip(self._feet, self._release)
+                    if r is not None and r.released}
+        hints = dict(frame.contacts or {})
+        for point, foot in self._foot_of_point.items():
+            if foot in released and point not in hints:
+                hints[point] = False
+        return hints or None
+
+    def far_from_tags(self) -> list[FarInterval]:
+        """Stretches where a solved tag site stayed far from its fix (:mod:`.far_from_tags`).
+
+        None with ``off``: the body is then not placed in the tags' frame at all.
+        """
+        s = self.settings
+        if self.mode == "off":
+            return []
+        out: list[FarInterval] = []
+        for f, d in zip(self.fixes, self.distance):
+            out += far_intervals(f.site, self.time, d, s.far_distance, s.far_duration)
+        return out
+
+    def far_warnings(self) -> list[str]:
+        """One warning per stretch of :meth:`far_from_tags` (``summary.json``, terminal)."""
+        return [i.message(self.settings.far_distance) for i in self.far_from_tags()]
 
     def heading_error(self, k: int, dt: float) -> float | None:
         """Angle from the solved sites' inertial travel to the tags' travel over the window [rad].
@@ -225,3 +352,4 @@ class DriftCorrection:
         k, delta = self._placement
         motion.q[:k + 1, :2] += delta[:2]
         self.gap[:k + 1] = np.nan  # measured before the placement
+        self.distance[:, :k + 1] = np.nan

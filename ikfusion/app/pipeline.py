@@ -148,10 +148,12 @@ def solve_recording(recording: ImuRecording, sensor_map: Mapping[str, str], mode
     warnings += bridged.warnings
     frames = frames_from_recording(recording, sensor_map, cal,
                                    StanceThresholds(st.still_rate, st.still_duration), bridged)
-    motion = solver.solve(frames, progress=progress, total=len(frames),
+    motion = solver.solve(correction.frames(frames) if correction else frames,
+                          progress=progress, total=len(frames),
                           after_step=correction.after_frame if correction else None)
     if correction is not None:
         correction.place_start(motion)
+        warnings += correction.far_warnings()
     motion.warnings = warnings + motion.warnings
     knee = knee_warning(motion)
     if knee:

@@ -211,7 +211,9 @@ def uwb_summary(tracks: Mapping[str, UnitTrack], correction: DriftCorrection | N
     why not, transmissions and TOAs received, used and rejected, resets, time without UWB;
     per reader (``readers``, :func:`ikfusion.uwb.health.reader_report`): TOAs received and
     rejected, the rejected share and when; whether the tracks were smoothed over the
-    recording; and the remaining horizontal gap of the correction [m].
+    recording; the remaining horizontal gap of the correction [m]; and ``far_from_tags``, the
+    stretches where a solved tag site stayed far from its fix (site, ``start_s``, ``end_s``,
+    ``max_m``, ``mean_m``; :mod:`.far_from_tags`).
 
     Args:
         tracks: Tag id -> track.
@@ -238,5 +240,7 @@ def uwb_summary(tracks: Mapping[str, UnitTrack], correction: DriftCorrection | N
             "correction": correction.mode if correction is not None else mode,
             "smoothed": smoothed, "tags": per_tag, "readers": dict(readers or {}),
             "gap_mean_m": float(gap.mean()) if gap.size else None,
-            "gap_max_m": float(gap.max()) if gap.size else None}
+            "gap_max_m": float(gap.max()) if gap.size else None,
+            "far_from_tags": [] if correction is None else
+            [i.as_dict() for i in correction.far_from_tags()]}
 

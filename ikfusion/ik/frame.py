@@ -21,6 +21,8 @@ class Frame:
         orientation_weights: Segment name -> weight (default 1; 0 switches a segment off, e.g.
             a sample flagged invalid by the reader).
         position_weights: Site name -> scalar weight [1/m^2] or (3, 3) information matrix.
+        position_reach: Optional bound [m] on how far a site target pulls in one step: a
+            farther target acts as if it were this far (a correction at a bounded rate).
         root_position: Optional target for the pelvis origin ``p_world_pelvis`` [m] (a planner's
             or a ballistic path), with weight ``root_position_weight`` [1/m^2].
         feet_still: Foot segment (``LeftFoot``/``RightFoot``) -> its IMU says it stands still
@@ -34,6 +36,7 @@ class Frame:
     contacts: Mapping[str, bool] | None = None
     orientation_weights: Mapping[str, float] = field(default_factory=dict)
     position_weights: Mapping[str, float | np.ndarray] = field(default_factory=dict)
+    position_reach: float | None = None
     root_position: np.ndarray | None = None
     root_position_weight: float = 1.0
     feet_still: Mapping[str, bool] = field(default_factory=dict)

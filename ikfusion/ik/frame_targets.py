@@ -101,3 +101,4 @@ class TargetLoader:
             weight = np.asarray(frame.position_weights.get(name, 1.0), dtype=float)
             info[i] = weight * np.eye(3) if weight.ndim == 0 else weight
         self.tasks.position.set_targets(p, info)
+        self.tasks.position.reach = frame.position_reach

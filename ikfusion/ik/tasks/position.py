@@ -16,6 +16,8 @@ class PositionTask(Task):
 
     Each frame has a 3x3 information matrix (inverse covariance [1/m^2]), so anisotropic UWB
     covariances weigh the axes correctly; :meth:`set_targets` also accepts scalar weights.
+    With :attr:`reach` set, a target farther than ``reach`` pulls as if it were ``reach`` away
+    (each error shortened to that length): a far target is approached at a bounded rate.
 
     Args:
         frame_ids: Pinocchio frame indices.
@@ -30,6 +32,7 @@ class PositionTask(Task):
         k = len(self.frame_ids)
         self.targets = np.zeros((k, 3))
         self.information = np.zeros((k, 3, 3))
+        self.reach: float | None = None  # longest error one step acts on [m] (None: any)
 
     def set_targets(self, p_world_target: npt.ArrayLike, weights: npt.ArrayLike) -> None:
         """Targets (k, 3) [m] and weights: (k,) scalars or (k, 3, 3) information matrices."""
@@ -67,6 +70,9 @@ class PositionTask(Task):
             return
         J = J_linear[active]
         e = p_world[active] - self.targets[active]
+        if self.reach is not None:  # the length over the axes the information weighs
+            weighed = np.einsum("kii->ki", self.information[active]) > 0
+            e = _shortened(e, weighed, self.reach)
         WJ = self.weight * self.information[active] @ J
         H += np.einsum("kin,kim->nm", J, WJ)
         c += np.einsum("kin,ki->n", WJ, e)
@@ -76,3 +82,10 @@ class PositionTask(Task):
         e = self.compute_error(configuration).reshape(-1, 3)
         return {n: float(np.linalg.norm(v)) for n, v, W in zip(self.names, e, self.information)
                 if W.any()}
+
+
+def _shortened(e: np.ndarray, weighed: np.ndarray, reach: float) -> np.ndarray:
+    """Errors (k, 3) [m], each shortened to at most ``reach`` [m] long on its ``weighed`` axes."""
+    length = np.linalg.norm(np.where(weighed, e, 0.0), axis=1)
+    scale = np.minimum(1.0, reach / np.maximum(length, 1e-12))
+    return np.asarray(e * scale[:, None])

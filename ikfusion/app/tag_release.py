@@ -1,0 +1,67 @@
+"""Feet that cannot stand where they were planted: their tags say they move.
+
+The inertial solve plants a contact point when its foot is low and slow in the sensed pose;
+in running, jumps and cartwheels a foot is sometimes planted that is in the air, and the
+planted point, a hard constraint, then holds the whole body back while the tags run away.
+Nothing a soft task could pull would move it.
+
+A foot's own tag tells: while the foot is planted its fix stays put (up to its noise). So when
+a foot is planted, its fix is remembered; once the fix has moved farther than ``distance``
+(and three standard deviations of its horizontal noise) from there, the foot is let go (a
+contact hint of the frames, :class:`ikfusion.ik.Frame`), and it stays let go while its fix
+keeps moving faster than ``speed``. Drift of the solved body does not enter: the fix is compared
+with the fix, never with the solved foot.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class FootRelease:
+    """Tag-based release of one foot (see the module docstring).
+
+    Attributes:
+        distance: A planted foot's fix moved farther than this [m] from where it was ...
+        speed: ... and the foot stays let go while its fix moves faster than this [m/s].
+        released: The foot is let go in the next frames.
+    """
+
+    distance: float
+    speed: float
+    released: bool = False
+    _anchor: np.ndarray | None = None
+    _last: np.ndarray | None = field(default=None)
+
+    def update(self, planted: bool, p_fix: np.ndarray, cov: np.ndarray, dt: float) -> None:
+        """After a frame: was the foot ``planted``, where is its fix ``p_fix`` (3,) [m].
+
+        Args:
+            planted: A point of the foot is planted in the solved frame.
+            p_fix: The fix (NaN: none this frame).
+            cov: (3, 3) its covariance [m^2].
+            dt: Time since the last frame [s].
+        """
+        if not (np.isfinite(p_fix).all() and np.isfinite(cov).all()):
+            return
+        p = np.asarray(p_fix[:2], dtype=float)
+        moving = (self._last is not None and dt > 0
+                  and float(np.linalg.norm(p - self._last)) > self.speed * dt)
+        self._last = p
+        if self.released:
+            self.released = moving
+            self._anchor = None
+            return
+        if not planted:
+            self._anchor = None
+            return
+        if self._anchor is None:
+            self._anchor = p
+            return
+        noise = 3.0 * float(np.sqrt(max(np.trace(cov[:2, :2]), 0.0)))
+        if float(np.linalg.norm(p - self._anchor)) > max(self.distance, noise):
+            self.released = True
+            self._anchor = None

@@ -1,0 +1,164 @@
+"""Tag fixes as soft position tasks of the solve: the no-slide correction through the whole body.
+
+Planted contact points are hard constraints of each frame's QP, so a position task cannot move
+a planted foot: what the tags can correct is everything the contacts leave free. Each frame,
+the tag sites (``HeadTop``, ``LeftFootTop``, ``RightFootTop``) get soft position tasks toward
+their fixes
+
+* on a foot whose contact points were all off the floor in the last frame: a swing foot is
+  led to where its tag says; it lands there, and the body follows it onto the next step.
+  Its pull is bounded: a target farther than ``tag_speed * dt`` acts as if it were that far
+  (:attr:`ikfusion.ik.tasks.PositionTask.reach`), so the leg bends toward it at a bounded rate
+  and no joint jumps, however far behind the body fell;
+* in flight (no point planted) the root translation is free and the legs and trunk are best
+  left to their sensors: the tags place the pelvis instead (:func:`flight_root_target`): its
+  ballistic path (the last velocity, gravity) moved toward where the tags put it, by at most
+  ``tag_speed * dt`` more per frame, closing the gap with a lag of ``tag_time_constant``.
+
+A tag on the body (the head) acts in flight only; while a foot stands it could only bend the
+trunk away from its sensors, and the pelvis leans toward the correction there
+(:mod:`ikfusion.ik.support`). Each foot task is weighted by its fix's information (inverse
+covariance, with ``tag_sigma`` added) scaled by ``tag_weight``, horizontally, and vertically
+only with ``tag_vertical`` (heights come from the floor and the legs).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Where a tag site is: on the body (the head) or on one of the feet (the foot's name).
+BODY = None
+
+
+@dataclass(frozen=True)
+class TagTaskSettings:
+    """How tag fixes pull their sites.
+
+    Attributes:
+        speed: The correction moves a site at most this fast [m/s].
+        weight: Scale of the information matrices.
+        sigma: Uncertainty [m] of where the solved leg can put its tag, added to the fix's.
+        vertical: Also pull heights (else horizontal only).
+        time_constant: In flight the pelvis closes the gap to the tags with this lag [s].
+    """
+
+    speed: float
+    weight: float
+    sigma: float
+    vertical: bool
+    time_constant: float
+
+
+@dataclass(frozen=True)
+class SolvedTags:
+    """What the next frame's tag tasks take from a solved frame.
+
+    Attributes:
+        contacts: Contact point -> planted.
+        p_root: (3,) the pelvis position [m].
+        v_root: (3,) its velocity [m/s].
+        p_sites: (n, 3) the tag sites [m].
+    """
+
+    contacts: Mapping[str, bool]
+    p_root: np.ndarray
+    v_root: np.ndarray
+    p_sites: np.ndarray
+
+    @property
+    def flight(self) -> bool:
+        """No point was planted."""
+        return not any(self.contacts.values())
+
+
+def tag_information(cov: np.ndarray, settings: TagTaskSettings) -> np.ndarray:
+    """The information matrix (3, 3) [1/m^2] of a fix with covariance ``cov`` (3, 3) [m^2].
+
+    ``weight * (cov + sigma^2 I)^-1``: the fix's own covariance with the uncertainty of where
+    the solved leg can put its tag added (its size, its sensors), so that a precise fix does
+    not bend the ankle instead of moving the leg. Horizontal only (zero vertical row and
+    column) unless ``vertical``.
+    """
+    axes = 3 if settings.vertical else 2
+    info = np.zeros((3, 3))
+    floor = (settings.sigma**2 + 1e-9) * np.eye(axes)
+    info[:axes, :axes] = settings.weight * np.linalg.inv(cov[:axes, :axes] + floor)
+    return info
+
+
+def tag_targets(sites: Sequence[str], feet: Sequence[str | None], p_fix: np.ndarray,
+                cov: np.ndarray, planted: set[str], settings: TagTaskSettings
+                ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """The swing feet's site targets and information matrices of one frame.
+
+    Args:
+        sites: The tag sites.
+        feet: Per site, the foot carrying it (None: on the body).
+        p_fix: (n, 3) their fixes [m] (NaN: none).
+        cov: (n, 3, 3) their covariances [m^2].
+        planted: Feet with a planted point in the last frame.
+        settings: Weight and axes.
+
+    Returns:
+        ``positions`` site -> target (3,) [m] and ``weights`` site -> information (3, 3).
+    """
+    positions: dict[str, np.ndarray] = {}
+    weights: dict[str, np.ndarray] = {}
+    for site, foot, p, C in zip(sites, feet, p_fix, cov):
+        if foot is BODY or foot in planted:
+            continue
+        if not (np.isfinite(p).all() and np.isfinite(C).all()):
+            continue
+        positions[site] = np.asarray(p, dtype=float)
+        weights[site] = tag_information(C, settings)
+    return positions, weights
+
+
+def flight_root_target(last: SolvedTags, body: Sequence[bool], p_fix: np.ndarray,
+                       cov: np.ndarray, dt: float, gravity: np.ndarray,
+                       settings: TagTaskSettings) -> np.ndarray | None:
+    """Where the pelvis should be in a frame of flight (3,) [m], or None without a fix.
+
+    The ballistic path from the last frame (``p + v dt + g dt^2 / 2``), moved horizontally
+    toward where the tags put the pelvis (the last pelvis moved by the tags' information-
+    weighted mean of fix minus last site; body tags only when one has a fix, as the head moves
+    with the pelvis more than a foot does): by ``dt / time_constant`` of the gap, at most
+    ``speed * dt``.
+
+    Args:
+        last: The last solved frame.
+        body: Per tag, on the body (not on a foot).
+        p_fix: (n, 3) this frame's fixes [m] (NaN: none).
+        cov: (n, 3, 3) their covariances [m^2].
+        dt: Time since the last frame [s].
+        gravity: (3,) [m/s^2].
+        settings: Speed and lag.
+    """
+    ok = np.isfinite(p_fix).all(axis=1) & np.isfinite(cov).all(axis=(1, 2))
+    use = ok & np.asarray(body, dtype=bool)
+    if not use.any():
+        use = ok
+    if not use.any():
+        return None
+    info_sum, weighted = np.zeros((3, 3)), np.zeros(3)
+    for i in np.flatnonzero(use):
+        info = np.linalg.inv(cov[i] + 1e-9 * np.eye(3))
+        info_sum += info
+        weighted += info @ (p_fix[i] - last.p_sites[i])
+    by_tags = last.p_root + np.linalg.solve(info_sum, weighted)
+    ballistic = last.p_root + last.v_root * dt + 0.5 * gravity * dt**2
+    gap = (by_tags - ballistic) * min(1.0, dt / settings.time_constant)
+    length = float(np.linalg.norm(gap))
+    if length > settings.speed * dt:
+        gap *= settings.speed * dt / length
+    ballistic += gap
+    return ballistic
+
+
+def planted_feet(contacts: Mapping[str, bool], foot_of: Mapping[str, str | None]) -> set[str]:
+    """The feet with a planted point among ``contacts`` (point -> planted)."""
+    return {foot for point, on in contacts.items() if on
+            for foot in [foot_of.get(point)] if foot is not None}
