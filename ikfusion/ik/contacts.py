@@ -222,12 +222,15 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
             enter[i] = (not active[i]) and bool(hints[name])
     if not active.any() and not enter.any() and not hints:
         enter[int(np.argmin(p_sensed[:, 2]))] = True
-    anchors[enter] = _landing_anchors(layout, active, anchors, p_solved, enter)
-    active |= enter
-    anchors[enter, 2] = np.maximum(anchors[enter, 2], th.floor_z)
+    landing = enter.any()
+    if landing:
+        anchors[enter] = _landing_anchors(layout, active, anchors, p_solved, enter)
+        active |= enter
+        anchors[enter, 2] = np.maximum(anchors[enter, 2], th.floor_z)
     anchors[:, 2] = np.maximum(anchors[:, 2] - th.settle_speed * max(dt, 0.0), th.floor_z)
     age = np.where(active, state.age + max(dt, 0.0), 0.0)
-    age[enter] = 0.0
+    if landing:
+        age[enter] = 0.0
     return ContactState(state.names, active, anchors, age, released)
 
 
