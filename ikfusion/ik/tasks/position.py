@@ -68,15 +68,29 @@ class PositionTask(Task):
         J = J_linear[active]
         e = p_world[active] - self.targets[active]
         WJ = self.weight * self.information[active] @ J
-        # rows stacked (3k, nv): einsum then sums the same products in the same order as over
-        # (k, i), with less iteration overhead
-        nv = H.shape[0]
-        J, WJ = J.reshape(-1, nv), WJ.reshape(-1, nv)
-        H += np.einsum("in,im->nm", J, WJ)
-        c += np.einsum("in,i->n", WJ, e.reshape(-1))
+        add_products(J.reshape(-1, H.shape[0]), WJ.reshape(-1, H.shape[0]), e.reshape(-1), H, c)
 
     def errors_m(self, configuration: Configuration) -> dict[str, float]:
         """Distance of each active frame to its target [m]."""
         e = self.compute_error(configuration).reshape(-1, 3)
         return {n: float(np.linalg.norm(v)) for n, v, W in zip(self.names, e, self.information)
                 if W.any()}
+
+
+def add_products(J: np.ndarray, WJ: np.ndarray, e: np.ndarray, H: np.ndarray,
+                 c: np.ndarray) -> None:
+    """``H += J^T WJ`` and ``c += WJ^T e`` for rows (m, nv), (m, nv) and (m,), in place.
+
+    Only the columns where ``J`` has a nonzero entry (the joints that move the points: a few
+    chains of the tree) are summed, one row after the other: the same products added in the
+    same order as a dense sum over the rows, without the products that are zero.
+    """
+    cols = np.flatnonzero(J.any(axis=0))
+    J, WJ = J[:, cols], WJ[:, cols]
+    block = np.zeros((len(cols), len(cols)))
+    gradient = np.zeros(len(cols))
+    for J_row, WJ_row, e_row in zip(J, WJ, e):
+        block += J_row[:, None] * WJ_row
+        gradient += WJ_row * e_row
+    H[np.ix_(cols, cols)] += block
+    c[cols] += gradient
