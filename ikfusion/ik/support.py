@@ -28,6 +28,7 @@ import math
 import numpy as np
 
 from ..model.topology import FootLayout
+from .fast_math import mean_rows
 
 
 class SupportFollower:
@@ -141,13 +142,13 @@ class SupportFollower:
         planted = self._planted(active)
         self._settle_landings(planted, dt)
         reference = self._reference(active, planted)
-        offset = _mean_rows(anchors[reference] - p_sensed[reference])
+        offset = mean_rows(anchors[reference] - p_sensed[reference])
         moved = np.zeros(3)  # how far the pelvis target moves to where the pelvis was solved
         if self._support is not None:
             was, held = self._support
             if was.any():
                 # what the last frame's support says now, minus what this frame's says
-                self.lag += _mean_rows(held[was] - p_sensed[was]) - offset
+                self.lag += mean_rows(held[was] - p_sensed[was]) - offset
             if not (was & reference).any():
                 # the body is handed to a foot that was placed leaning: the lean is in it now;
                 # and the pelvis goes on from where it was solved, not from its soft target
@@ -228,7 +229,7 @@ class SupportFollower:
                 else:
                     self._goal[f] = _clip_norm(self._step - self.pending, self._max_step)
                     # the heel leaves the floor where it is, not where the sensed leg puts it
-                    self.swing[f] = _mean_rows(self._deviation[points & self._led])
+                    self.swing[f] = mean_rows(self._deviation[points & self._led])
                 self._landed_swing[f] = 0.0
             self.swing[f] += _clip_norm(self._goal[f] - self.swing[f], self.swing_speed * dt)
             self.swing[f] -= moved
@@ -277,11 +278,6 @@ class SupportFollower:
                 targets[points] += self.swing[f]
                 weights[points & self._led] = 1.0
         return targets, weights
-
-
-def _mean_rows(v: np.ndarray) -> np.ndarray:
-    """The mean of the rows of ``v`` (n, 3): the numbers of ``np.mean(v, axis=0)``, faster."""
-    return v.sum(axis=0) / len(v)
 
 
 def _shrink(v: np.ndarray, by: float) -> np.ndarray:

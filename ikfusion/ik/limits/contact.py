@@ -8,6 +8,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..configuration import Configuration
+from ..fast_math import row_norms
 from .base import Equality, Inequality
 
 
@@ -68,7 +69,7 @@ class ContactConstraint:
         """
         d = p_world[self.active] - self.anchors[self.active]
         d[self.free_z[self.active], 2] = 0.0
-        return np.linalg.norm(d, axis=1)
+        return row_norms(d)
 
     def slide_m(self, configuration: Configuration,
                 p_world: np.ndarray | None = None) -> np.ndarray:
