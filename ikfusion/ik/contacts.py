@@ -21,6 +21,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from ..model.topology import FootLayout
+from .fast_math import mean_rows, row_norms
 
 
 @dataclass
@@ -179,7 +180,7 @@ def _sensed_offset(p_sensed: np.ndarray, anchors: np.ndarray, reference: np.ndar
     """
     if not reference.any():
         return np.zeros(3)
-    return np.asarray(np.mean(anchors[reference] - p_sensed[reference], axis=0))
+    return mean_rows(anchors[reference] - p_sensed[reference])
 
 
 def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.ndarray,
@@ -209,7 +210,7 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     active = state.active.copy()
     anchors = state.anchors.copy()
     height_rel = p_sensed[:, 2] - p_sensed[:, 2].min()
-    speed = (np.linalg.norm(p_solved - p_solved_previous, axis=1) / dt
+    speed = (row_norms(p_solved - p_solved_previous) / dt
              if dt > 0 else np.zeros(len(active)))
     tilted = _tilted(layout, foot_pitch, np.radians(th.tilt_deg))
     released = np.where(active, state.released, state.released + max(dt, 0.0))
@@ -222,12 +223,15 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
             enter[i] = (not active[i]) and bool(hints[name])
     if not active.any() and not enter.any() and not hints:
         enter[int(np.argmin(p_sensed[:, 2]))] = True
-    anchors[enter] = _landing_anchors(layout, active, anchors, p_solved, enter)
-    active |= enter
-    anchors[enter, 2] = np.maximum(anchors[enter, 2], th.floor_z)
+    landing = enter.any()
+    if landing:
+        anchors[enter] = _landing_anchors(layout, active, anchors, p_solved, enter)
+        active |= enter
+        anchors[enter, 2] = np.maximum(anchors[enter, 2], th.floor_z)
     anchors[:, 2] = np.maximum(anchors[:, 2] - th.settle_speed * max(dt, 0.0), th.floor_z)
     age = np.where(active, state.age + max(dt, 0.0), 0.0)
-    age[enter] = 0.0
+    if landing:
+        age[enter] = 0.0
     return ContactState(state.names, active, anchors, age, released)
 
 
@@ -245,7 +249,7 @@ def _landing_anchors(layout: FootLayout, active: np.ndarray, anchors: np.ndarray
     for row, i in enumerate(np.flatnonzero(enter)):
         planted = same[i] & active
         if planted.any():
-            out[row] += np.mean(anchors[planted] - p_solved[planted], axis=0)
+            out[row] += mean_rows(anchors[planted] - p_solved[planted])
     return out
 
 
@@ -272,6 +276,6 @@ def _drift_from_other_foot(layout: FootLayout, active: np.ndarray, anchors: np.n
     count = others.sum(axis=1)
     has = count > 0
     offset = (others @ (anchors - p_sensed)) / np.maximum(count, 1)[:, None]
-    drift = np.where(has, np.linalg.norm((p_sensed + offset - anchors)[:, :2], axis=1), 0.0)
+    drift = np.where(has, row_norms((p_sensed + offset - anchors)[:, :2]), 0.0)
     other_age = np.where(has, np.where(others, age[None, :], -np.inf).max(axis=1), np.inf)
     return drift, other_age

@@ -64,16 +64,19 @@ class TargetLoader:
     def load(self, frame: Frame, R_heading: np.ndarray | None) -> FrameTargets:
         """Set the tasks' targets from ``frame``, orientations turned by ``R_heading``."""
         tasks = self.tasks
-        n = len(self._segment_index)
         R = self._identities.copy()
-        w = np.zeros(n)
-        for name, R_target in frame.orientations.items():
-            i = self._segment_index.get(name)
-            if i is None:
+        w = np.zeros(len(self._segment_index))
+        names = [n for n in frame.orientations if n in self._segment_index]
+        if len(names) < len(frame.orientations):
+            for name in frame.orientations:
                 self.model.segment_frame_id(name)  # raises NameNotFound with the valid names
-                continue
-            R[i] = R_target if R_heading is None else R_heading @ R_target
-            w[i] = frame.orientation_weights.get(name, 1.0)
+        if names:  # one assignment of all the rows instead of one per segment
+            rows = [self._segment_index[n] for n in names]
+            targets = [frame.orientations[n] for n in names]
+            R[rows] = (targets if R_heading is None
+                       else [R_heading @ R_target for R_target in targets])
+            weights = frame.orientation_weights
+            w[rows] = [weights.get(n, 1.0) for n in names] if weights else 1.0
         if self.assumed_weight > 0:  # open hinge parents (a thigh between pelvis and shank)
             for i, R_assumed in self.assumed.targets(R, w > 0):
                 R[i], w[i] = R_assumed, self.assumed_weight

@@ -47,8 +47,7 @@ def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: 
     q_start = conf.q.copy()
     for _ in range(max_steps):  # the residual is second order: minimum-norm steps suffice
         P = conf.positions(contact_frames)
-        slide = contact.slide_m(conf, P)
-        if not np.any(slide[np.isfinite(slide)] > tolerance):
+        if not (contact.planted_slide_m(P) > tolerance).any():
             if above_floor(P, floor.floor_z, tolerance):
                 return False
             break
@@ -57,8 +56,7 @@ def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: 
     conf.update(q_start)
     relaxed = False
     for _ in range(max_steps):  # ... unless they fail: the QP with the limits
-        slide = contact.slide_m(conf)
-        if not np.any(slide[np.isfinite(slide)] > tolerance):
+        if not (contact.planted_slide_m(conf.positions(contact_frames)) > tolerance).any():
             break
         problem = build_qp(conf, [], [ranges.inequality(conf), floor.inequality(conf)],
                            [contact.equality(conf)], None, 0.0)
@@ -74,7 +72,7 @@ def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: 
 
 def above_floor(p_contacts: np.ndarray, floor_z: float, tolerance: float) -> bool:
     """No contact point (c, 3) [m] below the floor ``floor_z`` [m] by more than ``tolerance``."""
-    return bool(np.all(p_contacts[:, 2] >= floor_z - tolerance))
+    return bool(p_contacts[:, 2].min() >= floor_z - tolerance)
 
 
 def place_on_floor(conf: Configuration, q: np.ndarray, contact_frames: Sequence[int],

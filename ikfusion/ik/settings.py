@@ -8,6 +8,7 @@ and keys overrides them (:meth:`SolverSettings.load`).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -98,9 +99,9 @@ class SolverSettings:
         return load_settings(cls, shipped_config("solver.yaml"), "solver settings", overlays,
                              overrides)
 
-    @property
+    @cached_property
     def qp(self) -> QpSettings:
-        """The QP backends' iteration limits, tolerances and slack weights."""
+        """The QP backends' iteration limits, tolerances and slack weights (made once)."""
         return QpSettings(self.qp_max_iterations, self.qp_slack_weight,
                           self.qp_relaxed_slack_scale, self.osqp_tolerance,
                           self.osqp_max_iterations)

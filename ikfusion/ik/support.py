@@ -28,6 +28,7 @@ import math
 import numpy as np
 
 from ..model.topology import FootLayout
+from .fast_math import mean_rows
 
 
 class SupportFollower:
@@ -55,6 +56,7 @@ class SupportFollower:
         k = len(layout.on_foot)
         feet = [np.asarray(f, dtype=bool) for f in layout.feet]
         self._feet = tuple(feet + [np.zeros(k, dtype=bool)] * (2 - len(feet)))
+        self._foot_rows = np.array(self._feet)  # (2, k) the points of each foot
         # the swing foot is led by its heels: points on the foot itself, not on the unsensed toes
         self._led = np.asarray(layout.on_foot, dtype=bool)
         self.reset()
@@ -119,7 +121,7 @@ class SupportFollower:
         """
         if self.lag_max <= 0:
             return 1.0 if self.placed else 0.0
-        return float(np.clip((self._allowance - self.lag_max) / self.lag_max, 0.0, 1.0))
+        return min(max((self._allowance - self.lag_max) / self.lag_max, 0.0), 1.0)
 
     @property
     def pending(self) -> np.ndarray:
@@ -137,15 +139,16 @@ class SupportFollower:
             p_sensed: (k, 3) contact points of this frame's sensed pose (any translation) [m].
             dt: Time since the last frame [s].
         """
-        self._settle_landings(active, dt)
-        reference = self._reference(active)
-        offset = np.mean(anchors[reference] - p_sensed[reference], axis=0)
+        planted = self._planted(active)
+        self._settle_landings(planted, dt)
+        reference = self._reference(active, planted)
+        offset = mean_rows(anchors[reference] - p_sensed[reference])
         moved = np.zeros(3)  # how far the pelvis target moves to where the pelvis was solved
         if self._support is not None:
             was, held = self._support
             if was.any():
                 # what the last frame's support says now, minus what this frame's says
-                self.lag += np.mean(held[was] - p_sensed[was], axis=0) - offset
+                self.lag += mean_rows(held[was] - p_sensed[was]) - offset
             if not (was & reference).any():
                 # the body is handed to a foot that was placed leaning: the lean is in it now;
                 # and the pelvis goes on from where it was solved, not from its soft target
@@ -160,24 +163,26 @@ class SupportFollower:
         wanted = _clip_norm(self.lean + self._step - self.pending, self.lean_max)
         self.lean += _clip_norm(wanted - self.lean, self.lean_speed * dt)
         self._support = (reference, anchors.copy())
-        self._reference_feet = np.array([bool((reference & points).any())
-                                         for points in self._feet])
-        self._update_swing(active, dt, moved)
+        self._reference_feet = self._planted(reference)
+        self._update_swing(planted, dt, moved)
         return offset
 
     def _foot_of(self, points: np.ndarray) -> int:
         """The foot (0 left, 1 right) of the first of ``points``."""
         return 0 if (points & self._feet[0]).any() else 1
 
-    def _reference(self, active: np.ndarray) -> np.ndarray:
+    def _planted(self, points: np.ndarray) -> np.ndarray:
+        """(2,) does each foot have one of ``points`` (k,)?"""
+        return np.asarray((self._foot_rows & points).any(axis=1))
+
+    def _reference(self, active: np.ndarray, planted: np.ndarray) -> np.ndarray:
         """The planted points of the foot planted longest (both feet when they landed together).
 
         While both feet are planted the body stays on the foot it stood on: a foot that just
         landed, led away from where the sensed legs put it, takes the body over only when the
         other foot lets go, so the leg that leaves the floor carries no strain that would snap.
         """
-        age = self._planted_for.copy()
-        planted = np.array([bool(active[points].any()) for points in self._feet])
+        age = self._planted_for
         oldest = planted & (age == age[planted].max())
         reference = np.zeros(len(active), dtype=bool)
         for f in np.flatnonzero(oldest):
@@ -189,12 +194,10 @@ class SupportFollower:
         self._support = None
         self.lag = np.zeros(3)
 
-    def _settle_landings(self, active: np.ndarray, dt: float) -> None:
-        """Feet that touched down keep where they were led (:attr:`landed` sums it)."""
+    def _settle_landings(self, planted: np.ndarray, dt: float) -> None:
+        """Feet ``planted`` (2,) that touched down keep where they were led (see :attr:`landed`)."""
         self.landed = np.zeros(3)
-        for f, points in enumerate(self._feet):
-            if not active[points].any():
-                continue
+        for f in np.flatnonzero(planted):
             if self._swinging[f]:
                 self._swinging[f] = False
                 self._landed_swing[f] = self.swing[f]
@@ -206,7 +209,7 @@ class SupportFollower:
                 self._planted_for[f] += dt
             self.swing[f] = 0.0
 
-    def _update_swing(self, active: np.ndarray, dt: float, moved: np.ndarray) -> None:
+    def _update_swing(self, planted: np.ndarray, dt: float, moved: np.ndarray) -> None:
         """Latch the offset of feet that lifted off and move swinging feet.
 
         Swing feet are led relative to the pelvis target: when it ``moved`` (3,) [m] to
@@ -216,9 +219,8 @@ class SupportFollower:
         its gyroscope did not confirm) resumes its swing where it was, so its offset is
         neither lost nor counted twice.
         """
-        for f, points in enumerate(self._feet):
-            if active[points].any():
-                continue
+        for f in np.flatnonzero(~planted):
+            points = self._feet[f]
             if not self._swinging[f]:
                 self._swinging[f] = True
                 if self._planted_for[f] < self.confirm and np.any(self._landed_swing[f]):
@@ -227,7 +229,7 @@ class SupportFollower:
                 else:
                     self._goal[f] = _clip_norm(self._step - self.pending, self._max_step)
                     # the heel leaves the floor where it is, not where the sensed leg puts it
-                    self.swing[f] = np.mean(self._deviation[points & self._led], axis=0)
+                    self.swing[f] = mean_rows(self._deviation[points & self._led])
                 self._landed_swing[f] = 0.0
             self.swing[f] += _clip_norm(self._goal[f] - self.swing[f], self.swing_speed * dt)
             self.swing[f] -= moved
@@ -256,8 +258,7 @@ class SupportFollower:
         disagree by that much on purpose, which must not read as drift between them.
         """
         out = np.zeros((len(active), 3))
-        planted = [bool(active[points].any()) for points in self._feet]
-        if all(planted):
+        if self._planted(active).all():
             young = int(np.argmin(self._planted_for))
             out[self._feet[young]] = self._landed_swing[young]
         return out

@@ -8,6 +8,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..configuration import Configuration
+from ..fast_math import row_norms
 from .base import Equality, Inequality
 
 
@@ -28,6 +29,7 @@ class ContactConstraint:
         self.active = np.zeros(len(self.frame_ids), dtype=bool)
         self.anchors = np.zeros((len(self.frame_ids), 3))
         self.free_z = np.zeros(len(self.frame_ids), dtype=bool)
+        self._held = np.zeros((len(self.frame_ids), 3), dtype=bool)
 
     def set_anchors(self, active: npt.ArrayLike, anchors: npt.ArrayLike,
                     free_z: npt.ArrayLike | None = None) -> None:
@@ -42,6 +44,9 @@ class ContactConstraint:
         self.anchors = np.asarray(anchors, dtype=float).reshape(-1, 3).copy()
         self.free_z = (np.zeros_like(self.active) if free_z is None
                        else np.asarray(free_z, dtype=bool) & self.active)
+        held = np.repeat(self.active[:, None], 3, axis=1)
+        held[:, 2] &= ~self.free_z
+        self._held = held  # (k, 3) the coordinates held, one row each
 
     def equality(self, configuration: Configuration) -> Equality:
         """Linearised rows ``J_i dq = anchor_i - p_i`` for the active points."""
@@ -53,9 +58,18 @@ class ContactConstraint:
 
     def rows(self, p_world: np.ndarray, J_linear: np.ndarray) -> Equality:
         """Rows from every point's position (k, 3) [m] and linear Jacobian (k, 3, nv)."""
-        held = np.repeat(self.active[:, None], 3, axis=1)
-        held[:, 2] &= ~self.free_z
+        held = self._held
         return Equality(J_linear[held], (self.anchors - p_world)[held])
+
+    def planted_slide_m(self, p_world: np.ndarray) -> np.ndarray:
+        """Distance of each point in contact from its anchor (active,) [m].
+
+        The same numbers as :meth:`slide_m` without the NaN rows, from the points' positions
+        (k, 3) [m].
+        """
+        d = p_world[self.active] - self.anchors[self.active]
+        d[self.free_z[self.active], 2] = 0.0
+        return row_norms(d)
 
     def slide_m(self, configuration: Configuration,
                 p_world: np.ndarray | None = None) -> np.ndarray:

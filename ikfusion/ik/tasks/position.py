@@ -74,8 +74,7 @@ class PositionTask(Task):
             weighed = np.einsum("kii->ki", self.information[active]) > 0
             e = _shortened(e, weighed, self.reach)
         WJ = self.weight * self.information[active] @ J
-        H += np.einsum("kin,kim->nm", J, WJ)
-        c += np.einsum("kin,ki->n", WJ, e)
+        add_products(J.reshape(-1, H.shape[0]), WJ.reshape(-1, H.shape[0]), e.reshape(-1), H, c)
 
     def errors_m(self, configuration: Configuration) -> dict[str, float]:
         """Distance of each active frame to its target [m]."""
@@ -89,3 +88,22 @@ def _shortened(e: np.ndarray, weighed: np.ndarray, reach: float) -> np.ndarray:
     length = np.linalg.norm(np.where(weighed, e, 0.0), axis=1)
     scale = np.minimum(1.0, reach / np.maximum(length, 1e-12))
     return np.asarray(e * scale[:, None])
+
+
+def add_products(J: np.ndarray, WJ: np.ndarray, e: np.ndarray, H: np.ndarray,
+                 c: np.ndarray) -> None:
+    """``H += J^T WJ`` and ``c += WJ^T e`` for rows (m, nv), (m, nv) and (m,), in place.
+
+    Only the columns where ``J`` has a nonzero entry (the joints that move the points: a few
+    chains of the tree) are summed, one row after the other: the same products added in the
+    same order as a dense sum over the rows, without the products that are zero.
+    """
+    cols = np.flatnonzero(J.any(axis=0))
+    J, WJ = J[:, cols], WJ[:, cols]
+    block = np.zeros((len(cols), len(cols)))
+    gradient = np.zeros(len(cols))
+    for J_row, WJ_row, e_row in zip(J, WJ, e):
+        block += J_row[:, None] * WJ_row
+        gradient += WJ_row * e_row
+    H[np.ix_(cols, cols)] += block
+    c[cols] += gradient

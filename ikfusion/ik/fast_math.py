@@ -1,0 +1,20 @@
+"""NumPy reductions on the solver's small arrays, the same numbers without NumPy's overhead.
+
+Each function computes exactly what the NumPy function it names computes (the same operations
+in the same order, so bit for bit the same result), skipping the argument handling that
+dominates on arrays of a few rows.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def row_norms(v: np.ndarray) -> np.ndarray:
+    """Euclidean norm of each row of ``v`` (n, d): ``np.linalg.norm(v, axis=1)``."""
+    return np.sqrt(np.add.reduce(v * v, axis=1))
+
+
+def mean_rows(v: np.ndarray) -> np.ndarray:
+    """The mean of the rows of ``v`` (n, d), n >= 1: ``np.mean(v, axis=0)``."""
+    return np.add.reduce(v, axis=0) / len(v)

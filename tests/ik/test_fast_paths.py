@@ -1,0 +1,89 @@
+"""The solver's fast paths compute the very numbers of the plain NumPy formulas they replace.
+
+Speed work must not change a solve (issue #20): each shortcut is checked bit for bit against
+the straightforward formula, on the model's own Jacobians and on random arrays.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from ikfusion.ik import Configuration, SolverSettings
+from ikfusion.ik.fast_math import mean_rows, row_norms
+from ikfusion.ik.limits import ContactConstraint
+from ikfusion.ik.tasks import PositionTask
+from ikfusion.ik.tasks.position import add_products
+from ikfusion.model import HumanModel
+from ikfusion.rotations import random_rotations
+
+
+def random_configuration(human: HumanModel, rng: np.random.Generator) -> np.ndarray:
+    q = human.neutral()
+    q[:3] = rng.normal(size=3)
+    for joint in human.ball_joints.values():  # every ball joint turned at random
+        R = random_rotations(1, rng)[0]
+        q[joint.idx_q:joint.idx_q + 4] = pin.Quaternion(R).coeffs()
+    return q
+
+
+@pytest.mark.parametrize("shape", [(1, 3), (4, 3), (4, 2), (7, 5)])
+def test_row_norms_and_mean_rows_are_numpys_numbers(shape: tuple[int, int]) -> None:
+    rng = np.random.default_rng(3)
+    v = rng.normal(size=shape) * 10.0 ** rng.integers(-8, 8, size=shape)
+    for x in (v, np.hstack([v, v])[:, ::2]):  # contiguous and strided rows
+        assert np.array_equal(row_norms(x), np.linalg.norm(x, axis=1))
+        assert np.array_equal(mean_rows(x), np.mean(x, axis=0))
+
+
+def test_position_rows_are_the_dense_sums_bit_for_bit(human: HumanModel) -> None:
+    """Only the moving columns are summed, yet H and c equal the dense ``J^T W J`` sums."""
+    rng = np.random.default_rng(5)
+    sites = ["LeftHeel", "RightToe", "HeadTop", "RightHand"]
+    task = PositionTask([human.site_frame_id(s) for s in sites], sites, weight=3.0)
+    information = np.array([m @ m.T for m in rng.normal(size=(4, 3, 3))])
+    information[2] = 0.0  # a site without a target this frame
+    task.set_targets(rng.normal(size=(4, 3)), information)
+    conf = Configuration(human.model, random_configuration(human, rng))
+    P, J = conf.positions(task.frame_ids), conf.linear_jacobians(task.frame_ids)
+    assert not J.reshape(-1, human.model.nv).any(axis=0).all()  # some columns do not move
+    H0 = rng.normal(size=(human.model.nv, human.model.nv))
+    c0 = rng.normal(size=human.model.nv)
+    H, c = H0.copy(), c0.copy()
+    task.add_rows(P, J, H, c)
+    on = information.any(axis=(1, 2))
+    WJ = task.weight * information[on] @ J[on]
+    assert np.array_equal(H, H0 + np.einsum("kin,kim->nm", J[on], WJ))
+    assert np.array_equal(c, c0 + np.einsum("kin,ki->n", WJ, P[on] - task.targets[on]))
+
+
+def test_add_products_leaves_the_still_columns_alone() -> None:
+    rng = np.random.default_rng(8)
+    J = np.zeros((3, 10))
+    J[:, [0, 4, 7]] = rng.normal(size=(3, 3))
+    H, c = np.full((10, 10), 2.0), np.full(10, -1.0)
+    add_products(J, 2.0 * J, rng.normal(size=3), H, c)
+    still = [1, 2, 3, 5, 6, 8, 9]
+    assert (H[still] == 2.0).all() and (H[:, still] == 2.0).all() and (c[still] == -1.0).all()
+    assert (H[np.ix_([0, 4, 7], [0, 4, 7])] != 2.0).all()
+
+
+def test_planted_slide_is_slide_m_without_the_free_points(human: HumanModel) -> None:
+    rng = np.random.default_rng(2)
+    names = human.sites_of_kind("contact")
+    contact = ContactConstraint([human.site_frame_id(n) for n in names], names)
+    conf = Configuration(human.model, random_configuration(human, rng))
+    P = conf.positions(contact.frame_ids)
+    contact.set_anchors([True, False, True, True], P + rng.normal(size=P.shape),
+                        [False, False, True, False])
+    slide = contact.slide_m(conf)
+    assert np.array_equal(contact.planted_slide_m(P), slide[np.isfinite(slide)])
+    rows = contact.rows(P, conf.linear_jacobians(contact.frame_ids))
+    assert rows.A.shape[0] == 3 + 2 + 3  # the rising point (free_z) is held horizontally only
+
+
+def test_qp_settings_are_made_once() -> None:
+    settings = SolverSettings.load()
+    assert settings.qp is settings.qp
+    assert settings.qp.max_iterations == settings.qp_max_iterations
