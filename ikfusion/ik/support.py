@@ -55,6 +55,8 @@ class SupportFollower:
         k = len(layout.on_foot)
         feet = [np.asarray(f, dtype=bool) for f in layout.feet]
         self._feet = tuple(feet + [np.zeros(k, dtype=bool)] * (2 - len(feet)))
+        # only feet proper are led through a swing; knees and palms land where the body puts them
+        self._steps = [bool((f & layout.stepping).any()) for f in self._feet]
         # the swing foot is led by its heels: points on the foot itself, not on the unsensed toes
         self._led = np.asarray(layout.on_foot, dtype=bool)
         self.reset()
@@ -67,18 +69,19 @@ class SupportFollower:
         self.lean = np.zeros(3)
         self._step = np.zeros(3)
         self._max_step = 0.0
-        self._swinging = [False, False]
-        self._goal = np.zeros((2, 3))
-        self.swing = np.zeros((2, 3))
-        self._landed_swing = np.zeros((2, 3))
+        n = len(self._feet)
+        self._swinging = [False] * n
+        self._goal = np.zeros((n, 3))
+        self.swing = np.zeros((n, 3))
+        self._landed_swing = np.zeros((n, 3))
         self._base: np.ndarray | None = None
         self._target: np.ndarray | None = None
         self._off_target = np.zeros(3)
         self._deviation = np.zeros((len(self._led), 3))
-        self._planted_for = np.zeros(2)
+        self._planted_for = np.zeros(n)
         self.landed = np.zeros(3)
-        self._placed_by = np.zeros((2, 3))  # how far each foot's anchors were moved on purpose
-        self._reference_feet = np.array([True, True])
+        self._placed_by = np.zeros((n, 3))  # how far each foot's anchors were moved on purpose
+        self._reference_feet = np.ones(n, dtype=bool)
 
     # ------------------------------------------------------------------ corrections
     def set_step(self, offset: np.ndarray, max_step: float) -> None:
@@ -166,8 +169,8 @@ class SupportFollower:
         return offset
 
     def _foot_of(self, points: np.ndarray) -> int:
-        """The foot (0 left, 1 right) of the first of ``points``."""
-        return 0 if (points & self._feet[0]).any() else 1
+        """The foot (index in the layout's feet) of the first of ``points``."""
+        return next((f for f, g in enumerate(self._feet) if (points & g).any()), 0)
 
     def _reference(self, active: np.ndarray) -> np.ndarray:
         """The planted points of the foot planted longest (both feet when they landed together).
@@ -219,6 +222,9 @@ class SupportFollower:
         for f, points in enumerate(self._feet):
             if active[points].any():
                 continue
+            if not self._steps[f]:
+                self._swinging[f] = True  # lifted, never led: lands with no swing offset
+                continue
             if not self._swinging[f]:
                 self._swinging[f] = True
                 if self._planted_for[f] < self.confirm and np.any(self._landed_swing[f]):
@@ -252,13 +258,13 @@ class SupportFollower:
     def placed_offsets(self, active: np.ndarray) -> np.ndarray:
         """(k, 3) [m]: how far each planted point was placed from where the sensed legs put it.
 
-        While both feet are planted, the younger one was led by its swing offset: the feet
-        disagree by that much on purpose, which must not read as drift between them.
+        While two feet (or knees, palms) are planted, the youngest was led by its swing offset:
+        they disagree by that much on purpose, which must not read as drift between them.
         """
         out = np.zeros((len(active), 3))
-        planted = [bool(active[points].any()) for points in self._feet]
-        if all(planted):
-            young = int(np.argmin(self._planted_for))
+        planted = np.array([bool(active[points].any()) for points in self._feet])
+        if planted.sum() >= 2:
+            young = int(np.argmin(np.where(planted, self._planted_for, np.inf)))
             out[self._feet[young]] = self._landed_swing[young]
         return out
 
