@@ -45,11 +45,13 @@ class ContactTracker:
         self.settings = s
         segments = model.segment_names
         self._foot_names = [topology.foot_of(n) for n in self.names]
-        self._feet = np.array([segments.index(f) if f is not None else -1
-                               for f in self._foot_names], dtype=int)
+        # the pitch of a foot proper rules its heel or toe out; knees and palms have none
+        self._feet = np.array([segments.index(f) if f is not None and steps else -1
+                               for f, steps in zip(self._foot_names, self.layout.stepping)],
+                              dtype=int)
         self.support = SupportFollower(self.layout, s.lag_speed, s.lag_max, s.swing_speed,
                                        s.lean_max, s.lean_speed, s.touchdown_confirm)
-        legs = [np.array([segments.index(g) for g in topology.chain(f)] if f else [], dtype=int)
+        legs = [np.array([segments.index(g) for g in topology.limb(f)] if f else [], dtype=int)
                 for f in self._foot_names]
         self.easing = ReleaseEasing(legs, len(segments), np.radians(s.ease_speed_deg))
         self.reset()

@@ -56,7 +56,9 @@ class SupportFollower:
         k = len(layout.on_foot)
         feet = [np.asarray(f, dtype=bool) for f in layout.feet]
         self._feet = tuple(feet + [np.zeros(k, dtype=bool)] * (2 - len(feet)))
-        self._foot_rows = np.array(self._feet)  # (2, k) the points of each foot
+        self._foot_rows = np.array(self._feet)  # (groups, k) the points of each group
+        # only feet proper are led through a swing; knees and palms land where the body puts them
+        self._steps = [bool((f & layout.stepping).any()) for f in self._feet]
         # the swing foot is led by its heels: points on the foot itself, not on the unsensed toes
         self._led = np.asarray(layout.on_foot, dtype=bool)
         self.reset()
@@ -69,18 +71,19 @@ class SupportFollower:
         self.lean = np.zeros(3)
         self._step = np.zeros(3)
         self._max_step = 0.0
-        self._swinging = [False, False]
-        self._goal = np.zeros((2, 3))
-        self.swing = np.zeros((2, 3))
-        self._landed_swing = np.zeros((2, 3))
+        n = len(self._feet)
+        self._swinging = [False] * n
+        self._goal = np.zeros((n, 3))
+        self.swing = np.zeros((n, 3))
+        self._landed_swing = np.zeros((n, 3))
         self._base: np.ndarray | None = None
         self._target: np.ndarray | None = None
         self._off_target = np.zeros(3)
         self._deviation = np.zeros((len(self._led), 3))
-        self._planted_for = np.zeros(2)
+        self._planted_for = np.zeros(n)
         self.landed = np.zeros(3)
-        self._placed_by = np.zeros((2, 3))  # how far each foot's anchors were moved on purpose
-        self._reference_feet = np.array([True, True])
+        self._placed_by = np.zeros((n, 3))  # how far each foot's anchors were moved on purpose
+        self._reference_feet = np.ones(n, dtype=bool)
 
     # ------------------------------------------------------------------ corrections
     def set_step(self, offset: np.ndarray, max_step: float) -> None:
@@ -168,11 +171,11 @@ class SupportFollower:
         return offset
 
     def _foot_of(self, points: np.ndarray) -> int:
-        """The foot (0 left, 1 right) of the first of ``points``."""
-        return 0 if (points & self._feet[0]).any() else 1
+        """The foot (index in the layout's feet) of the first of ``points``."""
+        return next((f for f, g in enumerate(self._feet) if (points & g).any()), 0)
 
     def _planted(self, points: np.ndarray) -> np.ndarray:
-        """(2,) does each foot have one of ``points`` (k,)?"""
+        """(groups,) does each group (foot, knee, palm) have one of ``points`` (k,)?"""
         return np.asarray((self._foot_rows & points).any(axis=1))
 
     def _reference(self, active: np.ndarray, planted: np.ndarray) -> np.ndarray:
@@ -195,7 +198,7 @@ class SupportFollower:
         self.lag = np.zeros(3)
 
     def _settle_landings(self, planted: np.ndarray, dt: float) -> None:
-        """Feet ``planted`` (2,) that touched down keep where they were led (see :attr:`landed`)."""
+        """Groups ``planted`` (groups,) that touched down stay where they were led (``landed``)."""
         self.landed = np.zeros(3)
         for f in np.flatnonzero(planted):
             if self._swinging[f]:
@@ -221,6 +224,9 @@ class SupportFollower:
         """
         for f in np.flatnonzero(~planted):
             points = self._feet[f]
+            if not self._steps[f]:
+                self._swinging[f] = True  # lifted, never led: lands with no swing offset
+                continue
             if not self._swinging[f]:
                 self._swinging[f] = True
                 if self._planted_for[f] < self.confirm and np.any(self._landed_swing[f]):
@@ -254,12 +260,13 @@ class SupportFollower:
     def placed_offsets(self, active: np.ndarray) -> np.ndarray:
         """(k, 3) [m]: how far each planted point was placed from where the sensed legs put it.
 
-        While both feet are planted, the younger one was led by its swing offset: the feet
-        disagree by that much on purpose, which must not read as drift between them.
+        While two feet (or knees, palms) are planted, the youngest was led by its swing offset:
+        they disagree by that much on purpose, which must not read as drift between them.
         """
         out = np.zeros((len(active), 3))
-        if self._planted(active).all():
-            young = int(np.argmin(self._planted_for))
+        planted = self._planted(active)
+        if planted.sum() >= 2:
+            young = int(np.argmin(np.where(planted, self._planted_for, np.inf)))
             out[self._feet[young]] = self._landed_swing[young]
         return out
 

@@ -4,12 +4,20 @@ from .ball_joints import BallJoint, merge_revolute_triplets
 from .body import Body
 from .human_model import HumanModel, SiteInfo
 from .joints import ANGLE_NAMES, JOINTS, SEGMENTS, AngleSpec, JointSpec, load_joint_specs
-from .layout import CONTACT_SITES, SENSOR_SEGMENTS, TAG_SITES, BodyLayout, build_layout
+from .layout import (
+    BODY_CONTACT_SITES,
+    CONTACT_SITES,
+    SENSOR_SEGMENTS,
+    TAG_SITES,
+    BodyLayout,
+    build_layout,
+)
 from .topology import BodyTopology, FootLayout
 from .urdf import body_to_urdf, write_urdf
 
 __all__ = [
     "ANGLE_NAMES",
+    "BODY_CONTACT_SITES",
     "CONTACT_SITES",
     "JOINTS",
     "SEGMENTS",

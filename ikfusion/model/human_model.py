@@ -23,7 +23,7 @@ from ..rotations import matrix_to_quat_wxyz, quat_wxyz_to_matrix, wxyz_to_xyzw, 
 from .ball_joints import BallJoint, merge_revolute_triplets
 from .body import Body
 from .joints import JOINTS, SEGMENTS
-from .layout import CONTACT_SITES, SENSOR_SEGMENTS, TAG_SITES
+from .layout import BODY_CONTACT_SITES, CONTACT_SITES, SENSOR_SEGMENTS, TAG_SITES
 from .urdf import SITE_SUFFIX, write_urdf
 
 #: The shipped default subject (1.75 m).
@@ -124,7 +124,7 @@ class HumanModel:
     def _find_sites(self) -> dict[str, SiteInfo]:
         sites = {}
         kinds = {**{s: "sensor" for s in SENSOR_SEGMENTS}, **{s: "tag" for s in TAG_SITES},
-                 **{s: "contact" for s in CONTACT_SITES}}
+                 **{s: "contact" for s in (*CONTACT_SITES, *BODY_CONTACT_SITES)}}
         for i, f in enumerate(self.model.frames):
             if f.type != pin.FrameType.BODY or not f.name.endswith(SITE_SUFFIX):
                 continue
@@ -132,7 +132,9 @@ class HumanModel:
             parent = self.model.frames[f.parentFrame]
             segment = self.model.frames[parent.parentFrame].name
             sites[name] = SiteInfo(name, i, segment, kinds.get(name, "other"))
-        return sites
+        # the contact points beyond the feet come last, so the feet keep their columns
+        last = [n for n in BODY_CONTACT_SITES if n in sites]
+        return {**{n: s for n, s in sites.items() if n not in last}, **{n: sites[n] for n in last}}
 
     @property
     def segment_names(self) -> list[str]:

@@ -33,6 +33,9 @@ SENSOR_SEGMENTS: tuple[str, ...] = (
 TAG_SITES: tuple[str, ...] = ("HeadTop", "LeftFootTop", "RightFootTop")
 #: Foot contact points.
 CONTACT_SITES: tuple[str, ...] = ("LeftHeel", "LeftToe", "RightHeel", "RightToe")
+#: Contact points beyond the feet, where the body rests when kneeling, crawling or in a
+#: cartwheel: the front of each knee (top of the tibia) and the palm of each hand.
+BODY_CONTACT_SITES: tuple[str, ...] = ("LeftKnee", "RightKnee", "LeftPalm", "RightPalm")
 
 #: The heel lies behind the ankle joint by this fraction of the foot length (the toe tip lies
 #: ahead of it by the rest); BVH skeletons, which have no heel, are scaled with the same rule.
@@ -189,6 +192,7 @@ def _sites(body: Body, origin: dict[str, np.ndarray], tip: dict[str, np.ndarray]
     world["Head"] = ("Head", np.array([-0.055 * H, 0.0, 0.950 * H]), "sensor")
     for side_name in ("Right", "Left"):
         s = _side(side_name)
+        lateral = np.array([0.0, s, 0.0])
         ankle = origin[f"{side_name}Foot"]
         heel_x = -0.22 * fl
         world[f"{side_name}FootTop"] = (
@@ -199,7 +203,6 @@ def _sites(body: Body, origin: dict[str, np.ndarray], tip: dict[str, np.ndarray]
         world[f"{side_name}Shoulder"] = (
             f"{side_name}Shoulder", mid(f"{side_name}Shoulder", 0.6) + [-0.06 * H, 0.0, -0.02 * H],
             "sensor")
-        lateral = np.array([0.0, s, 0.0])
         world[f"{side_name}UpperArm"] = (
             f"{side_name}UpperArm", mid(f"{side_name}UpperArm", 0.5) + 0.025 * H * lateral,
             "sensor")
@@ -215,6 +218,16 @@ def _sites(body: Body, origin: dict[str, np.ndarray], tip: dict[str, np.ndarray]
             mid(f"{side_name}LowerLeg", 0.4) + [0.030 * H, -0.015 * H * s, 0.0], "sensor")
         world[f"{side_name}Foot"] = (
             f"{side_name}Foot", np.array([heel_x + 0.55 * fl, ankle[1], 0.033 * H]), "sensor")
+    for side_name in ("Left", "Right"):
+        # the tibial tuberosity: in front of the shin just below the knee joint (kneeling)
+        world[f"{side_name}Knee"] = (
+            f"{side_name}LowerLeg", origin[f"{side_name}LowerLeg"] + [0.030 * H, 0.0, -0.040 * H],
+            "contact")
+    for side_name in ("Left", "Right"):
+        # the middle of the palm, on the inner side of the hand (N-pose: palms face the body)
+        inward = np.array([0.0, -_side(side_name), 0.0])
+        world[f"{side_name}Palm"] = (
+            f"{side_name}Hand", mid(f"{side_name}Hand", 0.4) + 0.010 * H * inward, "contact")
     return {name: Site(name, seg, p - origin[seg], kind) for name, (seg, p, kind) in world.items()}
 
 

@@ -1,13 +1,17 @@
 """What the body's tree says about its parts: feet, their contact points, legs and toe joints.
 
 Read from the model's joint tree (each ball joint links a parent segment to a child) and from
-the segment carrying each site (:attr:`SiteInfo.segment`), never from names:
+the segment carrying each site (:attr:`SiteInfo.segment`), never from names. A *carrier* is a
+segment that carries a contact point:
 
-* a *foot* is the segment nearest the root, on a contact point's chain, that carries a contact
-  point (the heel's segment; the toe point's segment hangs below it);
-* a contact point *on its foot* (a heel) sits on the foot itself; the others (toes) sit on a
-  segment below it;
-* a foot's *leg* is its chain up to the root, the root excluded;
+* the *foot* of a contact point (the group of points that move as one body part) is the carrier
+  nearest it on its chain; a carrier with no carrier below it whose parent is a carrier (the toes)
+  belongs to its parent's foot. The feet proper (heel and toes) are then one group each, and a
+  knee (on the lower leg) or a palm (on the hand) are groups of their own;
+* a contact point *on its foot* (a heel, a knee, a palm) sits on the group's segment itself; the
+  others (toes) sit on a segment below it; a group with both *steps* (a foot proper: heel-toe
+  roll, IMU stance and swing leading apply to it);
+* a group's *limb* is its chain up to the first segment that branches (the root, the chest);
 * a *toe joint* links a foot to a segment below it that carries a contact point.
 """
 
@@ -32,12 +36,15 @@ class FootLayout:
         on_foot: (k,) points on the foot segment itself (heels).
         below_foot: (k,) points on a segment below the foot (toes).
         feet: (f, k) one row per foot, in the order of its first point: its points.
+        stepping: (k,) points of a foot proper (one with points on and below it: heel, toe),
+            not a knee or a palm.
     """
 
     same_foot: np.ndarray
     on_foot: np.ndarray
     below_foot: np.ndarray
     feet: np.ndarray
+    stepping: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -94,17 +101,40 @@ class BodyTopology:
         names = self.feet(points)
         feet = np.array([[g == f for g in foot] for f in names], dtype=bool).reshape(len(names), k)
         below = ~on_foot
-        for a in (same, on_foot, below, feet):
+        stepping = (same & on_foot[None, :]).any(axis=1) & (same & below[None, :]).any(axis=1)
+        for a in (same, on_foot, below, feet, stepping):
             a.setflags(write=False)
-        return FootLayout(same, on_foot, below, feet)
+        return FootLayout(same, on_foot, below, feet, stepping)
 
     def is_toe_joint(self, parent: str, child: str) -> bool:
         """Does the joint ``parent`` -> ``child`` link a foot to a segment with contact points?"""
-        carriers = {self.site_segment[p] for p in self.contact_points}
-        return child in carriers and self.foot_of_segment(child) == parent
+        return child in self._carriers() and self.foot_of_segment(child) == parent
 
     def foot_of_segment(self, segment: str) -> str | None:
-        """The foot ``segment`` belongs to (itself, or the foot it hangs from); None if none."""
-        carriers = {self.site_segment[p] for p in self.contact_points}
-        feet = [s for s in self.chain(segment) if s in carriers]
-        return feet[-1] if feet else None
+        """The foot ``segment`` belongs to (the nearest carrier on its chain); None if none."""
+        carriers = self._carriers()
+        nearest = next((s for s in self.chain(segment) if s in carriers), None)
+        if nearest is None:
+            return None
+        parent = self.parent.get(nearest)
+        below = any(c in carriers and nearest in self.chain(c)[1:] for c in carriers)
+        return parent if parent in carriers and not below else nearest
+
+    def limb(self, segment: str) -> list[str]:
+        """``segment`` and its ancestors up to the first one with several children, excluded.
+
+        A foot's leg ends at the hip (below the root), a hand's arm at the shoulder (below the
+        chest): what eases back to its sensors when the point lets go.
+        """
+        children: dict[str, int] = {}
+        for p in self.parent.values():
+            children[p] = children.get(p, 0) + 1
+        out = []
+        for s in self.chain(segment):
+            out.append(s)
+            if children.get(self.parent.get(s, ""), 0) > 1:
+                break
+        return out
+
+    def _carriers(self) -> set[str]:
+        return {self.site_segment[p] for p in self.contact_points}

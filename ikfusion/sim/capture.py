@@ -165,7 +165,8 @@ def lead_in(truth: TruthMotion, npose_seconds: float = 2.0,
         -1, len(first)), truth.q])
     time = np.arange(len(q)) / rate
     contacts = contact_phases(model, q, time, truth.contact_names)
-    contacts[:n_still] = True
+    # standing still in the N-pose: the feet's points are on the floor, knees and palms are not
+    contacts[:n_still] = contact_phases(model, q[:1], time[:1], list(truth.contact_names))[0]
     contacts[n_still + n_move:] = truth.contacts
     return TruthMotion(model, time, q, truth.contact_names, contacts, truth.source,
                        {**truth.info, "lead_in_s": npose_seconds + transition_seconds})

@@ -49,3 +49,12 @@ def test_walked_distance_matches_truth(walk) -> None:
     expected = stride_path_length(truth.q, every)
     assert expected > 5.0
     assert abs(walked / expected - 1.0) <= 0.02
+
+
+def test_knees_and_palms_are_never_planted_in_walking(walk) -> None:
+    """They are far above the floor: only heels and toes carry a walk."""
+    _, motion = walk
+    body = [k for k, n in enumerate(motion.contact_names) if "Knee" in n or "Palm" in n]
+    assert len(body) == 4
+    assert not motion.contacts[:, body].any()
+    assert motion.contacts.any()

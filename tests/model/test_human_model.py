@@ -8,6 +8,7 @@ import pytest
 
 from ikfusion.errors import NameNotFound
 from ikfusion.model import (
+    BODY_CONTACT_SITES,
     CONTACT_SITES,
     JOINTS,
     SEGMENTS,
@@ -33,7 +34,10 @@ def test_default_model_sizes(human: HumanModel) -> None:
     assert shortnames.count("JointModelFreeFlyer") == 1
     assert shortnames.count("JointModelSpherical") == 22
     assert len(shortnames) == 23
-    assert set(human.site_names) == set(SENSOR_SEGMENTS) | set(TAG_SITES) | set(CONTACT_SITES)
+    assert set(human.site_names) == (set(SENSOR_SEGMENTS) | set(TAG_SITES) | set(CONTACT_SITES)
+                                     | set(BODY_CONTACT_SITES))
+    assert human.site("LeftKnee").segment == "LeftLowerLeg"
+    assert human.site("RightPalm").segment == "RightHand"
     assert human.site("LeftToe").segment == "LeftToe"
     assert human.site("LeftToe").kind == "contact"
     assert human.site("Pelvis").kind == "sensor"

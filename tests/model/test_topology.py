@@ -14,15 +14,38 @@ def test_feet_legs_and_toe_joints_of_the_default_model() -> None:
     points = model.sites_of_kind("contact")
     assert {p: topology.foot_of(p) for p in points} == {
         "LeftHeel": "LeftFoot", "LeftToe": "LeftFoot",
-        "RightHeel": "RightFoot", "RightToe": "RightFoot"}
+        "RightHeel": "RightFoot", "RightToe": "RightFoot",
+        "LeftKnee": "LeftLowerLeg", "RightKnee": "RightLowerLeg",
+        "LeftPalm": "LeftHand", "RightPalm": "RightHand"}
     assert topology.chain("LeftFoot") == ["LeftFoot", "LeftLowerLeg", "LeftUpperLeg"]
     assert topology.foot_of("HeadTop") is None and topology.foot_of("LeftFootTop") == "LeftFoot"
     toes = [j.name for j in model.ball_joints.values()
             if topology.is_toe_joint(j.spec.parent, j.spec.child)]
     assert sorted(toes) == ["jLeftBallFoot", "jRightBallFoot"]
     layout = topology.foot_layout(points)
-    assert layout.on_foot.tolist() == ["Heel" in p for p in points]
+    assert layout.on_foot.tolist() == ["Toe" not in p for p in points]
     assert layout.below_foot.tolist() == ["Toe" in p for p in points]
+    assert layout.stepping.tolist() == ["Heel" in p or "Toe" in p for p in points]
+
+
+def test_knees_and_palms_are_contact_groups_of_their_own() -> None:
+    """A knee on the lower leg does not swallow the foot below it; a hand's limb ends at the
+    shoulder, a leg's at the hip."""
+    model = HumanModel.default()
+    topology = BodyTopology.of(model)
+    points = model.sites_of_kind("contact")
+    assert points == ["LeftHeel", "LeftToe", "RightHeel", "RightToe",
+                      "LeftKnee", "RightKnee", "LeftPalm", "RightPalm"]
+    layout = topology.foot_layout(points)
+    assert layout.feet.sum(axis=1).tolist() == [2, 2, 1, 1, 1, 1]
+    assert topology.limb("LeftFoot") == topology.chain("LeftFoot")
+    assert topology.limb("LeftLowerLeg") == ["LeftLowerLeg", "LeftUpperLeg"]
+    assert topology.limb("RightHand") == ["RightHand", "RightForeArm", "RightUpperArm",
+                                          "RightShoulder"]
+    q = model.neutral()
+    # the N-pose stands on heels and toes; knees and palms are far above the floor
+    for name in ("LeftKnee", "RightKnee", "LeftPalm", "RightPalm"):
+        assert model.site_position(q, name)[2] > 0.3
 
 
 def test_the_topology_does_not_read_names() -> None:
