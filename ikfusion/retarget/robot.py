@@ -30,8 +30,8 @@ from ..ik.configuration import Configuration
 from ..ik.limits.base import Equality, Inequality
 from ..ik.qp import QpSettings, assemble_qp, solve_qp
 from ..ik.tasks import DampingTask, OrientationTask, PositionTask
+from ..model import layout
 from ..model.human_model import HumanModel
-from ..model.layout import CONTACT_SITES
 from ..rotations import axis_rotation, euler_to_matrix, log_so3
 from .capsules import CapsulePairs
 from .human import hip_height
@@ -147,7 +147,7 @@ def build_targets(source: HumanMotion, robot: RobotModel) -> _Targets:
     in_contact = np.zeros((len(source), 2), dtype=bool)
     for i, prefix in enumerate(SIDES.values()):
         cols = [k for k, n in enumerate(source.contact_names)
-                if n.startswith(prefix) and n in CONTACT_SITES]  # the feet, not knees or palms
+                if n.startswith(prefix) and n in layout.CONTACT_SITES]  # feet, not knees, palms
         if cols:
             in_contact[:, i] = source.contacts[:, cols].any(axis=1)
     return _Targets(orientations, positions, in_contact, float(scale))
