@@ -3,19 +3,24 @@
 An accelerometer measures specific force ``f = R_world_sensor^T (a - g)``. While the body is in
 the air nothing but gravity acts on it, so a unit near the centre of mass (the pelvis) reads
 ``|f|`` near 0: *free fall*. On the ground the same unit reads about ``|g|`` (walking stays
-within a few m/s^2 of it), and a landing shows as a peak of ``|f|`` at the feet. So:
+within a few m/s^2 of it), and a landing shows as a peak of ``|f|`` at the feet. So, with a
+hysteresis:
 
-* a sample is *free* when the pelvis reads ``|f| < free_fall`` and no foot unit rests on the
-  floor (``|f|`` near ``|g|`` while it does not turn), and no foot unit reports an impact;
-* a flight is a run of free samples lasting at least ``min_duration``: shorter dips (the top of
-  a bouncy step, a noise spike) are not flights;
-* a flight ends at the first sample that is not free: the pelvis feels the floor again, or a
-  foot hits it (``|f| > impact``); that sample is the *landing*.
+* a sample is *free* when the pelvis reads ``|f| < free_fall``, *light* when ``|f| <
+  release``, in both cases only while no foot unit rests on the floor (``|f|`` near ``|g|``
+  while it does not turn) and none reports an impact (``|f| > impact``);
+* a flight is confirmed by a run of free samples lasting at least ``min_duration`` (shorter
+  dips, the top of a bouncy step or a noise spike, are not flights); it also takes in the light
+  samples just before that run (the take-off, where the sensor's own filtering rounds the
+  drop of ``|f|``), up to ``extend`` seconds;
+* it lasts while the samples stay light, and ends at the first that is not: the pelvis feels
+  the floor again or a foot hits it. That sample is the *landing*.
 
 The detector is causal with a fixed lag: whether sample ``k`` is airborne is known once sample
-``k + lag`` has arrived, ``lag = round(min_duration * rate) - 1`` samples (50 ms at the
-defaults, 2 samples at 60 Hz). :class:`FlightDetector` runs sample by sample (live);
-:func:`detect_flight` runs it over whole arrays, so offline and live agree exactly.
+``k + lag`` has arrived, ``lag = round(min_duration * rate) - 1 + round(extend * rate)``
+samples (5 samples, 83 ms, at 60 Hz with the defaults). :class:`FlightDetector` runs sample by
+sample (live); :func:`detect_flight` runs it over whole arrays, so offline and live agree
+exactly.
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -37,17 +43,29 @@ class FlightThresholds:
         free_fall: Pelvis ``|f|`` below which the body may be in the air [m/s^2]: about half
             its weight (walking stays above about 7; a flight reads about 0 plus what the legs'
             swing and the sensor's filters add).
-        min_duration: Shortest flight [s]; it sets the detector's lag.
+        release: Pelvis ``|f|`` up to which a confirmed flight goes on [m/s^2] (hysteresis).
+        min_duration: Shortest run of free samples that confirms a flight [s].
+        extend: How far a confirmed flight reaches back over light samples [s].
         rest_tolerance: A foot whose ``|f|`` is within this of ``|g|`` [m/s^2] ...
         rest_rate: ... and whose angular speed is below this [rad/s] rests on the floor.
         impact: Foot ``|f|`` above which a foot hits the floor [m/s^2].
     """
 
     free_fall: float = 5.0
+    release: float = 8.0
     min_duration: float = 0.05
+    extend: float = 0.05
     rest_tolerance: float = 1.0
     rest_rate: float = 0.5
     impact: float = 25.0
+
+
+class FlightEvidence(NamedTuple):
+    """Per-sample evidence (each (N,) bool): see the module docstring."""
+
+    free: np.ndarray
+    light: np.ndarray
+    impact: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -65,38 +83,41 @@ class FlightPhases:
     lag: int
 
 
-def free_samples(acc_pelvis: np.ndarray | None, acc_feet: Mapping[str, np.ndarray],
-                 gyr_feet: Mapping[str, np.ndarray | None] | None = None,
-                 thresholds: FlightThresholds | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Per-sample evidence: (free, impact), each (N,) bool.
+def flight_evidence(acc_pelvis: np.ndarray | None, acc_feet: Mapping[str, np.ndarray],
+                    gyr_feet: Mapping[str, np.ndarray | None] | None = None,
+                    thresholds: FlightThresholds | None = None) -> FlightEvidence:
+    """Per-sample evidence of flight.
 
     Args:
         acc_pelvis: (N, 3) pelvis specific force in its sensor frame [m/s^2] (NaN where
-            missing), or None when not recorded: then no sample is free.
+            missing: such a sample is not free), or None when not recorded: then none is.
         acc_feet: Foot segment -> (N, 3) its specific force [m/s^2] (NaN where missing).
         gyr_feet: Foot segment -> (N, 3) its angular rate [rad/s] or None (then a foot rests
             when its ``|f|`` alone says so).
         thresholds: See :class:`FlightThresholds`.
 
     Returns:
-        ``free``: the pelvis in free fall, no foot resting, no impact (a missing pelvis sample
-        is not free); ``impact``: some foot hits the floor.
+        The :class:`FlightEvidence`.
     """
     th = thresholds or FlightThresholds()
     if acc_pelvis is None:
         n = len(next(iter(acc_feet.values()))) if acc_feet else 0
-        return np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
-    free = np.linalg.norm(np.asarray(acc_pelvis, dtype=float), axis=1) < th.free_fall
-    impact = np.zeros(len(free), dtype=bool)
+        none = np.zeros(n, dtype=bool)
+        return FlightEvidence(none, none, none)
+    pelvis = np.linalg.norm(np.asarray(acc_pelvis, dtype=float), axis=1)
+    impact = np.zeros(len(pelvis), dtype=bool)
+    resting = np.zeros(len(pelvis), dtype=bool)
     for foot, acc in acc_feet.items():
         magnitude = np.linalg.norm(np.asarray(acc, dtype=float), axis=1)
-        resting = np.abs(magnitude - GRAVITY) < th.rest_tolerance
+        rests = np.abs(magnitude - GRAVITY) < th.rest_tolerance
         gyr = None if gyr_feet is None else gyr_feet.get(foot)
         if gyr is not None:
-            resting &= np.linalg.norm(np.asarray(gyr, dtype=float), axis=1) < th.rest_rate
+            rests &= np.linalg.norm(np.asarray(gyr, dtype=float), axis=1) < th.rest_rate
         impact |= magnitude > th.impact
-        free &= ~resting
-    return free & ~impact, impact
+        resting |= rests
+    possible = ~resting & ~impact
+    return FlightEvidence((pelvis < th.free_fall) & possible, (pelvis < th.release) & possible,
+                          impact)
 
 
 class FlightDetector:
@@ -110,39 +131,57 @@ class FlightDetector:
     def __init__(self, rate: float, thresholds: FlightThresholds | None = None) -> None:
         th = thresholds or FlightThresholds()
         self.min_samples = max(1, int(round(th.min_duration * rate)))
+        self.extend_samples = max(0, int(round(th.extend * rate)))
         #: samples between a sample's arrival and its decision
-        self.lag = self.min_samples - 1
+        self.lag = self.min_samples - 1 + self.extend_samples
         self.reset()
 
     def reset(self) -> None:
         """No sample seen."""
-        self._pending: deque[list[bool]] = deque()  # [airborne, landing] of undecided samples
+        # undecided samples, oldest first: [airborne, landing, light]
+        self._pending: deque[list[bool]] = deque()
         self._run = 0  # free samples in a row, up to the newest
-        self._flying = False  # the newest samples belong to a confirmed flight
+        self._flying = False  # the newest sample belongs to a confirmed flight
 
-    def update(self, free: bool, impact: bool = False) -> tuple[bool, bool] | None:
-        """Take the newest sample's evidence (:func:`free_samples`).
+    def update(self, free: bool, light: bool, impact: bool = False) -> tuple[bool, bool] | None:
+        """Take the newest sample's evidence (:func:`flight_evidence`).
 
         Returns:
             ``(airborne, landing)`` of the sample ``lag`` samples back, None while fewer than
             ``lag + 1`` samples have arrived.
         """
-        free = bool(free) and not impact
-        landing = self._flying and not free
+        free, light = bool(free and not impact), bool(light and not impact)
         self._run = self._run + 1 if free else 0
-        self._flying = self._run >= self.min_samples
-        self._pending.append([False, landing])
-        if self._flying:  # the whole run is airborne: at most `lag` of it is still pending
-            for entry in list(self._pending)[-min(self._run, len(self._pending)):]:
+        entry = [False, False, light]
+        self._pending.append(entry)
+        if self._flying:
+            if light:
                 entry[0] = True
+            else:
+                entry[1] = True  # landing: the first sample back on the ground
+                self._flying = False
+        if not self._flying and self._run >= self.min_samples:
+            self._flying = True
+            self._confirm()
         if len(self._pending) <= self.lag:
             return None
-        airborne, landed = self._pending.popleft()
-        return airborne, landed
+        airborne, landing, _ = self._pending.popleft()
+        return airborne, landing
+
+    def _confirm(self) -> None:
+        """Mark the run of free samples airborne, and the light samples just before it."""
+        pending = list(self._pending)
+        for entry in pending[len(pending) - self._run:]:
+            entry[0] = True
+        earlier = pending[:len(pending) - self._run]
+        for entry in reversed(earlier[-self.extend_samples:] if self.extend_samples else []):
+            if not entry[2] or entry[0]:
+                break
+            entry[0] = True
 
     def flush(self) -> list[tuple[bool, bool]]:
         """The decisions still pending at the end of a recording, oldest first."""
-        out = [(a, b) for a, b in self._pending]
+        out = [(a, b) for a, b, _ in self._pending]
         self._pending.clear()
         return out
 
@@ -162,9 +201,10 @@ def detect_flight(rate: float, acc_pelvis: np.ndarray | None, acc_feet: Mapping[
     Returns:
         The :class:`FlightPhases`.
     """
-    free, impact = free_samples(acc_pelvis, acc_feet, gyr_feet, thresholds)
+    evidence = flight_evidence(acc_pelvis, acc_feet, gyr_feet, thresholds)
     detector = FlightDetector(rate, thresholds)
-    decisions = [d for f, i in zip(free, impact) if (d := detector.update(f, i)) is not None]
+    decisions = [d for f, li, i in zip(*evidence) if (d := detector.update(f, li, i))
+                 is not None]
     decisions += detector.flush()
     airborne = np.array([a for a, _ in decisions], dtype=bool)
     landings = np.flatnonzero([b for _, b in decisions])
