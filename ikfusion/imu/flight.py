@@ -6,9 +6,10 @@ the air nothing but gravity acts on it, so a unit near the centre of mass (the p
 within a few m/s^2 of it), and a landing shows as a peak of ``|f|`` at the feet. So, with a
 hysteresis:
 
-* a sample is *free* when the pelvis reads ``|f| < free_fall``, *light* when ``|f| <
-  release``, in both cases only while no foot unit rests on the floor (``|f|`` near ``|g|``
-  while it does not turn) and none reports an impact (``|f| > impact``);
+* a sample is *free* when the pelvis reads ``|f| < free_fall`` while no foot unit rests on
+  the floor (``|f|`` near ``|g|`` while it does not turn, for ``rest_duration``), *light* when
+  the pelvis reads ``|f| < release``, no foot rests and no foot reports an impact (``|f| >
+  impact`` while the pelvis is not free: a foot swung hard in the air peaks too);
 * a flight is confirmed by a run of free samples lasting at least ``min_duration`` (shorter
   dips, the top of a bouncy step or a noise spike, are not flights); it also takes in the light
   samples just before that run (the take-off, where the sensor's own filtering rounds the
@@ -47,8 +48,11 @@ class FlightThresholds:
         min_duration: Shortest run of free samples that confirms a flight [s].
         extend: How far a confirmed flight reaches back over light samples [s].
         rest_tolerance: A foot whose ``|f|`` is within this of ``|g|`` [m/s^2] ...
-        rest_rate: ... and whose angular speed is below this [rad/s] rests on the floor.
-        impact: Foot ``|f|`` above which a foot hits the floor [m/s^2].
+        rest_rate: ... and whose angular speed is below this [rad/s] ...
+        rest_duration: ... for this long up to the sample [s] rests on the floor (a foot in
+            the air passes through such readings only for an instant).
+        impact: Foot ``|f|`` above which a foot hits the floor [m/s^2] (about 4 g), when the
+            pelvis is not in free fall at the same time.
     """
 
     free_fall: float = 5.0
@@ -57,7 +61,8 @@ class FlightThresholds:
     extend: float = 0.05
     rest_tolerance: float = 1.0
     rest_rate: float = 0.5
-    impact: float = 25.0
+    rest_duration: float = 0.1
+    impact: float = 40.0
 
 
 class FlightEvidence(NamedTuple):
@@ -83,17 +88,19 @@ class FlightPhases:
     lag: int
 
 
-def flight_evidence(acc_pelvis: np.ndarray | None, acc_feet: Mapping[str, np.ndarray],
+def flight_evidence(rate: float, acc_pelvis: np.ndarray | None,
+                    acc_feet: Mapping[str, np.ndarray],
                     gyr_feet: Mapping[str, np.ndarray | None] | None = None,
                     thresholds: FlightThresholds | None = None) -> FlightEvidence:
-    """Per-sample evidence of flight.
+    """Per-sample evidence of flight (causal: from the sample and those before it).
 
     Args:
+        rate: Sample rate [Hz].
         acc_pelvis: (N, 3) pelvis specific force in its sensor frame [m/s^2] (NaN where
             missing: such a sample is not free), or None when not recorded: then none is.
         acc_feet: Foot segment -> (N, 3) its specific force [m/s^2] (NaN where missing).
-        gyr_feet: Foot segment -> (N, 3) its angular rate [rad/s] or None (then a foot rests
-            when its ``|f|`` alone says so).
+        gyr_feet: Foot segment -> (N, 3) its angular rate [rad/s] or None (without it a foot
+            is never taken as resting).
         thresholds: See :class:`FlightThresholds`.
 
     Returns:
@@ -109,15 +116,28 @@ def flight_evidence(acc_pelvis: np.ndarray | None, acc_feet: Mapping[str, np.nda
     resting = np.zeros(len(pelvis), dtype=bool)
     for foot, acc in acc_feet.items():
         magnitude = np.linalg.norm(np.asarray(acc, dtype=float), axis=1)
-        rests = np.abs(magnitude - GRAVITY) < th.rest_tolerance
-        gyr = None if gyr_feet is None else gyr_feet.get(foot)
-        if gyr is not None:
-            rests &= np.linalg.norm(np.asarray(gyr, dtype=float), axis=1) < th.rest_rate
         impact |= magnitude > th.impact
-        resting |= rests
-    possible = ~resting & ~impact
-    return FlightEvidence((pelvis < th.free_fall) & possible, (pelvis < th.release) & possible,
-                          impact)
+        gyr = None if gyr_feet is None else gyr_feet.get(foot)
+        if gyr is None:  # |f| near |g| alone is also a foot moving steadily through the air
+            continue
+        rests = ((np.abs(magnitude - GRAVITY) < th.rest_tolerance)
+                 & (np.linalg.norm(np.asarray(gyr, dtype=float), axis=1) < th.rest_rate))
+        resting |= _held_for(rests, max(1, int(round(th.rest_duration * rate))))
+    free = (pelvis < th.free_fall) & ~resting
+    # a foot's peak is a landing once the trunk also leaves free fall (a foot swung hard in
+    # the air peaks too, while the pelvis still floats)
+    impact &= ~free
+    return FlightEvidence(free, (pelvis < th.release) & ~resting & ~impact, impact)
+
+
+def _held_for(mask: np.ndarray, n: int) -> np.ndarray:
+    """Where ``mask`` has been True for the last ``n`` samples (the sample included)."""
+    run = np.zeros(len(mask), dtype=int)
+    count = 0
+    for k, value in enumerate(mask):
+        count = count + 1 if value else 0
+        run[k] = count
+    return run >= n
 
 
 class FlightDetector:
@@ -150,7 +170,8 @@ class FlightDetector:
             ``(airborne, landing)`` of the sample ``lag`` samples back, None while fewer than
             ``lag + 1`` samples have arrived.
         """
-        free, light = bool(free and not impact), bool(light and not impact)
+        light = bool(light and not impact)
+        free = bool(free) and light
         self._run = self._run + 1 if free else 0
         entry = [False, False, light]
         self._pending.append(entry)
@@ -201,7 +222,7 @@ def detect_flight(rate: float, acc_pelvis: np.ndarray | None, acc_feet: Mapping[
     Returns:
         The :class:`FlightPhases`.
     """
-    evidence = flight_evidence(acc_pelvis, acc_feet, gyr_feet, thresholds)
+    evidence = flight_evidence(rate, acc_pelvis, acc_feet, gyr_feet, thresholds)
     detector = FlightDetector(rate, thresholds)
     decisions = [d for f, li, i in zip(*evidence) if (d := detector.update(f, li, i))
                  is not None]
