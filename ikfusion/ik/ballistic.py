@@ -37,11 +37,18 @@ class BallisticRoot:
     def reset(self) -> None:
         """At rest, nothing measured."""
         self.velocity = np.zeros(3)
+        self.position: np.ndarray | None = None  # on the path in flight, None on the ground
 
     def target(self, p_last: np.ndarray, dt: float, a_world: np.ndarray | None) -> np.ndarray:
-        """The pelvis position (3,) [m] ``dt`` [s] after ``p_last`` on the ballistic path."""
-        a = GRAVITY if a_world is None else a_world
-        return np.asarray(p_last + self.velocity * dt + 0.5 * a * dt * dt)
+        """The pelvis position (3,) [m] ``dt`` [s] further on the ballistic path.
+
+        The path starts at ``p_last`` (the solved pelvis) at the take-off and then runs on by
+        itself, so a solve that lags its target does not slow the flight down.
+        """
+        a = GRAVITY if a_world is None or not np.all(np.isfinite(a_world)) else a_world
+        start = p_last if self.position is None else self.position
+        self.position = np.asarray(start + self.velocity * dt + 0.5 * a * dt * dt)
+        return self.position.copy()
 
     def update(self, v_solved: np.ndarray, dt: float, a_world: np.ndarray | None,
                supported: bool) -> None:
@@ -51,15 +58,21 @@ class BallisticRoot:
             v_solved: (3,) the pelvis velocity of the solve [m/s] (the finite difference).
             dt: Time since the last frame [s].
             a_world: (3,) the pelvis acceleration in the world frame [m/s^2], None if not
-                recorded (then the velocity is ``v_solved``).
+                recorded (then the velocity on the ground is ``v_solved``, in flight gravity
+                alone changes it).
             supported: Whether a planted point carried the body this frame.
         """
-        if a_world is None or not np.all(np.isfinite(a_world)) or dt <= 0.0:
+        measured = a_world is not None and bool(np.all(np.isfinite(a_world)))
+        if not supported:  # in flight: the path's own velocity
+            a = a_world if measured and a_world is not None else GRAVITY
+            self.velocity = self.velocity + a * max(dt, 0.0)
+            return
+        self.position = None
+        if not measured or a_world is None or dt <= 0.0:
             self.velocity = np.asarray(v_solved, dtype=float).copy()
             return
         predicted = self.velocity + a_world * dt
-        if supported:
-            gain = 1.0 if self.tau == 0.0 else min(1.0, dt / self.tau)
-            predicted = predicted + gain * (v_solved - predicted)
-        self.velocity = predicted
-
+        # the finite difference is the velocity half a frame back: bring it to this frame
+        v_now = v_solved + 0.5 * a_world * dt
+        gain = 1.0 if self.tau == 0.0 else min(1.0, dt / self.tau)
+        self.velocity = predicted + gain * (v_now - predicted)
