@@ -18,8 +18,9 @@ from ..ik import Frame, Motion, Solver
 from ..ik.assumed import coverage_warning
 from ..imu.bridging import BridgedSegments, BridgingSettings, bridge_segments
 from ..imu.calibration import Calibration, calibrate_recording
+from ..imu.flight import FlightPhases, FlightThresholds, detect_flight, world_acceleration
 from ..imu.stance import StanceThresholds, foot_still
-from ..io.recording import ImuRecording
+from ..io.recording import ImuRecording, SensorStream
 from ..model.human_model import HumanModel
 from .correction import DriftCorrection
 
@@ -66,12 +67,14 @@ def bridged_segments(recording: ImuRecording, sensor_map: Mapping[str, str],
 def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str],
                           calibration: Calibration,
                           stance: StanceThresholds | None = None,
-                          bridged: BridgedSegments | None = None) -> list[Frame]:
+                          bridged: BridgedSegments | None = None,
+                          flight: FlightThresholds | None = None) -> list[Frame]:
     """One frame per sample: calibrated segment orientations (measured or bridged).
 
     Without ``bridged`` only the valid samples are tracked. The feet's stance from their IMUs
     (gyroscopes when recorded, else orientations; invalid samples left out) comes along for
-    contact detection.
+    contact detection, and so do the flight phases from the pelvis and feet accelerometers
+    (:func:`flight_phases`) and the pelvis acceleration in the world frame.
     """
     streams = recording.segment_streams(sensor_map)
     if bridged is None:
@@ -87,13 +90,47 @@ def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str]
             R = np.where(st.valid[:, None, None], st.R_world_sensor, np.nan)
             gyr = None if st.gyr is None else np.where(st.valid[:, None], st.gyr, np.nan)
             still[s] = foot_still(R, recording.rate, gyr, stance)
+    airborne = flight_phases(recording, streams, flight).airborne
+    pelvis = streams.get("Pelvis")
+    a_pelvis = None
+    if pelvis is not None and pelvis.acc is not None:
+        a_pelvis = world_acceleration(pelvis.R_world_sensor, pelvis.acc)
+        a_pelvis[~pelvis.valid] = np.nan
     frames = []
     for k, t in enumerate(recording.time):
         frames.append(Frame(float(t), {s: R_segment[s][k] for s in R_segment
                                        if tracked[s][k]},
                             feet_still={s: bool(v[k]) for s, v in still.items()
-                                        if np.isfinite(v[k])}))
+                                        if np.isfinite(v[k])},
+                            airborne=bool(airborne[k]),
+                            root_acceleration=_finite_or_none(a_pelvis, k)))
     return frames
+
+
+def _finite_or_none(values: np.ndarray | None, k: int) -> np.ndarray | None:
+    """Row ``k`` of ``values`` when it is finite, else None."""
+    if values is None or not np.isfinite(values[k]).all():
+        return None
+    return values[k]
+
+
+def flight_phases(recording: ImuRecording, streams: Mapping[str, SensorStream],
+                  thresholds: FlightThresholds | None = None) -> FlightPhases:
+    """Flight phases from the pelvis and feet accelerometers (none without a pelvis ``acc``).
+
+    Invalid samples count as missing (NaN): a lost pelvis sample is not free fall.
+    """
+    def valid(stream: SensorStream, values: np.ndarray | None) -> np.ndarray | None:
+        return None if values is None else np.where(stream.valid[:, None], values, np.nan)
+
+    pelvis = streams.get("Pelvis")
+    if pelvis is None or pelvis.acc is None:
+        return FlightPhases(np.zeros(len(recording.time), dtype=bool), np.zeros(0, dtype=int), 0)
+    feet = {s: st for s, st in streams.items() if s in ("LeftFoot", "RightFoot")}
+    return detect_flight(
+        recording.rate, valid(pelvis, pelvis.acc),
+        {s: a for s, st in feet.items() if (a := valid(st, st.acc)) is not None},
+        {s: valid(st, st.gyr) for s, st in feet.items()}, thresholds)
 
 
 def knee_warning(motion: Motion) -> str | None:

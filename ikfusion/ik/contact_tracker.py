@@ -4,13 +4,16 @@ Before a frame is solved, planted points that the frame's sensed pose lifts let 
 (:func:`.contacts.release_contacts`, with the feet's stance from their IMUs), a planted heel
 whose foot rolls toe-down may rise, the legs that let go ease back to their sensors
 (:mod:`.release`) and the body is carried by its support (:mod:`.support`). After it is solved,
-points that reached the floor are planted (:func:`.contacts.touch_down`).
+points that reached the floor are planted (:func:`.contacts.touch_down`). A frame flagged
+airborne (its accelerometers in free fall, :mod:`ikfusion.imu.flight`) lets go of every point
+and plants none: the solver then flies the pelvis on its ballistic path, and the first frame
+back on the ground plants the points that reach the floor where they are (no pop).
 """
 
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -120,7 +123,7 @@ class ContactTracker:
         self._pitch = a * self._pitch + (1.0 - a) * pitch
         still = self._feet_still(frame)
         self.state = release_contacts(self.state, self._p_sensed, self.thresholds,
-                                      frame.contacts, self._pitch, still,
+                                      self._hints(frame), self._pitch, still,
                                       self._history[-1][1],
                                       self.support.placed_offsets(self.state.active),
                                       layout=self.layout)
@@ -193,8 +196,14 @@ class ContactTracker:
         self.support.record(p_contacts, p_root)
         t_old, p_old = self._history[0]
         self.state = touch_down(self.state, p_contacts, p_old, self._p_sensed,
-                                frame.time - t_old, self.thresholds, frame.contacts,
+                                frame.time - t_old, self.thresholds, self._hints(frame),
                                 self._pitch, layout=self.layout)
+
+    def _hints(self, frame: Frame) -> Mapping[str, bool] | None:
+        """The frame's contact hints; in flight (``frame.airborne``) every point is free."""
+        if frame.contacts is None and frame.airborne:
+            return dict.fromkeys(self.names, False)
+        return frame.contacts
 
     def _feet_still(self, frame: Frame) -> np.ndarray | None:
         """1 where each point's foot stands still by its IMU, 0 moving, NaN unknown."""

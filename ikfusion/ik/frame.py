@@ -28,6 +28,12 @@ class Frame:
         feet_still: Foot segment (``LeftFoot``/``RightFoot``) -> its IMU says it stands still
             (:func:`ikfusion.imu.stance.foot_still`); absent when unknown. Contact detection
             keeps a still foot planted and hands the body over to it.
+        airborne: The body is in the air (:func:`ikfusion.imu.flight.detect_flight`): no point
+            is planted and none touches down; the pelvis flies on the ballistic path from its
+            take-off velocity. Contact hints, when given, take precedence.
+        root_acceleration: ``a_world_pelvis`` (3,) [m/s^2], the pelvis IMU's acceleration in
+            the world frame (gravity removed), when recorded: it keeps the pelvis velocity
+            honest across take-offs (:mod:`ikfusion.ik.ballistic`).
     """
 
     time: float
@@ -40,3 +46,5 @@ class Frame:
     root_position: np.ndarray | None = None
     root_position_weight: float = 1.0
     feet_still: Mapping[str, bool] = field(default_factory=dict)
+    airborne: bool = False
+    root_acceleration: np.ndarray | None = None

@@ -50,6 +50,7 @@ class SolverSettings:
     smoothness_root_rotation: float
     smoothness_joints: float
     ballistic: float
+    takeoff_velocity_tau: float
     continuity: float
     continuity_placed: float
     swing: float

@@ -6,7 +6,8 @@ Per frame, warm started from the previous frame:
   the sensors leave open, smoothness toward the previous frame, the bend of sensed joints away
   from their sensors kept from the previous frame (:mod:`.sensed_pose`), the pelvis across
   hand-overs and swing feet led by a correction (:mod:`.support`), and during flight a
-  ballistic pelvis path;
+  ballistic pelvis path (:mod:`.ballistic`, its take-off velocity kept by the pelvis
+  accelerometer);
 * constraints: anatomical ranges of motion (linearised), contact points in contact held at
   their touch-down anchors (no slip), contact points above the floor, velocity bounds.
 
@@ -34,6 +35,7 @@ from ..errors import SolverError
 from ..model.human_model import HumanModel
 from ..model.topology import BodyTopology
 from .active_set import solve_with_active_set
+from .ballistic import BallisticRoot
 from .configuration import Configuration
 from .contact_tracker import ContactTracker
 from .frame import Frame
@@ -46,8 +48,6 @@ from .sensed_pose import Persistence, SensedPose
 from .settings import SolverSettings
 from .tasks import Task
 from .world_offset import WorldOffset
-
-GRAVITY = np.array([0.0, 0.0, -9.81])
 
 
 @dataclass(frozen=True)
@@ -98,6 +98,7 @@ class Solver:
         self.targets = TargetLoader(model, self.tasks, self.sensed, s)
         self.contacts = ContactTracker(model, self.topology, self.contact_names, s)
         self.world = WorldOffset(self.contacts.support)
+        self.ballistic = BallisticRoot(s.takeoff_velocity_tau)
         self._configuration = Configuration(model.model, model.neutral())
         self.reset()
 
@@ -108,6 +109,7 @@ class Solver:
         self._failures: list[str] = []
         self.contacts.reset()
         self.world.reset()
+        self.ballistic.reset()
 
     # ------------------------------------------------------------------ solving
     def step(self, frame: Frame) -> Pose:
@@ -143,13 +145,14 @@ class Solver:
         self._hold_contacts(rising)
         # ... translated so that its planted points sit on their anchors on average
         offset = contacts.follow(p_sensed, dt)
+        a_root = self._root_acceleration(frame)
         active: list[Task] = self._base_tasks(frame)
         if offset is not None:
             q[:3] += offset
             if frame.root_position is None:
                 active += contacts.support_tasks(q, p_sensed + offset, tasks.root, tasks.swing)
         elif frame.root_position is None and self._contact_frames:  # flight: ballistic pelvis
-            p_root = last.q[:3] + last.root_velocity * dt + 0.5 * GRAVITY * dt**2
+            p_root = self.ballistic.target(last.q[:3], dt, a_root)
             tasks.root.set_targets(p_root[None], [self.settings.ballistic])
             active.append(tasks.root)
         q, iterations, relaxed = self._solve(frame, targets, q, active,
@@ -159,6 +162,7 @@ class Solver:
             self.contact_names, tasks.contact.active, tasks.contact.free_z)}
         contacts.touch_down(frame, self._configuration.positions(self._contact_frames), q[:3])
         velocity = (q[:3] - last.q[:3]) / dt if dt > 0 else last.root_velocity
+        self.ballistic.update(velocity, dt, a_root, offset is not None)
         return self._finish(frame, targets, q, q_warm, velocity, contacts_now, start,
                             iterations, relaxed)
 
@@ -186,6 +190,15 @@ class Solver:
         contacts.touch_down(frame, self._configuration.positions(self._contact_frames), q[:3])
         return self._finish(frame, targets, q, q_warm, np.zeros(3), contacts.state.as_dict(),
                             start, iterations, relaxed)
+
+    def _root_acceleration(self, frame: Frame) -> np.ndarray | None:
+        """The frame's pelvis acceleration [m/s^2] in the solver's world (heading corrected)."""
+        a = frame.root_acceleration
+        if a is None:
+            return None
+        a = np.asarray(a, dtype=float)
+        R = self.world.R_heading
+        return a if R is None else R @ a
 
     def _apply_world_moves(self) -> None:
         """Apply the drift correction's moves of the solved state since the last frame."""

@@ -65,7 +65,8 @@ def truth_motion(motion: str, seconds: float, rate: float, progress: bool = Fals
     """The truth of ``"gait"`` (circles), ``"gait:<walk>"`` or a BVH path (``.bvh``, ``.bvh.gz``).
 
     ``<walk>`` names a walk of :data:`ikfusion.sim.gait.GAIT_PRESETS` (``straight``, ``turns``,
-    ``slow``, ``fast``, ``backwards``, ``sidestep``, ``turn-on-spot``, ``start-stop``, ...).
+    ``slow``, ``fast``, ``backwards``, ``sidestep``, ``turn-on-spot``, ``start-stop``, ``hop``,
+    ``skip``, ``jump``, ...).
     Walks start with a 2 s N-pose; a BVH clip gets a 2 s N-pose and a 1 s transition into its
     first frame.
 

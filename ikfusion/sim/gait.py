@@ -63,6 +63,11 @@ class GaitParameters:
             within ``pause_ramp`` s, stands still for ``length`` s and starts again. The halt is
             moved to the nearest double stance.
         pause_ramp: Time to slow down from full speed to a halt, and back [s].
+        bounce: ``""`` walks; ``"hop"`` (right leg), ``"skip"`` or ``"jump"`` (both feet)
+            bounce with flight phases (:mod:`ikfusion.sim.bounce`).
+        contact_time: Stance of each bounce [s].
+        flight_time: Flight of each bounce [s] (apex ``9.81 flight_time^2 / 8`` m above
+            take-off).
     """
 
     path: str = "straight"
@@ -80,6 +85,9 @@ class GaitParameters:
     facing_deg: float = 0.0
     pauses: tuple[tuple[float, float], ...] = ()
     pause_ramp: float = 1.2
+    bounce: str = ""
+    contact_time: float = 0.3
+    flight_time: float = 0.2
 
     @property
     def cycle(self) -> float:
@@ -87,7 +95,7 @@ class GaitParameters:
         return 2.0 * self.step_length / self.speed
 
 
-#: Named walks of ``ikfusion simulate --motion gait:<name>`` (each fits a 6 m x 8 m room):
+#: Named walks and bouncing gaits of ``simulate --motion gait:<name>`` (each fits a 6 x 8 m room):
 #: keyword arguments of :class:`GaitParameters` besides ``duration`` and ``stand``. Faster
 #: walks (1.5 m/s and more) or tighter turns (radius 1 m and less) make the generator's solve
 #: jump now and then (the pelvis moves centimetres in one frame): the presets stay below that.
@@ -110,6 +118,16 @@ GAIT_PRESETS: dict[str, dict[str, Any]] = {
                      "arm_swing_deg": 4.0},
     "start-stop": {"path": "turns", "leg_length": 1.5, "radius": 1.5, "speed": 1.1,
                    "step_length": 0.6, "pauses": tuple((t, 2.0) for t in range(7, 600, 7))},
+    # bouncing gaits with flight phases (ikfusion.sim.bounce)
+    "hop": {"bounce": "hop", "path": "circle", "radius": 1.5, "speed": 0.5,
+            "step_length": 0.225, "contact_time": 0.25, "flight_time": 0.2, "clearance": 0.03,
+            "arm_swing_deg": 6.0},
+    "skip": {"bounce": "skip", "path": "circle", "radius": 1.5, "speed": 0.9,
+             "step_length": 0.72, "contact_time": 0.22, "flight_time": 0.18, "clearance": 0.05,
+             "arm_swing_deg": 20.0},
+    "jump": {"bounce": "jump", "path": "circle", "radius": 1.5, "speed": 0.3,
+             "step_length": 0.2, "contact_time": 0.35, "flight_time": 0.3, "clearance": 0.03,
+             "arm_swing_deg": 6.0},
 }
 
 
@@ -387,6 +405,10 @@ def generate_gait(model: HumanModel, parameters: GaitParameters | None = None,
     """
     p = parameters or GaitParameters()
     planner = GaitPlanner(model, p)
+    if p.bounce:
+        from .bounce import BouncePlanner  # it builds on GaitPlanner
+
+        planner = BouncePlanner(model, p)
     # Converged truth; knees that move like the hinges they nearly are (ball joints otherwise
     # take up the foot placement with knee rotation and valgus no real knee shows).
     solver = Solver(model, max_iterations=8, step_tolerance=1e-3,

@@ -1,0 +1,78 @@
+"""The pelvis in flight: a ballistic path from a take-off velocity the accelerometer keeps honest.
+
+On the ground the pelvis velocity comes from the support (the body carried by its planted
+feet), which is right in mid-stance but wrong in the last frames before a flight is confirmed:
+the foot that already left the floor is still held there. The pelvis accelerometer knows
+better. The velocity is therefore a complementary filter: the pelvis acceleration
+``a_world_pelvis`` [m/s^2] integrated, pulled towards the support's velocity with time
+constant ``tau`` [s] while the body stands, and left alone in the air. In flight the pelvis
+target moves on ``p + v dt + a dt^2 / 2`` with the measured acceleration (about ``g`` in free
+fall; exactly ``g`` when none is recorded).
+
+Without an accelerometer the velocity is the solved one of the last frame (as before the
+filter existed), and the flight is the parabola from it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+GRAVITY = np.array([0.0, 0.0, -9.81])  #: [m/s^2] in the world frame (Z up)
+
+
+class BallisticRoot:
+    """Pelvis velocity across stance and flight; the ballistic pelvis target in flight.
+
+    Args:
+        tau: Time constant [s] with which the velocity follows the support while it stands
+            (0: the support's velocity as is).
+    """
+
+    def __init__(self, tau: float) -> None:
+        if tau < 0.0:
+            raise ValueError(f"tau must be >= 0 s, got {tau}")
+        self.tau = tau
+        self.reset()
+
+    def reset(self) -> None:
+        """At rest, nothing measured."""
+        self.velocity = np.zeros(3)
+        self.position: np.ndarray | None = None  # on the path in flight, None on the ground
+
+    def target(self, p_last: np.ndarray, dt: float, a_world: np.ndarray | None) -> np.ndarray:
+        """The pelvis position (3,) [m] ``dt`` [s] further on the ballistic path.
+
+        The path starts at ``p_last`` (the solved pelvis) at the take-off and then runs on by
+        itself, so a solve that lags its target does not slow the flight down.
+        """
+        a = GRAVITY if a_world is None or not np.all(np.isfinite(a_world)) else a_world
+        start = p_last if self.position is None else self.position
+        self.position = np.asarray(start + self.velocity * dt + 0.5 * a * dt * dt)
+        return self.position.copy()
+
+    def update(self, v_solved: np.ndarray, dt: float, a_world: np.ndarray | None,
+               supported: bool) -> None:
+        """After a frame: fold in its solved pelvis velocity and its acceleration.
+
+        Args:
+            v_solved: (3,) the pelvis velocity of the solve [m/s] (the finite difference).
+            dt: Time since the last frame [s].
+            a_world: (3,) the pelvis acceleration in the world frame [m/s^2], None if not
+                recorded (then the velocity on the ground is ``v_solved``, in flight gravity
+                alone changes it).
+            supported: Whether a planted point carried the body this frame.
+        """
+        measured = a_world is not None and bool(np.all(np.isfinite(a_world)))
+        if not supported:  # in flight: the path's own velocity
+            a = a_world if measured and a_world is not None else GRAVITY
+            self.velocity = self.velocity + a * max(dt, 0.0)
+            return
+        self.position = None
+        if not measured or a_world is None or dt <= 0.0:
+            self.velocity = np.asarray(v_solved, dtype=float).copy()
+            return
+        predicted = self.velocity + a_world * dt
+        # the finite difference is the velocity half a frame back: bring it to this frame
+        v_now = v_solved + 0.5 * a_world * dt
+        gain = 1.0 if self.tau == 0.0 else min(1.0, dt / self.tau)
+        self.velocity = predicted + gain * (v_now - predicted)

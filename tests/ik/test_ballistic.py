@@ -1,0 +1,97 @@
+"""The pelvis in flight: ballistic from the take-off, on the truth's parabola, landing softly."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from ikfusion.ik import Solver
+from ikfusion.ik.ballistic import GRAVITY, BallisticRoot
+from ikfusion.mocap.model_motion import TruthMotion
+from ikfusion.model import SENSOR_SEGMENTS, HumanModel
+from ikfusion.sim.gait import gait_preset, generate_gait
+from ikfusion.sim.truth import orientation_frames
+
+RATE = 60.0
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    edges = np.diff(np.r_[0, mask.astype(np.int8), 0])
+    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
+
+
+def test_the_target_path_is_the_closed_form_parabola() -> None:
+    root = BallisticRoot(tau=0.2)
+    root.velocity = np.array([0.5, -0.2, 1.2])
+    p0 = np.array([1.0, 2.0, 0.9])
+    solved, dt = p0.copy(), 1.0 / RATE
+    for k in range(1, 19):
+        p = root.target(solved, dt, None)
+        solved = p - 0.01  # a solve lagging its target does not drag the path
+        root.update(np.zeros(3), dt, None, supported=False)
+        t = k * dt
+        np.testing.assert_allclose(p, p0 + np.array([0.5, -0.2, 1.2]) * t + 0.5 * GRAVITY * t * t,
+                                   atol=1e-12)
+
+
+def test_the_velocity_follows_the_accelerometer_and_leans_on_the_support() -> None:
+    root, dt = BallisticRoot(tau=0.5), 1.0 / RATE
+    a = np.array([0.0, 0.0, 6.0])
+    for _ in range(30):  # the support agrees with the integrated acceleration: no pull
+        # (a finite difference is the velocity half a frame back)
+        root.update(root.velocity + 0.5 * a * dt, dt, a, supported=True)
+    np.testing.assert_allclose(root.velocity, a * 30 * dt, atol=1e-12)
+    v = root.velocity.copy()
+    root.update(np.zeros(3), dt, a, supported=True)  # one bad support frame barely counts
+    expected = v + a * dt + dt / 0.5 * (0.5 * a * dt - (v + a * dt))
+    np.testing.assert_allclose(root.velocity, expected, atol=1e-12)
+    with pytest.raises(ValueError, match="tau"):
+        BallisticRoot(tau=-1.0)
+
+
+@pytest.fixture(scope="module")
+def jumps() -> TruthMotion:
+    return generate_gait(HumanModel.default(), gait_preset("jump", 5.0, stand=1.0), rate=RATE)
+
+
+def _solve(truth: TruthMotion, airborne: bool) -> np.ndarray:
+    """Solved pelvis positions (N, 3) [m] from the truth's sensed segments (IMU only)."""
+    frames = orientation_frames(truth.model, truth.q, truth.time, list(SENSOR_SEGMENTS))
+    a_pelvis = np.gradient(np.gradient(truth.q[:, :3], 1.0 / RATE, axis=0), 1.0 / RATE, axis=0)
+    flying = ~truth.contacts.any(axis=1)
+    if airborne:
+        frames = [replace(f, airborne=bool(flying[k]), root_acceleration=a_pelvis[k])
+                  for k, f in enumerate(frames)]
+    motion = Solver(truth.model).solve(frames)
+    return np.asarray(motion.q[:, :3])
+
+
+def test_airborne_frames_fly_the_pelvis_on_the_truth_parabola(jumps: TruthMotion) -> None:
+    solved = _solve(jumps, airborne=True)
+    truth = jumps.q[:, :3]
+    flights = [(a, b) for a, b in _runs(~jumps.contacts.any(axis=1)) if b - a >= 8]
+    assert len(flights) >= 5
+    for a, b in flights:
+        t = jumps.time[a:b] - jumps.time[a]
+        curve = np.polyfit(t, solved[a:b, 2], 2)
+        assert curve[0] == pytest.approx(GRAVITY[2] / 2, rel=0.03)
+        # the flight carries the body nearly as far as the truth's, and as high: the take-off
+        # velocity is known to about 0.1 m/s (the push-off ends between two 60 Hz samples)
+        move, move_truth = solved[b - 1] - solved[a], truth[b - 1] - truth[a]
+        assert np.linalg.norm(move - move_truth) < 0.035
+        assert np.ptp(solved[a:b, 2]) == pytest.approx(np.ptp(truth[a:b, 2]), abs=0.015)
+    # the landings do not pop: the pelvis moves per frame as the truth does (within 1 cm)
+    for _, b in flights:
+        step = np.linalg.norm(np.diff(solved[b - 2:b + 3], axis=0), axis=1)
+        step_truth = np.linalg.norm(np.diff(truth[b - 2:b + 3], axis=0), axis=1)
+        assert np.abs(step - step_truth).max() < 0.01
+
+
+def test_without_flight_the_body_stays_on_the_floor(jumps: TruthMotion) -> None:
+    # the same jumps without the airborne frames: a planted foot holds the body down, so the
+    # pelvis rises far less than the truth's (what the flight detection is for)
+    solved = _solve(jumps, airborne=False)
+    a, b = next((a, b) for a, b in _runs(~jumps.contacts.any(axis=1)) if a > 2 * RATE)
+    assert np.ptp(solved[a:b, 2]) < 0.5 * np.ptp(jumps.q[a:b, 2])
