@@ -38,9 +38,10 @@ from typing import Any
 
 import numpy as np
 
+from ..ik.ballistic import GRAVITY
 from ..ik.frame import Frame
 from ..ik.pose import Motion, Pose
-from ..ik.solver import GRAVITY, Solver
+from ..ik.solver import Solver
 from ..ik.world_offset import WorldOffset
 from ..paths import shipped_config
 from ..settings_files import Overlay, load_settings
