@@ -7,6 +7,11 @@ nearest samples). Without UWB the absolute position of the body is unobservable,
 equals the truth's; a result that used UWB is compared as it is. The shift applied is reported
 as ``start_shift_m`` ([x, y, z] [m], zero when not aligned).
 
+Joint angles of both sides are made continuous in time (no +-360 deg wraps, no jumps between
+the two Euler triples of a rotation, :mod:`ikfusion.model.angle_continuity`), then each frame of
+the estimate takes the triple of its rotation closest to the truth's, so an arm overhead or a
+spin compares like with like.
+
 Metrics (all over the common time span):
 
 * ``joint_angle_rms_deg``: RMS over every anatomical angle and frame [deg];
@@ -34,6 +39,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..io.truth_npz import read_truth
+from ..model.angle_continuity import continuous_columns_deg, nearest_columns_deg
+from ..model.joints import load_joint_specs
 from ..rotations import angle_between, continuous_quaternions, quat_wxyz_to_matrix
 
 
@@ -181,8 +188,12 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
     t = t_true[span]
     names = [str(n) for n in truth["joint_angle_names"]]
     common = [n for n in names if n in header]
-    est_angles = _interp(t, t_est, _floats(folder / "joint_angles.csv", header, rows, common))
-    true_angles = truth["joint_angles"][span][:, [names.index(n) for n in common]]
+    specs = load_joint_specs()
+    est_angles = _interp(t, t_est, continuous_columns_deg(
+        _floats(folder / "joint_angles.csv", header, rows, common), common, specs))
+    true_angles = continuous_columns_deg(
+        truth["joint_angles"][:, [names.index(n) for n in common]], common, specs)[span]
+    est_angles = nearest_columns_deg(est_angles, true_angles, common, specs)
     diff = (est_angles - true_angles + 180.0) % 360.0 - 180.0
     per_joint = {n: float(np.sqrt(np.mean(diff[:, k] ** 2))) for k, n in enumerate(common)}
 
