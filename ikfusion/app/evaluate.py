@@ -22,10 +22,13 @@ Metrics (all over the common time span):
 * ``foot_slide_mm`` and ``foot_slide_max_mm``: per contact phase of the truth, the largest
   horizontal distance of the estimated contact point from where it was when the phase began;
   mean and maximum over phases [mm];
-* ``joint_angle_jump_max_deg``: the largest error of a frame-to-frame change of a joint angle
-  against the truth's change over the same frame [deg]: the pops of a solve (a contact that
-  lets go, a correction applied at once). The toe joints, which no sensor of a suit observes,
-  are left out. ``joint_angle_jump_at`` says which angle, when.
+* ``joint_angle_jump_max_deg``: the largest frame-to-frame change of a joint's error against
+  the truth (the geodesic angle between the error rotations ``R_true^T R_est`` of its angles in
+  two consecutive frames) [deg]: the pops of a solve (a contact that lets go, a correction applied
+  at once). Free of Euler artefacts near ``|middle| = 90`` deg; for a pop about one axis it is
+  that angle's change. The toe joints, which no sensor of a suit observes, are left out.
+  ``joint_angle_jump_at`` says which angle (of the joint, the one whose error changed most),
+  when.
 """
 
 from __future__ import annotations
@@ -39,7 +42,11 @@ import numpy as np
 
 from ..errors import InputError
 from ..io.truth_npz import read_truth
-from ..model.angle_continuity import continuous_columns_deg, nearest_columns_deg
+from ..model.angle_continuity import (
+    continuous_columns_deg,
+    nearest_columns_deg,
+    sequence_columns,
+)
 from ..model.joints import load_joint_specs
 from ..rotations import angle_between, continuous_quaternions, quat_wxyz_to_matrix
 
@@ -143,7 +150,14 @@ def phase_slides(P: np.ndarray, contacts: np.ndarray) -> list[float]:
 
 def joint_angle_jump(time: np.ndarray, estimated: np.ndarray, true: np.ndarray,
                      names: list[str]) -> tuple[float, str]:
-    """The largest error of a frame-to-frame change of a joint angle, and where.
+    """The largest frame-to-frame change of a joint's error against the truth, and where.
+
+    Per joint, the error is the rotation ``R_true^T R_estimated`` of its three angles; its change
+    over one frame is a geodesic angle, so the measure is the same whichever Euler triple either
+    side holds and stays meaningful where Euler angles are not (at ``|middle| = 90`` deg a tiny
+    turn moves the first and third angles by tens of degrees on both sides alike). For a pop about
+    one anatomical axis it equals the change of that angle's error. Angles of incomplete joints
+    are compared one by one.
 
     Args:
         time: (N,) [s].
@@ -152,16 +166,34 @@ def joint_angle_jump(time: np.ndarray, estimated: np.ndarray, true: np.ndarray,
         names: (J,) angle names; the toes (``...BallFoot...``) are left out.
 
     Returns:
-        ``|change of estimated - change of true|`` at its largest [deg] (0 for fewer than two
-        frames), and ``"<angle> at <t> s"`` (the frame the change ends on).
+        The largest change [deg] (0 for fewer than two frames), and ``"<angle> at <t> s"`` (the
+        frame the change ends on; of the joint's angles the one whose error changed most).
     """
-    body = [k for k, n in enumerate(names) if "BallFoot" not in n]
-    if len(time) < 2 or not body:
+    specs = load_joint_specs()
+    triples = [list(row) for row in sequence_columns(names, specs)
+               if "BallFoot" not in names[row[0]]]
+    in_triples = {k for row in triples for k in row}
+    singles = [k for k, n in enumerate(names) if "BallFoot" not in n and k not in in_triples]
+    if len(time) < 2 or not (triples or singles):
         return 0.0, ""
-    error = (estimated[:, body] - true[:, body] + 180.0) % 360.0 - 180.0
-    jump = np.abs((np.diff(error, axis=0) + 180.0) % 360.0 - 180.0)
-    k, j = np.unravel_index(int(np.argmax(jump)), jump.shape)
-    return float(jump[k, j]), f"{names[body[j]]} at {time[k + 1]:.2f} s"
+    jumps = []  # per joint or single angle: (N - 1,) [deg]
+    for row in triples:
+        spec = specs[names[row[0]].rsplit("_", 1)[0]]
+        order = [spec.column(a.name) for a in spec.angles]
+        cols = [next(k for k in row if names[k] == c) for c in order]
+        R_est = spec.rotation(np.radians(estimated[:, cols]))
+        R_true = spec.rotation(np.radians(true[:, cols]))
+        error = np.swapaxes(R_true, -1, -2) @ R_est
+        jumps.append(np.degrees(angle_between(error[:-1], error[1:])))
+    for k in singles:
+        error = (estimated[:, k] - true[:, k] + 180.0) % 360.0 - 180.0
+        jumps.append(np.abs((np.diff(error) + 180.0) % 360.0 - 180.0))
+    table = np.stack(jumps, axis=1)
+    k, j = np.unravel_index(int(np.argmax(table)), table.shape)
+    columns = triples[j] if j < len(triples) else [singles[j - len(triples)]]
+    change = np.abs(np.diff(estimated[k:k + 2, columns] - true[k:k + 2, columns], axis=0))[0]
+    angle = names[columns[int(np.argmax((change + 180.0) % 360.0 - 180.0))]]
+    return float(table[k, j]), f"{angle} at {time[k + 1]:.2f} s"
 
 
 def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto") -> Evaluation:
