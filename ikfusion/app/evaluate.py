@@ -185,11 +185,11 @@ def joint_angle_jump(time: np.ndarray, estimated: np.ndarray, true: np.ndarray,
         R_true = spec.rotation(np.radians(true[:, cols]))
         error = np.swapaxes(R_true, -1, -2) @ R_est
         jumps.append(np.degrees(angle_between(error[:-1], error[1:])))
-    for k in singles:
-        error = (estimated[:, k] - true[:, k] + 180.0) % 360.0 - 180.0
+    for single in singles:
+        error = (estimated[:, single] - true[:, single] + 180.0) % 360.0 - 180.0
         jumps.append(np.abs((np.diff(error) + 180.0) % 360.0 - 180.0))
     table = np.stack(jumps, axis=1)
-    k, j = np.unravel_index(int(np.argmax(table)), table.shape)
+    k, j = (int(i) for i in np.unravel_index(int(np.argmax(table)), table.shape))
     columns = triples[j] if j < len(triples) else [singles[j - len(triples)]]
     change = np.abs(np.diff(estimated[k:k + 2, columns] - true[k:k + 2, columns], axis=0))[0]
     angle = names[columns[int(np.argmax((change + 180.0) % 360.0 - 180.0))]]
