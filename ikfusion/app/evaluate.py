@@ -7,6 +7,11 @@ nearest samples). Without UWB the absolute position of the body is unobservable,
 equals the truth's; a result that used UWB is compared as it is. The shift applied is reported
 as ``start_shift_m`` ([x, y, z] [m], zero when not aligned).
 
+Joint angles of both sides are made continuous in time (no +-360 deg wraps, no jumps between
+the two Euler triples of a rotation, :mod:`ikfusion.model.angle_continuity`), then each frame of
+the estimate takes the triple of its rotation closest to the truth's, so an arm overhead or a
+spin compares like with like.
+
 Metrics (all over the common time span):
 
 * ``joint_angle_rms_deg``: RMS over every anatomical angle and frame [deg];
@@ -17,10 +22,13 @@ Metrics (all over the common time span):
 * ``foot_slide_mm`` and ``foot_slide_max_mm``: per contact phase of the truth, the largest
   horizontal distance of the estimated contact point from where it was when the phase began;
   mean and maximum over phases [mm];
-* ``joint_angle_jump_max_deg``: the largest error of a frame-to-frame change of a joint angle
-  against the truth's change over the same frame [deg]: the pops of a solve (a contact that
-  lets go, a correction applied at once). The toe joints, which no sensor of a suit observes,
-  are left out. ``joint_angle_jump_at`` says which angle, when.
+* ``joint_angle_jump_max_deg``: the largest frame-to-frame change of a joint's error against
+  the truth (the geodesic angle between the error rotations ``R_true^T R_est`` of its angles in
+  two consecutive frames) [deg]: the pops of a solve (a contact that lets go, a correction applied
+  at once). Free of Euler artefacts near ``|middle| = 90`` deg; for a pop about one axis it is
+  that angle's change. The toe joints, which no sensor of a suit observes, are left out.
+  ``joint_angle_jump_at`` says which angle (of the joint, the one whose error changed most),
+  when.
 """
 
 from __future__ import annotations
@@ -34,6 +42,12 @@ import numpy as np
 
 from ..errors import InputError
 from ..io.truth_npz import read_truth
+from ..model.angle_continuity import (
+    continuous_columns_deg,
+    nearest_columns_deg,
+    sequence_columns,
+)
+from ..model.joints import load_joint_specs
 from ..rotations import angle_between, continuous_quaternions, quat_wxyz_to_matrix
 
 
@@ -136,7 +150,14 @@ def phase_slides(P: np.ndarray, contacts: np.ndarray) -> list[float]:
 
 def joint_angle_jump(time: np.ndarray, estimated: np.ndarray, true: np.ndarray,
                      names: list[str]) -> tuple[float, str]:
-    """The largest error of a frame-to-frame change of a joint angle, and where.
+    """The largest frame-to-frame change of a joint's error against the truth, and where.
+
+    Per joint, the error is the rotation ``R_true^T R_estimated`` of its three angles; its change
+    over one frame is a geodesic angle, so the measure is the same whichever Euler triple either
+    side holds and stays meaningful where Euler angles are not (at ``|middle| = 90`` deg a tiny
+    turn moves the first and third angles by tens of degrees on both sides alike). For a pop about
+    one anatomical axis it equals the change of that angle's error. Angles of incomplete joints
+    are compared one by one.
 
     Args:
         time: (N,) [s].
@@ -145,16 +166,34 @@ def joint_angle_jump(time: np.ndarray, estimated: np.ndarray, true: np.ndarray,
         names: (J,) angle names; the toes (``...BallFoot...``) are left out.
 
     Returns:
-        ``|change of estimated - change of true|`` at its largest [deg] (0 for fewer than two
-        frames), and ``"<angle> at <t> s"`` (the frame the change ends on).
+        The largest change [deg] (0 for fewer than two frames), and ``"<angle> at <t> s"`` (the
+        frame the change ends on; of the joint's angles the one whose error changed most).
     """
-    body = [k for k, n in enumerate(names) if "BallFoot" not in n]
-    if len(time) < 2 or not body:
+    specs = load_joint_specs()
+    triples = [list(row) for row in sequence_columns(names, specs)
+               if "BallFoot" not in names[row[0]]]
+    in_triples = {k for row in triples for k in row}
+    singles = [k for k, n in enumerate(names) if "BallFoot" not in n and k not in in_triples]
+    if len(time) < 2 or not (triples or singles):
         return 0.0, ""
-    error = (estimated[:, body] - true[:, body] + 180.0) % 360.0 - 180.0
-    jump = np.abs((np.diff(error, axis=0) + 180.0) % 360.0 - 180.0)
-    k, j = np.unravel_index(int(np.argmax(jump)), jump.shape)
-    return float(jump[k, j]), f"{names[body[j]]} at {time[k + 1]:.2f} s"
+    jumps = []  # per joint or single angle: (N - 1,) [deg]
+    for row in triples:
+        spec = specs[names[row[0]].rsplit("_", 1)[0]]
+        order = [spec.column(a.name) for a in spec.angles]
+        cols = [next(k for k in row if names[k] == c) for c in order]
+        R_est = spec.rotation(np.radians(estimated[:, cols]))
+        R_true = spec.rotation(np.radians(true[:, cols]))
+        error = np.swapaxes(R_true, -1, -2) @ R_est
+        jumps.append(np.degrees(angle_between(error[:-1], error[1:])))
+    for single in singles:
+        error = (estimated[:, single] - true[:, single] + 180.0) % 360.0 - 180.0
+        jumps.append(np.abs((np.diff(error) + 180.0) % 360.0 - 180.0))
+    table = np.stack(jumps, axis=1)
+    k, j = (int(i) for i in np.unravel_index(int(np.argmax(table)), table.shape))
+    columns = triples[j] if j < len(triples) else [singles[j - len(triples)]]
+    change = np.abs(np.diff(estimated[k:k + 2, columns] - true[k:k + 2, columns], axis=0))[0]
+    angle = names[columns[int(np.argmax((change + 180.0) % 360.0 - 180.0))]]
+    return float(table[k, j]), f"{angle} at {time[k + 1]:.2f} s"
 
 
 def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto") -> Evaluation:
@@ -181,8 +220,12 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
     t = t_true[span]
     names = [str(n) for n in truth["joint_angle_names"]]
     common = [n for n in names if n in header]
-    est_angles = _interp(t, t_est, _floats(folder / "joint_angles.csv", header, rows, common))
-    true_angles = truth["joint_angles"][span][:, [names.index(n) for n in common]]
+    specs = load_joint_specs()
+    est_angles = _interp(t, t_est, continuous_columns_deg(
+        _floats(folder / "joint_angles.csv", header, rows, common), common, specs))
+    true_angles = continuous_columns_deg(
+        truth["joint_angles"][:, [names.index(n) for n in common]], common, specs)[span]
+    est_angles = nearest_columns_deg(est_angles, true_angles, common, specs)
     diff = (est_angles - true_angles + 180.0) % 360.0 - 180.0
     per_joint = {n: float(np.sqrt(np.mean(diff[:, k] ** 2))) for k, n in enumerate(common)}
 

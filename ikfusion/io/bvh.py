@@ -47,6 +47,7 @@ import numpy.typing as npt
 
 from ..atomic import atomic_write_text
 from ..errors import InputError, NameNotFound
+from ..model.angle_continuity import continuous_series
 from ..rotations import axis_rotation, matrix_to_euler
 from .bad_samples import FAR_BEYOND_ANY_HALL_M, Kind, bad_samples, bridge_channel
 
@@ -965,7 +966,7 @@ def _euler_degrees(order: str, R: np.ndarray) -> np.ndarray:
         R: Rotations, shape (F, 3, 3).
 
     Returns:
-        Angles (F, 3) [deg], the outer two unwrapped over the frames.
+        Angles (F, 3) [deg], continuous over the frames (no wraps, no Euler branch jumps).
     """
     angles = matrix_to_euler(order, R)
     i, j, k = ("XYZ".index(c) for c in order)
@@ -980,10 +981,7 @@ def _euler_degrees(order: str, R: np.ndarray) -> np.ndarray:
         p, q = (k + 1) % 3, (k + 2) % 3
         angles[locked, 0] = 0.0
         angles[locked, 2] = np.arctan2(rest[:, q, p], rest[:, p, p])
-    if angles.shape[0] > 1:
-        angles[:, 0] = np.unwrap(angles[:, 0])
-        angles[:, 2] = np.unwrap(angles[:, 2])
-    return np.rad2deg(angles)
+    return np.rad2deg(continuous_series(angles))
 
 
 def _formatter(decimals: int | None) -> Callable[[float], str]:

@@ -18,6 +18,7 @@ from pathlib import Path
 
 from ..errors import ConfigError
 from ..yaml_files import read_yaml_document, with_line
+from .ranges import RangeOverrides, parse_ranges
 
 #: Default dimension / body height ratios (Winter 2009, Fig. 4.1; see module docstring).
 HEIGHT_FRACTIONS: dict[str, float] = {
@@ -71,6 +72,9 @@ class Body:
         shoulder_height: Floor to shoulder joint [m].
         hip_height: Floor to hip joint [m]; must equal ankle_height + lower_leg + upper_leg
             within 3 cm when all four are given.
+        ranges: Per-subject ranges of motion over ``configs/joints.yaml``'s, as
+            ``((joint, angle, lower_deg, upper_deg), ...)`` [deg] (:mod:`.ranges`; the body
+            file's ``ranges`` entry, a preset such as ``athlete`` already expanded).
     """
 
     height: float = 1.75
@@ -86,6 +90,7 @@ class Body:
     ankle_height: float | None = None
     shoulder_height: float | None = None
     hip_height: float | None = None
+    ranges: RangeOverrides = ()
 
     def __post_init__(self) -> None:
         _validate(self, source=None)
@@ -97,12 +102,14 @@ class Body:
 
     @classmethod
     def from_dict(cls, values: Mapping[str, object], source: str | Path | None = None) -> Body:
-        """A body from a mapping of SPEC section 2 keys; unknown keys are an error.
+        """A body from a mapping of SPEC section 2 keys (and ``ranges``); unknown keys are an error.
 
         Raises:
             ConfigError: Naming the file (``source``) and the key at fault.
         """
         known = {f.name for f in fields(cls)}
+        values = dict(values)
+        ranges = parse_ranges(values.pop("ranges"), source) if "ranges" in values else ()
         unknown = sorted(set(values) - known)
         if unknown:
             raise ConfigError(
@@ -129,6 +136,7 @@ class Body:
         body = object.__new__(cls)
         for f in fields(cls):
             object.__setattr__(body, f.name, parsed.get(f.name, f.default))
+        object.__setattr__(body, "ranges", ranges)
         _validate(body, source=source)
         return body
 
@@ -148,7 +156,8 @@ class Body:
         try:
             return cls.from_dict(doc.data, source=file)
         except ConfigError as err:
-            raise with_line(err, doc.line_of(err.field) if err.field else None) from None
+            raise with_line(err, doc.line_of(*err.field.split(".")) if err.field else None) \
+                from None
 
     def to_dict(self) -> dict[str, float]:
         """Every dimension resolved (defaults filled in), in metres and kg."""

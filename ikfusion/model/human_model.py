@@ -20,6 +20,7 @@ import pinocchio as pin
 from ..errors import ConfigError, NameNotFound
 from ..paths import robots_dir
 from ..rotations import matrix_to_quat_wxyz, quat_wxyz_to_matrix, wxyz_to_xyzw, xyzw_to_wxyz
+from .angle_continuity import continuous_series, nearest_equivalent
 from .ball_joints import BallJoint, merge_revolute_triplets
 from .body import Body
 from .joints import JOINTS, SEGMENTS
@@ -245,28 +246,51 @@ class HumanModel:
         return {name: quat_wxyz_to_matrix(xyzw_to_wxyz(qq[j.idx_q:j.idx_q + 4]))
                 for name, j in self.ball_joints.items()}
 
-    def joint_angles(self, q: npt.ArrayLike) -> dict[str, float]:
-        """Anatomical joint angles [deg] at ``q``, keys like ``jRightKnee_flex``."""
+    def joint_angles(self, q: npt.ArrayLike,
+                     previous: Mapping[str, float] | None = None) -> dict[str, float]:
+        """Anatomical joint angles [deg] at ``q``, keys like ``jRightKnee_flex``.
+
+        Args:
+            q: The configuration.
+            previous: The previous frame's angles [deg] (live use, causal): each joint then
+                takes the Euler triple of its rotation closest to them (no +-360 deg wrap, no
+                jump between the two Euler branches near ``|middle| = 90`` deg). Without it,
+                the principal triple (middle angle in [-90, 90] deg, the others in
+                (-180, 180] deg).
+        """
         out: dict[str, float] = {}
         for name, R in self.joint_rotations(q).items():
             spec = self.ball_joints[name].spec
-            values = np.degrees(spec.angles_from_rotation(R))
-            for angle, value in zip(spec.angles, values):
-                out[spec.column(angle.name)] = float(value)
+            values = spec.angles_from_rotation(R)
+            columns = [spec.column(a.name) for a in spec.angles]
+            if previous is not None and all(c in previous for c in columns):
+                values, _ = nearest_equivalent(values, np.radians([previous[c] for c in columns]))
+            for column, value in zip(columns, np.degrees(values)):
+                out[column] = float(value)
         return out
 
-    def joint_angle_matrix(self, qs: npt.ArrayLike) -> np.ndarray:
-        """Joint angles [deg] of a stack of configurations, shape (N, 3 * joints).
+    def joint_angle_matrix(self, qs: npt.ArrayLike, continuous: bool = True) -> np.ndarray:
+        """Joint angles [deg] of a series of configurations, shape (N, 3 * joints).
 
-        Columns follow :attr:`angle_columns` (flex, abd, rot per joint).
+        Columns follow :attr:`angle_columns` (flex, abd, rot per joint). The series is
+        continuous (:func:`~ikfusion.model.angle_continuity.continuous_series`): the first frame
+        takes the principal triple, every later one the triple closest to the frame before, so
+        spins, arms overhead and high kicks neither wrap by 360 deg nor jump between the Euler
+        branches.
+
+        Args:
+            qs: (N, nq) configurations in time order.
+            continuous: False for each frame's principal triple on its own.
         """
         Q = np.atleast_2d(np.asarray(qs, dtype=float))
         out = np.empty((Q.shape[0], 3 * len(self.ball_joints)))
         for k, joint in enumerate(self.ball_joints.values()):
             R = quat_wxyz_to_matrix(xyzw_to_wxyz(Q[:, joint.idx_q:joint.idx_q + 4]))
-            angles = np.degrees(joint.spec.angles_from_rotation(R))
+            angles = joint.spec.angles_from_rotation(R)
+            if continuous:
+                angles = continuous_series(angles)
             order = [("flex", "abd", "rot").index(a.name) for a in joint.spec.angles]
-            out[:, 3 * k + np.array(order)] = angles
+            out[:, 3 * k + np.array(order)] = np.degrees(angles)
         return out
 
     def revolute_to_spherical(self, q_revolute: npt.ArrayLike) -> np.ndarray:

@@ -21,6 +21,7 @@ from ..atomic import atomic_write_text
 from .body import Body
 from .joints import JOINTS, SEGMENTS, JointSpec, load_joint_specs
 from .layout import BodyLayout, build_layout
+from .ranges import with_ranges
 
 #: Suffix of the URDF links that carry sites.
 SITE_SUFFIX = "_site"
@@ -82,7 +83,7 @@ def body_to_urdf(body: Body, name: str = "human") -> str:
     Returns:
         URDF XML as a string.
     """
-    specs = load_joint_specs()
+    specs = with_ranges(load_joint_specs(), body.ranges)
     layout = build_layout(body)
     lines = [
         '<?xml version="1.0"?>',

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..ik.pose import Motion
+from ..model.angle_continuity import continuous_series
 from ..paths import shipped_config
 from ..rotations import matrix_to_euler
 from ..yaml_files import read_yaml
@@ -151,7 +152,7 @@ def segment_poses(motion: Motion, names: set[str]) -> tuple[dict[str, np.ndarray
 
 
 def opensim_euler_deg(R_world_parent: np.ndarray | None, R_world_child: np.ndarray) -> np.ndarray:
-    """Angles (N, 3) [deg] of ``R_parent_child`` in OpenSim axes and order, unwrapped in time.
+    """Angles (N, 3) [deg] of ``R_parent_child`` in OpenSim axes and order, continuous in time.
 
     Args:
         R_world_parent: (N, 3, 3), or None for the ground.
@@ -163,7 +164,7 @@ def opensim_euler_deg(R_world_parent: np.ndarray | None, R_world_child: np.ndarr
     R = R_world_child if R_world_parent is None else \
         np.swapaxes(R_world_parent, -1, -2) @ R_world_child
     angles = matrix_to_euler(OPENSIM_SEQUENCE, to_opensim_rotation(R))
-    return np.degrees(np.unwrap(angles, axis=0))
+    return np.degrees(continuous_series(angles))
 
 
 def opensim_coordinates(motion: Motion, mapping: OpenSimMapping | None = None,

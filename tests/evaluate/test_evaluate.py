@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -129,3 +130,28 @@ def test_a_damaged_truth_file_is_bad_input(walk, tmp_path: Path, capsys, damage:
     assert main(["evaluate", str(result), str(truth_file)]) == 2
     err = capsys.readouterr().err
     assert "truth.npz" in err and "Traceback" not in err
+
+
+def test_angles_through_the_euler_singularity_compare_like_with_like(walk,
+                                                                      tmp_path: Path) -> None:
+    """The right arm's axial rotation (the middle Euler angle of the shoulder) sweeps through
+    90 deg and the solve reads it 1 deg low: a 1 deg error in that angle, no error elsewhere and
+    no jump, although the two sides' principal Euler triples lie on different branches (180 deg
+    apart in flexion and abduction) in the frames between 89 and 91 deg."""
+    model = walk.model
+    n = len(walk.time)
+    rot = 90.0 - 30.0 * np.cos(np.linspace(0.0, 4.0 * np.pi, n))
+    joint = model.ball_joints["jRightShoulder"]
+    truth_q, est_q = walk.q.copy(), walk.q.copy()
+    for k in range(n):
+        for q, r in ((truth_q, rot[k]), (est_q, rot[k] - 1.0)):
+            a = {"flex": 40.0, "rot": r, "abd": 25.0}
+            R = joint.spec.rotation(np.radians([a[s.name] for s in joint.spec.angles]))
+            q[k, joint.idx_q:joint.idx_q + 4] = pin.Quaternion(R).coeffs()
+    truth = replace(walk, q=truth_q)
+    truth_file = write_truth(tmp_path / "truth.npz", truth)
+    e = evaluate(result_of(truth, est_q, tmp_path / "result"), truth_file)
+    assert e.per_joint_rms_deg["jRightShoulder_flex"] < 1e-3
+    assert e.per_joint_rms_deg["jRightShoulder_abd"] < 1e-3
+    assert e.per_joint_rms_deg["jRightShoulder_rot"] == pytest.approx(1.0, abs=1e-3)
+    assert e.joint_angle_jump_max_deg < 1e-3

@@ -146,3 +146,22 @@ def test_a_still_foot_keeps_its_contacts(human: HumanModel) -> None:
     fresh.step(Frame(0.0, still))
     released = fresh.step(Frame(1 / 60, lifted))
     assert not released.contacts["LeftHeel"]
+
+
+def test_a_pose_beyond_a_limit_is_held_at_that_limit_not_thrown_to_the_other(
+        human: HumanModel) -> None:
+    """Swordplay's symptom: an arm raised forward past its 175 deg flexion limit, through the
+    +-180 deg wrap of the Euler angle, and back. The solve must stay at the upper limit and follow
+    the arm down, not jump to the -65 deg extension limit while the truth is beyond 180 deg."""
+    flex = 140.0 + 80.0 * np.sin(np.linspace(0.0, np.pi, 90))  # 140 -> 220 -> 140 deg
+    qs = np.array([human.configuration({"jLeftShoulder_flex": f, "jLeftShoulder_abd": 20.0,
+                                        "jLeftShoulder_rot": 10.0}) for f in flex])
+    _, q_est = solve_exact(human, qs)
+    columns = ["jLeftShoulder_flex", "jLeftShoulder_abd", "jLeftShoulder_rot"]
+    index = [human.angle_columns.index(c) for c in columns]
+    solved = human.joint_angle_matrix(q_est)[:, index]
+    assert np.max(np.abs(np.diff(solved, axis=0))) < 10.0  # no pop between frames
+    beyond = flex > 175.0
+    assert np.all(solved[beyond, 0] > 165.0)  # held near the limit it crossed
+    inside = flex < 160.0  # well inside: the solve follows the truth again
+    np.testing.assert_allclose(solved[inside, 0], flex[inside], atol=1.0)

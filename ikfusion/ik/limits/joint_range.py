@@ -9,6 +9,11 @@ vector Pinocchio uses for spherical joints) through ``w = E(a) da``, with
 
 so the linearised limits are ``lower - a <= E^-1 w <= upper - a``. ``E`` is invertible while the
 middle angle stays away from +-90 deg, which the ranges guarantee.
+
+A pose beyond its range (the warm start at the sensed pose of an athlete) is measured on the
+Euler triple closest to the range (:func:`~ikfusion.model.angle_continuity.nearest_to_ranges`),
+so it is pulled back to the limit it crossed and not thrown to the opposite corner across the
++-180 deg wrap of the principal decomposition.
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...model.angle_continuity import nearest_to_ranges
 from ...model.ball_joints import BallJoint
 from ...rotations import exp_so3, quat_wxyz_to_matrix, xyzw_to_wxyz
 from ..configuration import Configuration
@@ -55,7 +61,7 @@ class JointRangeLimit:
                       + np.arange(3)).reshape(-1)
 
     def angles(self, q: np.ndarray) -> np.ndarray:
-        """Anatomical angles (joints, 3) [rad] in sequence order."""
+        """Anatomical angles (joints, 3) [rad] in sequence order (principal decomposition)."""
         R = quat_wxyz_to_matrix(xyzw_to_wxyz(np.asarray(q)[self._q_cols]))
         n = np.arange(len(R))
         i, j, k = self.axes[:, 0], self.axes[:, 1], self.axes[:, 2]
@@ -78,7 +84,7 @@ class JointRangeLimit:
 
     def violation_deg(self, q: np.ndarray) -> np.ndarray:
         """How far each angle lies outside its range (joints, 3) [deg], 0 inside."""
-        a = self.angles(q)
+        a, _ = nearest_to_ranges(self.angles(q), self.lower, self.upper)
         return np.degrees(np.maximum(self.lower - a, 0.0) + np.maximum(a - self.upper, 0.0))
 
     def inequality(self, configuration: Configuration) -> Inequality:
@@ -96,9 +102,17 @@ class JointRangeLimit:
 
     def linearise(self, angles: np.ndarray, rate_matrices: np.ndarray | None,
                   nv: int) -> LinearisedRanges:
-        """Every angle's rate per tangent step and its room to both limits."""
-        a = angles
-        Einv = self.rate_matrices(a) if rate_matrices is None else rate_matrices
+        """Every angle's rate per tangent step and its room to both limits.
+
+        ``angles`` may be any Euler triple per joint (e.g. the principal one); each is measured
+        on its triple closest to the range, whose middle rate row changes sign on the other
+        branch.
+        """
+        a, flipped = nearest_to_ranges(angles, self.lower, self.upper)
+        Einv = self.rate_matrices(angles) if rate_matrices is None else rate_matrices
+        if np.any(flipped):
+            Einv = Einv.copy()
+            Einv[flipped, 1, :] *= -1.0
         G = np.zeros((a.size, nv))  # row 3j + m: angle m of joint j per unit tangent step
         G[self._rows, self._cols] = Einv.reshape(-1)
         return LinearisedRanges(G, (self.upper - a).reshape(-1), (a - self.lower).reshape(-1))

@@ -1,0 +1,183 @@
+"""Continuous anatomical joint angles: no +-360 deg wraps, no jumps between Euler branches.
+
+A joint's rotation is an intrinsic Euler (Tait-Bryan) sequence of three angles
+``(a1, a2, a3)`` (``configs/joints.yaml``). Every rotation has two such triples:
+
+    (a1, a2, a3)  and  (a1 + pi, pi - a2, a3 + pi)      (each angle modulo 2 pi)
+
+(signs of the anatomical angles do not change this: ``s * pi`` equals ``pi`` modulo 2 pi).
+The principal decomposition keeps the middle angle in [-90, 90] deg and the others in
+(-180, 180] deg; a motion through ``|a2| = 90`` deg (arms overhead, high kicks, spins) or
+through 180 deg then jumps by about 180 or 360 deg in one frame although the body moved a little.
+Here each frame takes, of the two triples and their 2 pi shifts, the one closest to a reference:
+the previous frame for a series (:func:`continuous_series`, causal: frame k depends on frames
+up to k only), or any reference triple (:func:`nearest_equivalent`, e.g. the truth's angles at
+the same time, so that an error compares like with like).
+
+All angles here are in radians with the three angles of a joint on the last axis in sequence
+order, unless a function says degrees.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+import numpy.typing as npt
+
+from .joints import JointSpec
+
+_TURN = 2.0 * np.pi
+
+
+def equivalent_triple(angles: npt.ArrayLike) -> np.ndarray:
+    """The other Euler triple of the same rotation, ``(a1 + pi, pi - a2, a3 + pi)`` [rad].
+
+    Args:
+        angles: (..., 3) angles in sequence order [rad].
+
+    Returns:
+        (..., 3), not wrapped to any interval.
+    """
+    a = np.asarray(angles, dtype=float)
+    return np.stack([a[..., 0] + np.pi, np.pi - a[..., 1], a[..., 2] + np.pi], axis=-1)
+
+
+def wrap_near(angles: npt.ArrayLike, reference: npt.ArrayLike) -> np.ndarray:
+    """``angles`` shifted by whole turns to lie within pi of ``reference`` [rad] (elementwise)."""
+    a = np.asarray(angles, dtype=float)
+    return a + _TURN * np.round((np.asarray(reference, dtype=float) - a) / _TURN)
+
+
+def nearest_equivalent(angles: npt.ArrayLike,
+                       reference: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """The triple of the same rotation as ``angles`` closest to ``reference``.
+
+    Args:
+        angles: (..., 3) any Euler triple per joint [rad], e.g. the principal decomposition.
+        reference: (..., 3) the triple to stay close to [rad] (e.g. the previous frame's).
+
+    Returns:
+        The chosen triples (..., 3) [rad] and a mask (...) of those on the other branch than
+        ``angles`` (there the middle angle's rate changes sign: ``d a2' = -d a2``).
+    """
+    ref = np.asarray(reference, dtype=float)
+    same = wrap_near(angles, ref)
+    other = wrap_near(equivalent_triple(angles), ref)
+    flipped = np.sum((other - ref) ** 2, axis=-1) < np.sum((same - ref) ** 2, axis=-1)
+    return np.where(flipped[..., None], other, same), flipped
+
+
+def continuous_series(angles: npt.ArrayLike) -> np.ndarray:
+    """A series of joint angles made continuous frame by frame (causal).
+
+    The first frame is kept; every later frame takes the triple of its rotation closest to the
+    previous frame's result (:func:`nearest_equivalent`). A joint whose angles hold NaN in a
+    frame is kept as it is there and does not become the reference.
+
+    Args:
+        angles: (N, ..., 3) angles per frame in sequence order [rad].
+
+    Returns:
+        (N, ..., 3) [rad], the same rotations.
+    """
+    a = np.array(angles, dtype=float)
+    if len(a) == 0:
+        return a
+    previous = a[0]
+    for k in range(1, len(a)):
+        chosen, _ = nearest_equivalent(a[k], previous)
+        known = np.all(np.isfinite(previous), axis=-1, keepdims=True)
+        chosen = np.where(known, chosen, a[k])  # no reference yet: keep the frame as it is
+        valid = np.all(np.isfinite(chosen), axis=-1, keepdims=True)
+        a[k] = np.where(valid, chosen, a[k])
+        previous = np.where(valid, chosen, previous)
+    return a
+
+
+def sequence_columns(columns: Sequence[str],
+                     specs: Mapping[str, JointSpec]) -> np.ndarray:
+    """Indices into ``columns`` of each joint's three angles in sequence order, shape (J, 3).
+
+    Only joints of ``specs`` whose three columns (``<joint>_flex`` ...) are all present count.
+    """
+    where = {c: i for i, c in enumerate(columns)}
+    rows = []
+    for spec in specs.values():
+        names = [spec.column(a.name) for a in spec.angles]
+        if all(n in where for n in names):
+            rows.append([where[n] for n in names])
+    return np.array(rows, dtype=int).reshape(-1, 3)
+
+
+def continuous_columns_deg(values_deg: npt.ArrayLike, columns: Sequence[str],
+                           specs: Mapping[str, JointSpec]) -> np.ndarray:
+    """:func:`continuous_series` of a table of angles [deg] with named columns.
+
+    Args:
+        values_deg: (N, C) angles [deg], columns like ``jRightHip_flex``.
+        columns: (C,) the column names.
+        specs: The joints, for each one's Euler sequence.
+
+    Returns:
+        (N, C) [deg]; columns of no complete joint are returned as they are.
+    """
+    out = np.array(values_deg, dtype=float)
+    index = sequence_columns(columns, specs)
+    if index.size:
+        out[:, index] = np.degrees(continuous_series(np.radians(out[:, index])))
+    return out
+
+
+def nearest_columns_deg(values_deg: npt.ArrayLike, reference_deg: npt.ArrayLike,
+                        columns: Sequence[str], specs: Mapping[str, JointSpec]) -> np.ndarray:
+    """Per row, each joint's triple of ``values_deg`` closest to ``reference_deg`` [deg].
+
+    Args:
+        values_deg: (N, C) angles [deg].
+        reference_deg: (N, C) reference angles at the same rows [deg] (e.g. the truth).
+        columns: (C,) the column names of both.
+        specs: The joints, for each one's Euler sequence.
+
+    Returns:
+        (N, C) [deg], the same rotations as ``values_deg``.
+    """
+    out = np.array(values_deg, dtype=float)
+    index = sequence_columns(columns, specs)
+    if index.size:
+        chosen, _ = nearest_equivalent(np.radians(out[:, index]),
+                                       np.radians(np.asarray(reference_deg, dtype=float)[:, index]))
+        out[:, index] = np.degrees(chosen)
+    return out
+
+
+def nearest_to_ranges(angles: npt.ArrayLike, lower: npt.ArrayLike,
+                      upper: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """The triple of each rotation that lies closest to its range of motion.
+
+    The first and third angles are taken within half a turn of the middle of their range (the
+    cut sits in the middle of the excluded arc, not at +-180 deg), and of the two Euler branches
+    the one with the smaller squared distance outside the ranges is kept. A pose beyond a limit
+    is so measured from the limit it crossed, not from the opposite one across the wrap: a hip
+    flexed to 185 deg is 55 deg beyond its 130 deg limit, not 140 deg below -35 deg.
+
+    Args:
+        angles: (..., 3) any triple per joint [rad] in sequence order.
+        lower: (..., 3) lower limits [rad].
+        upper: (..., 3) upper limits [rad].
+
+    Returns:
+        The chosen triples (..., 3) [rad] and the mask (...) of those on the other branch
+        (their middle angle's rate has the opposite sign).
+    """
+    lo = np.asarray(lower, dtype=float)
+    hi = np.asarray(upper, dtype=float)
+    centre = 0.5 * (lo + hi)
+
+    def outside(a: np.ndarray) -> np.ndarray:
+        return np.sum(np.maximum(lo - a, 0.0) ** 2 + np.maximum(a - hi, 0.0) ** 2, axis=-1)
+
+    same = wrap_near(angles, centre)
+    other = wrap_near(equivalent_triple(angles), centre)
+    flipped = outside(other) < outside(same)
+    return np.where(flipped[..., None], other, same), flipped

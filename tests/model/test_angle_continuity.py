@@ -1,0 +1,104 @@
+"""Continuous joint angles: closed-form spins and passes through the Euler singularity."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ikfusion.model import HumanModel
+from ikfusion.model.angle_continuity import (
+    continuous_columns_deg,
+    continuous_series,
+    equivalent_triple,
+    nearest_equivalent,
+    nearest_to_ranges,
+    wrap_near,
+)
+
+
+@pytest.fixture(scope="module")
+def human() -> HumanModel:
+    return HumanModel.default()
+
+
+def principal(human: HumanModel, joint: str, angles_deg: np.ndarray) -> np.ndarray:
+    """The per-frame principal decomposition [rad] of a joint's rotations given as angles."""
+    spec = human.ball_joints[joint].spec
+    return spec.angles_from_rotation(spec.rotation(np.radians(angles_deg)))
+
+
+def test_a_spin_through_180_deg_is_one_ramp(human: HumanModel) -> None:
+    """The trunk twists 0 -> 400 deg: principal angles wrap at 180, the series does not."""
+    twist = np.linspace(0.0, 400.0, 201)
+    truth = np.stack([np.full_like(twist, 10.0), np.full_like(twist, -5.0), twist], axis=1)
+    raw = principal(human, "jT9T8", truth)  # sequence flex, abd, rot
+    assert np.max(np.abs(np.diff(np.degrees(raw[:, 2])))) > 300.0  # the wrap is there
+    np.testing.assert_allclose(np.degrees(continuous_series(raw)), truth, atol=1e-9)
+
+
+def test_a_pass_through_the_singularity_keeps_the_branch(human: HumanModel) -> None:
+    """The shoulder's middle angle (axial rotation) sweeps 60 -> 120 -> 60 deg: the principal
+    triple jumps to (flex + 180, 180 - rot, abd + 180) beyond 90 deg, the series stays on the
+    truth's branch."""
+    rot = 90.0 - 30.0 * np.cos(np.linspace(0.0, 2.0 * np.pi, 121))
+    truth = np.stack([np.full_like(rot, 40.0), rot, np.full_like(rot, 25.0)], axis=1)
+    raw = np.degrees(principal(human, "jRightShoulder", truth))
+    assert np.max(np.abs(raw[:, 1])) <= 90.0 + 1e-9
+    assert np.max(np.abs(np.diff(raw[:, 0]))) > 170.0  # the branch jump
+    np.testing.assert_allclose(np.degrees(continuous_series(np.radians(raw))), truth, atol=1e-6)
+
+
+def test_the_chosen_triple_is_the_same_rotation(human: HumanModel, rng) -> None:
+    spec = human.ball_joints["jLeftHip"].spec
+    for _ in range(200):
+        a = rng.uniform(-np.pi, np.pi, 3) * np.array([1.0, 0.5, 1.0])
+        a[1] += rng.choice([0.0, 0.49 * np.pi])  # near the singularity too
+        reference = rng.uniform(-2 * np.pi, 2 * np.pi, 3)
+        chosen, flipped = nearest_equivalent(a, reference)
+        np.testing.assert_allclose(spec.rotation(chosen), spec.rotation(a), atol=1e-12)
+        other = equivalent_triple(a)
+        np.testing.assert_allclose(spec.rotation(other), spec.rotation(a), atol=1e-12)
+        # no candidate triple is closer to the reference
+        for candidate in (a, other):
+            shifted = candidate + 2 * np.pi * np.round((reference - candidate) / (2 * np.pi))
+            assert np.sum((chosen - reference) ** 2) <= np.sum((shifted - reference) ** 2) + 1e-12
+        assert bool(flipped) == (not np.allclose(chosen, wrap_near(a, reference)))
+
+
+def test_the_causal_per_frame_angles_equal_the_series(human: HumanModel) -> None:
+    rot = 90.0 - 30.0 * np.cos(np.linspace(0.0, 2.0 * np.pi, 61))
+    qs = np.array([human.configuration({"jRightShoulder_flex": 40.0, "jRightShoulder_rot": r,
+                                        "jRightShoulder_abd": 25.0}) for r in rot])
+    series = human.joint_angle_matrix(qs)
+    previous = None
+    for k, q in enumerate(qs):
+        previous = human.joint_angles(q, previous)
+        np.testing.assert_allclose([previous[c] for c in human.angle_columns], series[k],
+                                   atol=1e-9)
+    k = human.angle_columns.index("jRightShoulder_rot")
+    np.testing.assert_allclose(series[:, k], rot, atol=1e-6)
+
+
+def test_a_joint_with_nan_keeps_its_last_good_reference(human: HumanModel) -> None:
+    twist = np.linspace(150.0, 210.0, 7)
+    columns = ["jT9T8_flex", "jT9T8_abd", "jT9T8_rot"]
+    wrapped = (twist + 180.0) % 360.0 - 180.0
+    table = np.stack([np.zeros(7), np.zeros(7), wrapped], axis=1)
+    table[3] = np.nan
+    out = continuous_columns_deg(table, columns,
+                                 {n: j.spec for n, j in human.ball_joints.items()})
+    assert np.all(np.isnan(out[3]))
+    keep = np.arange(7) != 3
+    np.testing.assert_allclose(out[keep, 2], twist[keep], atol=1e-9)
+
+
+def test_a_pose_beyond_a_limit_is_measured_from_that_limit(human: HumanModel) -> None:
+    """A hip flexed to 185 deg is 55 deg beyond the 130 deg limit, not 140 deg below -35."""
+    joint = human.ball_joints["jRightHip"].spec
+    lower = np.radians([a.lower_deg for a in joint.angles])
+    upper = np.radians([a.upper_deg for a in joint.angles])
+    raw = principal(human, "jRightHip", np.array([185.0, 10.0, 5.0]))
+    assert np.degrees(raw[0]) < 0.0  # the principal triple reads -175 deg
+    chosen, flipped = nearest_to_ranges(raw, lower, upper)
+    assert not flipped
+    np.testing.assert_allclose(np.degrees(chosen), [185.0, 10.0, 5.0], atol=1e-9)
