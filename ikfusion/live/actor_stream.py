@@ -15,7 +15,8 @@ and ``live --replay`` of the same files give the same poses:
 * foot stance: from past samples (:class:`~ikfusion.imu.stance_stream.FootStillStream`, which
   recognises a stance ``still_duration`` after it starts);
 * UWB drift correction: applied after each frame from the fixes of that frame
-  (:class:`~ikfusion.app.correction.DriftCorrection`), with no placement of earlier frames.
+  (:class:`~ikfusion.app.correction.DriftCorrection`); the buffered frames solved before the
+  first fix are moved into the tag frame with it (they are sent together), later ones are not.
 """
 
 from __future__ import annotations
@@ -217,7 +218,25 @@ class ActorStream:
                         sensor_ids={s: self.sensor_ids[s] for s in R})
         self._start(cal)
         buffered, self._buffer = self._buffer, []
-        return [self._solve(t, r) for t, r in buffered]
+        poses = [self._solve(t, r) for t, r in buffered]
+        self._place_buffer(poses)
+        return poses
+
+    def _place_buffer(self, poses: list[Pose]) -> None:
+        """Move the buffered frames solved before the first UWB fix into the tag frame.
+
+        They are all solved when the buffer's TOAs are in, so this looks at nothing later; a
+        first fix after the buffer leaves the earlier frames where they were sent.
+        """
+        placed = None if self.correction is None else self.correction.placement
+        if placed is None or self.correction is None:
+            return
+        k, delta = placed
+        for pose in poses:
+            if int(round(pose.time * self.rate)) <= k:
+                pose.q = pose.q.copy()  # the solver keeps the array it returned
+                pose.q[:2] += delta[:2]
+        self.correction.gap[:k + 1] = np.nan  # measured before the placement
 
     def _start(self, calibration: Calibration) -> None:
         """Begin solving with ``calibration``."""

@@ -63,7 +63,8 @@ def actor_inputs(path: Path, map_file: Path | None, body: Path | None, height: f
     if path.is_dir() and (path / CAPTURE_MAP).is_file():
         uwb = None
         if all((path / f).is_file() for f in CAPTURE_UWB):
-            uwb = UwbInputs(*(path / f for f in CAPTURE_UWB), smooth=False)
+            toa, readers, tags = (path / f for f in CAPTURE_UWB)
+            uwb = UwbInputs(toa, readers, tags, smooth=False)
         own_body = body if body is not None or height is not None else path / CAPTURE_BODY
         return [ActorInputs(None, path / CAPTURE_IMU, map_file or path / CAPTURE_MAP,
                             own_body if own_body and own_body.is_file() else None, height,
