@@ -133,8 +133,9 @@ class LiveLoop:
                 if item is not None:
                     self.take(*item)
                 now = self.clock()
-                for actor in self.actors:
-                    self._solve(actor, actor.assembler.poll(now))
+                if inbox.empty():  # wall deadlines only once every sample that arrived is in
+                    for actor in self.actors:
+                        self._solve(actor, actor.assembler.poll(now))
                 self._show_status(now)
         finally:
             source.close()
