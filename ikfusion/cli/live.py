@@ -52,7 +52,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--correction", choices=["off", "slide", "no-slide"], default=None,
                    help="how UWB corrects drift (replay with UWB files)")
     p.add_argument("--mvn", metavar="HOST:PORT", help="send MVN network streaming over UDP")
-    p.add_argument("--vmc", metavar="HOST:PORT", help="send the VMC protocol over OSC")
+    p.add_argument("--vmc", metavar="HOST:PORT", help="send the VMC protocol over OSC (VMC "
+                   "has no actor id: actor i of a session goes to PORT + i)")
     p.add_argument("--lsl-out", action="store_true", help="open an LSL outlet of the poses")
     p.add_argument("--view", action="store_true", help="show the motion in the browser")
     p.add_argument("--record", metavar="DIR", help="write the result folder of solve as it "
@@ -96,7 +97,7 @@ def host_port(text: str, option: str) -> tuple[str, int]:
     return host, int(port)
 
 
-def _sinks(args: argparse.Namespace) -> list[PoseSink]:
+def _sinks(args: argparse.Namespace, setups: list[ActorSetup]) -> list[PoseSink]:
     sinks: list[PoseSink] = []
     if args.view:
         raise InputError("--view is not available in live yet; use --record DIR and "
@@ -104,11 +105,14 @@ def _sinks(args: argparse.Namespace) -> list[PoseSink]:
     if args.mvn:
         sinks.append(optional_class("ikfusion.live.mvn_stream", "MvnStreamSink", "--mvn")(
             *host_port(args.mvn, "--mvn")))
-    if args.vmc:
-        sinks.append(optional_class("ikfusion.live.vmc", "VmcSink", "--vmc")(
-            *host_port(args.vmc, "--vmc")))
+    if args.vmc:  # VMC has no actor id: one port per actor, from PORT on
+        vmc = optional_class("ikfusion.live.vmc", "VmcSink", "--vmc")
+        host, port = host_port(args.vmc, "--vmc")
+        sinks += [vmc(host, port + i, actor=s.name if len(setups) > 1 else None)
+                  for i, s in enumerate(setups)]
     if args.lsl_out:
-        sinks.append(optional_class("ikfusion.live.lsl_outlet", "LslOutletSink", "--lsl-out")())
+        sinks.append(optional_class("ikfusion.live.lsl_outlet", "LslOutletSink", "--lsl-out")(
+            setups[0].rate))
     return sinks
 
 
@@ -160,7 +164,7 @@ def run(args: argparse.Namespace) -> int:
                            settings=settings) for s in setups]
     recorders = _recorders(args, setups, settings,
                            [st.solver.contact_names for st in streams])
-    sinks = _sinks(args)
+    sinks = _sinks(args, setups)
     actors = []
     for i, (setup, stream, recorder) in enumerate(zip(setups, streams, recorders)):
         period = 1.0 / setup.rate

@@ -28,12 +28,15 @@ class AssembledFrame:
         time: Frame time [s] on the stream's time (clock jumps taken out).
         samples: Sensor id -> sample (the missing sensors are absent).
         first_arrival: Wall time [s] its first sample arrived.
+        released: Wall time [s] it was released (arrival of the sample that completed it or
+            made it due, or the poll that found it due; NaN at the end of the stream).
         complete: Every expected sensor delivered.
     """
 
     time: float
     samples: dict[str, ImuSample]
     first_arrival: float
+    released: float
     complete: bool
 
 
@@ -146,5 +149,6 @@ class FrameAssembler:
                 for s in self.sensors - set(frame.samples):
                     self.counters.missing[s] = self.counters.missing.get(s, 0) + 1
             out.append(AssembledFrame(frame.time, {s.sensor: s for s in frame.samples.values()},
-                                      frame.first_arrival, complete))
+                                      frame.first_arrival,
+                                      float("nan") if now is None else now, complete))
         return out

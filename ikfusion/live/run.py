@@ -9,9 +9,9 @@ solved) and to the actor's recorder. Nothing waits for a missing sample: frames 
 their deadline, also when the source goes quiet.
 
 When the solver falls behind a paced source (``max_lag_s`` of ``configs/live.yaml``), frames
-whose samples arrived more than that long ago are dropped (not solved; counted) once the actor
-is past its start-up catch-up; an unpaced replay (``--speed 0``) drops nothing, so it gives the
-poses of ``solve --causal`` exactly.
+released (complete or due) more than that long ago when their turn comes are dropped (not
+solved; counted) once the actor is past its start-up catch-up; an unpaced replay (``--speed
+0``) drops nothing, so it gives the poses of ``solve --causal`` exactly.
 """
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ class LiveActor:
         recorder: Its result folder (``--record``), or None.
         frames: Frames solved; ``dropped``: frames dropped because the solver fell behind.
         latency_s: (frame time [s], arrival of its first sample to its pose sent [s]) of the
-            frames solved as they arrived (not those of the start-up buffer).
+            frames that arrived after the start-up buffer was solved.
         live_since: Wall time [s] the start-up buffer was solved (None before).
     """
 
@@ -84,7 +84,8 @@ class LiveLoop:
         sinks: Outputs receiving every pose.
         paced: The source delivers at the capture's pace (live, or a replay at a speed > 0):
             frames may then be dropped when the solver falls behind.
-        max_lag_s: Frames older than this when their turn comes are dropped (paced only) [s].
+        max_lag_s: Frames released longer ago than this when their turn comes are dropped
+            (paced only) [s].
         status: Where the one-line status goes (None: nowhere).
         clock: Wall clock [s].
     """
@@ -165,13 +166,13 @@ class LiveLoop:
             now = self.clock()
             if (self.paced and actor.live_since is not None
                     and frame.first_arrival > actor.live_since
-                    and now - frame.first_arrival > self.max_lag_s):
+                    and now - frame.released > self.max_lag_s):
                 actor.dropped += 1
                 continue
-            calibrated = actor.stream.calibration is not None
+            steady = actor.live_since is not None and frame.first_arrival > actor.live_since
             poses = actor.stream.push(frame.time, frame.samples)
-            self._send(actor, poses, frame if calibrated else None)
-            if not calibrated and actor.stream.calibration is not None:
+            self._send(actor, poses, frame if steady else None)
+            if actor.live_since is None and actor.stream.calibration is not None and poses:
                 actor.live_since = self.clock()
 
     def _send(self, actor: LiveActor, poses: list[Any], frame: AssembledFrame | None) -> None:

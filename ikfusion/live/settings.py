@@ -20,8 +20,8 @@ class LiveSettings:
         deadline_periods: A frame is complete when every sensor is in or this many sample
             periods passed (in capture time, or live in wall time) [periods].
         clock_jump_s: A sensor this far from the stream's newest frame has jumped [s].
-        max_lag_s: Live, a frame whose first sample arrived longer ago than this when its turn
-            comes is dropped (the solver fell behind) [s].
+        max_lag_s: Live, a frame released (complete or due) longer ago than this when its
+            turn comes is dropped (the solver fell behind) [s].
         flush_s: ``--record`` flushes its rows this often [s].
     """
 
