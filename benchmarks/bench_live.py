@@ -5,9 +5,15 @@ A walk in circles with 17 sensors and three UWB tags in the 6 m x 8 m room of
 real time (``--replay``, speed 1) through the live pipeline in this process: frames assembled,
 each actor solved causally, every pose packed into a UDP datagram sent to a local socket. The
 latency of a frame is the time from the arrival of its first sample (the reader thread's time
-stamp) to the return of ``sendto`` of its pose; frames of the start-up buffer (the calibration
-seconds, solved at once) are left out, every later frame is counted. Dropped frames are those
-the pipeline skipped because the solver fell behind (``max_lag_s``, ``configs/live.yaml``).
+stamp) to the return of ``sendto`` of its pose; the start-up buffer (the calibration seconds)
+is not solved (as ``live`` does with a paced source), every later frame is counted.
+
+Columns: latency p50, p99 and max [ms]; frames counted; frames dropped because the solver fell
+behind (``max_lag_s`` of ``configs/live.yaml``); frames released with a sensor missing
+(``deadline``); CPU time of the loop's thread per frame, p50 and p99 [ms] (solve and outputs:
+the latency on an idle machine, less the waiting); ``load``, the mean CPU time per sample
+period over all actors (above 1 one core cannot keep up, whatever else runs). Wall-clock
+figures depend on what else the machine runs: give its load average with them.
 
 Cases: ``RATExACTORS``, e.g. ``60x1`` (one actor at 60 Hz), ``240x1``, ``60x4`` (four actors in
 one process: a session whose actors replay the same capture, IMU only).
@@ -105,7 +111,7 @@ def run_case(work: Path, rate: float, actors: int, seconds: float) -> dict[str, 
     live = []
     for i, s in enumerate(setups):
         stream = ActorStream(s.model, s.sensor_map, s.rate, correction_for=s.uwb,
-                             settings=settings)
+                             settings=settings, solve_startup=False)
         assembler = FrameAssembler(s.sensor_map, s.rate, settings.deadline_periods,
                                    settings.clock_jump_s, settings.deadline_periods / s.rate)
         live.append(LiveActor(s.name, i, stream, assembler, PoseKinematics(s.model)))
@@ -115,7 +121,10 @@ def run_case(work: Path, rate: float, actors: int, seconds: float) -> dict[str, 
     loop.run(ReplaySource([*streams, *([toa] if toa is not None else [])], speed=1.0))
     sink.close()
     latency = np.array([v for a in live for _, v in a.latency_s] or [np.nan]) * 1e3
+    cpu = np.array([v for a in live for v in a.cpu_s] or [np.nan]) * 1e3
     return {"p50": float(np.percentile(latency, 50)), "p99": float(np.percentile(latency, 99)),
+            "cpu_p50": float(np.percentile(cpu, 50)), "cpu_p99": float(np.percentile(cpu, 99)),
+            "cpu_per_period": float(np.mean(cpu) * actors * rate / 1e3),
             "max": float(latency.max()), "steady": float(np.isfinite(latency).sum()),
             "solved": float(sum(a.frames for a in live)),
             "dropped": float(sum(a.dropped for a in live)),
@@ -159,12 +168,13 @@ def main() -> None:
     work = args.work or Path(tempfile.mkdtemp(prefix="bench_live_"))
     work.mkdir(parents=True, exist_ok=True)
     print(f"{'case':>8} {'p50 ms':>8} {'p99 ms':>8} {'max ms':>8} {'frames':>7} "
-          f"{'dropped':>8} {'deadline':>8}")
+          f"{'dropped':>8} {'deadline':>8} {'cpu p50':>8} {'cpu p99':>8} {'load':>5}")
     for case in args.cases.split(","):
         rate, actors = case.split("x")
         r = run_case(work, float(rate), int(actors), args.seconds)
         print(f"{case:>8} {r['p50']:8.2f} {r['p99']:8.2f} {r['max']:8.2f} "
-              f"{int(r['steady']):7d} {int(r['dropped']):8d} {int(r['on_deadline']):8d}")
+              f"{int(r['steady']):7d} {int(r['dropped']):8d} {int(r['on_deadline']):8d} "
+              f"{r['cpu_p50']:8.2f} {r['cpu_p99']:8.2f} {r['cpu_per_period']:5.2f}")
     if args.check:
         check(work, args.check_seconds)
 

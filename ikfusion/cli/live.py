@@ -161,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
                                     args.rate), None
     paced = not args.replay or args.speed > 0
     streams = [ActorStream(s.model, s.sensor_map, s.rate, correction_for=s.uwb,
-                           settings=settings) for s in setups]
+                           settings=settings, solve_startup=not paced) for s in setups]
     recorders = _recorders(args, setups, settings,
                            [st.solver.contact_names for st in streams])
     sinks = _sinks(args, setups)

@@ -82,6 +82,10 @@ class ActorStream:
             IMU only); its fixes are indexed by ``round(time * rate)``.
         settings: ``configs/live.yaml``.
         bridging: ``configs/bridging.yaml``.
+        solve_startup: Solve the frames of the start-up buffer once calibrated (every frame,
+            as ``solve --causal``); False solves only its last one, so a live stream starts
+            at once instead of catching up (the buffered samples still feed the bridging and
+            the stance).
     """
 
     def __init__(self, model: HumanModel, sensor_map: Mapping[str, str], rate: float, *,
@@ -90,7 +94,8 @@ class ActorStream:
                  calibration: Calibration | None = None,
                  correction_for: Callable[[Calibration], DriftCorrection | None] | None = None,
                  settings: LiveSettings | None = None,
-                 bridging: BridgingSettings | None = None) -> None:
+                 bridging: BridgingSettings | None = None,
+                 solve_startup: bool = True) -> None:
         self.model = model
         self.rate = float(rate)
         self.segment_of = {normalize_sensor_id(s): seg for s, seg in sensor_map.items()}
@@ -104,6 +109,7 @@ class ActorStream:
         self._thresholds = StanceThresholds(st.still_rate, st.still_duration)
         self.window_s, self.pose, self.forward = window_s, pose, forward
         self.correction_for = correction_for
+        self.solve_startup = solve_startup
         self.calibration: Calibration | None = None
         self.correction: DriftCorrection | None = None
         self.warnings: list[str] = []
@@ -137,8 +143,12 @@ class ActorStream:
                         if s not in out or out[s].R_world_sensor is None]
         return out
 
-    def push(self, time_s: float, samples: Mapping[str, ImuSample]) -> list[Pose]:
+    def push(self, time_s: float, samples: Mapping[str, ImuSample], solve: bool = True
+             ) -> list[Pose]:
         """Feed one frame's samples (sensor id -> sample; absent sensors are missing).
+
+        ``solve`` False: the samples feed the bridging and the stance, the frame is not solved
+        (a frame dropped because the solver fell behind).
 
         Returns:
             The poses solved now: none while the calibration buffer fills, the buffered frames
@@ -150,7 +160,8 @@ class ActorStream:
         """
         readings = self.readings(samples)
         if self.calibration is not None:
-            return [self._solve(time_s, readings)]
+            pose = self._solve(time_s, readings, solve)
+            return [] if pose is None else [pose]
         self._buffer.append((time_s, readings))
         if time_s - self._buffer[0][0] >= self.calibration_due - 0.5 / self.rate:
             return self._calibrate_buffer()
@@ -218,7 +229,10 @@ class ActorStream:
                         sensor_ids={s: self.sensor_ids[s] for s in R})
         self._start(cal)
         buffered, self._buffer = self._buffer, []
-        poses = [self._solve(t, r) for t, r in buffered]
+        last = len(buffered) - 1
+        solved = [self._solve(t, r, self.solve_startup or i == last)
+                  for i, (t, r) in enumerate(buffered)]
+        poses = [p for p in solved if p is not None]
         self._place_buffer(poses)
         return poses
 
@@ -248,8 +262,9 @@ class ActorStream:
                         if f in self.sensor_ids}
         self.correction = self.correction_for(calibration) if self.correction_for else None
 
-    def _solve(self, time_s: float, readings: Mapping[str, Reading]) -> Pose:
-        """Bridge, stance, solve and correct one frame."""
+    def _solve(self, time_s: float, readings: Mapping[str, Reading], solve: bool = True
+               ) -> Pose | None:
+        """Bridge, stance, solve and correct one frame (``solve`` False: the first two)."""
         assert self.calibration is not None and self._bridge is not None
         mounting = self.calibration.R_sensor_segment
         measured = {s: None if r.R_world_sensor is None else r.R_world_sensor @ mounting[s]
@@ -262,6 +277,8 @@ class ActorStream:
                                   None if r is None else r.gyr)
             if np.isfinite(value):
                 still[foot] = bool(value)
+        if not solve:
+            return None
         pose = self.solver.step(Frame(float(time_s), tracked, feet_still=still))
         if self.correction is not None:
             dt = 0.0 if self._previous is None else float(time_s - self._previous)

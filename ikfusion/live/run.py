@@ -10,8 +10,11 @@ their deadline, also when the source goes quiet.
 
 When the solver falls behind a paced source (``max_lag_s`` of ``configs/live.yaml``), frames
 released (complete or due) more than that long ago when their turn comes are dropped (not
-solved; counted) once the actor is past its start-up catch-up; an unpaced replay (``--speed
-0``) drops nothing, so it gives the poses of ``solve --causal`` exactly.
+solved, counted; their samples still feed the bridging and the stance) once the actor is past
+its start-up; an unpaced replay (``--speed 0``) drops nothing, so it gives the poses of ``solve
+--causal`` exactly. A paced stream does not solve the frames of its start-up buffer (only the
+last one: the stream starts at once instead of catching up; ``ActorStream(solve_startup=
+False)``), so its ``--record`` starts at the end of the calibration.
 """
 
 from __future__ import annotations
@@ -50,6 +53,8 @@ class LiveActor:
         latency_s: (frame time [s], arrival of its first sample to its pose sent [s]) of the
             frames that arrived after the start-up buffer was solved.
         live_since: Wall time [s] the start-up buffer was solved (None before).
+        cpu_s: CPU time [s] of the loop's thread per frame of ``latency_s`` (solve, outputs):
+            what the latency would be on an idle machine, less the waiting.
     """
 
     name: str
@@ -62,6 +67,7 @@ class LiveActor:
     dropped: int = 0
     latency_s: list[tuple[float, float]] = field(default_factory=list)
     live_since: float | None = None
+    cpu_s: list[float] = field(default_factory=list)
 
     def summary(self) -> dict[str, Any]:
         """The ``live`` block of its ``summary.json``."""
@@ -167,11 +173,15 @@ class LiveLoop:
             if (self.paced and actor.live_since is not None
                     and frame.first_arrival > actor.live_since
                     and now - frame.released > self.max_lag_s):
-                actor.dropped += 1
+                actor.dropped += 1  # its samples still feed the bridging and the stance
+                actor.stream.push(frame.time, frame.samples, solve=False)
                 continue
             steady = actor.live_since is not None and frame.first_arrival > actor.live_since
+            cpu = time.thread_time()
             poses = actor.stream.push(frame.time, frame.samples)
             self._send(actor, poses, frame if steady else None)
+            if steady:
+                actor.cpu_s.append(time.thread_time() - cpu)
             if actor.live_since is None and actor.stream.calibration is not None and poses:
                 actor.live_since = self.clock()
 
