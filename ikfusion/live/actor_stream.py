@@ -99,6 +99,7 @@ class ActorStream:
         self.model = model
         self.rate = float(rate)
         self.segment_of = {normalize_sensor_id(s): seg for s, seg in sensor_map.items()}
+        self._segment_by_id: dict[str, str | None] = {}  # sensor id as sent -> segment
         self.sensor_ids = {seg: str(s) for s, seg in sensor_map.items()}
         self.default_forward: Mapping[str, str] | None = getattr(sensor_map, "forward", None)
         self.solver = solver or Solver(model)
@@ -128,7 +129,9 @@ class ActorStream:
         """The mapped sensors' samples by segment; the missing ones noted in :attr:`missing`."""
         mapped = {}
         for sensor, sample in samples.items():
-            segment = self.segment_of.get(normalize_sensor_id(sensor))
+            if sensor not in self._segment_by_id:
+                self._segment_by_id[sensor] = self.segment_of.get(normalize_sensor_id(sensor))
+            segment = self._segment_by_id[sensor]
             if segment is not None:
                 mapped[segment] = sample
         out: dict[str, Reading] = {}

@@ -91,12 +91,15 @@ class FrameAssembler:
         self.counters = FrameCounters()
         self._pending: list[_Pending] = []
         self._offset: dict[str, float] = {}
+        self._ids: dict[str, str] = {}  # sensor id as sent -> normalised
         self._last: float | None = None   # time of the last frame released
         self._newest: float | None = None  # newest sample time seen
 
     def add(self, sample: ImuSample, now: float) -> list[AssembledFrame]:
         """Take one sample arrived at wall time ``now`` [s]; the frames complete now."""
-        sensor = normalize_sensor_id(sample.sensor)
+        sensor = self._ids.get(sample.sensor)
+        if sensor is None:
+            sensor = self._ids[sample.sensor] = normalize_sensor_id(sample.sensor)
         if sensor not in self.sensors:
             return []
         t = sample.time_s + self._offset.get(sensor, 0.0)

@@ -9,6 +9,7 @@ import pinocchio as pin
 
 from ..ik.pose import Pose
 from ..model.human_model import HumanModel
+from ..rotations import matrix_to_euler, quat_wxyz_to_matrix
 from .actor_pose import ActorPose
 
 
@@ -45,6 +46,17 @@ class PoseKinematics:
         self.segment_names = tuple(model.segment_names)
         self.parents = tuple(parents)
         self.joint_names = tuple(model.angle_columns)
+        # joints grouped by Euler sequence: one conversion per group, not per joint
+        groups: dict[str, list[tuple[int, list[int], np.ndarray]]] = {}
+        for k, joint in enumerate(model.ball_joints.values()):
+            spec = joint.spec
+            columns = [3 * k + ("flex", "abd", "rot").index(a.name) for a in spec.angles]
+            groups.setdefault(spec.sequence, []).append((joint.idx_q, columns, spec.signs))
+        self._angle_groups = [
+            (sequence,
+             np.array([[i + 3, i, i + 1, i + 2] for i, _, _ in members]),  # xyzw -> wxyz
+             np.array([c for _, c, _ in members]), np.array([s for _, _, s in members]))
+            for sequence, members in groups.items()]
 
     def values(self, q: np.ndarray) -> PoseValues:
         """Segment and site poses and joint angles at configuration ``q``."""
@@ -54,7 +66,15 @@ class PoseKinematics:
             np.array([oMf[f].translation for f in self._segments]),
             np.array([oMf[f].rotation for f in self._segments]),
             np.array([oMf[f].translation for f in self._sites]).reshape(-1, 3),
-            self.model.joint_angle_matrix(q[None])[0])
+            self.joint_angles_deg(q))
+
+    def joint_angles_deg(self, q: np.ndarray) -> np.ndarray:
+        """(J,) joint angles [deg] at ``q``, as ``HumanModel.joint_angle_matrix`` (faster)."""
+        out = np.empty(len(self.joint_names))
+        for sequence, quat_index, columns, signs in self._angle_groups:
+            R = quat_wxyz_to_matrix(q[quat_index])
+            out[columns] = np.degrees(matrix_to_euler(sequence, R) * signs)
+        return out
 
     def actor_pose(self, pose: Pose, values: PoseValues, actor: str, character_id: int,
                    frame: int) -> ActorPose:
