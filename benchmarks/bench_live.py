@@ -9,7 +9,8 @@ stamp) to the return of ``sendto`` of its pose; the start-up buffer (the calibra
 is not solved (as ``live`` does with a paced source), every later frame is counted.
 
 Columns: latency p50, p99 and max [ms]; frames counted; frames dropped because the solver fell
-behind (``max_lag_s`` of ``configs/live.yaml``); frames released with a sensor missing
+behind (``max_lag_s`` of ``configs/live.yaml``), and apart (``start``) those that arrived while
+the start-up buffer was calibrated; frames released with a sensor missing
 (``deadline``); CPU time of the loop's thread per frame, p50 and p99 [ms] (solve and outputs:
 the latency on an idle machine, less the waiting); ``load``, the mean CPU time per sample
 period over all actors (above 1 one core cannot keep up, whatever else runs). Wall-clock
@@ -128,6 +129,7 @@ def run_case(work: Path, rate: float, actors: int, seconds: float) -> dict[str, 
             "max": float(latency.max()), "steady": float(np.isfinite(latency).sum()),
             "solved": float(sum(a.frames for a in live)),
             "dropped": float(sum(a.dropped for a in live)),
+            "startup": float(sum(a.dropped_startup for a in live)),
             "on_deadline": float(sum(a.assembler.counters.on_deadline for a in live))}
 
 
@@ -168,12 +170,14 @@ def main() -> None:
     work = args.work or Path(tempfile.mkdtemp(prefix="bench_live_"))
     work.mkdir(parents=True, exist_ok=True)
     print(f"{'case':>8} {'p50 ms':>8} {'p99 ms':>8} {'max ms':>8} {'frames':>7} "
-          f"{'dropped':>8} {'deadline':>8} {'cpu p50':>8} {'cpu p99':>8} {'load':>5}")
+          f"{'dropped':>8} {'start':>6} {'deadline':>8} {'cpu p50':>8} {'cpu p99':>8} "
+          f"{'load':>5}")
     for case in args.cases.split(","):
         rate, actors = case.split("x")
         r = run_case(work, float(rate), int(actors), args.seconds)
         print(f"{case:>8} {r['p50']:8.2f} {r['p99']:8.2f} {r['max']:8.2f} "
-              f"{int(r['steady']):7d} {int(r['dropped']):8d} {int(r['on_deadline']):8d} "
+              f"{int(r['steady']):7d} {int(r['dropped']):8d} {int(r['startup']):6d} "
+              f"{int(r['on_deadline']):8d} "
               f"{r['cpu_p50']:8.2f} {r['cpu_p99']:8.2f} {r['cpu_per_period']:5.2f}")
     if args.check:
         check(work, args.check_seconds)

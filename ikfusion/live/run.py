@@ -10,11 +10,12 @@ their deadline, also when the source goes quiet.
 
 When the solver falls behind a paced source (``max_lag_s`` of ``configs/live.yaml``), frames
 released (complete or due) more than that long ago when their turn comes are dropped (not
-solved, counted; their samples still feed the bridging and the stance) once the actor is past
-its start-up; an unpaced replay (``--speed 0``) drops nothing, so it gives the poses of ``solve
---causal`` exactly. A paced stream does not solve the frames of its start-up buffer (only the
-last one: the stream starts at once instead of catching up; ``ActorStream(solve_startup=
-False)``), so its ``--record`` starts at the end of the calibration.
+solved, counted; their samples still feed the bridging and the stance) once the actor is
+calibrated; those that arrived while it calibrated are counted apart. An unpaced replay
+(``--speed 0``) drops nothing, so it gives the poses of ``solve --causal`` exactly. A paced
+stream does not solve the frames of its start-up buffer (only the last one: the stream starts
+at once instead of catching up; ``ActorStream(solve_startup=False)``), so its ``--record``
+starts at the end of the calibration.
 """
 
 from __future__ import annotations
@@ -49,7 +50,8 @@ class LiveActor:
         stream: Its causal solver; ``assembler`` its frame assembly.
         kinematics: Forward kinematics of its model.
         recorder: Its result folder (``--record``), or None.
-        frames: Frames solved; ``dropped``: frames dropped because the solver fell behind.
+        frames: Frames solved; ``dropped``: frames dropped because the solver fell behind;
+            ``dropped_startup``: those of them that arrived during the calibration.
         latency_s: (frame time [s], arrival of its first sample to its pose sent [s]) of the
             frames that arrived after the start-up buffer was solved.
         live_since: Wall time [s] the start-up buffer was solved (None before).
@@ -65,6 +67,7 @@ class LiveActor:
     recorder: ResultRecorder | None = None
     frames: int = 0
     dropped: int = 0
+    dropped_startup: int = 0
     latency_s: list[tuple[float, float]] = field(default_factory=list)
     live_since: float | None = None
     cpu_s: list[float] = field(default_factory=list)
@@ -74,7 +77,9 @@ class LiveActor:
         c = self.assembler.counters
         lat = np.array([v for _, v in self.latency_s]) * 1e3
         return {"character_id": self.character_id, "frames_solved": self.frames,
-                "frames_dropped": self.dropped, "frames_on_deadline": c.on_deadline,
+                "frames_dropped": self.dropped,
+                "frames_dropped_at_startup": self.dropped_startup,
+                "frames_on_deadline": c.on_deadline,
                 "late_samples": c.late, "duplicate_samples": c.duplicates,
                 "clock_jumps": c.clock_jumps, "missing_frames_by_sensor": dict(c.missing),
                 "latency_ms_p50": float(np.percentile(lat, 50)) if len(lat) else None,
@@ -170,13 +175,15 @@ class LiveLoop:
     def _solve(self, actor: LiveActor, frames: list[AssembledFrame]) -> None:
         for frame in frames:
             now = self.clock()
-            if (self.paced and actor.live_since is not None
-                    and frame.first_arrival > actor.live_since
-                    and now - frame.released > self.max_lag_s):
-                actor.dropped += 1  # its samples still feed the bridging and the stance
-                actor.stream.push(frame.time, frame.samples, solve=False)
-                continue
             steady = actor.live_since is not None and frame.first_arrival > actor.live_since
+            if (self.paced and actor.live_since is not None
+                    and now - frame.released > self.max_lag_s):
+                if steady:
+                    actor.dropped += 1
+                else:  # arrived while the start-up buffer was calibrated
+                    actor.dropped_startup += 1
+                actor.stream.push(frame.time, frame.samples, solve=False)  # bridging, stance
+                continue
             cpu = time.thread_time()
             poses = actor.stream.push(frame.time, frame.samples)
             self._send(actor, poses, frame if steady else None)
