@@ -1,4 +1,5 @@
-"""A short simulated capture with UWB readers, shared by the live tests."""
+"""The causal live pipeline's tests: a short simulated capture with UWB readers (a folder of
+their own beside the wire-format tests of tests/live)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import pytest
 
 from ikfusion.cli import main
 
-ROOM = Path(__file__).resolve().parents[2] / "configs" / "constellations" / "room_6x8.yaml"
+ROOM = Path(__file__).resolve().parents[3] / "configs" / "constellations" / "room_6x8.yaml"
 
 
 @pytest.fixture(scope="package")
