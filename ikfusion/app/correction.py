@@ -341,6 +341,11 @@ class DriftCorrection:
         rate = np.radians(s.heading_rate_deg)
         world.turn(float(np.clip(step, -rate * dt, rate * dt)))
 
+    @property
+    def placement(self) -> tuple[int, np.ndarray] | None:
+        """(frame index, (3,) offset [m]) of the first fix's placement, None before it."""
+        return self._placement
+
     def place_start(self, motion: Motion) -> None:
         """Move the frames solved before the first fix by its offset (in place).
 

@@ -4,16 +4,20 @@
 its segment's orientation through the calibration, samples flagged invalid (lost packets, NaN, a
 sensor that drops out) are bridged from what is known around them
 (:mod:`ikfusion.imu.bridging`: interpolated offline, held and blended back in causally), and the
-solver does the rest.
+solver does the rest. ``causal=True`` feeds the recording frame by frame to the live pipeline's
+:class:`~ikfusion.live.actor_stream.ActorStream` (calibration on the first seconds only, stance
+and bridging from the past), so ``solve --causal`` and ``live --replay`` give the same poses.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
+from tqdm import tqdm
 
+from ..errors import InputError
 from ..ik import Frame, Motion, Solver
 from ..ik.assumed import coverage_warning
 from ..imu.bridging import BridgedSegments, BridgingSettings, bridge_segments
@@ -21,8 +25,13 @@ from ..imu.calibration import Calibration, calibrate_recording
 from ..imu.flight import FlightPhases, FlightThresholds, detect_flight, world_acceleration
 from ..imu.stance import StanceThresholds, foot_still
 from ..io.recording import ImuRecording, SensorStream
+from ..live.actor_stream import ActorStream, segment_parents
+from ..live.replay import recording_frames
 from ..model.human_model import HumanModel
 from .correction import DriftCorrection
+
+__all__ = ["SolvedRecording", "bridged_segments", "frames_from_recording", "knee_warning",
+           "segment_parents", "solve_recording"]
 
 
 @dataclass
@@ -33,14 +42,6 @@ class SolvedRecording:
     calibration: Calibration
     warnings: list[str] = field(default_factory=list)
     bridged: dict[str, dict[str, object]] = field(default_factory=dict)
-
-
-def segment_parents(model: HumanModel) -> dict[str, str | None]:
-    """Segment -> its parent segment in the model's tree (None for the root)."""
-    parents: dict[str, str | None] = {s: None for s in model.segment_names}
-    for joint in model.ball_joints.values():
-        parents[joint.spec.child] = joint.spec.parent
-    return parents
 
 
 def bridged_segments(recording: ImuRecording, sensor_map: Mapping[str, str],
@@ -154,7 +155,9 @@ def solve_recording(recording: ImuRecording, sensor_map: Mapping[str, str], mode
                     progress: bool = False,
                     correction: DriftCorrection | None = None,
                     calibration: Calibration | None = None,
-                    causal: bool = False) -> SolvedRecording:
+                    causal: bool = False,
+                    correction_for: Callable[[Calibration], DriftCorrection | None] | None = None
+                    ) -> SolvedRecording:
     """Calibrate on the still pose at the start and solve every frame.
 
     Args:
@@ -169,17 +172,27 @@ def solve_recording(recording: ImuRecording, sensor_map: Mapping[str, str], mode
         correction: Absolute tag positions (UWB) and how they correct the drift.
         calibration: A calibration already made (``window``, ``pose`` and ``forward`` are then
             not used).
-        causal: Bridge invalid samples with the past only (as live); by default each gap is
-            interpolated across. ``SolvedRecording.bridged`` says what was bridged.
+        causal: Solve as live, with the past only: the recording is fed frame by frame to
+            :class:`~ikfusion.live.actor_stream.ActorStream` (calibrated on its first
+            ``calibration_s`` seconds, stance and bridging from the past, no placement of the
+            frames before the first UWB fix); by default the whole recording is used.
+            ``SolvedRecording.bridged`` says what was bridged.
+        correction_for: Causal only: builds the correction from the calibration of the
+            start-up buffer (instead of ``correction``).
     """
     warnings = list(recording.warnings)
     warnings += recording.check_sensor_map(sensor_map)
     window_s = None if window is None else (window[0] / recording.rate,
                                             window[1] / recording.rate)
+    solver = solver or Solver(model)
+    if causal:
+        if correction_for is None and correction is not None:
+            correction_for = lambda _cal: correction  # noqa: E731 - the same for any calibration
+        return _solve_causal(recording, sensor_map, model, solver, warnings, window_s, pose,
+                             forward, correction_for, calibration, progress)
     cal = calibration or calibrate_recording(recording, sensor_map, window_s, forward=forward,
                                              pose=pose)
     warnings += cal.warnings
-    solver = solver or Solver(model)
     st = solver.settings
     bridged = bridged_segments(recording, sensor_map, cal, segment_parents(model), causal)
     warnings += bridged.warnings
@@ -191,6 +204,34 @@ def solve_recording(recording: ImuRecording, sensor_map: Mapping[str, str], mode
     if correction is not None:
         correction.place_start(motion)
         warnings += correction.far_warnings()
+    return _finish(motion, model, cal, warnings, bridged.summary())
+
+
+def _solve_causal(recording: ImuRecording, sensor_map: Mapping[str, str], model: HumanModel,
+                  solver: Solver, warnings: list[str], window_s: tuple[float, float] | None,
+                  pose: str, forward: dict[str, str] | None,
+                  correction_for: Callable[[Calibration], DriftCorrection | None] | None,
+                  calibration: Calibration | None, progress: bool) -> SolvedRecording:
+    """The recording fed frame by frame to the live pipeline's :class:`ActorStream`."""
+    stream = ActorStream(model, sensor_map, recording.rate, solver=solver, window_s=window_s,
+                         pose=pose, forward=forward, calibration=calibration,
+                         correction_for=correction_for)
+    poses = []
+    for time_s, samples in tqdm(recording_frames(recording, sensor_map), total=len(recording),
+                                disable=not progress, unit="frame"):
+        poses += stream.push(time_s, samples)
+    poses += stream.finish()
+    if stream.calibration is None:
+        raise InputError("the recording holds no sample of a mapped sensor", field="imu")
+    motion = Motion.from_poses(model, poses, solver.contact_names, stream.all_warnings())
+    bridged = stream.bridged()
+    return _finish(motion, model, stream.calibration, warnings,
+                   bridged.summary() if bridged else {})
+
+
+def _finish(motion: Motion, model: HumanModel, cal: Calibration, warnings: list[str],
+            bridged: dict[str, dict[str, object]]) -> SolvedRecording:
+    """The warnings of the whole solve put together."""
     motion.warnings = warnings + motion.warnings
     knee = knee_warning(motion)
     if knee:
@@ -198,4 +239,4 @@ def solve_recording(recording: ImuRecording, sensor_map: Mapping[str, str], mode
     assumed = coverage_warning(model.ball_joints, cal.R_sensor_segment)
     if assumed:
         motion.warnings.append(assumed)
-    return SolvedRecording(motion, cal, motion.warnings, bridged.summary())
+    return SolvedRecording(motion, cal, motion.warnings, bridged)

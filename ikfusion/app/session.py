@@ -42,7 +42,7 @@ from ..results import write_result_folder
 from ..results.mvn_comparison import compare_with_mvn
 from ..yaml_files import read_yaml
 from .pipeline import solve_recording
-from .uwb_aiding import UwbAiding, UwbInputs, track_recording_tags, uwb_aiding
+from .uwb_aiding import AidingOnCalibration, UwbAiding, UwbInputs, track_recording_tags, uwb_aiding
 
 
 @dataclass
@@ -136,19 +136,32 @@ def solve_actor(actor: ActorInputs, out: str | Path, uwb: UwbInputs | None = Non
     else:
         recording = read_imu(actor.imu, rate=actor.rate, sensor_map=sensor_map)
     model = actor.model(mvnx)
-    if mvnx is not None and actor.uses_file_calibration():
-        cal = calibration_from_mvnx(mvnx)
-    else:
-        cal = calibrate_recording(recording, sensor_map, actor.window_s, forward=actor.forward,
-                                  pose=actor.pose)
+    file_calibration = mvnx is not None and actor.uses_file_calibration()
     aiding: UwbAiding | None = None
-    if uwb is not None:
-        tracked = track_recording_tags(recording, sensor_map, model, cal, uwb, actor.name)
-        aiding = uwb_aiding(tracked, recording.time, correction or "no-slide")
-    fix = None if aiding is None else aiding.correction
-    result = solve_recording(recording, sensor_map, model, solver=Solver(model),
-                             progress=progress, correction=fix, calibration=cal,
-                             causal=actor.causal)
+    if actor.causal and not file_calibration:  # calibrated as live, on the first seconds
+        on_calibration = None if uwb is None else AidingOnCalibration(
+            recording, sensor_map, model, uwb, actor.name, correction or "no-slide")
+        window = None if actor.window_s is None else (
+            int(round(actor.window_s[0] * recording.rate)),
+            int(round(actor.window_s[1] * recording.rate)))
+        result = solve_recording(recording, sensor_map, model, window, actor.pose,
+                                 actor.forward, Solver(model), progress, causal=True,
+                                 correction_for=on_calibration)
+        cal = result.calibration
+        aiding = None if on_calibration is None else on_calibration.aiding
+    else:
+        if mvnx is not None and file_calibration:
+            cal = calibration_from_mvnx(mvnx)
+        else:
+            cal = calibrate_recording(recording, sensor_map, actor.window_s,
+                                      forward=actor.forward, pose=actor.pose)
+        if uwb is not None:
+            tracked = track_recording_tags(recording, sensor_map, model, cal, uwb, actor.name)
+            aiding = uwb_aiding(tracked, recording.time, correction or "no-slide")
+        fix = None if aiding is None else aiding.correction
+        result = solve_recording(recording, sensor_map, model, solver=Solver(model),
+                                 progress=progress, correction=fix, calibration=cal,
+                                 causal=actor.causal)
     summary: dict[str, object] = {"used": False}
     if aiding is not None and uwb is not None:
         result.motion.warnings += aiding.warnings

@@ -201,6 +201,32 @@ def uwb_aiding(tracked: TrackedTags, time: np.ndarray, mode: str) -> UwbAiding:
     return UwbAiding(tracked, correction, mode, fits, readers, warnings)
 
 
+@dataclass
+class AidingOnCalibration:
+    """The UWB aiding of a causal solve, built once its calibration is known.
+
+    The :class:`~ikfusion.live.actor_stream.ActorStream` of ``solve --causal`` and ``live
+    --replay`` calls it with the calibration of its start-up buffer; the tag filters then run
+    forward (``files.smooth`` False) over the TOA log, so each frame's fix uses the TOAs up to
+    it. :attr:`aiding` keeps the result for the summary.
+    """
+
+    recording: ImuRecording
+    sensor_map: Mapping[str, str]
+    model: HumanModel
+    files: UwbInputs
+    actor: str | None
+    mode: str
+    aiding: UwbAiding | None = None
+
+    def __call__(self, calibration: Calibration) -> DriftCorrection | None:
+        """Track the tags with ``calibration``'s mountings; the correction, or None."""
+        tracked = track_recording_tags(self.recording, self.sensor_map, self.model, calibration,
+                                       self.files, self.actor)
+        self.aiding = uwb_aiding(tracked, self.recording.time, self.mode)
+        return self.aiding.correction
+
+
 def uwb_summary(tracks: Mapping[str, UnitTrack], correction: DriftCorrection | None,
                 smoothed: bool = True, *, fits: Mapping[str, TagFit] | None = None,
                 readers: Mapping[str, object] | None = None,

@@ -26,7 +26,7 @@ from ..errors import InputError
 #: Command modules in the order ``ikfusion --help`` lists them.
 COMMAND_MODULES: tuple[str, ...] = (
     "demo", "inspect", "simulate", "solve", "evaluate", "model", "locate", "plan",
-    "calibrate_uwb", "view", "batch", "retarget",
+    "calibrate_uwb", "view", "batch", "retarget", "live",
 )
 
 #: Exit codes of a stopped command (128 + the signal number, as shells report it).

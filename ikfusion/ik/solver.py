@@ -290,15 +290,23 @@ class Solver:
                 dt = 0.0 if previous is None else float(frame.time - previous)
                 after_step(self, poses[-1], k, dt)
             previous = frame.time
+        return Motion.from_poses(self.model, poses, self.contact_names,
+                                 self.warnings(sum(p.relaxed for p in poses)))
+
+    def warnings(self, relaxed: int) -> list[str]:
+        """What the user should know about the frames solved since :meth:`reset`.
+
+        Args:
+            relaxed: How many of them needed relaxed constraints.
+        """
         warnings = list(self.compiled.kinematics.warnings) if self.compiled is not None else []
         if self._failures:
             warnings.append(f"{len(self._failures)} frame(s) where no QP backend could solve a "
                             f"step (first: {self._failures[0]})")
-        relaxed = sum(p.relaxed for p in poses)
         if relaxed:
             warnings.append(f"{relaxed} frame(s) needed relaxed constraints (a planted foot "
                             "out of reach within the ranges of motion)")
-        return Motion.from_poses(self.model, poses, self.contact_names, warnings)
+        return warnings
 
     def frames_from_targets(self, times: Sequence[float],
                             orientations: dict[str, np.ndarray]) -> list[Frame]:

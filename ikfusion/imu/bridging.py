@@ -40,7 +40,7 @@ from ..settings_files import Overlay, load_settings
 from ..yaml_files import read_yaml_document
 
 __all__ = ["BridgedSegments", "BridgingSettings", "SegmentBridging", "bridge_segments",
-           "runs_of"]
+           "bridging_report", "runs_of", "world_filled"]
 
 
 @dataclass(frozen=True)
@@ -173,7 +173,7 @@ def _fill_gap(R: np.ndarray, a: int, b: int) -> None:
         R[a:b] = R[b]
 
 
-def _world_filled(R: np.ndarray, valid: np.ndarray) -> np.ndarray:
+def world_filled(R: np.ndarray, valid: np.ndarray) -> np.ndarray:
     """A copy of ``R`` with every gap of ``valid`` slerped (held at the ends)."""
     out = np.where(valid[:, None, None], R, np.nan)
     if valid.any():
@@ -354,7 +354,7 @@ def bridge_segments(R_world_segment: Mapping[str, np.ndarray], valid: Mapping[st
           for s in segments}
     order, neighbours = _order_and_neighbours(segments, parents, R, ok)
     out: dict[str, np.ndarray] = {}
-    result = BridgedSegments(out, {s: ~ok[s] for s in segments}, causal=causal)
+    used: dict[str, str | None] = {}
     for s in order:
         if ok[s].all():
             out[s] = R[s]
@@ -365,9 +365,10 @@ def bridge_segments(R_world_segment: Mapping[str, np.ndarray], valid: Mapping[st
         elif nb in out:
             R_ref = out[nb]
         else:  # the root's neighbour, not bridged yet: its own world slerp
-            R_ref = _world_filled(R[nb], ok[nb])
+            R_ref = world_filled(R[nb], ok[nb])
         if R_ref is not None and not np.isfinite(R_ref).all():
             R_ref = None
+        used[s] = nb if R_ref is not None else None
         if not ok[s].any():
             out[s] = np.full_like(R[s], np.nan)
         elif causal:
@@ -375,15 +376,40 @@ def bridge_segments(R_world_segment: Mapping[str, np.ndarray], valid: Mapping[st
         else:
             out[s] = _offline_segment(R[s], ok[s], R_ref, max(1, int(round(st.short_gap_s
                                                                               * rate))))
-        untracked = ~np.isfinite(out[s]).all(axis=(1, 2))
-        result.bridged[s] = ~ok[s] & ~untracked
-        r = _report(result.bridged[s], untracked, time, rate, nb if R_ref is not None else None,
-                    st)
+    untracked = {s: ~np.isfinite(out[s]).all(axis=(1, 2)) for s in used}
+    bridged = {s: ~ok[s] & ~untracked[s] for s in used}
+    result = bridging_report(out, bridged, untracked, time, used, st, causal)
+    result.bridged = {s: ~ok[s] for s in segments} | bridged
+    return result
+
+
+def bridging_report(R_world_segment: dict[str, np.ndarray], bridged: Mapping[str, np.ndarray],
+                    untracked: Mapping[str, np.ndarray], time: np.ndarray,
+                    neighbours: Mapping[str, str | None], settings: BridgingSettings,
+                    causal: bool = False) -> BridgedSegments:
+    """The report of a bridging: per segment with a bridged or untracked sample, and warnings.
+
+    Args:
+        R_world_segment: The bridged orientations (kept in the result; may be empty).
+        bridged: Segment -> (N,) True where the orientation was bridged.
+        untracked: Segment -> (N,) True where the segment had no orientation at all.
+        time: (N,) frame times [s].
+        neighbours: Segment -> the segment it followed (None: none).
+        settings: Thresholds of the warnings and the listing.
+        causal: Whether the bridging looked only at the past.
+    """
+    n = len(time)
+    rate = float((n - 1) / (time[-1] - time[0])) if n > 1 and time[-1] > time[0] else 1.0
+    result = BridgedSegments(R_world_segment, dict(bridged), causal=causal)
+    for s in bridged:
+        if not (bridged[s].any() or untracked[s].any()):
+            continue
+        r = _report(bridged[s], untracked[s], time, rate, neighbours.get(s), settings)
         result.report[s] = r
-        warning = _gap_warning(s, r, time, rate, st)
+        warning = _gap_warning(s, r, time, rate, settings)
         if warning:
             result.warnings.append(warning)
-    share = _share_warning(result.report, st)
+    share = _share_warning(result.report, settings)
     if share:
         result.warnings.append(share)
     return result

@@ -21,6 +21,8 @@ class ImuSample:
         acc: (3,) specific force in the sensor frame [m/s^2], or None.
         gyr: (3,) angular velocity in the sensor frame [rad/s], or None.
         counter: Packet counter of the sample when the source has one (16-bit, wraps), or None.
+        actor: The actor wearing the sensor when the source says (a replayed session), else
+            None (then the sensor id decides).
     """
 
     sensor: str
@@ -29,6 +31,7 @@ class ImuSample:
     acc: np.ndarray | None = None
     gyr: np.ndarray | None = None
     counter: int | None = None
+    actor: str | None = None
 
 
 @dataclass(frozen=True)
