@@ -119,7 +119,9 @@ def _solve(capture: Path, out: Path, *extra: str) -> Path:
 
 def test_no_slide_keeps_up_with_a_run(run_capture: Path, tmp_path: Path) -> None:
     """Before, the body stood on a foot planted in the air and fell 4 m behind the runner's tags
-    (head RMS 1 m); now it stays with them, with no more pops than the inertial solve."""
+    (head RMS 1 m); now it stays with them, with no more pops than the inertial solve and
+    hardly more slide (the inertial solve no longer slides on a run since flight detection: the
+    correction may add at most 2 mm to it)."""
     uwb = ["--toa", str(run_capture / "toa.csv"), "--readers",
            str(run_capture / "readers.yaml"), "--tags", str(run_capture / "tags.yaml")]
     truth = run_capture / "truth.npz"
@@ -127,7 +129,7 @@ def test_no_slide_keeps_up_with_a_run(run_capture: Path, tmp_path: Path) -> None
     inertial = evaluate(_solve(run_capture, tmp_path / "imu"), truth)
     result = evaluate(aided, truth, align="none")
     assert result.head_position_rms_m < 0.15
-    assert result.foot_slide_mm < inertial.foot_slide_mm
+    assert result.foot_slide_mm < inertial.foot_slide_mm + 2.0
     assert result.joint_angle_jump_max_deg < inertial.joint_angle_jump_max_deg + 3.0
     summary = json.loads((aided / "summary.json").read_text())
     assert summary["uwb"]["far_from_tags"] == []  # kept within 10 cm, or said so
