@@ -21,17 +21,17 @@ from .robot_config import Capsule
 
 def closest_points(a1: np.ndarray, b1: np.ndarray, a2: np.ndarray,
                    b2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Closest points of segments ``a1``-``b1`` and ``a2``-``b2``, batched over (k, 3).
+    """Closest points of segments ``a1``-``b1`` and ``a2``-``b2``, batched over (..., 3).
 
     Returns:
-        ``(p, q)``: the points on the first and on the second segment (k, 3) [m].
+        ``(p, q)``: the points on the first and on the second segment (..., 3) [m].
     """
     d1, d2, r = b1 - a1, b2 - a2, a1 - a2
-    a = np.maximum(np.einsum("ki,ki->k", d1, d1), 1e-12)
-    e = np.maximum(np.einsum("ki,ki->k", d2, d2), 1e-12)
-    b = np.einsum("ki,ki->k", d1, d2)
-    c = np.einsum("ki,ki->k", d1, r)
-    f = np.einsum("ki,ki->k", d2, r)
+    a = np.maximum(np.einsum("...i,...i->...", d1, d1), 1e-12)
+    e = np.maximum(np.einsum("...i,...i->...", d2, d2), 1e-12)
+    b = np.einsum("...i,...i->...", d1, d2)
+    c = np.einsum("...i,...i->...", d1, r)
+    f = np.einsum("...i,...i->...", d2, r)
     denom = a * e - b * b
     parallel = denom < 1e-12 * a * e
     s = np.where(parallel, 0.0, np.clip((b * f - c * e) / np.where(parallel, 1.0, denom), 0, 1))
@@ -39,7 +39,18 @@ def closest_points(a1: np.ndarray, b1: np.ndarray, a2: np.ndarray,
     below, above = t < 0.0, t > 1.0
     s = np.where(below, np.clip(-c / a, 0, 1), np.where(above, np.clip((b - c) / a, 0, 1), s))
     t = np.clip(t, 0.0, 1.0)
-    return a1 + s[:, None] * d1, a2 + t[:, None] * d2
+    return a1 + s[..., None] * d1, a2 + t[..., None] * d2
+
+
+def witness_segments(a0: np.ndarray, b0: np.ndarray, a1: np.ndarray,
+                     b1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The five segment pairs (..., 5, 3) whose closest points are a capsule pair's witnesses.
+
+    Both segments, and each end point (a segment of length 0) against the other segment:
+    ``(first_a, first_b, second_a, second_b)``.
+    """
+    return (np.stack([a0, a0, b0, a0, a0], axis=-2), np.stack([b0, a0, b0, b0, b0], axis=-2),
+            np.stack([a1, a1, a1, a1, b1], axis=-2), np.stack([b1, b1, b1, a1, b1], axis=-2))
 
 
 class CapsulePairs:
@@ -71,6 +82,38 @@ class CapsulePairs:
         self._cached_q: np.ndarray | None = None
         self._cached: tuple[np.ndarray, ...] = ()
 
+    @property
+    def links(self) -> list[int]:
+        """Frame indices of the links carrying the capsules (the order :meth:`along` wants)."""
+        return list(self._links)
+
+    def _ends(self, R_links: np.ndarray, o_links: np.ndarray
+              ) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """World end points ``a``, ``b`` (..., k, 3) [m] of the first and second capsules.
+
+        ``R_links`` (..., L, 3, 3) and ``o_links`` (..., L, 3) [m] are the world poses of
+        :attr:`links`.
+        """
+        a, b = [], []
+        for side in range(2):
+            R, o = R_links[..., self._slots[side], :, :], o_links[..., self._slots[side], :]
+            a.append(np.einsum("...kij,kj->...ki", R, self._a[side]) + o)
+            b.append(np.einsum("...kij,kj->...ki", R, self._b[side]) + o)
+        return a, b
+
+    def along(self, R_links: np.ndarray, o_links: np.ndarray) -> np.ndarray:
+        """Exact distance of each pair (N, k) [m] along a motion, all frames at once.
+
+        Args:
+            R_links: (N, L, 3, 3) world rotations of :attr:`links`.
+            o_links: (N, L, 3) world origins of :attr:`links` [m].
+        """
+        if not self.pairs:
+            return np.zeros((len(R_links), 0))
+        a, b = self._ends(R_links, o_links)
+        p, q = closest_points(*witness_segments(a[0], b[0], a[1], b[1]))
+        return np.linalg.norm(p - q, axis=-1).min(axis=-1) - self._radius
+
     def _witnesses(self, configuration: Configuration) -> tuple[np.ndarray, ...]:
         """Closest points of each pair's segments and of each end point to the other segment.
 
@@ -82,12 +125,8 @@ class CapsulePairs:
         """
         if self._cached_q is configuration.q:  # the same configuration as last time
             return self._cached
-        R_links = configuration.rotations(self._links)
-        o_links = configuration.positions(self._links)
-        R = [R_links[slot] for slot in self._slots]
-        o = [o_links[slot] for slot in self._slots]
-        a = [np.einsum("kij,kj->ki", R[i], self._a[i]) + o[i] for i in range(2)]
-        b = [np.einsum("kij,kj->ki", R[i], self._b[i]) + o[i] for i in range(2)]
+        a, b = self._ends(configuration.rotations(self._links),
+                          configuration.positions(self._links))
         # Pairs surely farther apart than ``activation`` keep a lower bound as their distance.
         mid = [(a[i] + b[i]) / 2 for i in range(2)]
         half = [np.linalg.norm(b[i] - a[i], axis=1) / 2 for i in range(2)]
@@ -97,13 +136,9 @@ class CapsulePairs:
         d = np.repeat(bound, 5)
         near = np.flatnonzero(bound < self.activation)
         if len(near):
-            a0, b0, a1, b1 = a[0][near], b[0][near], a[1][near], b[1][near]
-            first = (np.stack([a0, a0, b0, a0, a0], axis=1).reshape(-1, 3),
-                     np.stack([b0, a0, b0, b0, b0], axis=1).reshape(-1, 3))
-            second = (np.stack([a1, a1, a1, a1, b1], axis=1).reshape(-1, 3),
-                      np.stack([b1, b1, b1, a1, b1], axis=1).reshape(-1, 3))
+            ends = witness_segments(a[0][near], b[0][near], a[1][near], b[1][near])
             rows = (5 * near[:, None] + np.arange(5)).reshape(-1)
-            p[rows], q[rows] = closest_points(first[0], first[1], second[0], second[1])
+            p[rows], q[rows] = closest_points(*(x.reshape(-1, 3) for x in ends))
             d[rows] = np.linalg.norm(p[rows] - q[rows], axis=1) - np.repeat(self._radius[near], 5)
         self._cached_q, self._cached = configuration.q, (p, q, d)
         return p, q, d
