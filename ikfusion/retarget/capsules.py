@@ -42,15 +42,26 @@ def closest_points(a1: np.ndarray, b1: np.ndarray, a2: np.ndarray,
     return a1 + s[..., None] * d1, a2 + t[..., None] * d2
 
 
-def witness_segments(a0: np.ndarray, b0: np.ndarray, a1: np.ndarray,
-                     b1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The five segment pairs (..., 5, 3) whose closest points are a capsule pair's witnesses.
+#: End point indices (0: ``a``, 1: ``b``) of the five witness segment pairs: both segments,
+#: each end of the first against the second segment, each end of the second against the first.
+_FIRST_A, _FIRST_B = [0, 0, 1, 0, 0], [1, 0, 1, 1, 1]
+_SECOND_A, _SECOND_B = [0, 0, 0, 0, 1], [1, 1, 1, 0, 1]
 
-    Both segments, and each end point (a segment of length 0) against the other segment:
-    ``(first_a, first_b, second_a, second_b)``.
+
+def witness_segments(first: np.ndarray, second: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The five segment pairs whose closest points are a capsule pair's witnesses.
+
+    Args:
+        first: End points ``a``, ``b`` (..., 2, 3) of the first capsules' segments [m].
+        second: The same of the second capsules.
+
+    Returns:
+        ``(first_a, first_b, second_a, second_b)``, each (..., 5, 3) [m]: both segments, and
+        each end point (a segment of length 0) against the other segment.
     """
-    return (np.stack([a0, a0, b0, a0, a0], axis=-2), np.stack([b0, a0, b0, b0, b0], axis=-2),
-            np.stack([a1, a1, a1, a1, b1], axis=-2), np.stack([b1, b1, b1, a1, b1], axis=-2))
+    return (first[..., _FIRST_A, :], first[..., _FIRST_B, :],
+            second[..., _SECOND_A, :], second[..., _SECOND_B, :])
 
 
 class CapsulePairs:
@@ -72,11 +83,14 @@ class CapsulePairs:
         second = [capsules[b] for _, b in pairs]
         self._frames = [[frame_ids[x.link] for x in first], [frame_ids[x.link] for x in second]]
         self._links = sorted(set(self._frames[0]) | set(self._frames[1]))
-        self._slots = [np.array([self._links.index(f) for f in side], dtype=int)
-                       for side in self._frames]
-        self._a = np.array([[x.a for x in first], [x.a for x in second]]).reshape(2, -1, 3)
-        self._b = np.array([[x.b for x in first], [x.b for x in second]]).reshape(2, -1, 3)
+        # First capsules then second ones: link slot, end points a, b in the link frame [m].
+        self._slot = np.array([self._links.index(f) for f in self._frames[0] + self._frames[1]],
+                              dtype=int)
+        self._ab = np.array([[x.a, x.b] for x in first + second], dtype=float).reshape(-1, 2, 3)
         self._radius = np.array([x.radius for x in first]) + np.array([x.radius for x in second])
+        half = np.linalg.norm(self._ab[:, 1] - self._ab[:, 0], axis=1) / 2
+        k = len(self.pairs)
+        self._reach = half[:k] + half[k:] + self._radius  # centre distance that may touch [m]
         self.margin = float(margin)
         self.activation = float(activation)
         self._cached_q: np.ndarray | None = None
@@ -87,19 +101,14 @@ class CapsulePairs:
         """Frame indices of the links carrying the capsules (the order :meth:`along` wants)."""
         return list(self._links)
 
-    def _ends(self, R_links: np.ndarray, o_links: np.ndarray
-              ) -> tuple[list[np.ndarray], list[np.ndarray]]:
-        """World end points ``a``, ``b`` (..., k, 3) [m] of the first and second capsules.
+    def _ends(self, R_links: np.ndarray, o_links: np.ndarray) -> np.ndarray:
+        """World end points (..., 2k, 2, 3) [m] of the first capsules, then the second ones.
 
         ``R_links`` (..., L, 3, 3) and ``o_links`` (..., L, 3) [m] are the world poses of
         :attr:`links`.
         """
-        a, b = [], []
-        for side in range(2):
-            R, o = R_links[..., self._slots[side], :, :], o_links[..., self._slots[side], :]
-            a.append(np.einsum("...kij,kj->...ki", R, self._a[side]) + o)
-            b.append(np.einsum("...kij,kj->...ki", R, self._b[side]) + o)
-        return a, b
+        return (np.einsum("...kij,kej->...kei", R_links[..., self._slot, :, :], self._ab)
+                + o_links[..., self._slot, None, :])
 
     def along(self, R_links: np.ndarray, o_links: np.ndarray) -> np.ndarray:
         """Exact distance of each pair (N, k) [m] along a motion, all frames at once.
@@ -108,10 +117,11 @@ class CapsulePairs:
             R_links: (N, L, 3, 3) world rotations of :attr:`links`.
             o_links: (N, L, 3) world origins of :attr:`links` [m].
         """
-        if not self.pairs:
+        k = len(self.pairs)
+        if not k:
             return np.zeros((len(R_links), 0))
-        a, b = self._ends(R_links, o_links)
-        p, q = closest_points(*witness_segments(a[0], b[0], a[1], b[1]))
+        ends = self._ends(R_links, o_links)
+        p, q = closest_points(*witness_segments(ends[:, :k], ends[:, k:]))
         return np.linalg.norm(p - q, axis=-1).min(axis=-1) - self._radius
 
     def _witnesses(self, configuration: Configuration) -> tuple[np.ndarray, ...]:
@@ -125,21 +135,22 @@ class CapsulePairs:
         """
         if self._cached_q is configuration.q:  # the same configuration as last time
             return self._cached
-        a, b = self._ends(configuration.rotations(self._links),
+        k = len(self.pairs)
+        ends = self._ends(configuration.rotations(self._links),
                           configuration.positions(self._links))
         # Pairs surely farther apart than ``activation`` keep a lower bound as their distance.
-        mid = [(a[i] + b[i]) / 2 for i in range(2)]
-        half = [np.linalg.norm(b[i] - a[i], axis=1) / 2 for i in range(2)]
-        bound = np.linalg.norm(mid[0] - mid[1], axis=1) - half[0] - half[1] - self._radius
-        p = np.repeat(mid[0], 5, axis=0)
-        q = np.repeat(mid[1], 5, axis=0)
+        mid = 0.5 * ends.sum(axis=1)
+        bound = np.linalg.norm(mid[:k] - mid[k:], axis=1) - self._reach
+        p = np.repeat(mid[:k], 5, axis=0)
+        q = np.repeat(mid[k:], 5, axis=0)
         d = np.repeat(bound, 5)
         near = np.flatnonzero(bound < self.activation)
         if len(near):
-            ends = witness_segments(a[0][near], b[0][near], a[1][near], b[1][near])
             rows = (5 * near[:, None] + np.arange(5)).reshape(-1)
-            p[rows], q[rows] = closest_points(*(x.reshape(-1, 3) for x in ends))
-            d[rows] = np.linalg.norm(p[rows] - q[rows], axis=1) - np.repeat(self._radius[near], 5)
+            p_near, q_near = closest_points(*(x.reshape(-1, 3) for x in witness_segments(
+                ends[near], ends[k + near])))
+            p[rows], q[rows] = p_near, q_near
+            d[rows] = np.linalg.norm(p_near - q_near, axis=1) - np.repeat(self._radius[near], 5)
         self._cached_q, self._cached = configuration.q, (p, q, d)
         return p, q, d
 

@@ -1,0 +1,215 @@
+"""The robot's kinematics and tracking objective of one retargeting step in one compiled call.
+
+Each Gauss-Newton step of :class:`~ikfusion.retarget.robot.RobotRetargeter` needs the tracking
+objective (mapped links' orientations, feet pulled flat, scaled positions) and the placements
+and Jacobians of the frames its constraints look at (feet, capsule links). Assembled from many
+small NumPy operations and Pinocchio calls, that is most of a step's time; here it is one CasADi
+function built from the blocks of the human solver's step (:mod:`ikfusion.ik.casadi_kinematics`,
+natively compiled and cached by :mod:`ikfusion.ik.native`), evaluated once per configuration.
+
+:class:`CompiledConfiguration` is a :class:`~ikfusion.ik.configuration.Configuration` whose
+frame placements and Jacobians come from that call; frames it does not cover fall back to
+Pinocchio. The objective is the one of the tasks' own ``add_objective`` (same residuals, same
+weights) up to round-off.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Sequence
+
+import casadi as ca
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from ..ik.casadi_kinematics import (
+    forward,
+    frame_pose,
+    geometry_vector,
+    jacobian,
+    symbolic_placements,
+)
+from ..ik.compiled import structure_key
+from ..ik.configuration import Configuration
+from ..ik.native import BoundFunction, column_major, native_functions
+from ..ik.tasks import OrientationTask, PositionTask
+from ..rotations_casadi import left_jacobian_inverse, log_so3
+
+
+class RobotStep:
+    """The step function of one robot and one set of tracked frames.
+
+    Inputs: ``q`` (nq), ``geometry`` (:func:`~ikfusion.ik.casadi_kinematics.geometry_vector`),
+    the orientation targets ``R_world_target`` (k, 3, 3, column-major) with per-row weights
+    ``w_orient`` (3k) [1/rad^2], and the position targets ``p_world_target`` (m, 3) [m] with
+    per-row weights ``w_position`` (3m) [1/m^2]. Outputs: ``H`` (nv, nv) and ``c`` (nv) of
+    ``1/2 dq^T H dq + c^T dq`` (orientation residuals ``log(R_world_frame R_world_target^T)``
+    with Jacobians ``Jl^-1(e) J_angular``, position residuals ``p_world_frame - p_world_target``
+    with linear Jacobians), and of each of ``frames``: ``R_world_frame`` (column-major),
+    ``p_world_frame`` [m] and the LOCAL_WORLD_ALIGNED Jacobian (6, nv), linear rows first.
+
+    Args:
+        model: The robot (free-flyer and revolute joints).
+        orientation_frames: Frame ids with orientation targets, in target order.
+        position_frames: Frame ids with position targets, in target order.
+        frames: Frame ids whose placements and Jacobians are wanted.
+
+    Raises:
+        NotImplementedError: For joint types the graph does not cover.
+    """
+
+    def __init__(self, model: pin.Model, orientation_frames: Sequence[int],
+                 position_frames: Sequence[int], frames: Sequence[int]) -> None:
+        self.frames = list(frames)
+        self.orientation_frames = list(orientation_frames)
+        self.position_frames = list(position_frames)
+        self.geometry_frames = sorted(set(self.frames) | set(self.orientation_frames)
+                                      | set(self.position_frames))
+        q = ca.SX.sym("q", model.nq)
+        geometry = ca.SX.sym("geometry", 12 * (model.njoints - 1 + len(self.geometry_frames)))
+        placements = symbolic_placements(geometry, model.njoints - 1, self.geometry_frames)
+        rotations, translations, axes = forward(model, q, placements)
+        k, m = len(self.orientation_frames), len(self.position_frames)
+        R_target = ca.SX.sym("R_world_target", 9 * k)
+        w_orient = ca.SX.sym("w_orient", 3 * k)
+        p_target = ca.SX.sym("p_world_target", 3 * m)
+        w_position = ca.SX.sym("w_position", 3 * m)
+
+        errors, jacobians = [], []
+        for n, fid in enumerate(self.orientation_frames):
+            R, _ = frame_pose(model, fid, rotations, translations, placements)
+            e, theta = log_so3(R @ ca.reshape(R_target[9 * n:9 * n + 9], 3, 3).T)
+            errors.append(e)
+            jacobians.append(left_jacobian_inverse(e, theta)
+                             @ jacobian(model, fid, axes, translations, None)[3:, :])
+        for n, fid in enumerate(self.position_frames):
+            _, p = frame_pose(model, fid, rotations, translations, placements)
+            errors.append(p - p_target[3 * n:3 * n + 3])
+            jacobians.append(jacobian(model, fid, axes, translations, p)[:3, :])
+        e_all = ca.vertcat(*errors) if errors else ca.SX(0, 1)
+        J_all = ca.vertcat(*jacobians) if jacobians else ca.SX(0, model.nv)
+        WJ = ca.diag(ca.vertcat(w_orient, w_position)) @ J_all
+        H, c = J_all.T @ WJ, WJ.T @ e_all
+
+        R_out, p_out, J_out = [], [], []
+        for fid in self.frames:
+            R, p = frame_pose(model, fid, rotations, translations, placements)
+            R_out.append(ca.reshape(R, 9, 1))
+            p_out.append(p)
+            J_out.append(jacobian(model, fid, axes, translations, p))
+        self.function = ca.Function(
+            "retarget_step", [q, geometry, R_target, w_orient, p_target, w_position],
+            [H, c, ca.vertcat(*R_out) if R_out else ca.SX(0, 1),
+             ca.vertcat(*p_out) if p_out else ca.SX(0, 1),
+             ca.vertcat(*J_out) if J_out else ca.SX(0, model.nv)],
+            ["q", "geometry", "R_world_target", "w_orient", "p_world_target", "w_position"],
+            ["H", "c", "R_frames", "p_frames", "J_frames"])
+        self.warnings: list[str] = []
+
+    def geometry(self, model: pin.Model) -> np.ndarray:
+        """The geometry input of ``model`` (its joint and frame placements)."""
+        return geometry_vector(model, self.geometry_frames)
+
+    def __call__(self, q: np.ndarray, geometry: np.ndarray, R_world_target: np.ndarray,
+                 w_orient: np.ndarray, p_world_target: np.ndarray,
+                 w_position: np.ndarray) -> list[np.ndarray]:
+        """The outputs as dense arrays, overwritten by the next call (copy to keep them)."""
+        if not hasattr(self, "_call"):
+            self._call = BoundFunction(self.function)
+        return self._call(q, geometry, column_major(R_world_target), w_orient,
+                          p_world_target.reshape(-1), w_position)
+
+
+_BUILT: dict[str, RobotStep] = {}
+
+
+def robot_step(model: pin.Model, orientation_frames: Sequence[int],
+               position_frames: Sequence[int], frames: Sequence[int]) -> RobotStep:
+    """A (cached) :class:`RobotStep`, natively compiled when a C compiler exists.
+
+    A failed compile leaves CasADi's virtual machine in place and says so in
+    :attr:`RobotStep.warnings`.
+
+    Raises:
+        NotImplementedError: For joint types the graph does not cover.
+    """
+    key = hashlib.sha256("|".join([
+        "retarget-step-v1", ",".join(map(str, orientation_frames)),
+        ",".join(map(str, position_frames)), ",".join(map(str, frames)),
+        structure_key(model, [*orientation_frames, *position_frames], [], frames),
+    ]).encode()).hexdigest()[:20]
+    built = _BUILT.get(key)
+    if built is None:
+        built = RobotStep(model, orientation_frames, position_frames, frames)
+        native, problem = native_functions([built.function], key)
+        if native is not None:
+            built.function = native[0]
+        if problem is not None:
+            built.warnings.append(problem)
+        _BUILT[key] = built
+    return built
+
+
+class CompiledConfiguration(Configuration):
+    """A configuration whose step frames and tracking objective come from one compiled call.
+
+    The orientation tasks (their frames in order) and the position task are read when the
+    call runs (the first query after :meth:`update`), so their targets must be set before.
+
+    Args:
+        model: The robot.
+        q: Configuration (nq,).
+        step: The step function (built for the tasks' frames, in the same order).
+        orientation_tasks: Tasks whose frames are ``step.orientation_frames``, in order.
+        position_task: The task whose frames are ``step.position_frames``.
+    """
+
+    def __init__(self, model: pin.Model, q: npt.ArrayLike, step: RobotStep,
+                 orientation_tasks: Sequence[OrientationTask],
+                 position_task: PositionTask) -> None:
+        self._step = step
+        self._geometry = step.geometry(model)
+        self._orientation_tasks = list(orientation_tasks)
+        self._position_task = position_task
+        self._covered = {f: i for i, f in enumerate(step.frames)}
+        self._objective: tuple[np.ndarray, np.ndarray] | None = None
+        super().__init__(model, q)
+
+    def update(self, q: npt.ArrayLike) -> None:
+        """Set ``q``; the compiled call runs once, when first needed."""
+        super().update(q)
+        self._objective = None
+
+    def _evaluate(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._objective is None:
+            tasks = self._orientation_tasks
+            H, c, R, p, J = self._step(
+                self._q, self._geometry, np.concatenate([t.targets for t in tasks]),
+                np.concatenate([t.row_weights() for t in tasks]), self._position_task.targets,
+                self._position_task.row_weights())
+            R = R.reshape(-1, 3, 3).transpose(0, 2, 1)  # column-major per frame
+            p = p.reshape(-1, 3)
+            J = J.copy()
+            for f, i in self._covered.items():
+                self._placements[f] = pin.SE3(R[i], p[i])
+                self._jacobians[f] = J[6 * i:6 * i + 6]
+            self._objective = H.copy(), c[:, 0].copy()
+        return self._objective
+
+    def tracking_objective(self) -> tuple[np.ndarray, np.ndarray]:
+        """``H`` (nv, nv) and ``c`` (nv,) of the orientation and position tasks (new arrays)."""
+        H, c = self._evaluate()
+        return H.copy(), c.copy()
+
+    def placement(self, frame_id: int) -> pin.SE3:
+        """``T_world_frame`` of one frame."""
+        if frame_id in self._covered:
+            self._evaluate()
+        return super().placement(frame_id)
+
+    def jacobian(self, frame_id: int) -> np.ndarray:
+        """Frame Jacobian (6, nv), LOCAL_WORLD_ALIGNED (linear rows first)."""
+        if frame_id in self._covered:
+            self._evaluate()
+        return super().jacobian(frame_id)
