@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import casadi as ca
 import numpy as np
 
 from ..ik.configuration import Configuration
@@ -42,10 +43,30 @@ def closest_points(a1: np.ndarray, b1: np.ndarray, a2: np.ndarray,
     return a1 + s[..., None] * d1, a2 + t[..., None] * d2
 
 
+def closest_points_sx(a1: ca.SX, b1: ca.SX, a2: ca.SX, b2: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """:func:`closest_points` of one segment pair (each end (3,) [m]) as a CasADi graph.
+
+    The same formula and branches, for the compiled retargeting step.
+    """
+    d1, d2, r = b1 - a1, b2 - a2, a1 - a2
+    a = ca.fmax(ca.dot(d1, d1), 1e-12)
+    e = ca.fmax(ca.dot(d2, d2), 1e-12)
+    b, c, f = ca.dot(d1, d2), ca.dot(d1, r), ca.dot(d2, r)
+    denom = a * e - b * b
+    parallel = denom < 1e-12 * a * e
+    s = ca.if_else(parallel, 0.0,
+                   ca.fmin(ca.fmax((b * f - c * e) / ca.if_else(parallel, 1.0, denom), 0.0), 1.0))
+    t = (b * s + f) / e
+    s = ca.if_else(t < 0.0, ca.fmin(ca.fmax(-c / a, 0.0), 1.0),
+                   ca.if_else(t > 1.0, ca.fmin(ca.fmax((b - c) / a, 0.0), 1.0), s))
+    t = ca.fmin(ca.fmax(t, 0.0), 1.0)
+    return a1 + s * d1, a2 + t * d2
+
+
 #: End point indices (0: ``a``, 1: ``b``) of the five witness segment pairs: both segments,
 #: each end of the first against the second segment, each end of the second against the first.
-_FIRST_A, _FIRST_B = [0, 0, 1, 0, 0], [1, 0, 1, 1, 1]
-_SECOND_A, _SECOND_B = [0, 0, 0, 0, 1], [1, 1, 1, 0, 1]
+#: ``(first_a, first_b, second_a, second_b)``.
+WITNESS_ENDS = ([0, 0, 1, 0, 0], [1, 0, 1, 1, 1], [0, 0, 0, 0, 1], [1, 1, 1, 0, 1])
 
 
 def witness_segments(first: np.ndarray, second: np.ndarray
@@ -60,8 +81,9 @@ def witness_segments(first: np.ndarray, second: np.ndarray
         ``(first_a, first_b, second_a, second_b)``, each (..., 5, 3) [m]: both segments, and
         each end point (a segment of length 0) against the other segment.
     """
-    return (first[..., _FIRST_A, :], first[..., _FIRST_B, :],
-            second[..., _SECOND_A, :], second[..., _SECOND_B, :])
+    first_a, first_b, second_a, second_b = WITNESS_ENDS
+    return (first[..., first_a, :], first[..., first_b, :],
+            second[..., second_a, :], second[..., second_b, :])
 
 
 class CapsulePairs:
@@ -95,6 +117,19 @@ class CapsulePairs:
         self.activation = float(activation)
         self._cached_q: np.ndarray | None = None
         self._cached: tuple[np.ndarray, ...] = ()
+
+    @property
+    def frame_pairs(self) -> list[tuple[int, int]]:
+        """Frame indices of each pair's first and second capsule's link."""
+        return list(zip(self._frames[0], self._frames[1]))
+
+    def geometry(self) -> np.ndarray:
+        """The capsules as the compiled step's input (12k + k) [m].
+
+        End points in their link frames, first capsules then second ones, each ``a`` then
+        ``b``; then each pair's summed radius.
+        """
+        return np.concatenate([self._ab.reshape(-1), self._radius])
 
     @property
     def links(self) -> list[int]:
@@ -154,11 +189,27 @@ class CapsulePairs:
         self._cached_q, self._cached = configuration.q, (p, q, d)
         return p, q, d
 
+    def _distances_and_rows(self, configuration: Configuration
+                            ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Witness distances (5k,) [m] and, when ``configuration`` computes them, their rows.
+
+        A configuration with a ``capsule_witnesses()`` method (the compiled retargeting step)
+        gives exact distances and the rows ``-n^T (J_p - J_q)`` (5k, nv) of every witness in
+        one call; otherwise :meth:`_witnesses` gives the distances and rows are built here.
+        """
+        compiled = getattr(configuration, "capsule_witnesses", None)
+        witnesses = compiled() if compiled is not None else None
+        if witnesses is not None:
+            self._last_distances = witnesses[0]
+            return witnesses
+        self._last_distances = self._witnesses(configuration)[2]
+        return self._last_distances, None
+
     @property
     def last_min_distance(self) -> float:
         """The smallest distance (or lower bound) of the last configuration looked at [m]."""
-        return float(self._cached[2].min()) if len(self._cached) and len(self._cached[2]) \
-            else np.inf
+        d = getattr(self, "_last_distances", np.zeros(0))
+        return float(d.min()) if len(d) else np.inf
 
     def distances(self, configuration: Configuration) -> np.ndarray:
         """Distance of each pair (k,) [m] (negative when they overlap).
@@ -168,17 +219,20 @@ class CapsulePairs:
         """
         if not self.pairs:
             return np.zeros(0)
-        return self._witnesses(configuration)[2].reshape(-1, 5).min(axis=1)
+        return self._distances_and_rows(configuration)[0].reshape(-1, 5).min(axis=1)
 
     def inequality(self, configuration: Configuration) -> Inequality:
         """Rows ``-n^T (J_p - J_q) dq <= d - margin`` for witnesses closer than ``activation``."""
         nv = configuration.model.nv
         if not self.pairs:
             return Inequality(np.zeros((0, nv)), np.zeros(0))
-        p, q, d = self._witnesses(configuration)
+        d, rows = self._distances_and_rows(configuration)
         near = np.flatnonzero(d < self.activation)
         if not len(near):
             return Inequality(np.zeros((0, nv)), np.zeros(0))
+        if rows is not None:
+            return Inequality(rows[near], d[near] - self.margin)
+        p, q, _ = self._witnesses(configuration)
         gap = p[near] - q[near]
         n = gap / np.maximum(np.linalg.norm(gap, axis=1), 1e-9)[:, None]
         Jp = self._point_jacobians(configuration, [self._frames[0][k // 5] for k in near],

@@ -35,6 +35,7 @@ from ..ik.configuration import Configuration
 from ..ik.native import BoundFunction, column_major, native_functions
 from ..ik.tasks import OrientationTask, PositionTask
 from ..rotations_casadi import left_jacobian_inverse, log_so3
+from .capsules import WITNESS_ENDS, CapsulePairs, closest_points_sx
 
 
 class RobotStep:
@@ -48,24 +49,32 @@ class RobotStep:
     with Jacobians ``Jl^-1(e) J_angular``, position residuals ``p_world_frame - p_world_target``
     with linear Jacobians), and of each of ``frames``: ``R_world_frame`` (column-major),
     ``p_world_frame`` [m] and the LOCAL_WORLD_ALIGNED Jacobian (6, nv), linear rows first.
+    With capsule pairs, also the input ``capsules`` (:meth:`CapsulePairs.geometry`) and the
+    outputs ``d_witness`` (5k) [m], the exact distances of each pair's five witnesses
+    (:meth:`CapsulePairs._witnesses`), and ``G_witness`` (5k, nv), their keep-apart rows
+    ``-n^T (J_p - J_q)``.
 
     Args:
         model: The robot (free-flyer and revolute joints).
         orientation_frames: Frame ids with orientation targets, in target order.
         position_frames: Frame ids with position targets, in target order.
         frames: Frame ids whose placements and Jacobians are wanted.
+        capsules: Capsule pairs whose witnesses are wanted.
 
     Raises:
         NotImplementedError: For joint types the graph does not cover.
     """
 
     def __init__(self, model: pin.Model, orientation_frames: Sequence[int],
-                 position_frames: Sequence[int], frames: Sequence[int]) -> None:
+                 position_frames: Sequence[int], frames: Sequence[int],
+                 capsules: CapsulePairs | None = None) -> None:
+        pairs = capsules.frame_pairs if capsules is not None else []
+        self.has_capsules = bool(pairs)
         self.frames = list(frames)
         self.orientation_frames = list(orientation_frames)
         self.position_frames = list(position_frames)
         self.geometry_frames = sorted(set(self.frames) | set(self.orientation_frames)
-                                      | set(self.position_frames))
+                                      | set(self.position_frames) | {f for p in pairs for f in p})
         q = ca.SX.sym("q", model.nq)
         geometry = ca.SX.sym("geometry", 12 * (model.njoints - 1 + len(self.geometry_frames)))
         placements = symbolic_placements(geometry, model.njoints - 1, self.geometry_frames)
@@ -98,13 +107,39 @@ class RobotStep:
             R_out.append(ca.reshape(R, 9, 1))
             p_out.append(p)
             J_out.append(jacobian(model, fid, axes, translations, p))
+        capsule_geometry = ca.SX.sym("capsules", 13 * len(pairs))
+        d_witness, G_witness = [], []
+        k = len(pairs)
+        for i, frame_pair in enumerate(pairs):
+            ends = []
+            for side, fid in enumerate(frame_pair):
+                R, o = frame_pose(model, fid, rotations, translations, placements)
+                j = 6 * (side * k + i)
+                ends.append([R @ capsule_geometry[j:j + 3] + o,
+                             R @ capsule_geometry[j + 3:j + 6] + o])
+            radius = capsule_geometry[12 * k + i]
+            first_a, first_b, second_a, second_b = WITNESS_ENDS
+            for n in range(5):
+                p, q_ = closest_points_sx(ends[0][first_a[n]], ends[0][first_b[n]],
+                                          ends[1][second_a[n]], ends[1][second_b[n]])
+                gap = p - q_
+                distance = ca.norm_2(gap)
+                d_witness.append(distance - radius)
+                J_gap = (jacobian(model, frame_pair[0], axes, translations, p)[:3, :]
+                         - jacobian(model, frame_pair[1], axes, translations, q_)[:3, :])
+                G_witness.append(-(gap / ca.fmax(distance, 1e-9)).T @ J_gap)
+
         self.function = ca.Function(
-            "retarget_step", [q, geometry, R_target, w_orient, p_target, w_position],
+            "retarget_step",
+            [q, geometry, R_target, w_orient, p_target, w_position, capsule_geometry],
             [H, c, ca.vertcat(*R_out) if R_out else ca.SX(0, 1),
              ca.vertcat(*p_out) if p_out else ca.SX(0, 1),
-             ca.vertcat(*J_out) if J_out else ca.SX(0, model.nv)],
-            ["q", "geometry", "R_world_target", "w_orient", "p_world_target", "w_position"],
-            ["H", "c", "R_frames", "p_frames", "J_frames"])
+             ca.vertcat(*J_out) if J_out else ca.SX(0, model.nv),
+             ca.vertcat(*d_witness) if d_witness else ca.SX(0, 1),
+             ca.vertcat(*G_witness) if G_witness else ca.SX(0, model.nv)],
+            ["q", "geometry", "R_world_target", "w_orient", "p_world_target", "w_position",
+             "capsules"],
+            ["H", "c", "R_frames", "p_frames", "J_frames", "d_witness", "G_witness"])
         self.warnings: list[str] = []
 
     def geometry(self, model: pin.Model) -> np.ndarray:
@@ -112,20 +147,21 @@ class RobotStep:
         return geometry_vector(model, self.geometry_frames)
 
     def __call__(self, q: np.ndarray, geometry: np.ndarray, R_world_target: np.ndarray,
-                 w_orient: np.ndarray, p_world_target: np.ndarray,
-                 w_position: np.ndarray) -> list[np.ndarray]:
+                 w_orient: np.ndarray, p_world_target: np.ndarray, w_position: np.ndarray,
+                 capsules: np.ndarray) -> list[np.ndarray]:
         """The outputs as dense arrays, overwritten by the next call (copy to keep them)."""
         if not hasattr(self, "_call"):
             self._call = BoundFunction(self.function)
         return self._call(q, geometry, column_major(R_world_target), w_orient,
-                          p_world_target.reshape(-1), w_position)
+                          p_world_target.reshape(-1), w_position, capsules)
 
 
 _BUILT: dict[str, RobotStep] = {}
 
 
 def robot_step(model: pin.Model, orientation_frames: Sequence[int],
-               position_frames: Sequence[int], frames: Sequence[int]) -> RobotStep:
+               position_frames: Sequence[int], frames: Sequence[int],
+               capsules: CapsulePairs | None = None) -> RobotStep:
     """A (cached) :class:`RobotStep`, natively compiled when a C compiler exists.
 
     A failed compile leaves CasADi's virtual machine in place and says so in
@@ -134,14 +170,15 @@ def robot_step(model: pin.Model, orientation_frames: Sequence[int],
     Raises:
         NotImplementedError: For joint types the graph does not cover.
     """
+    pairs = capsules.frame_pairs if capsules is not None else []
     key = hashlib.sha256("|".join([
-        "retarget-step-v1", ",".join(map(str, orientation_frames)),
-        ",".join(map(str, position_frames)), ",".join(map(str, frames)),
+        "retarget-step-v2", ",".join(map(str, orientation_frames)),
+        ",".join(map(str, position_frames)), ",".join(map(str, frames)), str(pairs),
         structure_key(model, [*orientation_frames, *position_frames], [], frames),
     ]).encode()).hexdigest()[:20]
     built = _BUILT.get(key)
     if built is None:
-        built = RobotStep(model, orientation_frames, position_frames, frames)
+        built = RobotStep(model, orientation_frames, position_frames, frames, capsules)
         native, problem = native_functions([built.function], key)
         if native is not None:
             built.function = native[0]
@@ -163,12 +200,15 @@ class CompiledConfiguration(Configuration):
         step: The step function (built for the tasks' frames, in the same order).
         orientation_tasks: Tasks whose frames are ``step.orientation_frames``, in order.
         position_task: The task whose frames are ``step.position_frames``.
+        capsules: The pairs the step was built with (their geometry is an input).
     """
 
     def __init__(self, model: pin.Model, q: npt.ArrayLike, step: RobotStep,
                  orientation_tasks: Sequence[OrientationTask],
-                 position_task: PositionTask) -> None:
+                 position_task: PositionTask, capsules: CapsulePairs | None = None) -> None:
         self._step = step
+        self._capsules = capsules.geometry() if capsules is not None else np.zeros(0)
+        self._witnesses: tuple[np.ndarray, np.ndarray] | None = None
         self._geometry = step.geometry(model)
         self._orientation_tasks = list(orientation_tasks)
         self._position_task = position_task
@@ -184,10 +224,11 @@ class CompiledConfiguration(Configuration):
     def _evaluate(self) -> tuple[np.ndarray, np.ndarray]:
         if self._objective is None:
             tasks = self._orientation_tasks
-            H, c, R, p, J = self._step(
+            H, c, R, p, J, d, G = self._step(
                 self._q, self._geometry, np.concatenate([t.targets for t in tasks]),
                 np.concatenate([t.row_weights() for t in tasks]), self._position_task.targets,
-                self._position_task.row_weights())
+                self._position_task.row_weights(), self._capsules)
+            self._witnesses = (d[:, 0].copy(), G.copy()) if self._step.has_capsules else None
             R = R.reshape(-1, 3, 3).transpose(0, 2, 1)  # column-major per frame
             p = p.reshape(-1, 3)
             J = J.copy()
@@ -201,6 +242,14 @@ class CompiledConfiguration(Configuration):
         """``H`` (nv, nv) and ``c`` (nv,) of the orientation and position tasks (new arrays)."""
         H, c = self._evaluate()
         return H.copy(), c.copy()
+
+    def capsule_witnesses(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """Exact witness distances (5k,) [m] and keep-apart rows (5k, nv), None without pairs.
+
+        The five witnesses per pair of :class:`~ikfusion.retarget.capsules.CapsulePairs`.
+        """
+        self._evaluate()
+        return self._witnesses
 
     def placement(self, frame_id: int) -> pin.SE3:
         """``T_world_frame`` of one frame."""

@@ -246,16 +246,17 @@ class RobotRetargeter:
         not cover. Returns it and the warnings of building it (a failed native compile).
         """
         model = self.robot.model
-        frames = [*self._foot_ids, *self.capsules.links, *self.position_task.frame_ids]
+        frames = [*self._foot_ids, *self.position_task.frame_ids]
         try:
             step = robot_step(model, [*self.orientation_task.frame_ids,
                                       *self.flat_task.frame_ids],
-                              self.position_task.frame_ids, list(dict.fromkeys(frames)))
+                              self.position_task.frame_ids, list(dict.fromkeys(frames)),
+                              self.capsules)
         except NotImplementedError:
             return Configuration(model, self.robot.rest), []
         return CompiledConfiguration(model, self.robot.rest, step,
                                      [self.orientation_task, self.flat_task],
-                                     self.position_task), list(step.warnings)
+                                     self.position_task, self.capsules), list(step.warnings)
 
     def _tracking_objective(self, conf: Configuration) -> tuple[np.ndarray, np.ndarray]:
         """``H`` and ``c`` of the orientation, flat-foot and position tasks at ``conf``."""
