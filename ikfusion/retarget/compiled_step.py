@@ -52,7 +52,9 @@ class RobotStep:
     With capsule pairs, also the input ``capsules`` (:meth:`CapsulePairs.geometry`) and the
     outputs ``d_witness`` (5k) [m], the exact distances of each pair's five witnesses
     (:meth:`CapsulePairs._witnesses`), and ``G_witness`` (5k, nv), their keep-apart rows
-    ``-n^T (J_p - J_q)``.
+    ``-n^T (J_p - J_q)``. With soles, also the input ``corners`` (4 per sole, in its link
+    frame [m]) and the outputs ``z_corners`` (4s) [m], the corners' heights, and
+    ``Jz_corners`` (4s, nv), their height Jacobians.
 
     Args:
         model: The robot (free-flyer and revolute joints).
@@ -60,6 +62,7 @@ class RobotStep:
         position_frames: Frame ids with position targets, in target order.
         frames: Frame ids whose placements and Jacobians are wanted.
         capsules: Capsule pairs whose witnesses are wanted.
+        soles: Frame ids of the links carrying the sole corners (4 each).
 
     Raises:
         NotImplementedError: For joint types the graph does not cover.
@@ -67,14 +70,16 @@ class RobotStep:
 
     def __init__(self, model: pin.Model, orientation_frames: Sequence[int],
                  position_frames: Sequence[int], frames: Sequence[int],
-                 capsules: CapsulePairs | None = None) -> None:
+                 capsules: CapsulePairs | None = None, soles: Sequence[int] = ()) -> None:
         pairs = capsules.frame_pairs if capsules is not None else []
+        self.soles = list(soles)
         self.has_capsules = bool(pairs)
         self.frames = list(frames)
         self.orientation_frames = list(orientation_frames)
         self.position_frames = list(position_frames)
         self.geometry_frames = sorted(set(self.frames) | set(self.orientation_frames)
-                                      | set(self.position_frames) | {f for p in pairs for f in p})
+                                      | set(self.position_frames) | set(self.soles)
+                                      | {f for p in pairs for f in p})
         q = ca.SX.sym("q", model.nq)
         geometry = ca.SX.sym("geometry", 12 * (model.njoints - 1 + len(self.geometry_frames)))
         placements = symbolic_placements(geometry, model.njoints - 1, self.geometry_frames)
@@ -129,17 +134,29 @@ class RobotStep:
                          - jacobian(model, frame_pair[1], axes, translations, q_)[:3, :])
                 G_witness.append(-(gap / ca.fmax(distance, 1e-9)).T @ J_gap)
 
+        corners = ca.SX.sym("corners", 12 * len(self.soles))
+        z_corners, Jz_corners = [], []
+        for i, fid in enumerate(self.soles):
+            R, o = frame_pose(model, fid, rotations, translations, placements)
+            for n in range(4):
+                point = R @ corners[12 * i + 3 * n:12 * i + 3 * n + 3] + o
+                z_corners.append(point[2])
+                Jz_corners.append(jacobian(model, fid, axes, translations, point)[2, :])
+
         self.function = ca.Function(
             "retarget_step",
-            [q, geometry, R_target, w_orient, p_target, w_position, capsule_geometry],
+            [q, geometry, R_target, w_orient, p_target, w_position, capsule_geometry, corners],
             [H, c, ca.vertcat(*R_out) if R_out else ca.SX(0, 1),
              ca.vertcat(*p_out) if p_out else ca.SX(0, 1),
              ca.vertcat(*J_out) if J_out else ca.SX(0, model.nv),
              ca.vertcat(*d_witness) if d_witness else ca.SX(0, 1),
-             ca.vertcat(*G_witness) if G_witness else ca.SX(0, model.nv)],
+             ca.vertcat(*G_witness) if G_witness else ca.SX(0, model.nv),
+             ca.vertcat(*z_corners) if z_corners else ca.SX(0, 1),
+             ca.vertcat(*Jz_corners) if Jz_corners else ca.SX(0, model.nv)],
             ["q", "geometry", "R_world_target", "w_orient", "p_world_target", "w_position",
-             "capsules"],
-            ["H", "c", "R_frames", "p_frames", "J_frames", "d_witness", "G_witness"])
+             "capsules", "corners"],
+            ["H", "c", "R_frames", "p_frames", "J_frames", "d_witness", "G_witness",
+             "z_corners", "Jz_corners"])
         self.warnings: list[str] = []
 
     def geometry(self, model: pin.Model) -> np.ndarray:
@@ -148,12 +165,12 @@ class RobotStep:
 
     def __call__(self, q: np.ndarray, geometry: np.ndarray, R_world_target: np.ndarray,
                  w_orient: np.ndarray, p_world_target: np.ndarray, w_position: np.ndarray,
-                 capsules: np.ndarray) -> list[np.ndarray]:
+                 capsules: np.ndarray, corners: np.ndarray) -> list[np.ndarray]:
         """The outputs as dense arrays, overwritten by the next call (copy to keep them)."""
         if not hasattr(self, "_call"):
             self._call = BoundFunction(self.function)
         return self._call(q, geometry, column_major(R_world_target), w_orient,
-                          p_world_target.reshape(-1), w_position, capsules)
+                          p_world_target.reshape(-1), w_position, capsules, corners)
 
 
 _BUILT: dict[str, RobotStep] = {}
@@ -161,7 +178,7 @@ _BUILT: dict[str, RobotStep] = {}
 
 def robot_step(model: pin.Model, orientation_frames: Sequence[int],
                position_frames: Sequence[int], frames: Sequence[int],
-               capsules: CapsulePairs | None = None) -> RobotStep:
+               capsules: CapsulePairs | None = None, soles: Sequence[int] = ()) -> RobotStep:
     """A (cached) :class:`RobotStep`, natively compiled when a C compiler exists.
 
     A failed compile leaves CasADi's virtual machine in place and says so in
@@ -172,13 +189,13 @@ def robot_step(model: pin.Model, orientation_frames: Sequence[int],
     """
     pairs = capsules.frame_pairs if capsules is not None else []
     key = hashlib.sha256("|".join([
-        "retarget-step-v2", ",".join(map(str, orientation_frames)),
+        "retarget-step-v3", ",".join(map(str, orientation_frames)), str(list(soles)),
         ",".join(map(str, position_frames)), ",".join(map(str, frames)), str(pairs),
         structure_key(model, [*orientation_frames, *position_frames], [], frames),
     ]).encode()).hexdigest()[:20]
     built = _BUILT.get(key)
     if built is None:
-        built = RobotStep(model, orientation_frames, position_frames, frames, capsules)
+        built = RobotStep(model, orientation_frames, position_frames, frames, capsules, soles)
         native, problem = native_functions([built.function], key)
         if native is not None:
             built.function = native[0]
@@ -201,14 +218,20 @@ class CompiledConfiguration(Configuration):
         orientation_tasks: Tasks whose frames are ``step.orientation_frames``, in order.
         position_task: The task whose frames are ``step.position_frames``.
         capsules: The pairs the step was built with (their geometry is an input).
+        corners: Sole corners (s, 4, 3) in their links' frames [m], of ``step.soles``.
     """
 
     def __init__(self, model: pin.Model, q: npt.ArrayLike, step: RobotStep,
                  orientation_tasks: Sequence[OrientationTask],
-                 position_task: PositionTask, capsules: CapsulePairs | None = None) -> None:
+                 position_task: PositionTask, capsules: CapsulePairs | None = None,
+                 corners: np.ndarray | None = None) -> None:
         self._step = step
         self._capsules = capsules.geometry() if capsules is not None else np.zeros(0)
         self._witnesses: tuple[np.ndarray, np.ndarray] | None = None
+        self._corners = np.zeros(0) if corners is None else np.asarray(corners).reshape(-1)
+        self._soles: tuple[np.ndarray, np.ndarray] = (np.zeros(0), np.zeros((0, model.nv)))
+        self._inputs: tuple[list[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                     np.ndarray] | None] = ([], None)
         self._geometry = step.geometry(model)
         self._orientation_tasks = list(orientation_tasks)
         self._position_task = position_task
@@ -223,12 +246,12 @@ class CompiledConfiguration(Configuration):
 
     def _evaluate(self) -> tuple[np.ndarray, np.ndarray]:
         if self._objective is None:
-            tasks = self._orientation_tasks
-            H, c, R, p, J, d, G = self._step(
-                self._q, self._geometry, np.concatenate([t.targets for t in tasks]),
-                np.concatenate([t.row_weights() for t in tasks]), self._position_task.targets,
-                self._position_task.row_weights(), self._capsules)
+            orientations, w_orient, positions, w_position = self._targets()
+            H, c, R, p, J, d, G, z, Jz = self._step(
+                self._q, self._geometry, orientations, w_orient, positions, w_position,
+                self._capsules, self._corners)
             self._witnesses = (d[:, 0].copy(), G.copy()) if self._step.has_capsules else None
+            self._soles = (z[:, 0].copy(), Jz.copy())
             R = R.reshape(-1, 3, 3).transpose(0, 2, 1)  # column-major per frame
             p = p.reshape(-1, 3)
             J = J.copy()
@@ -237,6 +260,30 @@ class CompiledConfiguration(Configuration):
                 self._jacobians[f] = J[6 * i:6 * i + 6]
             self._objective = H.copy(), c[:, 0].copy()
         return self._objective
+
+    def _targets(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The tasks' targets and per-row weights as the step's inputs (kept while unchanged).
+
+        The tasks' ``set_targets`` replace their arrays (never write into them), so the
+        arrays being the same objects as last time means unchanged targets.
+        """
+        position = self._position_task
+        arrays = [x for t in self._orientation_tasks for x in (t.targets, t.weights)]
+        arrays += [position.targets, position.information]
+        known, inputs = self._inputs
+        if inputs is None or len(arrays) != len(known) or any(
+                a is not b for a, b in zip(arrays, known)):
+            orientation = self._orientation_tasks
+            inputs = (np.concatenate([t.targets for t in orientation]),
+                      np.concatenate([t.row_weights() for t in orientation]),
+                      position.targets, position.row_weights())
+            self._inputs = (arrays, inputs)
+        return inputs
+
+    def sole_corners(self) -> tuple[np.ndarray, np.ndarray]:
+        """Heights (4s,) [m] of the sole corners and their Jacobians (4s, nv), sole-major."""
+        self._evaluate()
+        return self._soles
 
     def tracking_objective(self) -> tuple[np.ndarray, np.ndarray]:
         """``H`` (nv, nv) and ``c`` (nv,) of the orientation and position tasks (new arrays)."""

@@ -251,12 +251,13 @@ class RobotRetargeter:
             step = robot_step(model, [*self.orientation_task.frame_ids,
                                       *self.flat_task.frame_ids],
                               self.position_task.frame_ids, list(dict.fromkeys(frames)),
-                              self.capsules)
+                              self.capsules, self._foot_ids)
         except NotImplementedError:
             return Configuration(model, self.robot.rest), []
         return CompiledConfiguration(model, self.robot.rest, step,
                                      [self.orientation_task, self.flat_task],
-                                     self.position_task, self.capsules), list(step.warnings)
+                                     self.position_task, self.capsules,
+                                     np.array([f.corners for f in self.feet])), list(step.warnings)
 
     def _tracking_objective(self, conf: Configuration) -> tuple[np.ndarray, np.ndarray]:
         """``H`` and ``c`` of the orientation, flat-foot and position tasks at ``conf``."""
@@ -462,6 +463,10 @@ class RobotRetargeter:
         A planted foot has none: its anchor is on or above the floor, and rows that repeat
         its equality rows would make the QP degenerate.
         """
+        if isinstance(conf, CompiledConfiguration):
+            z, Jz = conf.sole_corners()
+            air = np.repeat([anchor is None for anchor in anchors], 4)
+            return Inequality(-Jz[air], z[air])
         G, h = [np.zeros((0, conf.model.nv))], [np.zeros(0)]
         for foot, fid, anchor in zip(self.feet, self._foot_ids, anchors):
             if anchor is not None:
