@@ -237,16 +237,30 @@ class CompiledConfiguration(Configuration):
         self._position_task = position_task
         self._covered = {f: i for i, f in enumerate(step.frames)}
         self._objective: tuple[np.ndarray, np.ndarray] | None = None
+        self._used_targets: tuple[np.ndarray, ...] = ()
+        self._recheck_targets = False
         super().__init__(model, q)
 
     def update(self, q: npt.ArrayLike) -> None:
-        """Set ``q``; the compiled call runs once, when first needed."""
+        """Set ``q``; the compiled call runs once, when first needed.
+
+        The same ``q`` again keeps the kinematics (the objective too, unless the tasks' targets
+        changed since).
+        """
+        if self._objective is not None and np.array_equal(q, self._q):
+            self._recheck_targets = True
+            return
         super().update(q)
         self._objective = None
 
     def _evaluate(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._objective is not None and self._recheck_targets:
+            self._recheck_targets = False
+            if self._targets() is not self._used_targets:
+                self._objective = None
         if self._objective is None:
-            orientations, w_orient, positions, w_position = self._targets()
+            self._used_targets = self._targets()
+            orientations, w_orient, positions, w_position = self._used_targets
             H, c, R, p, J, d, G, z, Jz = self._step(
                 self._q, self._geometry, orientations, w_orient, positions, w_position,
                 self._capsules, self._corners)
