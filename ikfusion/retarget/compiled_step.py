@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Sequence
+from functools import lru_cache
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -32,7 +34,7 @@ from ..ik.casadi_kinematics import (
 )
 from ..ik.compiled import structure_key
 from ..ik.configuration import Configuration
-from ..ik.native import BoundFunction, column_major, native_functions
+from ..ik.native import BoundFunction, cached_functions, column_major, native_functions
 from ..ik.tasks import OrientationTask, PositionTask
 from ..rotations_casadi import left_jacobian_inverse, log_so3
 from .capsules import WITNESS_ENDS, CapsulePairs, closest_points_sx
@@ -63,6 +65,8 @@ class RobotStep:
         frames: Frame ids whose placements and Jacobians are wanted.
         capsules: Capsule pairs whose witnesses are wanted.
         soles: Frame ids of the links carrying the sole corners (4 each).
+        function: The function already built for this structure (loaded from the cache);
+            built here when None.
 
     Raises:
         NotImplementedError: For joint types the graph does not cover.
@@ -70,7 +74,8 @@ class RobotStep:
 
     def __init__(self, model: pin.Model, orientation_frames: Sequence[int],
                  position_frames: Sequence[int], frames: Sequence[int],
-                 capsules: CapsulePairs | None = None, soles: Sequence[int] = ()) -> None:
+                 capsules: CapsulePairs | None = None, soles: Sequence[int] = (),
+                 function: ca.Function | None = None) -> None:
         pairs = capsules.frame_pairs if capsules is not None else []
         self.soles = list(soles)
         self.has_capsules = bool(pairs)
@@ -80,6 +85,11 @@ class RobotStep:
         self.geometry_frames = sorted(set(self.frames) | set(self.orientation_frames)
                                       | set(self.position_frames) | set(self.soles)
                                       | {f for p in pairs for f in p})
+        self.warnings: list[str] = []
+        self.function = function if function is not None else self._graph(model, pairs)
+
+    def _graph(self, model: pin.Model, pairs: list[tuple[int, int]]) -> ca.Function:
+        """The step function as a CasADi graph (see the class docstring)."""
         q = ca.SX.sym("q", model.nq)
         geometry = ca.SX.sym("geometry", 12 * (model.njoints - 1 + len(self.geometry_frames)))
         placements = symbolic_placements(geometry, model.njoints - 1, self.geometry_frames)
@@ -143,7 +153,7 @@ class RobotStep:
                 z_corners.append(point[2])
                 Jz_corners.append(jacobian(model, fid, axes, translations, point)[2, :])
 
-        self.function = ca.Function(
+        return ca.Function(
             "retarget_step",
             [q, geometry, R_target, w_orient, p_target, w_position, capsule_geometry, corners],
             [H, c, ca.vertcat(*R_out) if R_out else ca.SX(0, 1),
@@ -157,7 +167,6 @@ class RobotStep:
              "capsules", "corners"],
             ["H", "c", "R_frames", "p_frames", "J_frames", "d_witness", "G_witness",
              "z_corners", "Jz_corners"])
-        self.warnings: list[str] = []
 
     def geometry(self, model: pin.Model) -> np.ndarray:
         """The geometry input of ``model`` (its joint and frame placements)."""
@@ -189,20 +198,34 @@ def robot_step(model: pin.Model, orientation_frames: Sequence[int],
     """
     pairs = capsules.frame_pairs if capsules is not None else []
     key = hashlib.sha256("|".join([
-        "retarget-step-v3", ",".join(map(str, orientation_frames)), str(list(soles)),
+        _generator_fingerprint(), ",".join(map(str, orientation_frames)), str(list(soles)),
         ",".join(map(str, position_frames)), ",".join(map(str, frames)), str(pairs),
         structure_key(model, [*orientation_frames, *position_frames], [], frames),
     ]).encode()).hexdigest()[:20]
     built = _BUILT.get(key)
     if built is None:
-        built = RobotStep(model, orientation_frames, position_frames, frames, capsules, soles)
-        native, problem = native_functions([built.function], key)
-        if native is not None:
-            built.function = native[0]
-        if problem is not None:
-            built.warnings.append(problem)
+        cached = cached_functions(key, ["retarget_step"])  # no graph to build then
+        built = RobotStep(model, orientation_frames, position_frames, frames, capsules, soles,
+                          cached[0] if cached else None)
+        if cached is None:
+            native, problem = native_functions([built.function], key)
+            if native is not None:
+                built.function = native[0]
+            if problem is not None:
+                built.warnings.append(problem)
         _BUILT[key] = built
     return built
+
+
+@lru_cache(maxsize=1)
+def _generator_fingerprint() -> str:
+    """SHA-256 of the modules whose code writes the graph (a changed graph is rebuilt)."""
+    from . import capsules
+
+    digest = hashlib.sha256()
+    for module in (__file__, capsules.__file__):
+        digest.update(Path(str(module)).read_bytes())
+    return digest.hexdigest()
 
 
 class CompiledConfiguration(Configuration):
