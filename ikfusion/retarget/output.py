@@ -164,6 +164,7 @@ def robot_metrics(trajectory: RobotTrajectory, seconds: float) -> dict[str, Any]
         "tracking_position_rms_cm": {n: float(100 * np.sqrt(np.mean(np.square(e))))
                                      for n, e in position_err.items()},
         "relaxed_frames": int(trajectory.relaxed.sum()),
+        "warnings": list(trajectory.warnings),
     }
 
 

@@ -118,3 +118,24 @@ def test_a_walk_is_the_same_with_and_without_the_compiled_step(
     np.testing.assert_allclose(compiled.q, plain.q, atol=1e-6)
     np.testing.assert_array_equal(compiled.planted, plain.planted)
     assert compiled.planted.any()
+
+
+def test_a_failed_compile_is_a_summary_warning(human_as_robot: Path, shared_data: Path,
+                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    """No C compiler working: CasADi's virtual machine solves, and the summary says so."""
+    from ikfusion.retarget import compiled_step
+    from ikfusion.retarget.output import robot_metrics
+
+    def failing(functions: object, key: str) -> tuple[None, str]:
+        return None, "compiling the solver's step function failed (test)"
+
+    monkeypatch.setattr(compiled_step, "native_functions", failing)
+    monkeypatch.setattr(compiled_step, "cached_functions", lambda key, names: None)
+    monkeypatch.setattr(compiled_step, "_BUILT", {})
+    walk = load_source(shared_data / "mocap" / "sfu_0005_Walking001.bvh")
+    source = HumanMotion(walk.time[:30], walk.segments, walk.p_world_segment[:30],
+                         walk.R_world_segment[:30], walk.contact_names, walk.contacts[:30],
+                         walk.hip_height, walk.source)
+    trajectory = _retargeter(human_as_robot).solve(source)
+    assert robot_metrics(trajectory, 1.0)["warnings"] == [
+        "compiling the solver's step function failed (test)"]
