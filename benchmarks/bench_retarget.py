@@ -2,15 +2,22 @@
 
 For every robot of ``configs/retarget/`` and every clip of ``../shared/data/mocap/`` plus the
 MVNX file: frames per second of the retargeting solve itself (one process, one core; as
-``summary.json`` reports it) and of the whole call (loading the URDF and computing the metrics
-too; the source is loaded before the clock starts, since a BVH is first solved onto the human
-model), joint-limit
+``summary.json`` reports it), of the ``retarget`` call (loading the URDF and computing the
+metrics too; the source loaded before the clock starts) and of the whole command after start-up
+(``whole``: reading the clip, solving a BVH onto the human model, retargeting, the metrics and
+writing the output folder), joint-limit
 and velocity-limit violations, foot slide over the planted phases (max mm), floor penetration
 (max mm), the closest capsule pair (cm), relaxed frames, and the worst mapped link's orientation
-RMS (deg). Then ``ikfusion batch retarget`` over all clips onto G1 with 1 and 2 workers (files
-and frames per second of wall time, source loading included).
+RMS (deg). The peer, GMR (general-motion-retargeting), is not a dependency: its figure is
+printed as a reference, with where it comes from. Then ``ikfusion batch retarget`` over all
+clips onto G1 with 1 and 2 workers (files and frames per second of wall time, source loading
+included).
 
-Run: .venv/bin/python benchmarks/bench_retarget.py [--robots g1 talos icub] [--no-batch]
+``--cpu`` times ``call`` and ``whole`` by this process's CPU time instead of the wall clock
+(fair on a machine other jobs share; ``fps`` stays ``summary.json``'s wall-clock figure).
+
+Run: .venv/bin/python benchmarks/bench_retarget.py [--robots g1 talos] [--clips walk] [--cpu]
+[--no-batch]
 """
 
 from __future__ import annotations
@@ -27,38 +34,55 @@ from ikfusion.retarget.robot_config import SHIPPED_ROBOTS
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
+#: The peer's speed on this machine class, from issue #20 (GMR is not installed here): its IK
+#: alone, without reading or solving the source, frames per second on one core.
+GMR_REFERENCE = ("GMR (general-motion-retargeting) IK alone: 290-360 frames/s "
+                 "(issue #20's figure, not run here)")
 
-def clips() -> list[Path]:
-    """The shared BVH clips and the MVNX file."""
+
+def clips(pattern: str = "") -> list[Path]:
+    """The shared BVH clips and the MVNX file (those whose name contains ``pattern``)."""
     found = sorted((SHARED / "mocap").glob("*.bvh")) + sorted((SHARED / "mvnx").glob("*.mvnx"))
+    found = [c for c in found if pattern in c.name]
     if not found:
-        raise SystemExit(f"no clips under {SHARED} (../shared/data beside the repository)")
+        raise SystemExit(f"no clips matching {pattern!r} under {SHARED} (../shared/data beside "
+                         "the repository)")
     return found
 
 
-def robot_table(robots: list[str]) -> None:
-    """One row per robot and clip, and a total row per robot."""
-    sources = {clip: load_source(clip) for clip in clips()}
-    print(f"{'robot':6} {'clip':24} {'frames':>6} {'fps':>6} {'call':>6} {'limit':>5} {'vel':>4} "
-          f"{'slide mm':>8} {'floor mm':>8} {'caps cm':>7} {'relax':>5}  worst link (deg)")
+def robot_table(robots: list[str], pattern: str = "", cpu: bool = False) -> None:
+    """One row per robot and clip, and a total row per robot (``cpu``: CPU time)."""
+    clock = time.process_time if cpu else time.perf_counter
+    sources = {clip: load_source(clip) for clip in clips(pattern)}  # also warms up
+    print(f"{'robot':6} {'clip':24} {'frames':>6} {'fps':>6} {'call':>6} {'whole':>6} "
+          f"{'limit':>5} {'vel':>4} {'slide mm':>8} {'floor mm':>8} {'caps cm':>7} {'relax':>5}"
+          "  worst link (deg)")
     for robot in robots:
-        frames = seconds = calls = 0.0
+        retarget(next(iter(sources.values())), robot)  # start-up: URDF, step function
+        frames = seconds = calls = wholes = 0.0
         for clip, source in sources.items():
-            start = time.perf_counter()
+            start = clock()
             _, m = retarget(source, robot)
-            elapsed = time.perf_counter() - start
+            elapsed = clock() - start
+            with tempfile.TemporaryDirectory() as tmp:
+                start = clock()
+                retarget(load_source(clip), robot, out=Path(tmp) / "out")
+                whole = clock() - start
             frames += m["frames"]
             seconds += m["frames"] / m["frames_per_second"]
             calls += elapsed
+            wholes += whole
             worst = max(m["tracking_orientation_rms_deg"].items(), key=lambda kv: kv[1])
             print(f"{robot:6} {clip.stem[:24]:24} {m['frames']:6d} {m['frames_per_second']:6.0f} "
-                  f"{m['frames'] / elapsed:6.0f} "
+                  f"{m['frames'] / elapsed:6.0f} {m['frames'] / whole:6.0f} "
                   f"{m['joint_limit_violations']:5d} {m['velocity_limit_violations']:4d} "
                   f"{m['foot_slide_mm_max']:8.3f} {m['floor_penetration_mm_max']:8.3f} "
                   f"{100 * m['self_collision_min_distance_m']:7.2f} {m['relaxed_frames']:5d}  "
                   f"{worst[0].split('->')[0]} {worst[1]:.1f}")
         print(f"{robot:6} {'all clips':24} {int(frames):6d} {frames / seconds:6.0f} "
-              f"{frames / calls:6.0f}  (frames per second, one core)")
+              f"{frames / calls:6.0f} {frames / wholes:6.0f}  (frames per second, one core"
+              f"{', call and whole by CPU time' if cpu else ''})")
+    print(f"peer: {GMR_REFERENCE}")
 
 
 def batch_table() -> None:
@@ -79,9 +103,12 @@ def batch_table() -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robots", nargs="+", default=list(SHIPPED_ROBOTS))
+    parser.add_argument("--clips", default="", help="only clips whose name contains this")
+    parser.add_argument("--cpu", action="store_true",
+                        help="time call and whole by CPU time (a shared machine)")
     parser.add_argument("--no-batch", action="store_true", help="skip the batch throughput")
     args = parser.parse_args()
-    robot_table(args.robots)
+    robot_table(args.robots, args.clips, args.cpu)
     if not args.no_batch:
         batch_table()
 

@@ -27,6 +27,18 @@ def symbolic_placements(geometry: ca.SX, n_joints: int, frames: list[int]) -> di
     return out
 
 
+def geometry_vector(model: pin.Model, frames: list[int]) -> np.ndarray:
+    """The numbers :func:`symbolic_placements` stands for.
+
+    Every joint placement, then those of ``frames``: each rotation column-major, then its
+    translation [m].
+    """
+    placements = [model.jointPlacements[j] for j in range(1, model.njoints)]
+    placements += [model.frames[f].placement for f in frames]
+    return np.concatenate([np.concatenate([M.rotation.T.reshape(-1), M.translation])
+                           for M in placements])
+
+
 def forward(model: pin.Model, q: ca.SX, placements: dict) -> tuple[list, list, dict]:
     """World rotation and origin of every joint frame, and each tangent column's motion.
 

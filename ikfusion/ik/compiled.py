@@ -59,7 +59,13 @@ from ..rotations_casadi import (
     rotation_about,
     skew,
 )
-from .casadi_kinematics import forward, frame_pose, jacobian, symbolic_placements
+from .casadi_kinematics import (
+    forward,
+    frame_pose,
+    geometry_vector,
+    jacobian,
+    symbolic_placements,
+)
 from .native import BoundFunction, column_major, native_functions
 
 
@@ -229,12 +235,7 @@ class CompiledKinematics:
 
         Bodies of another size share the compiled structure and only change this vector.
         """
-        blocks = []
-        placements = [model.jointPlacements[j] for j in range(1, model.njoints)]
-        placements += [model.frames[f].placement for f in self._geometry_frames]
-        for M in placements:
-            blocks.append(np.concatenate([M.rotation.T.reshape(-1), M.translation]))
-        return np.concatenate(blocks)
+        return geometry_vector(model, self._geometry_frames)
 
     def __call__(self, q: np.ndarray, R_world_target: np.ndarray, geometry: np.ndarray,
                  w_orient: np.ndarray, w_posture: np.ndarray,

@@ -148,6 +148,23 @@ def _load_verified(library: Path, names: Sequence[str]) -> list[ca.Function] | N
         return [ca.external(name, str(copy)) for name in names]
 
 
+def cached_functions(key: str, names: Sequence[str]) -> list[ca.Function] | None:
+    """The functions ``names`` of structure ``key`` when already built and verified, else None.
+
+    Lets a caller skip building the CasADi graphs when their library is cached (building them
+    takes longer than loading). None too without a C compiler or with ``IKFUSION_NO_COMPILE``.
+    """
+    if os.environ.get("IKFUSION_NO_COMPILE"):
+        return None
+    compiler = find_compiler()
+    if compiler is None:
+        return None
+    try:
+        return _load_verified(library_path(cache_dir(), key, compiler), names)
+    except (OSError, RuntimeError):
+        return None
+
+
 def native_functions(functions: Sequence[ca.Function], key: str
                      ) -> tuple[list[ca.Function] | None, str | None]:
     """The functions compiled to one shared library, cached on disk and checked before loading.

@@ -74,29 +74,32 @@ def contact_phases_from_points(P: np.ndarray, time: np.ndarray, height: float = 
     return (P[..., 2] < height) & (v < speed)
 
 
+def frame_poses(model: pin.Model, q: np.ndarray,
+                frame_ids: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """World origins (N, F, 3) [m] and rotations (N, F, 3, 3) of frames along ``q`` (N, nq).
+
+    ``R_world_frame`` and ``p_world_frame`` of the Pinocchio frames ``frame_ids``, in that
+    order; forward kinematics runs once per configuration.
+    """
+    data = model.createData()
+    p = np.empty((len(q), len(frame_ids), 3))
+    R = np.empty((len(q), len(frame_ids), 3, 3))
+    for k, qk in enumerate(q):
+        pin.framesForwardKinematics(model, data, qk)
+        for i, f in enumerate(frame_ids):
+            T = data.oMf[f]
+            p[k, i], R[k, i] = T.translation, T.rotation
+    return p, R
+
+
 def segment_poses(model: HumanModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Every segment's world origin (N, S, 3) [m] and rotation (N, S, 3, 3) along ``q``.
 
     Segments in ``model.segment_names`` order; ``q`` is (N, nq).
     """
-    data = model.model.createData()
-    ids = [model.segment_frame_id(s) for s in model.segment_names]
-    p = np.empty((len(q), len(ids), 3))
-    R = np.empty((len(q), len(ids), 3, 3))
-    for k, qk in enumerate(q):
-        pin.framesForwardKinematics(model.model, data, qk)
-        for i, f in enumerate(ids):
-            p[k, i], R[k, i] = data.oMf[f].translation, data.oMf[f].rotation
-    return p, R
+    return frame_poses(model.model, q, [model.segment_frame_id(s) for s in model.segment_names])
 
 
 def site_positions(model: HumanModel, q: np.ndarray, names: list[str]) -> np.ndarray:
     """World positions (N, k, 3) [m] of sites along configurations (N, nq)."""
-    data = model.model.createData()
-    ids = [model.site_frame_id(n) for n in names]
-    out = np.empty((len(q), len(ids), 3))
-    for k, qk in enumerate(q):
-        pin.framesForwardKinematics(model.model, data, qk)
-        for i, f in enumerate(ids):
-            out[k, i] = data.oMf[f].translation
-    return out
+    return frame_poses(model.model, q, [model.site_frame_id(n) for n in names])[0]

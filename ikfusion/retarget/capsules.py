@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import casadi as ca
 import numpy as np
 
 from ..ik.configuration import Configuration
@@ -21,17 +22,17 @@ from .robot_config import Capsule
 
 def closest_points(a1: np.ndarray, b1: np.ndarray, a2: np.ndarray,
                    b2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Closest points of segments ``a1``-``b1`` and ``a2``-``b2``, batched over (k, 3).
+    """Closest points of segments ``a1``-``b1`` and ``a2``-``b2``, batched over (..., 3).
 
     Returns:
-        ``(p, q)``: the points on the first and on the second segment (k, 3) [m].
+        ``(p, q)``: the points on the first and on the second segment (..., 3) [m].
     """
     d1, d2, r = b1 - a1, b2 - a2, a1 - a2
-    a = np.maximum(np.einsum("ki,ki->k", d1, d1), 1e-12)
-    e = np.maximum(np.einsum("ki,ki->k", d2, d2), 1e-12)
-    b = np.einsum("ki,ki->k", d1, d2)
-    c = np.einsum("ki,ki->k", d1, r)
-    f = np.einsum("ki,ki->k", d2, r)
+    a = np.maximum(np.einsum("...i,...i->...", d1, d1), 1e-12)
+    e = np.maximum(np.einsum("...i,...i->...", d2, d2), 1e-12)
+    b = np.einsum("...i,...i->...", d1, d2)
+    c = np.einsum("...i,...i->...", d1, r)
+    f = np.einsum("...i,...i->...", d2, r)
     denom = a * e - b * b
     parallel = denom < 1e-12 * a * e
     s = np.where(parallel, 0.0, np.clip((b * f - c * e) / np.where(parallel, 1.0, denom), 0, 1))
@@ -39,7 +40,50 @@ def closest_points(a1: np.ndarray, b1: np.ndarray, a2: np.ndarray,
     below, above = t < 0.0, t > 1.0
     s = np.where(below, np.clip(-c / a, 0, 1), np.where(above, np.clip((b - c) / a, 0, 1), s))
     t = np.clip(t, 0.0, 1.0)
-    return a1 + s[:, None] * d1, a2 + t[:, None] * d2
+    return a1 + s[..., None] * d1, a2 + t[..., None] * d2
+
+
+def closest_points_sx(a1: ca.SX, b1: ca.SX, a2: ca.SX, b2: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """:func:`closest_points` of one segment pair (each end (3,) [m]) as a CasADi graph.
+
+    The same formula and branches, for the compiled retargeting step.
+    """
+    d1, d2, r = b1 - a1, b2 - a2, a1 - a2
+    a = ca.fmax(ca.dot(d1, d1), 1e-12)
+    e = ca.fmax(ca.dot(d2, d2), 1e-12)
+    b, c, f = ca.dot(d1, d2), ca.dot(d1, r), ca.dot(d2, r)
+    denom = a * e - b * b
+    parallel = denom < 1e-12 * a * e
+    s = ca.if_else(parallel, 0.0,
+                   ca.fmin(ca.fmax((b * f - c * e) / ca.if_else(parallel, 1.0, denom), 0.0), 1.0))
+    t = (b * s + f) / e
+    s = ca.if_else(t < 0.0, ca.fmin(ca.fmax(-c / a, 0.0), 1.0),
+                   ca.if_else(t > 1.0, ca.fmin(ca.fmax((b - c) / a, 0.0), 1.0), s))
+    t = ca.fmin(ca.fmax(t, 0.0), 1.0)
+    return a1 + s * d1, a2 + t * d2
+
+
+#: End point indices (0: ``a``, 1: ``b``) of the five witness segment pairs: both segments,
+#: each end of the first against the second segment, each end of the second against the first.
+#: ``(first_a, first_b, second_a, second_b)``.
+WITNESS_ENDS = ([0, 0, 1, 0, 0], [1, 0, 1, 1, 1], [0, 0, 0, 0, 1], [1, 1, 1, 0, 1])
+
+
+def witness_segments(first: np.ndarray, second: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The five segment pairs whose closest points are a capsule pair's witnesses.
+
+    Args:
+        first: End points ``a``, ``b`` (..., 2, 3) of the first capsules' segments [m].
+        second: The same of the second capsules.
+
+    Returns:
+        ``(first_a, first_b, second_a, second_b)``, each (..., 5, 3) [m]: both segments, and
+        each end point (a segment of length 0) against the other segment.
+    """
+    first_a, first_b, second_a, second_b = WITNESS_ENDS
+    return (first[..., first_a, :], first[..., first_b, :],
+            second[..., second_a, :], second[..., second_b, :])
 
 
 class CapsulePairs:
@@ -61,15 +105,59 @@ class CapsulePairs:
         second = [capsules[b] for _, b in pairs]
         self._frames = [[frame_ids[x.link] for x in first], [frame_ids[x.link] for x in second]]
         self._links = sorted(set(self._frames[0]) | set(self._frames[1]))
-        self._slots = [np.array([self._links.index(f) for f in side], dtype=int)
-                       for side in self._frames]
-        self._a = np.array([[x.a for x in first], [x.a for x in second]]).reshape(2, -1, 3)
-        self._b = np.array([[x.b for x in first], [x.b for x in second]]).reshape(2, -1, 3)
+        # First capsules then second ones: link slot, end points a, b in the link frame [m].
+        self._slot = np.array([self._links.index(f) for f in self._frames[0] + self._frames[1]],
+                              dtype=int)
+        self._ab = np.array([[x.a, x.b] for x in first + second], dtype=float).reshape(-1, 2, 3)
         self._radius = np.array([x.radius for x in first]) + np.array([x.radius for x in second])
+        half = np.linalg.norm(self._ab[:, 1] - self._ab[:, 0], axis=1) / 2
+        k = len(self.pairs)
+        self._reach = half[:k] + half[k:] + self._radius  # centre distance that may touch [m]
         self.margin = float(margin)
         self.activation = float(activation)
         self._cached_q: np.ndarray | None = None
         self._cached: tuple[np.ndarray, ...] = ()
+
+    @property
+    def frame_pairs(self) -> list[tuple[int, int]]:
+        """Frame indices of each pair's first and second capsule's link."""
+        return list(zip(self._frames[0], self._frames[1]))
+
+    def geometry(self) -> np.ndarray:
+        """The capsules as the compiled step's input (12k + k) [m].
+
+        End points in their link frames, first capsules then second ones, each ``a`` then
+        ``b``; then each pair's summed radius.
+        """
+        return np.concatenate([self._ab.reshape(-1), self._radius])
+
+    @property
+    def links(self) -> list[int]:
+        """Frame indices of the links carrying the capsules (the order :meth:`along` wants)."""
+        return list(self._links)
+
+    def _ends(self, R_links: np.ndarray, o_links: np.ndarray) -> np.ndarray:
+        """World end points (..., 2k, 2, 3) [m] of the first capsules, then the second ones.
+
+        ``R_links`` (..., L, 3, 3) and ``o_links`` (..., L, 3) [m] are the world poses of
+        :attr:`links`.
+        """
+        return (np.einsum("...kij,kej->...kei", R_links[..., self._slot, :, :], self._ab)
+                + o_links[..., self._slot, None, :])
+
+    def along(self, R_links: np.ndarray, o_links: np.ndarray) -> np.ndarray:
+        """Exact distance of each pair (N, k) [m] along a motion, all frames at once.
+
+        Args:
+            R_links: (N, L, 3, 3) world rotations of :attr:`links`.
+            o_links: (N, L, 3) world origins of :attr:`links` [m].
+        """
+        k = len(self.pairs)
+        if not k:
+            return np.zeros((len(R_links), 0))
+        ends = self._ends(R_links, o_links)
+        p, q = closest_points(*witness_segments(ends[:, :k], ends[:, k:]))
+        return np.linalg.norm(p - q, axis=-1).min(axis=-1) - self._radius
 
     def _witnesses(self, configuration: Configuration) -> tuple[np.ndarray, ...]:
         """Closest points of each pair's segments and of each end point to the other segment.
@@ -82,37 +170,46 @@ class CapsulePairs:
         """
         if self._cached_q is configuration.q:  # the same configuration as last time
             return self._cached
-        R_links = configuration.rotations(self._links)
-        o_links = configuration.positions(self._links)
-        R = [R_links[slot] for slot in self._slots]
-        o = [o_links[slot] for slot in self._slots]
-        a = [np.einsum("kij,kj->ki", R[i], self._a[i]) + o[i] for i in range(2)]
-        b = [np.einsum("kij,kj->ki", R[i], self._b[i]) + o[i] for i in range(2)]
+        k = len(self.pairs)
+        ends = self._ends(configuration.rotations(self._links),
+                          configuration.positions(self._links))
         # Pairs surely farther apart than ``activation`` keep a lower bound as their distance.
-        mid = [(a[i] + b[i]) / 2 for i in range(2)]
-        half = [np.linalg.norm(b[i] - a[i], axis=1) / 2 for i in range(2)]
-        bound = np.linalg.norm(mid[0] - mid[1], axis=1) - half[0] - half[1] - self._radius
-        p = np.repeat(mid[0], 5, axis=0)
-        q = np.repeat(mid[1], 5, axis=0)
+        mid = 0.5 * ends.sum(axis=1)
+        bound = np.linalg.norm(mid[:k] - mid[k:], axis=1) - self._reach
+        p = np.repeat(mid[:k], 5, axis=0)
+        q = np.repeat(mid[k:], 5, axis=0)
         d = np.repeat(bound, 5)
         near = np.flatnonzero(bound < self.activation)
         if len(near):
-            a0, b0, a1, b1 = a[0][near], b[0][near], a[1][near], b[1][near]
-            first = (np.stack([a0, a0, b0, a0, a0], axis=1).reshape(-1, 3),
-                     np.stack([b0, a0, b0, b0, b0], axis=1).reshape(-1, 3))
-            second = (np.stack([a1, a1, a1, a1, b1], axis=1).reshape(-1, 3),
-                      np.stack([b1, b1, b1, a1, b1], axis=1).reshape(-1, 3))
             rows = (5 * near[:, None] + np.arange(5)).reshape(-1)
-            p[rows], q[rows] = closest_points(first[0], first[1], second[0], second[1])
-            d[rows] = np.linalg.norm(p[rows] - q[rows], axis=1) - np.repeat(self._radius[near], 5)
+            p_near, q_near = closest_points(*(x.reshape(-1, 3) for x in witness_segments(
+                ends[near], ends[k + near])))
+            p[rows], q[rows] = p_near, q_near
+            d[rows] = np.linalg.norm(p_near - q_near, axis=1) - np.repeat(self._radius[near], 5)
         self._cached_q, self._cached = configuration.q, (p, q, d)
         return p, q, d
+
+    def _distances_and_rows(self, configuration: Configuration
+                            ) -> tuple[np.ndarray, np.ndarray | None]:
+        """Witness distances (5k,) [m] and, when ``configuration`` computes them, their rows.
+
+        A configuration with a ``capsule_witnesses()`` method (the compiled retargeting step)
+        gives exact distances and the rows ``-n^T (J_p - J_q)`` (5k, nv) of every witness in
+        one call; otherwise :meth:`_witnesses` gives the distances and rows are built here.
+        """
+        compiled = getattr(configuration, "capsule_witnesses", None)
+        witnesses = compiled() if compiled is not None else None
+        if witnesses is not None:
+            self._last_distances = witnesses[0]
+            return witnesses
+        self._last_distances = self._witnesses(configuration)[2]
+        return self._last_distances, None
 
     @property
     def last_min_distance(self) -> float:
         """The smallest distance (or lower bound) of the last configuration looked at [m]."""
-        return float(self._cached[2].min()) if len(self._cached) and len(self._cached[2]) \
-            else np.inf
+        d = getattr(self, "_last_distances", np.zeros(0))
+        return float(d.min()) if len(d) else np.inf
 
     def distances(self, configuration: Configuration) -> np.ndarray:
         """Distance of each pair (k,) [m] (negative when they overlap).
@@ -122,17 +219,20 @@ class CapsulePairs:
         """
         if not self.pairs:
             return np.zeros(0)
-        return self._witnesses(configuration)[2].reshape(-1, 5).min(axis=1)
+        return self._distances_and_rows(configuration)[0].reshape(-1, 5).min(axis=1)
 
     def inequality(self, configuration: Configuration) -> Inequality:
         """Rows ``-n^T (J_p - J_q) dq <= d - margin`` for witnesses closer than ``activation``."""
         nv = configuration.model.nv
         if not self.pairs:
             return Inequality(np.zeros((0, nv)), np.zeros(0))
-        p, q, d = self._witnesses(configuration)
+        d, rows = self._distances_and_rows(configuration)
         near = np.flatnonzero(d < self.activation)
         if not len(near):
             return Inequality(np.zeros((0, nv)), np.zeros(0))
+        if rows is not None:
+            return Inequality(rows[near], d[near] - self.margin)
+        p, q, _ = self._witnesses(configuration)
         gap = p[near] - q[near]
         n = gap / np.maximum(np.linalg.norm(gap, axis=1), 1e-9)[:, None]
         Jp = self._point_jacobians(configuration, [self._frames[0][k // 5] for k in near],

@@ -23,10 +23,9 @@ import numpy as np
 
 from ..app.evaluate import phase_slides
 from ..atomic import atomic_folder
-from ..ik.configuration import Configuration
 from ..ik.limits import JointRangeLimit
 from ..ik.pose import Motion
-from ..mocap.model_motion import site_positions
+from ..mocap.model_motion import frame_poses, site_positions
 from ..results.bvh_export import write_motion_bvh
 from ..rotations import angle_between, wxyz_to_xyzw, xyzw_to_wxyz
 from .capsules import CapsulePairs
@@ -130,29 +129,25 @@ def robot_metrics(trajectory: RobotTrajectory, seconds: float) -> dict[str, Any]
     over = np.maximum(robot.lower - dofs, dofs - robot.upper)
     rates = np.abs(np.diff(dofs, axis=0)) * trajectory.rate
     too_fast = rates - robot.max_velocity
-    configuration = Configuration(model, trajectory.q[0])
     pairs = CapsulePairs(robot.config.capsules, robot.config.collision_pairs, robot.frame_ids,
                          activation=np.inf)
-    corners, distances = [], []
-    orientation_err: dict[str, list[float]] = {n: [] for n in trajectory.link_targets}
-    position_err: dict[str, list[float]] = {n: [] for n in trajectory.position_targets}
-    for k, q in enumerate(trajectory.q):
-        configuration.update(q)
-        corners.append(np.concatenate([
-            foot.corners @ configuration.placement(robot.frame_ids[foot.link]).rotation.T
-            + configuration.placement(robot.frame_ids[foot.link]).translation
-            for foot in (robot.config.feet["left"], robot.config.feet["right"])]))
-        distances.append(pairs.distances(configuration))
-        for n, R in trajectory.link_targets.items():
-            T = configuration.placement(robot.frame_ids[n.split("->")[1]])
-            orientation_err[n].append(float(angle_between(T.rotation, R[k])))
-        for n, p in trajectory.position_targets.items():
-            T = configuration.placement(robot.frame_ids[n.split("->")[1]])
-            position_err[n].append(float(np.linalg.norm(T.translation - p[k])))
-    points = np.array(corners)
+    feet = [robot.config.feet["left"], robot.config.feet["right"]]
+    links = {n: robot.frame_ids[n.split("->")[1]]
+             for n in (*trajectory.link_targets, *trajectory.position_targets)}
+    ids = sorted({*pairs.links, *links.values(), *(robot.frame_ids[f.link] for f in feet)})
+    column = {f: i for i, f in enumerate(ids)}
+    p_world, R_world = frame_poses(model, trajectory.q, ids)
+    points = np.concatenate([
+        np.einsum("nij,cj->nci", R_world[:, column[robot.frame_ids[foot.link]]], foot.corners)
+        + p_world[:, column[robot.frame_ids[foot.link]], None] for foot in feet], axis=1)
+    capsule_links = [column[f] for f in pairs.links]
+    gaps = pairs.along(R_world[:, capsule_links], p_world[:, capsule_links])
+    orientation_err = {n: angle_between(R_world[:, column[links[n]]], R)
+                       for n, R in trajectory.link_targets.items()}
+    position_err = {n: np.linalg.norm(p_world[:, column[links[n]]] - p, axis=1)
+                    for n, p in trajectory.position_targets.items()}
     planted = np.repeat(trajectory.planted, 4, axis=1)
     slides = 1e3 * np.array(phase_slides(points, planted) or [0.0])
-    gaps = np.array(distances)
     return {
         "robot": robot.name, "dofs": len(robot.dof_names), "scale": trajectory.scale,
         "frames": len(trajectory.q), "fps": trajectory.rate,
@@ -169,6 +164,7 @@ def robot_metrics(trajectory: RobotTrajectory, seconds: float) -> dict[str, Any]
         "tracking_position_rms_cm": {n: float(100 * np.sqrt(np.mean(np.square(e))))
                                      for n, e in position_err.items()},
         "relaxed_frames": int(trajectory.relaxed.sum()),
+        "warnings": list(trajectory.warnings),
     }
 
 

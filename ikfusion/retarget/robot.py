@@ -19,7 +19,7 @@ constraints cannot all satisfy are solved with penalised slack and counted, neve
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
@@ -34,6 +34,7 @@ from ..model import layout
 from ..model.human_model import HumanModel
 from ..rotations import axis_rotation, euler_to_matrix, log_so3
 from .capsules import CapsulePairs
+from .compiled_step import CompiledConfiguration, robot_step
 from .human import hip_height
 from .robot_config import RetargetConfig
 from .robot_model import RobotModel
@@ -56,6 +57,7 @@ class RobotTrajectory:
         link_targets: ``segment->link`` -> (N, 3, 3) orientation targets of the link.
         position_targets: ``segment->link`` -> (N, 3) position targets of the link [m].
         scale: The human-to-robot length scale used.
+        warnings: What the solve could not do as usual (e.g. compile its step function).
     """
 
     robot: RobotModel
@@ -66,6 +68,7 @@ class RobotTrajectory:
     link_targets: dict[str, np.ndarray]
     position_targets: dict[str, np.ndarray]
     scale: float
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def rate(self) -> float:
@@ -210,6 +213,7 @@ class RobotRetargeter:
         self.position_task = PositionTask(
             [self.robot.frame_ids[_position_link(config, s) or ""] for s in tracked], tracked)
         self._position_weights = np.array([config.position_weights[s] for s in tracked])
+        self._configuration, warnings = self._step_configuration()
         N = len(source)
         dt = 1.0 / source.rate if source.rate > 0 else 0.0
         q_all = np.zeros((N, self.robot.model.nq))
@@ -235,7 +239,37 @@ class RobotRetargeter:
             self.robot, source.time.copy(), q_all, planted, relaxed,
             {f"{s}->{config.links[s]}": R for s, R in targets.orientations.items()},
             {f"{s}->{_position_link(config, s)}": p for s, p in targets.positions.items()},
-            targets.scale)
+            targets.scale, warnings)
+
+    def _step_configuration(self) -> tuple[Configuration, list[str]]:
+        """The configuration the steps use, with its compiled kinematics and objective.
+
+        Plain Pinocchio kinematics and NumPy tasks for joint types the compiled step does
+        not cover. Returns it and the warnings of building it (a failed native compile).
+        """
+        model = self.robot.model
+        frames = [*self._foot_ids, *self.position_task.frame_ids]
+        try:
+            step = robot_step(model, [*self.orientation_task.frame_ids,
+                                      *self.flat_task.frame_ids],
+                              self.position_task.frame_ids, list(dict.fromkeys(frames)),
+                              self.capsules, self._foot_ids)
+        except NotImplementedError:
+            return Configuration(model, self.robot.rest), []
+        return CompiledConfiguration(model, self.robot.rest, step,
+                                     [self.orientation_task, self.flat_task],
+                                     self.position_task, self.capsules,
+                                     np.array([f.corners for f in self.feet])), list(step.warnings)
+
+    def _tracking_objective(self, conf: Configuration) -> tuple[np.ndarray, np.ndarray]:
+        """``H`` and ``c`` of the orientation, flat-foot and position tasks at ``conf``."""
+        if isinstance(conf, CompiledConfiguration):
+            return conf.tracking_objective()
+        nv = conf.model.nv
+        H, c = np.zeros((nv, nv)), np.zeros(nv)
+        for task in (self.orientation_task, self.flat_task, self.position_task):
+            task.add_objective(conf, H, c)
+        return H, c
 
     def _first_pose(self, q_rest: np.ndarray, dt: float,
                     anchors: list[pin.SE3 | None]) -> np.ndarray:
@@ -331,14 +365,12 @@ class RobotRetargeter:
         conf = self._configuration
         conf.update(q)
         self.smoothness.set_reference(q_previous)
-        nv = self.robot.model.nv
         relaxed = False
         previous: np.ndarray | None = None
         factor = 1.0
         for step in range(steps):
-            H, c = np.zeros((nv, nv)), np.zeros(nv)
-            for task in (self.orientation_task, self.flat_task, self.position_task,
-                         self.smoothness, self.rest_pull):
+            H, c = self._tracking_objective(conf)
+            for task in (self.smoothness, self.rest_pull):
                 task.add_objective(conf, H, c)
             near = self.capsules.inequality(conf)
             rows = ([self._floor_rows(conf, anchors), near], [self._plant_rows(conf, anchors)])
@@ -433,6 +465,10 @@ class RobotRetargeter:
         A planted foot has none: its anchor is on or above the floor, and rows that repeat
         its equality rows would make the QP degenerate.
         """
+        if isinstance(conf, CompiledConfiguration):
+            z, Jz = conf.sole_corners()
+            air = np.repeat([anchor is None for anchor in anchors], 4)
+            return Inequality(-Jz[air], z[air])
         G, h = [np.zeros((0, conf.model.nv))], [np.zeros(0)]
         for foot, fid, anchor in zip(self.feet, self._foot_ids, anchors):
             if anchor is not None:

@@ -73,3 +73,32 @@ def test_config_mistakes_are_named(human_as_robot: Path, bad: str) -> None:
         assert "left_palm" in text and "LeftForeArm" in text  # what was asked, what exists
     else:
         assert "collision_pairs[3]" in text and "nose" in text
+
+
+def test_distances_along_a_motion_match_a_dense_search(human_as_robot: Path) -> None:
+    """All frames at once (the metrics' path) give each pair's exact capsule distance."""
+    from ikfusion.mocap.model_motion import frame_poses
+
+    config = load_retarget_config(robots_dir() / "human.urdf", human_as_robot)
+    robot = RobotModel(config)
+    pairs = CapsulePairs(config.capsules, config.collision_pairs, robot.frame_ids,
+                         activation=np.inf)
+    rng = np.random.default_rng(7)
+    q = np.tile(robot.rest, (6, 1))
+    q[:, 7:] = rng.uniform(np.maximum(robot.lower, -1.5), np.minimum(robot.upper, 1.5),
+                           size=(6, len(robot.lower)))
+    p_links, R_links = frame_poses(robot.model, q, pairs.links)
+    found = pairs.along(R_links, p_links)
+    s = np.linspace(0.0, 1.0, 801)
+    for k, qk in enumerate(q):
+        conf = Configuration(robot.model, qk)
+        for i, (first, second) in enumerate(pairs.pairs):
+            ends = []
+            for capsule in (config.capsules[first], config.capsules[second]):
+                T = conf.placement(robot.frame_ids[capsule.link])
+                a, b = (T.rotation @ np.asarray(x) + T.translation for x in (capsule.a, capsule.b))
+                ends.append(a + s[:, None] * (b - a))
+            brute = np.linalg.norm(ends[0][:, None] - ends[1][None], axis=2).min() \
+                - config.capsules[first].radius - config.capsules[second].radius
+            assert brute - 2e-3 <= found[k, i] <= brute + 1e-12
+        np.testing.assert_allclose(found[k], pairs.distances(conf), atol=1e-12)
