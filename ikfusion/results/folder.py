@@ -17,13 +17,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
 
 from ..atomic import atomic_folder
 from ..ik.pose import Motion
+from ..model.motion_kinematics import frame_placements
 from ..rotations import matrix_to_quat_wxyz
 from .bvh_export import write_motion_bvh
 from .opensim_export import write_motion_mot
+from .text_table import long_rows
 
 #: The files of a result folder (besides the hidden marker of :mod:`ikfusion.output_folders`).
 RESULT_FILES = ("joint_angles.csv", "segments.csv", "sites.csv", "contacts.csv", "solve_time.csv",
@@ -37,29 +38,17 @@ def _write_long_csv(path: Path, header: tuple[str, ...], time: np.ndarray, names
     """Rows ``time,name,v0,v1,...`` for every frame and name; ``values`` is (N, names, k)."""
     with path.open("w") as out:
         out.write(",".join(header) + "\n")
-        for k, t in enumerate(time):
-            for n, name in enumerate(names):
-                out.write(f"{t:.6f},{name}," + ",".join(f"{v:.6f}" for v in values[k, n]) + "\n")
+        long_rows(out, time, names, values)
 
 
 def _poses(motion: Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Segment positions (N, S, 3), quaternions wxyz (N, S, 4) and site positions (N, M, 3)."""
     model = motion.model
-    data = model.model.createData()
     segments = [model.segment_frame_id(n) for n in model.segment_names]
     sites = [model.site_frame_id(n) for n in model.site_names]
-    n = len(motion)
-    p_seg = np.empty((n, len(segments), 3))
-    R_seg = np.empty((n, len(segments), 3, 3))
-    p_site = np.empty((n, len(sites), 3))
-    for k, q in enumerate(motion.q):
-        pin.framesForwardKinematics(model.model, data, q)
-        for i, f in enumerate(segments):
-            p_seg[k, i] = data.oMf[f].translation
-            R_seg[k, i] = data.oMf[f].rotation
-        for i, f in enumerate(sites):
-            p_site[k, i] = data.oMf[f].translation
-    return p_seg, matrix_to_quat_wxyz(R_seg), p_site
+    p, R = frame_placements(model.model, motion.q, segments + sites)
+    S = len(segments)
+    return p[:, :S], matrix_to_quat_wxyz(R[:, :S]), p[:, S:]
 
 
 def summary(motion: Motion, extra: Mapping[str, Any] | None = None) -> dict[str, Any]:
