@@ -17,8 +17,12 @@
 4. Batch: ``--copies`` copies of the first ``--batch-seconds`` of the walk through
    ``batch solve`` on 1 and 2 local Dask workers (cluster start included).
 
+5. ``--compare DIR_A DIR_B``: two result folders file by file (identical bytes, or the lines
+   that differ and the largest difference of their numbers), to check that a speed-up left the
+   results alone (``solve_time.csv`` and the timings in ``summary.json`` differ by nature).
+
 Run: .venv/bin/python benchmarks/bench_solve.py [--repeat 5] [--no-fresh] [--no-peer]
-     [--no-batch] [--opensim-model PATH]
+     [--no-batch] [--opensim-model PATH] | --compare DIR_A DIR_B
 """
 
 from __future__ import annotations
@@ -27,7 +31,9 @@ import argparse
 import contextlib
 import io
 import json
+import math
 import os
+import re
 import statistics
 import subprocess
 import sys
@@ -95,7 +101,7 @@ def stage_timer() -> Iterator[dict[str, float]]:
 
 def timed_solve(out: Path) -> dict[str, float]:
     """One in-process ``ikfusion solve`` of the walk: seconds per stage, ``total`` and
-    ``other`` (the command's time outside the stages)."""
+    ``other`` (the command's time outside the stages), and ``n_frames``."""
     from ikfusion.cli import main
 
     with stage_timer() as spent, contextlib.redirect_stderr(io.StringIO()), \
@@ -107,7 +113,7 @@ def timed_solve(out: Path) -> dict[str, float]:
         raise SystemExit(f"ikfusion solve failed with exit code {code}")
     frames = json.loads((out / "summary.json").read_text())["frames"]
     return {**spent, "other": total - sum(spent.values()), "total": total,
-            "frames": float(frames)}
+            "n_frames": float(frames)}
 
 
 def warm_table(repeat: int) -> float:
@@ -116,12 +122,12 @@ def warm_table(repeat: int) -> float:
         out = Path(tmp) / "out"
         timed_solve(out)  # warm-up: imports, native step functions, first calls
         runs = [timed_solve(out) for _ in range(repeat)]
-    frames = int(runs[0]["frames"])
+    frames = int(runs[0]["n_frames"])
     print(f"ikfusion solve of opensense_walk ({frames} frames), warm process, {repeat} runs "
           "after one warm-up")
     print(f"{'stage':12} {'best s':>8} {'median s':>8} {'share':>6}")
     best_total = min(r["total"] for r in runs)
-    for stage in [*STAGES, "other", "total"]:  # not "frames"
+    for stage in [*STAGES, "other", "total"]:
         values = [r[stage] for r in runs]
         share = statistics.median(values) / statistics.median(r["total"] for r in runs)
         print(f"{stage:12} {min(values):8.3f} {statistics.median(values):8.3f} {share:6.1%}")
@@ -302,6 +308,35 @@ def batch_table(copies: int, seconds: float) -> None:
         print_batch_rows(batch_rows("solve", inputs, {"map": str(WALK / MAPPING)}))
 
 
+NUMBER = re.compile(r"-?(?:\d+\.?\d*(?:[eE][-+]?\d+)?|nan|inf)")
+
+
+def compare_folders(a: Path, b: Path) -> None:
+    """Print, per file of ``a``, whether ``b`` holds the same bytes or how far apart they are."""
+    for file in sorted(p for p in a.iterdir() if p.is_file()):
+        other = b / file.name
+        if not other.is_file():
+            print(f"{file.name:18} missing in {b}")
+            continue
+        if file.read_bytes() == other.read_bytes():
+            print(f"{file.name:18} identical")
+            continue
+        lines_a, lines_b = file.read_text().splitlines(), other.read_text().splitlines()
+        differing = [(x, y) for x, y in zip(lines_a, lines_b) if x != y]
+        worst = 0.0
+        for x, y in differing:
+            nx, ny = NUMBER.findall(x), NUMBER.findall(y)
+            if len(nx) != len(ny):
+                worst = math.inf
+                continue
+            for u, v in zip(nx, ny):
+                if u != v:
+                    worst = max(worst, abs(float(u) - float(v)))
+        print(f"{file.name:18} {len(differing)} of {len(lines_a)} lines differ "
+              f"(line count {len(lines_a)} vs {len(lines_b)}), largest number difference "
+              f"{worst:.3g}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=5, help="warm runs after the warm-up")
@@ -313,7 +348,12 @@ def main() -> None:
     parser.add_argument("--copies", type=int, default=6, help="batch inputs")
     parser.add_argument("--batch-seconds", type=float, default=10.0,
                         help="length of each batch input [s]")
+    parser.add_argument("--compare", nargs=2, type=Path, metavar="DIR",
+                        help="compare two result folders and stop")
     args = parser.parse_args()
+    if args.compare:
+        compare_folders(*args.compare)
+        return
     if not WALK.is_dir():
         raise SystemExit(f"no recording at {WALK} (../shared/data beside the repository)")
     fps = warm_table(args.repeat)

@@ -24,7 +24,7 @@ from ..model.motion_kinematics import frame_placements
 from ..rotations import matrix_to_quat_wxyz
 from .bvh_export import write_motion_bvh
 from .opensim_export import write_motion_mot
-from .text_table import long_rows
+from .text_table import long_rows, write_csv
 
 #: The files of a result folder (besides the hidden marker of :mod:`ikfusion.output_folders`).
 RESULT_FILES = ("joint_angles.csv", "segments.csv", "sites.csv", "contacts.csv", "solve_time.csv",
@@ -90,20 +90,18 @@ def write_result_folder(motion: Motion, out_dir: str | Path, bvh_up: str = "z",
     p_seg, quat_seg, p_site = _poses(motion)
     with atomic_folder(out_dir, "solve", force) as tmp:
         angles = motion.joint_angles()
-        np.savetxt(tmp / "joint_angles.csv", np.column_stack([motion.time, angles]),
-                   delimiter=",", fmt="%.6f", header=",".join(["time", *model.angle_columns]),
-                   comments="")
+        write_csv(tmp / "joint_angles.csv", ["time", *model.angle_columns],
+                  ["%.6f"] * (1 + len(model.angle_columns)),
+                  np.column_stack([motion.time, angles]))
         _write_long_csv(tmp / "segments.csv", SEGMENT_COLUMNS, motion.time, model.segment_names,
                         np.concatenate([p_seg, quat_seg], axis=2))
         _write_long_csv(tmp / "sites.csv", SITE_COLUMNS, motion.time, model.site_names, p_site)
-        contacts = np.column_stack([motion.time, motion.contacts.astype(int)])
-        np.savetxt(tmp / "contacts.csv", contacts, delimiter=",",
-                   fmt=["%.6f"] + ["%d"] * len(motion.contact_names),
-                   header=",".join(["time", *motion.contact_names]), comments="")
-        np.savetxt(tmp / "solve_time.csv",
-                   np.column_stack([motion.time, 1e3 * motion.solve_time, motion.iterations]),
-                   delimiter=",", fmt=["%.6f", "%.4f", "%d"],
-                   header="time,solve_time_ms,gauss_newton_steps", comments="")
+        write_csv(tmp / "contacts.csv", ["time", *motion.contact_names],
+                  ["%.6f"] + ["%d"] * len(motion.contact_names),
+                  np.column_stack([motion.time, motion.contacts.astype(int)]))
+        write_csv(tmp / "solve_time.csv", ["time", "solve_time_ms", "gauss_newton_steps"],
+                  ["%.6f", "%.4f", "%d"],
+                  np.column_stack([motion.time, 1e3 * motion.solve_time, motion.iterations]))
         frame_time = 1.0 / motion.rate if motion.rate > 0 else 1.0 / 60.0
         write_motion_bvh(tmp / "motion.bvh", model, motion.q, frame_time, up=bvh_up)
         write_motion_mot(tmp / "motion.mot", motion)

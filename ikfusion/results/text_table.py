@@ -10,6 +10,7 @@ float, ``nan``, ``inf`` and ``-0.0`` included) several times faster.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from typing import TextIO
 
 import numpy as np
@@ -58,3 +59,18 @@ def long_rows(out: TextIO, time: np.ndarray, names: Sequence[str], values: np.nd
         [np.broadcast_to(np.asarray(time, dtype=float)[:, None, None], (n, m, 1)), values],
         axis=2)
     write_rows(out, frame_format, stamped.reshape(n, m * (k + 1)))
+
+
+def write_csv(path: str | Path, header: Sequence[str], formats: Sequence[str],
+              table: np.ndarray) -> None:
+    """A CSV file: the ``header`` line, then each row of ``table`` with a format per column.
+
+    Args:
+        path: The file.
+        header: Column names.
+        formats: One ``%`` format per column (``"%.6f"``, ``"%d"``, ...).
+        table: (N, len(formats)) values.
+    """
+    with Path(path).open("w") as out:
+        out.write(",".join(header) + "\n")
+        write_rows(out, ",".join(formats) + "\n", table)

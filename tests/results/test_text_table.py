@@ -6,7 +6,7 @@ import io
 
 import numpy as np
 
-from ikfusion.results.text_table import BLOCK_ROWS, long_rows, write_rows
+from ikfusion.results.text_table import BLOCK_ROWS, long_rows, write_csv, write_rows
 
 #: Values whose text is easy to get wrong: signed zeros, rounding edges, non-finite, extremes.
 AWKWARD = [0.0, -0.0, -1e-9, 1e-9, 0.5e-6, -0.5e-6, 2.5e-6, 1.0000005, -123456.7890125,
@@ -46,3 +46,15 @@ def test_long_rows_time_major_with_names(rng) -> None:
     expected = "".join(f"{t:.6f},{name}," + ",".join(f"{v:.6f}" for v in values[k, i]) + "\n"
                        for k, t in enumerate(time) for i, name in enumerate(names))
     assert out.getvalue() == expected
+
+
+def test_write_csv_writes_what_savetxt_wrote(rng, tmp_path) -> None:
+    table = np.column_stack([np.arange(30) / 100.0, rng.normal(size=30) * 1e3,
+                             rng.integers(0, 2, 30), rng.integers(0, 9, 30)]).astype(float)
+    table[3, 1] = -0.0
+    formats = ["%.6f", "%.4f", "%d", "%d"]
+    names = ["time", "solve_time_ms", "contact", "steps"]
+    np.savetxt(tmp_path / "before.csv", table, delimiter=",", fmt=formats,
+               header=",".join(names), comments="")
+    write_csv(tmp_path / "now.csv", names, formats, table)
+    assert (tmp_path / "now.csv").read_bytes() == (tmp_path / "before.csv").read_bytes()
