@@ -2,8 +2,9 @@
 
 1. Warm process: ``ikfusion.cli.main(["solve", ...])`` of the real 8-sensor walk
    (``../shared/data/xsens/opensense_walk``, 2505 frames) after one warm-up run; best and median
-   of ``--repeat`` runs, split into stages (read, calibrate, bridge, frames, solve loop, write,
-   other = the rest of the command: sensor map, model, checks) and frames per second. Reading and
+   of ``--repeat`` runs, split into stages (read, model, solver setup, calibrate, bridge,
+   frames, solve loop, write, other = the rest of the command: sensor map, checks) and frames
+   per second. Reading and
    calibration are included; interpreter start and the one-time compile are not.
 2. Fresh process: what ``python -m ikfusion solve`` spends before and beyond the warm figure:
    interpreter start, imports (the heaviest packages named) and the first run's one-time cost
@@ -43,8 +44,6 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from batch_timing import batch_rows, print_batch_rows
-
 WALK = Path(__file__).resolve().parents[2] / "shared" / "data" / "xsens" / "opensense_walk"
 MAPPING = "myIMUMappings.xml"
 PUBLISHED_OPENSENSE_FPS = 114.0
@@ -53,6 +52,8 @@ TARGET_FACTOR = 30.0
 #: Stage name -> (module, attribute) timed around every call during a solve.
 STAGES: dict[str, tuple[str, str]] = {
     "read": ("ikfusion.app.session", "read_imu"),
+    "model": ("ikfusion.app.session", "ActorInputs.model"),
+    "solver setup": ("ikfusion.app.session", "Solver"),
     "calibrate": ("ikfusion.app.session", "calibrate_recording"),
     "bridge": ("ikfusion.app.pipeline", "bridged_segments"),
     "frames": ("ikfusion.app.pipeline", "frames_from_recording"),
@@ -297,6 +298,8 @@ def peer_row(model: Path | None) -> float:
 
 def batch_table(copies: int, seconds: float) -> None:
     """``batch solve`` of ``copies`` copies of the walk's first ``seconds`` on 1 and 2 workers."""
+    from batch_timing import batch_rows, print_batch_rows  # Dask: not in the fresh process
+
     with tempfile.TemporaryDirectory() as tmp:
         inputs = []
         for k in range(copies):
