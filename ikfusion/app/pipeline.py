@@ -87,12 +87,16 @@ def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str]
             R = np.where(st.valid[:, None, None], st.R_world_sensor, np.nan)
             gyr = None if st.gyr is None else np.where(st.valid[:, None], st.gyr, np.nan)
             still[s] = foot_still(R, recording.rate, gyr, stance)
+    # per-sample lists made once (indexing NumPy arrays sample by sample costs more)
+    rows = {s: list(R) for s, R in R_segment.items()}
+    tracked_rows = {s: v.tolist() for s, v in tracked.items()}
+    known = {s: np.isfinite(v).tolist() for s, v in still.items()}
+    still_rows = {s: (v != 0).tolist() for s, v in still.items()}
     frames = []
-    for k, t in enumerate(recording.time):
-        frames.append(Frame(float(t), {s: R_segment[s][k] for s in R_segment
-                                       if tracked[s][k]},
-                            feet_still={s: bool(v[k]) for s, v in still.items()
-                                        if np.isfinite(v[k])}))
+    for k, t in enumerate(recording.time.tolist()):
+        frames.append(Frame(t, {s: R[k] for s, R in rows.items() if tracked_rows[s][k]},
+                            feet_still={s: v[k] for s, v in still_rows.items()
+                                        if known[s][k]}))
     return frames
 
 
