@@ -4,11 +4,13 @@
    (``../shared/data/xsens/opensense_walk``, 2505 frames) after one warm-up run; best and median
    of ``--repeat`` runs, split into stages (read, model, solver setup, calibrate, bridge,
    frames, solve loop, write, other = the rest of the command: sensor map, checks) and frames
-   per second. Reading and
-   calibration are included; interpreter start and the one-time compile are not.
+   per second (wall clock, and by CPU time, which other work on a shared machine inflates
+   least). Reading and calibration are included; interpreter start and the one-time compile
+   are not.
 2. Fresh process: what ``python -m ikfusion solve`` spends before and beyond the warm figure:
    interpreter start, imports (the heaviest packages named) and the first run's one-time cost
-   (loading or compiling the solver's native step functions, first calls).
+   (loading the solver's native step function, building its CasADi graph, first calls);
+   ``--cold`` also times the compile of that function, paid once per machine (cache folder).
 3. Peer: OpenSense (OpenSim's IMU inverse kinematics) on the same file in the same run, in a
    subprocess (OpenSim ships its own CasADi, which clashes with ours). It needs OpenSim's
    ``Rajagopal_2015.osim`` (``--opensim-model``; from opensim-core
@@ -16,13 +18,13 @@
    figure (114 frames/s) is printed and marked so. OpenSense refuses trials whose files differ
    in length, so it reads a copy cut to the shortest file (2432 rows).
 4. Batch: ``--copies`` copies of the first ``--batch-seconds`` of the walk through
-   ``batch solve`` on 1 and 2 local Dask workers (cluster start included).
-
+   ``batch solve`` on 1 and 2 local Dask workers (cluster start included; CPU seconds of all
+   processes beside the wall time).
 5. ``--compare DIR_A DIR_B``: two result folders file by file (identical bytes, or the lines
    that differ and the largest difference of their numbers), to check that a speed-up left the
    results alone (``solve_time.csv`` and the timings in ``summary.json`` differ by nature).
 
-Run: .venv/bin/python benchmarks/bench_solve.py [--repeat 5] [--no-fresh] [--no-peer]
+Run: .venv/bin/python benchmarks/bench_solve.py [--repeat 5] [--no-fresh] [--cold] [--no-peer]
      [--no-batch] [--opensim-model PATH] | --compare DIR_A DIR_B
 """
 
@@ -160,6 +162,28 @@ print(json.dumps({"import": t1 - t0, "first": first, "second": second}))
 """
 
 
+COLD_CHILD = r"""
+import json, time
+start = time.perf_counter()
+from ikfusion.ik import Solver
+from ikfusion.model import HumanModel
+model = HumanModel.default()
+imported = time.perf_counter()
+Solver(model)
+print(json.dumps({"import": imported - start, "solver": time.perf_counter() - imported}))
+"""
+
+
+def cold_compile_row(env: dict[str, str]) -> None:
+    """The once-per-machine compile of the solver's step function (an empty cache)."""
+    with tempfile.TemporaryDirectory() as cache:
+        done = subprocess.run([sys.executable, "-c", COLD_CHILD], check=True, text=True,
+                              capture_output=True, env={**env, "IKFUSION_CACHE": cache})
+    r = json.loads(done.stdout.strip().splitlines()[-1])
+    print(f"  once per machine (empty IKFUSION_CACHE): Solver() compiles its step function in "
+          f"{r['solver']:.1f} s (cached afterwards under ~/.cache/ikfusion)")
+
+
 def heaviest_imports(stderr: str, top: int = 8) -> list[tuple[str, float]]:
     """The packages of ``-X importtime`` output that took longest to import [s].
 
@@ -191,8 +215,9 @@ def heaviest_imports(stderr: str, top: int = 8) -> list[tuple[str, float]]:
     return sorted(per_package.items(), key=lambda kv: -kv[1])[:top]
 
 
-def fresh_table() -> None:
-    """What a fresh ``python -m ikfusion solve`` spends beyond the warm run."""
+def fresh_table(cold: bool) -> None:
+    """What a fresh ``python -m ikfusion solve`` spends beyond the warm run (and, with
+    ``cold``, the compile a machine's first solve pays)."""
     import ikfusion
 
     package_root = str(Path(ikfusion.__file__).resolve().parents[1])  # the ikfusion measured
@@ -219,6 +244,8 @@ def fresh_table() -> None:
           "included):")
     for package, seconds in heaviest_imports(done.stderr):
         print(f"    {package:30} {seconds:6.2f} s")
+    if cold:
+        cold_compile_row(env)
 
 
 PEER_CHILD = r"""
@@ -351,6 +378,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=5, help="warm runs after the warm-up")
     parser.add_argument("--no-fresh", action="store_true", help="skip the fresh process")
+    parser.add_argument("--cold", action="store_true",
+                        help="also time the once-per-machine compile (an empty cache; 10-30 s)")
     parser.add_argument("--no-peer", action="store_true", help="skip OpenSense")
     parser.add_argument("--no-batch", action="store_true", help="skip the batch throughput")
     parser.add_argument("--opensim-model", type=Path, default=WALK / "Rajagopal_2015.osim",
@@ -368,7 +397,7 @@ def main() -> None:
         raise SystemExit(f"no recording at {WALK} (../shared/data beside the repository)")
     fps = warm_table(args.repeat)
     if not args.no_fresh:
-        fresh_table()
+        fresh_table(args.cold)
     peer = PUBLISHED_OPENSENSE_FPS if args.no_peer else peer_row(args.opensim_model)
     print(f"\nikfusion {fps:.0f} frames/s = {fps / peer:.1f}x OpenSense "
           f"(issue #20 asks {TARGET_FACTOR:.0f}x = {TARGET_FACTOR * peer:.0f} frames/s)")
