@@ -178,7 +178,8 @@ def cold_compile_row(env: dict[str, str]) -> None:
     """The once-per-machine compile of the solver's step function (an empty cache)."""
     with tempfile.TemporaryDirectory() as cache:
         done = subprocess.run([sys.executable, "-c", COLD_CHILD], check=True, text=True,
-                              capture_output=True, env={**env, "IKFUSION_CACHE": cache})
+                              capture_output=True, env={**env, "IKFUSION_CACHE": cache},
+                              cwd=cache)
     r = json.loads(done.stdout.strip().splitlines()[-1])
     print(f"  once per machine (empty IKFUSION_CACHE): Solver() compiles its step function in "
           f"{r['solver']:.1f} s (cached afterwards under ~/.cache/ikfusion)")
@@ -223,13 +224,15 @@ def fresh_table(cold: bool) -> None:
     package_root = str(Path(ikfusion.__file__).resolve().parents[1])  # the ikfusion measured
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(
         [package_root, *filter(None, [os.environ.get("PYTHONPATH")])])}
-    start = time.perf_counter()
-    subprocess.run([sys.executable, "-c", "pass"], check=True, env=env)
-    interpreter = time.perf_counter() - start
     with tempfile.TemporaryDirectory() as tmp:
+        # run in an empty folder: `python -c` puts the current folder first on the path, which
+        # would shadow the ikfusion of PYTHONPATH with a checkout's
+        start = time.perf_counter()
+        subprocess.run([sys.executable, "-c", "pass"], check=True, env=env, cwd=tmp)
+        interpreter = time.perf_counter() - start
         done = subprocess.run([sys.executable, "-X", "importtime", "-c", FRESH_CHILD,
                                str(Path(__file__).parent), str(Path(tmp) / "out")],
-                              check=True, env=env, capture_output=True, text=True)
+                              check=True, env=env, capture_output=True, text=True, cwd=tmp)
     result = json.loads(done.stdout.strip().splitlines()[-1])
     first, second = result["first"], result["second"]
     print("\nfresh process (python -m ikfusion solve): where the start-up time goes")
@@ -320,7 +323,7 @@ def peer_row(model: Path | None) -> float:
         equal_length_copy(WALK, trial)
         (trial / MAPPING).write_text((WALK / MAPPING).read_text())
         done = subprocess.run([sys.executable, "-c", PEER_CHILD, str(trial), str(model), tmp],
-                              check=True, capture_output=True, text=True)
+                              check=True, capture_output=True, text=True, cwd=tmp)
     r = json.loads(done.stdout.strip().splitlines()[-1])
     fps = r["frames"] / r["ik"]
     print(f"\nOpenSense peer (measured now, OpenSim IMU IK on the same walk, {r['frames']} "
