@@ -27,8 +27,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from ikfusion.batch.kinds import load_kind
-from ikfusion.batch.runner import run_batch
+from batch_timing import batch_rows, print_batch_rows
+
 from ikfusion.retarget import load_source, retarget
 from ikfusion.retarget.robot_config import SHIPPED_ROBOTS
 
@@ -89,15 +89,7 @@ def batch_table() -> None:
     """``batch retarget`` of every clip onto G1 with 1 and 2 local workers."""
     inputs = [str(c) for c in clips()]
     print(f"\nbatch retarget onto g1, {len(inputs)} inputs (source loading included)")
-    print(f"{'workers':>7} {'seconds':>8} {'files/s':>8} {'frames/s':>8}")
-    for workers in (1, 2):
-        with tempfile.TemporaryDirectory() as tmp:
-            start = time.perf_counter()
-            outcome = run_batch(load_kind("retarget"), inputs, Path(tmp) / "out",
-                                {"robot": "g1"}, workers=workers, progress=False)
-            elapsed = time.perf_counter() - start
-        frames = sum(r.frames for r in outcome.results if r.status == "ok")
-        print(f"{workers:7d} {elapsed:8.1f} {len(inputs) / elapsed:8.2f} {frames / elapsed:8.0f}")
+    print_batch_rows(batch_rows("retarget", inputs, {"robot": "g1"}))
 
 
 def main() -> None:

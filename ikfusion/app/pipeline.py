@@ -91,19 +91,23 @@ def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str]
             R = np.where(st.valid[:, None, None], st.R_world_sensor, np.nan)
             gyr = None if st.gyr is None else np.where(st.valid[:, None], st.gyr, np.nan)
             still[s] = foot_still(R, recording.rate, gyr, stance)
-    airborne = flight_phases(recording, streams, flight).airborne
+    airborne = flight_phases(recording, streams, flight).airborne.tolist()
     pelvis = streams.get("Pelvis")
     a_pelvis = None
     if pelvis is not None and pelvis.acc is not None:
         a_pelvis = world_acceleration(pelvis.R_world_sensor, pelvis.acc)
         a_pelvis[~pelvis.valid] = np.nan
+    # per-sample lists made once (indexing NumPy arrays sample by sample costs more)
+    rows = {s: list(R) for s, R in R_segment.items()}
+    tracked_rows = {s: v.tolist() for s, v in tracked.items()}
+    known = {s: np.isfinite(v).tolist() for s, v in still.items()}
+    still_rows = {s: (v != 0).tolist() for s, v in still.items()}
     frames = []
-    for k, t in enumerate(recording.time):
-        frames.append(Frame(float(t), {s: R_segment[s][k] for s in R_segment
-                                       if tracked[s][k]},
-                            feet_still={s: bool(v[k]) for s, v in still.items()
-                                        if np.isfinite(v[k])},
-                            airborne=bool(airborne[k]),
+    for k, t in enumerate(recording.time.tolist()):
+        frames.append(Frame(t, {s: R[k] for s, R in rows.items() if tracked_rows[s][k]},
+                            feet_still={s: v[k] for s, v in still_rows.items()
+                                        if known[s][k]},
+                            airborne=airborne[k],
                             root_acceleration=_finite_or_none(a_pelvis, k)))
     return frames
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -28,13 +28,14 @@ from ..io.recording import ImuRecording
 from ..io.sensor_map import SensorMap, load_sensor_map
 from ..model import Body
 from ..model.human_model import HumanModel
-from ..uwb.constellation import load_constellation
-from ..uwb.ekf import EkfOptions, UnitTrack
-from ..uwb.health import TagFit, faulty_readers, reader_report, tag_fit
-from ..uwb.imu_units import imu_units_from_recording
-from ..uwb.toa_log import read_toa_csv
-from ..uwb.tracking import TagInfo, load_tags, track_tags
 from .correction import CorrectionSettings, DriftCorrection, SiteFixes
+
+# ikfusion.uwb (and SciPy's statistics with it) is imported when UWB is used, not by every
+# solve that imports this module.
+if TYPE_CHECKING:
+    from ..uwb.ekf import UnitTrack
+    from ..uwb.health import TagFit
+    from ..uwb.tracking import TagInfo
 
 
 @dataclass
@@ -79,6 +80,12 @@ def track_recording_tags(recording: ImuRecording, sensor_map: Mapping[str, str],
         InputError: Bad files (naming file, line and field), a tag without a sensor, an actor
             without tags.
     """
+    from ..uwb.constellation import load_constellation
+    from ..uwb.ekf import EkfOptions
+    from ..uwb.imu_units import imu_units_from_recording
+    from ..uwb.toa_log import read_toa_csv
+    from ..uwb.tracking import load_tags, track_tags
+
     tags = load_tags(files.tags)
     if actor is not None:
         tags = {k: t for k, t in tags.items() if t.actor == actor}
@@ -188,6 +195,8 @@ def uwb_aiding(tracked: TrackedTags, time: np.ndarray, mode: str) -> UwbAiding:
         time: The solve's frame times [s].
         mode: Correction mode (``slide`` or ``no-slide``).
     """
+    from ..uwb.health import faulty_readers, reader_report, tag_fit
+
     fits = {tag_id: tag_fit(track) for tag_id, track in tracked.tracks.items()}
     aiding = {t: tr for t, tr in tracked.tracks.items() if fits[t].problem is None}
     correction = drift_correction(tracked.tags, aiding, time, mode) if aiding else None
@@ -249,6 +258,8 @@ def uwb_summary(tracks: Mapping[str, UnitTrack], correction: DriftCorrection | N
         readers: The per-reader report, when known.
         mode: Correction mode, when ``correction`` is None.
     """
+    from ..uwb.health import tag_fit
+
     per_tag: dict[str, object] = {}
     for tag_id, track in tracks.items():
         t = track.totals

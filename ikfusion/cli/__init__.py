@@ -53,15 +53,23 @@ def add_force_option(parser: argparse.ArgumentParser) -> None:
         "the home folder and / are refused even with --force")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The top-level parser with every registered subcommand."""
+def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
+    """The top-level parser: every subcommand, or only the one ``argv`` names.
+
+    A command module imports what its command needs (``demo`` the simulator and SciPy's
+    statistics, ``view`` the viewer, ...): when ``argv`` starts with a command name only that
+    module is loaded, which saves seconds at the start of every command. Without one (no
+    arguments, ``--help``, a misspelt command) every command is registered, so the listing and
+    the usage error name them all.
+    """
     parser = _Parser(
         prog="ikfusion",
         description="Full-body human motion from body-worn IMUs and UWB, solved as a QP.",
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
-    for name in COMMAND_MODULES:
+    named = [m for m in COMMAND_MODULES if list(argv or [])[:1] == [m.replace("_", "-")]]
+    for name in named or COMMAND_MODULES:
         module = importlib.import_module(f"{__name__}.{name}")
         module.register(sub)
     return parser
@@ -131,7 +139,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     name = "ikfusion"
     try:
         with _sigterm_as_interrupt():
-            parser = build_parser()
+            argv = sys.argv[1:] if argv is None else list(argv)
+            parser = build_parser(argv)
             try:
                 args = parser.parse_args(argv)
             except SystemExit:  # --help or a usage error: their text must reach a closed pipe

@@ -919,9 +919,19 @@ def _frame_lines(values: np.ndarray, decimals: int | None) -> list[str]:
     """One text line per frame; fixed decimals (no ``-0.000``) or exact ``repr`` text."""
     if decimals is None:
         return [" ".join(map(repr, row)) for row in values.tolist()]
-    line_format = " ".join([f"%.{decimals}f"] * values.shape[1])
-    negative_zero = re.compile(r"(?<!\S)-(" + re.escape(f"{0.0:.{decimals}f}") + r")(?!\S)")
-    return [negative_zero.sub(r"\1", line_format % tuple(row)) for row in values.tolist()]
+    if not len(values):
+        return []
+    number = f"%.{decimals}f"
+    flat = np.array(values, dtype=float).reshape(-1)
+    # Values that would print as -0.000 (negative, |v| below one unit of the last digit, or
+    # -0.0 itself) are written as 0.000: only those few are formatted one by one to decide.
+    negative_zero = "-" + number % 0.0
+    for i in np.flatnonzero(np.signbit(flat) & (flat > -(10.0 ** -decimals))):
+        if number % flat[i] == negative_zero:
+            flat[i] = 0.0
+    line_format = " ".join([number] * values.shape[1]) + "\n"
+    text = (line_format * len(values)) % tuple(flat.tolist())
+    return text[:-1].split("\n")
 
 
 def _depth_first(parents: np.ndarray) -> list[int]:

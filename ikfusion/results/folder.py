@@ -17,13 +17,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
 
 from ..atomic import atomic_folder
 from ..ik.pose import Motion
+from ..model.motion_kinematics import frame_placements
 from ..rotations import matrix_to_quat_wxyz
 from .bvh_export import write_motion_bvh
 from .opensim_export import write_motion_mot
+from .text_table import long_rows, write_csv
 
 #: The files of a result folder (besides the hidden marker of :mod:`ikfusion.output_folders`).
 RESULT_FILES = ("joint_angles.csv", "segments.csv", "sites.csv", "contacts.csv", "solve_time.csv",
@@ -37,29 +38,17 @@ def _write_long_csv(path: Path, header: tuple[str, ...], time: np.ndarray, names
     """Rows ``time,name,v0,v1,...`` for every frame and name; ``values`` is (N, names, k)."""
     with path.open("w") as out:
         out.write(",".join(header) + "\n")
-        for k, t in enumerate(time):
-            for n, name in enumerate(names):
-                out.write(f"{t:.6f},{name}," + ",".join(f"{v:.6f}" for v in values[k, n]) + "\n")
+        long_rows(out, time, names, values)
 
 
 def _poses(motion: Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Segment positions (N, S, 3), quaternions wxyz (N, S, 4) and site positions (N, M, 3)."""
     model = motion.model
-    data = model.model.createData()
     segments = [model.segment_frame_id(n) for n in model.segment_names]
     sites = [model.site_frame_id(n) for n in model.site_names]
-    n = len(motion)
-    p_seg = np.empty((n, len(segments), 3))
-    R_seg = np.empty((n, len(segments), 3, 3))
-    p_site = np.empty((n, len(sites), 3))
-    for k, q in enumerate(motion.q):
-        pin.framesForwardKinematics(model.model, data, q)
-        for i, f in enumerate(segments):
-            p_seg[k, i] = data.oMf[f].translation
-            R_seg[k, i] = data.oMf[f].rotation
-        for i, f in enumerate(sites):
-            p_site[k, i] = data.oMf[f].translation
-    return p_seg, matrix_to_quat_wxyz(R_seg), p_site
+    p, R = frame_placements(model.model, motion.q, segments + sites)
+    S = len(segments)
+    return p[:, :S], matrix_to_quat_wxyz(R[:, :S]), p[:, S:]
 
 
 def summary(motion: Motion, extra: Mapping[str, Any] | None = None) -> dict[str, Any]:
@@ -101,20 +90,18 @@ def write_result_folder(motion: Motion, out_dir: str | Path, bvh_up: str = "z",
     p_seg, quat_seg, p_site = _poses(motion)
     with atomic_folder(out_dir, "solve", force) as tmp:
         angles = motion.joint_angles()
-        np.savetxt(tmp / "joint_angles.csv", np.column_stack([motion.time, angles]),
-                   delimiter=",", fmt="%.6f", header=",".join(["time", *model.angle_columns]),
-                   comments="")
+        write_csv(tmp / "joint_angles.csv", ["time", *model.angle_columns],
+                  ["%.6f"] * (1 + len(model.angle_columns)),
+                  np.column_stack([motion.time, angles]))
         _write_long_csv(tmp / "segments.csv", SEGMENT_COLUMNS, motion.time, model.segment_names,
                         np.concatenate([p_seg, quat_seg], axis=2))
         _write_long_csv(tmp / "sites.csv", SITE_COLUMNS, motion.time, model.site_names, p_site)
-        contacts = np.column_stack([motion.time, motion.contacts.astype(int)])
-        np.savetxt(tmp / "contacts.csv", contacts, delimiter=",",
-                   fmt=["%.6f"] + ["%d"] * len(motion.contact_names),
-                   header=",".join(["time", *motion.contact_names]), comments="")
-        np.savetxt(tmp / "solve_time.csv",
-                   np.column_stack([motion.time, 1e3 * motion.solve_time, motion.iterations]),
-                   delimiter=",", fmt=["%.6f", "%.4f", "%d"],
-                   header="time,solve_time_ms,gauss_newton_steps", comments="")
+        write_csv(tmp / "contacts.csv", ["time", *motion.contact_names],
+                  ["%.6f"] + ["%d"] * len(motion.contact_names),
+                  np.column_stack([motion.time, motion.contacts.astype(int)]))
+        write_csv(tmp / "solve_time.csv", ["time", "solve_time_ms", "gauss_newton_steps"],
+                  ["%.6f", "%.4f", "%d"],
+                  np.column_stack([motion.time, 1e3 * motion.solve_time, motion.iterations]))
         frame_time = 1.0 / motion.rate if motion.rate > 0 else 1.0 / 60.0
         write_motion_bvh(tmp / "motion.bvh", model, motion.q, frame_time, up=bvh_up)
         write_motion_mot(tmp / "motion.mot", motion)

@@ -21,9 +21,11 @@ import numpy as np
 from ..errors import ConfigError
 from ..ik.pose import Motion
 from ..model.angle_continuity import continuous_series
+from ..model.motion_kinematics import frame_placements
 from ..paths import shipped_config
 from ..rotations import matrix_to_euler
 from ..yaml_files import read_yaml
+from .text_table import write_rows
 
 #: ``R_opensim_ours``: our axes (X forward, Y left, Z up) to OpenSim's (X forward, Y up, Z right).
 C_OPENSIM_OURS = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
@@ -137,18 +139,13 @@ def segment_poses(motion: Motion, names: set[str]) -> tuple[dict[str, np.ndarray
                                                             dict[str, np.ndarray]]:
     """``R_world_segment`` (N, 3, 3) and origins ``p_world_segment`` (N, 3) [m] of segments.
 
-    Both in our world frame (X forward, Y left, Z up); forward kinematics runs once per frame.
+    Both in our world frame (X forward, Y left, Z up) (all frames at once, see
+    :func:`ikfusion.model.motion_kinematics.frame_placements`).
     """
     model = motion.model
-    frames = {n: model.segment_frame_id(n) for n in names}
-    R = {n: np.empty((len(motion), 3, 3)) for n in names}
-    p = {n: np.empty((len(motion), 3)) for n in names}
-    for k, q in enumerate(motion.q):
-        data = model.forward(q)
-        for n, f in frames.items():
-            R[n][k] = data.oMf[f].rotation
-            p[n][k] = data.oMf[f].translation
-    return R, p
+    order = sorted(names)
+    p, R = frame_placements(model.model, motion.q, [model.segment_frame_id(n) for n in order])
+    return ({n: R[:, i] for i, n in enumerate(order)}, {n: p[:, i] for i, n in enumerate(order)})
 
 
 def opensim_euler_deg(R_world_parent: np.ndarray | None, R_world_child: np.ndarray) -> np.ndarray:
@@ -229,8 +226,7 @@ def write_mot(path: str | Path, time: np.ndarray, names: list[str], values: np.n
               "\t".join(["time", *names])]
     with path.open("w") as out:
         out.write("\n".join(header) + "\n")
-        for row in table:
-            out.write("\t".join(f"{v:.6f}" for v in row) + "\n")
+        write_rows(out, "\t".join(["%.6f"] * table.shape[1]) + "\n", table)
     return path
 
 

@@ -1,0 +1,78 @@
+"""Forward kinematics of a whole motion at once, against Pinocchio frame by frame."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from ikfusion.model import HumanModel
+from ikfusion.model.motion_kinematics import frame_placements, quat_xyzw_matrix
+
+
+@pytest.fixture(scope="module")
+def human() -> HumanModel:
+    return HumanModel.default()
+
+
+def pinocchio_frames(model: pin.Model, q: np.ndarray, ids: list[int]) -> tuple[np.ndarray,
+                                                                                np.ndarray]:
+    data = model.createData()
+    p = np.empty((len(q), len(ids), 3))
+    R = np.empty((len(q), len(ids), 3, 3))
+    for k, qk in enumerate(q):
+        pin.framesForwardKinematics(model, data, qk)
+        for i, f in enumerate(ids):
+            p[k, i], R[k, i] = data.oMf[f].translation, data.oMf[f].rotation
+    return p, R
+
+
+def test_every_frame_equals_pinocchio(human: HumanModel, rng) -> None:
+    q = np.array([human.random_configuration(rng, p_world_pelvis=rng.normal(size=3))
+                  for _ in range(40)])
+    ids = list(range(human.model.nframes))
+    p, R = frame_placements(human.model, q, ids)
+    p_ref, R_ref = pinocchio_frames(human.model, q, ids)
+    np.testing.assert_allclose(p, p_ref, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(R, R_ref, rtol=0, atol=1e-12)
+
+
+def test_a_chosen_subset_in_the_given_order(human: HumanModel, rng) -> None:
+    q = np.array([human.random_configuration(rng) for _ in range(5)])
+    ids = [human.site_frame_id("RightToe"), human.segment_frame_id("Head"),
+           human.segment_frame_id("Pelvis")]
+    p, R = frame_placements(human.model, q, ids)
+    p_ref, R_ref = pinocchio_frames(human.model, q, ids)
+    np.testing.assert_allclose(p, p_ref, atol=1e-12)
+    np.testing.assert_allclose(R, R_ref, atol=1e-12)
+
+
+def test_revolute_joints_about_each_axis(rng) -> None:
+    model = pin.buildSampleModelManipulator()  # revolute joints about x, y and z
+    q = np.array([pin.randomConfiguration(model) for _ in range(4)])
+    ids = list(range(model.nframes))
+    p, R = frame_placements(model, q, ids)
+    p_ref, R_ref = pinocchio_frames(model, q, ids)
+    np.testing.assert_allclose(p, p_ref, atol=1e-12)
+    np.testing.assert_allclose(R, R_ref, atol=1e-12)
+
+
+def test_other_joint_types_fall_back_to_pinocchio() -> None:
+    model = pin.Model()
+    slide = model.addJoint(0, pin.JointModelPX(), pin.SE3.Random(), "slide")
+    hinge = model.addJoint(slide, pin.JointModelRevoluteUnaligned(np.array([0.6, 0.0, 0.8])),
+                           pin.SE3.Random(), "hinge")
+    model.addFrame(pin.Frame("tip", hinge, 0, pin.SE3.Random(), pin.FrameType.OP_FRAME))
+    q = np.array([[0.3, -1.1], [-0.2, 2.0]])
+    ids = list(range(model.nframes))
+    p, R = frame_placements(model, q, ids)
+    p_ref, R_ref = pinocchio_frames(model, q, ids)
+    np.testing.assert_array_equal(p, p_ref)
+    np.testing.assert_array_equal(R, R_ref)
+
+
+def test_quaternion_matrix_as_eigen(rng) -> None:
+    quat = rng.normal(size=(20, 4))
+    quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+    expected = [pin.Quaternion(w, x, y, z).matrix() for x, y, z, w in quat]
+    np.testing.assert_array_equal(quat_xyzw_matrix(quat), expected)
