@@ -70,7 +70,7 @@ def test_a_killed_recording_leaves_a_readable_folder(capture: Path, tmp_path: Pa
     table, a summary of them, and ``evaluate`` reads it."""
     out = tmp_path / "record"
     process = subprocess.Popen(
-        [sys.executable, "-m", "ikfusion", "live", "--replay", str(capture), "--speed", "2",
+        [sys.executable, "-m", "ikfusion", "live", "--replay", str(capture), "--speed", "0.5",
          "--record", str(out), "--quiet"], env=os.environ.copy(),
         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
