@@ -11,6 +11,18 @@ fall; exactly ``g`` when none is recorded).
 
 Without an accelerometer the velocity is the solved one of the last frame (as before the
 filter existed), and the flight is the parabola from it.
+
+The path never takes the body through the floor. Given the lowest pelvis height at which the
+sensed pose keeps its contact points on or above the floor, a descending path that reaches it
+*lands* (:attr:`BallisticRoot.landed`): from then on the pelvis is at that height, following
+the sensed legs down onto the floor, until a planted point carries the body or the velocity
+turns upward again. The velocity itself runs on through the landing (the deceleration the
+accelerometer measures brings it to rest), so the next take-off starts from the right one.
+Without that, a flight that the accelerometers end a few frames after the feet met the floor
+(or a take-off velocity a little low) had the floor constraint met by bending the joints no
+sensor watches, the toes, by tens of degrees, and the knees popped when the feet were planted.
+Only a descending path lands: at a take-off the sensed feet, pointed with level toes, reach
+through the floor where the real toes bend.
 """
 
 from __future__ import annotations
@@ -38,16 +50,32 @@ class BallisticRoot:
         """At rest, nothing measured."""
         self.velocity = np.zeros(3)
         self.position: np.ndarray | None = None  # on the path in flight, None on the ground
+        #: the path came down onto the floor and follows the feet there
+        self.landed = False
 
-    def target(self, p_last: np.ndarray, dt: float, a_world: np.ndarray | None) -> np.ndarray:
+    def target(self, p_last: np.ndarray, dt: float, a_world: np.ndarray | None,
+               lowest_z: float | None = None) -> np.ndarray:
         """The pelvis position (3,) [m] ``dt`` [s] further on the ballistic path.
 
         The path starts at ``p_last`` (the solved pelvis) at the take-off and then runs on by
         itself, so a solve that lags its target does not slow the flight down.
+
+        Args:
+            p_last: (3,) the solved pelvis of the last frame [m].
+            dt: Time since the last frame [s].
+            a_world: (3,) the pelvis acceleration in the world frame [m/s^2] or None.
+            lowest_z: The lowest pelvis height [m] at which the body's contact points stay
+                on or above the floor (None: no floor). A descending path lands there and
+                stays at that height while it does not rise (see the module docstring).
         """
         a = GRAVITY if a_world is None or not np.all(np.isfinite(a_world)) else a_world
         start = p_last if self.position is None else self.position
         self.position = np.asarray(start + self.velocity * dt + 0.5 * a * dt * dt)
+        descending = self.velocity[2] <= 0.0
+        self.landed = (lowest_z is not None and descending
+                       and (self.landed or bool(self.position[2] < lowest_z)))
+        if self.landed and lowest_z is not None:
+            self.position[2] = lowest_z
         return self.position.copy()
 
     def update(self, v_solved: np.ndarray, dt: float, a_world: np.ndarray | None,
@@ -68,6 +96,7 @@ class BallisticRoot:
             self.velocity = self.velocity + a * max(dt, 0.0)
             return
         self.position = None
+        self.landed = False
         if not measured or a_world is None or dt <= 0.0:
             self.velocity = np.asarray(v_solved, dtype=float).copy()
             return

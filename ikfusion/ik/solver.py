@@ -152,7 +152,9 @@ class Solver:
             if frame.root_position is None:
                 active += contacts.support_tasks(q, p_sensed + offset, tasks.root, tasks.swing)
         elif frame.root_position is None and self._contact_frames:  # flight: ballistic pelvis
-            p_root = self.ballistic.target(last.q[:3], dt, a_root)
+            # the sensed pose's lowest contact point on the floor bounds the pelvis height
+            lowest_z = self.settings.floor_z + q[2] - float(np.min(p_sensed[:, 2]))
+            p_root = self.ballistic.target(last.q[:3], dt, a_root, lowest_z)
             tasks.root.set_targets(p_root[None], [self.settings.ballistic])
             active.append(tasks.root)
         q, iterations, relaxed = self._solve(frame, targets, q, active,
