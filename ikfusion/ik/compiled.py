@@ -66,7 +66,7 @@ from .casadi_kinematics import (
     jacobian,
     symbolic_placements,
 )
-from .native import BoundFunction, column_major, native_functions
+from .native import BoundFunction, cached_functions, column_major, native_functions
 
 
 @dataclass(frozen=True)
@@ -105,24 +105,34 @@ class CompiledKinematics:
         site_frames: Frame ids whose positions are needed (sites, contact points, the root).
         sensed: Also build :attr:`sensed_function` (the sensed configuration and positions of
             points there).
+        loaded: The functions already built (:attr:`FUNCTION_NAMES`, loaded from a cached
+            library): the graph is then not built again.
 
     Raises:
         NotImplementedError: For joint types the graph does not cover.
     """
 
+    #: The names of the step function and of the sensed-pose function.
+    FUNCTION_NAMES = ("ik_step_objective", "ik_sensed_pose")
+
     def __init__(self, model: pin.Model, segment_frames: Sequence[int],
                  ball_joints: Sequence[BallJoint], site_frames: Sequence[int],
-                 sensed: SensedPoseSpec | None = None) -> None:
+                 sensed: SensedPoseSpec | None = None,
+                 loaded: Sequence[ca.Function] | None = None) -> None:
         self.nv = model.nv
         self.warnings: list[str] = []  # e.g. a failed native compile (see compiled_kinematics)
         self.segment_frames = list(segment_frames)
         self.site_frames = list(site_frames)
-        q = ca.SX.sym("q", model.nq)
-        targets = ca.SX.sym("R_world_target", 9 * len(segment_frames))
         frames = sorted(set(self.segment_frames) | set(self.site_frames)
                         | set(sensed.points if sensed else ()))
-        geometry = ca.SX.sym("geometry", 12 * (model.njoints - 1 + len(frames)))
         self._geometry_frames = frames
+        if loaded is not None:
+            self.function = loaded[0]
+            self.sensed_function = loaded[1] if sensed is not None else None
+            return
+        q = ca.SX.sym("q", model.nq)
+        targets = ca.SX.sym("R_world_target", 9 * len(segment_frames))
+        geometry = ca.SX.sym("geometry", 12 * (model.njoints - 1 + len(frames)))
         placements = symbolic_placements(geometry, model.njoints - 1, frames)
         rotations, translations, axes = forward(model, q, placements)
         self.sensed_function = (None if sensed is None else
@@ -174,7 +184,7 @@ class CompiledKinematics:
             c += WJ.T @ e_all
 
         self.function = ca.Function(
-            "ik_step_objective", [q, targets, geometry, w_orient, w_posture, references],
+            self.FUNCTION_NAMES[0], [q, targets, geometry, w_orient, w_posture, references],
             [H, c, stack(e_orient, 1), stack(angles, 1), stack(E_inv, 3), stack(p_sites, 1),
              stack(J_sites, model.nv)],
             ["q", "R_world_target", "geometry", "w_orient", "w_posture", "R_reference"],
@@ -225,7 +235,7 @@ class CompiledKinematics:
         rotations, translations, _ = forward(model, replace(q_sensed, toes), placements)
         points = [frame_pose(model, f, rotations, translations, placements)[1]
                   for f in spec.points]
-        return ca.Function("ik_sensed_pose", [q, targets, geometry, tracked],
+        return ca.Function(self.FUNCTION_NAMES[1], [q, targets, geometry, tracked],
                            [q_sensed, ca.vertcat(*points) if points else ca.SX(0, 1)],
                            ["q", "R_world_target", "geometry", "tracked"],
                            ["q_sensed", "p_points"])
@@ -302,12 +312,19 @@ def compiled_kinematics(model: pin.Model, segment_frames: Sequence[int],
                         sensed: SensedPoseSpec | None = None) -> CompiledKinematics:
     """A (cached) :class:`CompiledKinematics`, natively compiled when a C compiler exists.
 
-    A failed compile leaves CasADi's virtual machine in place and says so in
-    :attr:`CompiledKinematics.warnings` (and on stderr).
+    A library already built and verified is loaded without building the CasADi graphs again
+    (that takes longer than loading). A failed compile leaves CasADi's virtual machine in place
+    and says so in :attr:`CompiledKinematics.warnings` (and on stderr).
     """
     key = structure_key(model, segment_frames, ball_joints, site_frames, sensed)
     built = _BUILT.get(key)
     if built is None:
+        names = CompiledKinematics.FUNCTION_NAMES[:2 if sensed is not None else 1]
+        cached = cached_functions(key, names)
+        if cached is not None:
+            built = _BUILT[key] = CompiledKinematics(model, segment_frames, ball_joints,
+                                                     site_frames, sensed, cached)
+            return built
         built = CompiledKinematics(model, segment_frames, ball_joints, site_frames, sensed)
         functions = [built.function]
         if built.sensed_function is not None:
