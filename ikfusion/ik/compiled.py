@@ -26,10 +26,9 @@ of :mod:`ikfusion.rotations` that the NumPy tasks use, with one epsilon policy. 
 * ``e_orient`` (3k) [rad];
 * ``angles`` (3j): anatomical angles [rad] in sequence order; ``E_inv`` (3j, 3): their rates
   per unit joint tangent step;
-* ``p_sites`` (3m) [m] and ``J_sites`` (3m, nv).
-
-Summing ``J^T W J`` inside the graph uses the Jacobians' sparsity (a segment's rows touch only
-the joints that carry it) and removes the per-step NumPy work of assembling the objective.
+* ``p_sites`` (3m) [m] and ``J_sites`` (3m, nv);
+* ``G_ranges`` (3j, nv), ``room_up`` and ``room_down`` (3j) [rad]: the ranges of motion (inputs
+  ``lower``, ``upper``) linearised (:mod:`.compiled_ranges`).
 
 The graph holds the model's *structure* only (:mod:`.casadi_kinematics`); joint and frame
 placements are an input, so bodies of every size share one function. When a C compiler is on the
@@ -59,13 +58,8 @@ from ..rotations_casadi import (
     rotation_about,
     skew,
 )
-from .casadi_kinematics import (
-    forward,
-    frame_pose,
-    geometry_vector,
-    jacobian,
-    symbolic_placements,
-)
+from .casadi_kinematics import forward, frame_pose, geometry_vector, jacobian, symbolic_placements
+from .compiled_ranges import range_rows
 from .native import BoundFunction, cached_functions, column_major, native_functions
 
 
@@ -172,7 +166,10 @@ class CompiledKinematics:
 
         def stack(parts: list[ca.SX], cols: int) -> ca.SX:
             return ca.vertcat(*parts) if parts else ca.SX(0, cols)
-
+        lower = ca.SX.sym("lower", 3 * len(ball_joints))
+        upper = ca.SX.sym("upper", 3 * len(ball_joints))
+        G_ranges, room_up, room_down = range_rows(
+            angles, E_inv, [j.idx_v for j in ball_joints], lower, upper, model.nv)
         w_orient = ca.SX.sym("w_orient", 3 * len(segment_frames))
         w_posture = ca.SX.sym("w_posture", 3 * len(ball_joints))
         H = ca.SX(model.nv, model.nv)
@@ -184,11 +181,14 @@ class CompiledKinematics:
             c += WJ.T @ e_all
 
         self.function = ca.Function(
-            self.FUNCTION_NAMES[0], [q, targets, geometry, w_orient, w_posture, references],
+            self.FUNCTION_NAMES[0],
+            [q, targets, geometry, w_orient, w_posture, references, lower, upper],
             [H, c, stack(e_orient, 1), stack(angles, 1), stack(E_inv, 3), stack(p_sites, 1),
-             stack(J_sites, model.nv)],
-            ["q", "R_world_target", "geometry", "w_orient", "w_posture", "R_reference"],
-            ["H", "c", "e_orient", "angles", "E_inv", "p_sites", "J_sites"],
+             stack(J_sites, model.nv), G_ranges, room_up, room_down],
+            ["q", "R_world_target", "geometry", "w_orient", "w_posture", "R_reference",
+             "lower", "upper"],
+            ["H", "c", "e_orient", "angles", "E_inv", "p_sites", "J_sites", "G_ranges",
+             "room_up", "room_down"],
         )
 
     def _sensed(self, model: pin.Model, spec: SensedPoseSpec, q: ca.SX, targets: ca.SX,
@@ -248,8 +248,8 @@ class CompiledKinematics:
         return geometry_vector(model, self._geometry_frames)
 
     def __call__(self, q: np.ndarray, R_world_target: np.ndarray, geometry: np.ndarray,
-                 w_orient: np.ndarray, w_posture: np.ndarray,
-                 R_reference: np.ndarray) -> list[np.ndarray]:
+                 w_orient: np.ndarray, w_posture: np.ndarray, R_reference: np.ndarray,
+                 limits: tuple[np.ndarray, np.ndarray] | None = None) -> list[np.ndarray]:
         """Evaluate the step function at ``q``.
 
         Args:
@@ -259,14 +259,19 @@ class CompiledKinematics:
             w_orient: Per-row orientation weights (3k,) [1/rad^2].
             w_posture: Per-row posture weights (3j,) [1/rad^2].
             R_reference: The posture task's reference joint rotations (j, 3, 3).
+            limits: The ranges of motion (lower, upper) (j, 3) [rad] for the outputs
+                ``G_ranges``, ``room_up`` and ``room_down`` (:mod:`.compiled_ranges`; zero
+                ranges when omitted).
 
         Returns:
             The outputs as dense arrays, overwritten by the next call (copy to keep them).
         """
         if not hasattr(self, "_step"):
             self._step = BoundFunction(self.function)
+        none = np.zeros(len(w_posture))
+        lower, upper = (none, none) if limits is None else (limits[0].ravel(), limits[1].ravel())
         return self._step(q, column_major(R_world_target), geometry, w_orient, w_posture,
-                          column_major(R_reference))
+                          column_major(R_reference), lower, upper)
 
     def sensed_pose(self, q: np.ndarray, R_world_target: np.ndarray, geometry: np.ndarray,
                     tracked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -290,7 +295,7 @@ def structure_key(model: pin.Model, segment_frames: Sequence[int],
                   sensed: SensedPoseSpec | None = None) -> str:
     """A string identifying the compiled structure (not the geometry) of a step function."""
     parts = [
-        "objective-v6",
+        "objective-v7",
         repr(sensed),
         ",".join(model.joints[j].shortname() for j in range(1, model.njoints)),
         ",".join(str(p) for p in model.parents),
