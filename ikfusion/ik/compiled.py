@@ -26,10 +26,9 @@ of :mod:`ikfusion.rotations` that the NumPy tasks use, with one epsilon policy. 
 * ``e_orient`` (3k) [rad];
 * ``angles`` (3j): anatomical angles [rad] in sequence order; ``E_inv`` (3j, 3): their rates
   per unit joint tangent step;
-* ``p_sites`` (3m) [m] and ``J_sites`` (3m, nv).
-
-Summing ``J^T W J`` inside the graph uses the Jacobians' sparsity (a segment's rows touch only
-the joints that carry it) and removes the per-step NumPy work of assembling the objective.
+* ``p_sites`` (3m) [m] and ``J_sites`` (3m, nv);
+* ``G_ranges`` (3j, nv), ``room_up`` and ``room_down`` (3j) [rad]: the ranges of motion (inputs
+  ``lower``, ``upper``) linearised (:mod:`.compiled_ranges`).
 
 The graph holds the model's *structure* only (:mod:`.casadi_kinematics`); joint and frame
 placements are an input, so bodies of every size share one function. When a C compiler is on the
@@ -59,14 +58,9 @@ from ..rotations_casadi import (
     rotation_about,
     skew,
 )
-from .casadi_kinematics import (
-    forward,
-    frame_pose,
-    geometry_vector,
-    jacobian,
-    symbolic_placements,
-)
-from .native import BoundFunction, column_major, native_functions
+from .casadi_kinematics import forward, frame_pose, geometry_vector, jacobian, symbolic_placements
+from .compiled_ranges import range_rows
+from .native import BoundFunction, cached_functions, column_major, native_functions
 
 
 @dataclass(frozen=True)
@@ -105,24 +99,34 @@ class CompiledKinematics:
         site_frames: Frame ids whose positions are needed (sites, contact points, the root).
         sensed: Also build :attr:`sensed_function` (the sensed configuration and positions of
             points there).
+        loaded: The functions already built (:attr:`FUNCTION_NAMES`, loaded from a cached
+            library): the graph is then not built again.
 
     Raises:
         NotImplementedError: For joint types the graph does not cover.
     """
 
+    #: The names of the step function and of the sensed-pose function.
+    FUNCTION_NAMES = ("ik_step_objective", "ik_sensed_pose")
+
     def __init__(self, model: pin.Model, segment_frames: Sequence[int],
                  ball_joints: Sequence[BallJoint], site_frames: Sequence[int],
-                 sensed: SensedPoseSpec | None = None) -> None:
+                 sensed: SensedPoseSpec | None = None,
+                 loaded: Sequence[ca.Function] | None = None) -> None:
         self.nv = model.nv
         self.warnings: list[str] = []  # e.g. a failed native compile (see compiled_kinematics)
         self.segment_frames = list(segment_frames)
         self.site_frames = list(site_frames)
-        q = ca.SX.sym("q", model.nq)
-        targets = ca.SX.sym("R_world_target", 9 * len(segment_frames))
         frames = sorted(set(self.segment_frames) | set(self.site_frames)
                         | set(sensed.points if sensed else ()))
-        geometry = ca.SX.sym("geometry", 12 * (model.njoints - 1 + len(frames)))
         self._geometry_frames = frames
+        if loaded is not None:
+            self.function = loaded[0]
+            self.sensed_function = loaded[1] if sensed is not None else None
+            return
+        q = ca.SX.sym("q", model.nq)
+        targets = ca.SX.sym("R_world_target", 9 * len(segment_frames))
+        geometry = ca.SX.sym("geometry", 12 * (model.njoints - 1 + len(frames)))
         placements = symbolic_placements(geometry, model.njoints - 1, frames)
         rotations, translations, axes = forward(model, q, placements)
         self.sensed_function = (None if sensed is None else
@@ -162,7 +166,10 @@ class CompiledKinematics:
 
         def stack(parts: list[ca.SX], cols: int) -> ca.SX:
             return ca.vertcat(*parts) if parts else ca.SX(0, cols)
-
+        lower = ca.SX.sym("lower", 3 * len(ball_joints))
+        upper = ca.SX.sym("upper", 3 * len(ball_joints))
+        G_ranges, room_up, room_down = range_rows(
+            angles, E_inv, [j.idx_v for j in ball_joints], lower, upper, model.nv)
         w_orient = ca.SX.sym("w_orient", 3 * len(segment_frames))
         w_posture = ca.SX.sym("w_posture", 3 * len(ball_joints))
         H = ca.SX(model.nv, model.nv)
@@ -174,11 +181,14 @@ class CompiledKinematics:
             c += WJ.T @ e_all
 
         self.function = ca.Function(
-            "ik_step_objective", [q, targets, geometry, w_orient, w_posture, references],
+            self.FUNCTION_NAMES[0],
+            [q, targets, geometry, w_orient, w_posture, references, lower, upper],
             [H, c, stack(e_orient, 1), stack(angles, 1), stack(E_inv, 3), stack(p_sites, 1),
-             stack(J_sites, model.nv)],
-            ["q", "R_world_target", "geometry", "w_orient", "w_posture", "R_reference"],
-            ["H", "c", "e_orient", "angles", "E_inv", "p_sites", "J_sites"],
+             stack(J_sites, model.nv), G_ranges, room_up, room_down],
+            ["q", "R_world_target", "geometry", "w_orient", "w_posture", "R_reference",
+             "lower", "upper"],
+            ["H", "c", "e_orient", "angles", "E_inv", "p_sites", "J_sites", "G_ranges",
+             "room_up", "room_down"],
         )
 
     def _sensed(self, model: pin.Model, spec: SensedPoseSpec, q: ca.SX, targets: ca.SX,
@@ -225,7 +235,7 @@ class CompiledKinematics:
         rotations, translations, _ = forward(model, replace(q_sensed, toes), placements)
         points = [frame_pose(model, f, rotations, translations, placements)[1]
                   for f in spec.points]
-        return ca.Function("ik_sensed_pose", [q, targets, geometry, tracked],
+        return ca.Function(self.FUNCTION_NAMES[1], [q, targets, geometry, tracked],
                            [q_sensed, ca.vertcat(*points) if points else ca.SX(0, 1)],
                            ["q", "R_world_target", "geometry", "tracked"],
                            ["q_sensed", "p_points"])
@@ -238,8 +248,8 @@ class CompiledKinematics:
         return geometry_vector(model, self._geometry_frames)
 
     def __call__(self, q: np.ndarray, R_world_target: np.ndarray, geometry: np.ndarray,
-                 w_orient: np.ndarray, w_posture: np.ndarray,
-                 R_reference: np.ndarray) -> list[np.ndarray]:
+                 w_orient: np.ndarray, w_posture: np.ndarray, R_reference: np.ndarray,
+                 limits: tuple[np.ndarray, np.ndarray] | None = None) -> list[np.ndarray]:
         """Evaluate the step function at ``q``.
 
         Args:
@@ -249,14 +259,19 @@ class CompiledKinematics:
             w_orient: Per-row orientation weights (3k,) [1/rad^2].
             w_posture: Per-row posture weights (3j,) [1/rad^2].
             R_reference: The posture task's reference joint rotations (j, 3, 3).
+            limits: The ranges of motion (lower, upper) (j, 3) [rad] for the outputs
+                ``G_ranges``, ``room_up`` and ``room_down`` (:mod:`.compiled_ranges`; zero
+                ranges when omitted).
 
         Returns:
             The outputs as dense arrays, overwritten by the next call (copy to keep them).
         """
         if not hasattr(self, "_step"):
             self._step = BoundFunction(self.function)
+        none = np.zeros(len(w_posture))
+        lower, upper = (none, none) if limits is None else (limits[0].ravel(), limits[1].ravel())
         return self._step(q, column_major(R_world_target), geometry, w_orient, w_posture,
-                          column_major(R_reference))
+                          column_major(R_reference), lower, upper)
 
     def sensed_pose(self, q: np.ndarray, R_world_target: np.ndarray, geometry: np.ndarray,
                     tracked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -280,7 +295,7 @@ def structure_key(model: pin.Model, segment_frames: Sequence[int],
                   sensed: SensedPoseSpec | None = None) -> str:
     """A string identifying the compiled structure (not the geometry) of a step function."""
     parts = [
-        "objective-v6",
+        "objective-v7",
         repr(sensed),
         ",".join(model.joints[j].shortname() for j in range(1, model.njoints)),
         ",".join(str(p) for p in model.parents),
@@ -302,12 +317,19 @@ def compiled_kinematics(model: pin.Model, segment_frames: Sequence[int],
                         sensed: SensedPoseSpec | None = None) -> CompiledKinematics:
     """A (cached) :class:`CompiledKinematics`, natively compiled when a C compiler exists.
 
-    A failed compile leaves CasADi's virtual machine in place and says so in
-    :attr:`CompiledKinematics.warnings` (and on stderr).
+    A library already built and verified is loaded without building the CasADi graphs again
+    (that takes longer than loading). A failed compile leaves CasADi's virtual machine in place
+    and says so in :attr:`CompiledKinematics.warnings` (and on stderr).
     """
     key = structure_key(model, segment_frames, ball_joints, site_frames, sensed)
     built = _BUILT.get(key)
     if built is None:
+        names = CompiledKinematics.FUNCTION_NAMES[:2 if sensed is not None else 1]
+        cached = cached_functions(key, names)
+        if cached is not None:
+            built = _BUILT[key] = CompiledKinematics(model, segment_frames, ball_joints,
+                                                     site_frames, sensed, cached)
+            return built
         built = CompiledKinematics(model, segment_frames, ball_joints, site_frames, sensed)
         functions = [built.function]
         if built.sensed_function is not None:

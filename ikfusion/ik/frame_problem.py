@@ -18,6 +18,7 @@ from .active_set import LimitRows
 from .compiled import CompiledKinematics, SensedPoseSpec, compiled_kinematics
 from .configuration import Configuration
 from .limits import ContactConstraint, FloorLimit, JointRangeLimit, VelocityLimit
+from .limits.joint_range import LinearisedRanges
 from .qp import QpProblem, assemble_qp, build_qp
 from .settings import SolverSettings
 from .tasks import DampingTask, OrientationTask, PositionTask, PostureTask, Task
@@ -153,9 +154,9 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
         qp = build_qp(conf, active, [ranges.inequality(up, down), floor],
                       [tasks.contact.equality(conf)], None, levenberg_marquardt)
         return FrameProblem(qp, LimitRows(ranges, up, down, floor, bounds))
-    H, c, _, angles, E_inv, p_sites, J_sites = compiled.kinematics(
+    H, c, _, _, _, p_sites, J_sites, G_ranges, room_up, room_down = compiled.kinematics(
         conf.q, tasks.orientation.targets, compiled.geometry, *row_weights,
-        tasks.posture.R_reference)
+        tasks.posture.R_reference, (limits.lower, limits.upper))
     H, c = H.copy(), c[:, 0].copy()
     P = p_sites.reshape(-1, 3)
     J = J_sites.reshape(-1, 3, nv)
@@ -168,7 +169,7 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     Pc, Jc = P[tasks.contact_rows], J[tasks.contact_rows]
     if tasks.swing in active:
         tasks.swing.add_rows(Pc, Jc, H, c)
-    ranges = limits.linearise(angles.reshape(-1, 3), E_inv.reshape(-1, 3, 3), nv)
+    ranges = LinearisedRanges(G_ranges.copy(), room_up[:, 0].copy(), room_down[:, 0].copy())
     up, down = ranges.near(limits.margin)
     floor = tasks.floor.rows(Pc, Jc)
     qp = assemble_qp(H, c, [ranges.inequality(up, down), floor],

@@ -13,10 +13,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cache
 from typing import Any
 
 import numpy as np
-import qpsolvers
 
 from ..errors import SolverError
 from .configuration import Configuration
@@ -114,16 +114,36 @@ def _solver_options(backend: str, settings: QpSettings) -> dict[str, Any]:
     return {}
 
 
+@cache
+def _installed(backend: str) -> bool:
+    """Whether ``backend`` can be called (DAQP checked without importing qpsolvers)."""
+    if backend == "daqp":
+        try:
+            import daqp  # noqa: F401 - imported to see that it is there
+        except ImportError:
+            return False
+        return True
+    return backend in _qpsolvers().available_solvers
+
+
+def _qpsolvers() -> Any:
+    """The qpsolvers module, imported on first use (about 0.3 s; DAQP is called directly)."""
+    import qpsolvers
+
+    return qpsolvers
+
+
 def _call(backend: str, settings: QpSettings, H: np.ndarray, c: np.ndarray,
           G: np.ndarray | None, h: np.ndarray | None, A: np.ndarray | None,
           b: np.ndarray | None, lb: np.ndarray | None,
           ub: np.ndarray | None) -> np.ndarray | None:
-    if backend not in qpsolvers.available_solvers:
+    if not _installed(backend):
         raise SolverError(
             f"QP backend {backend!r} is not installed; available: "
-            f"{', '.join(qpsolvers.available_solvers)}")
+            f"{', '.join(_qpsolvers().available_solvers)}")
     if backend == "daqp":
         return _call_daqp(settings.max_iterations, H, c, G, h, A, b, lb, ub)
+    qpsolvers = _qpsolvers()
     try:
         x = qpsolvers.solve_qp(H, c, G, h, A, b, lb, ub, solver=backend,
                                **_solver_options(backend, settings))
@@ -201,7 +221,7 @@ def solve_qp(problem: QpProblem, backend: str, settings: QpSettings) -> QpSoluti
     # A numerical failure on a degenerate but feasible step (a limit active exactly where a
     # planted point holds) is not infeasibility: another exact backend first.
     for other in _EXACT_BACKENDS:
-        if other != backend and other in qpsolvers.available_solvers:
+        if other != backend and _installed(other):
             x = _call(other, settings, p.H, p.c, G, h, A, b, p.lb, p.ub)
             if x is not None:
                 return QpSolution(x)
@@ -211,7 +231,7 @@ def solve_qp(problem: QpProblem, backend: str, settings: QpSettings) -> QpSoluti
     mild = heavy * settings.relaxed_slack_scale
     attempts = [(backend, heavy), (backend, mild)]
     attempts += [(other, mild) for other in ("proxqp", "daqp")
-                 if other != backend and other in qpsolvers.available_solvers]
+                 if other != backend and _installed(other)]
     for name, weight in attempts:
         solution = _solve_relaxed(p, name, weight, settings)
         if solution is not None:
@@ -223,6 +243,11 @@ def solve_qp(problem: QpProblem, backend: str, settings: QpSettings) -> QpSoluti
 
 def _check_finite(p: QpProblem) -> None:
     """Raise a clear error instead of handing a backend NaN or infinite numbers."""
+    # One sum per array is finite when every entry is (and when it is not, the slow path
+    # below names the culprits; absurd finite values overflowing the sum land there too).
+    if np.isfinite(p.H.sum() + p.c.sum() + p.h.sum() + p.b.sum() + p.G.sum() + p.A.sum()) \
+            and not any(m is not None and np.isnan(m.sum()) for m in (p.lb, p.ub)):
+        return
     bad = [name for name, m in (("H", p.H), ("c (targets)", p.c), ("h (inequalities)", p.h),
                                 ("b (equalities)", p.b), ("G", p.G), ("A", p.A))
            if not np.isfinite(m).all()]

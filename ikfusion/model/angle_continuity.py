@@ -28,6 +28,7 @@ import numpy.typing as npt
 from .joints import JointSpec
 
 _TURN = 2.0 * np.pi
+_OTHER_SIGNS = np.array([1.0, -1.0, 1.0])  # the other triple is (a1 + pi, pi - a2, a3 + pi)
 
 
 def equivalent_triple(angles: npt.ArrayLike) -> np.ndarray:
@@ -172,12 +173,13 @@ def nearest_to_ranges(angles: npt.ArrayLike, lower: npt.ArrayLike,
     """
     lo = np.asarray(lower, dtype=float)
     hi = np.asarray(upper, dtype=float)
-    centre = 0.5 * (lo + hi)
-
-    def outside(a: np.ndarray) -> np.ndarray:
-        return np.sum(np.maximum(lo - a, 0.0) ** 2 + np.maximum(a - hi, 0.0) ** 2, axis=-1)
-
-    same = wrap_near(angles, centre)
-    other = wrap_near(equivalent_triple(angles), centre)
-    flipped = outside(other) < outside(same)
-    return np.where(flipped[..., None], other, same), flipped
+    a = np.asarray(angles, dtype=float)
+    # Both branches at once (few NumPy calls: this runs on every step of every frame): the
+    # triple itself and its equivalent (a1 + pi, pi - a2, a3 + pi), each wrapped near the
+    # centre of the range; at most one of ``lo - x`` and ``x - hi`` is positive (lo <= hi).
+    both = np.concatenate([a[None], (a * _OTHER_SIGNS + np.pi)[None]])
+    both += _TURN * np.rint((0.5 * (lo + hi) - both) / _TURN)  # rint: np.round's halves
+    beyond = np.maximum(np.maximum(lo - both, both - hi), 0.0)
+    outside = np.add.reduce(beyond * beyond, axis=-1)
+    flipped = outside[1] < outside[0]
+    return np.where(flipped[..., None], both[1], both[0]), flipped

@@ -17,6 +17,7 @@ from ikfusion.ik.compiled import CompiledKinematics
 from ikfusion.ik.limits import JointRangeLimit
 from ikfusion.ik.tasks import OrientationTask, PostureTask
 from ikfusion.model import SENSOR_SEGMENTS, Body, HumanModel
+from ikfusion.model.angle_continuity import nearest_to_ranges
 from ikfusion.rotations import exp_so3, random_rotations
 
 
@@ -60,7 +61,8 @@ def test_compiled_residuals_equal_reference(rng, height: float, case: str) -> No
         posture.R_reference = R_ref
         posture.axis_weights = rng.uniform(0.0, 2.0, (n_joints, 3))  # per-row weights
         w_or, w_post = orientation.row_weights(), posture.row_weights()
-        H, c, e_or, angles, E_inv, p, J = kin(q, T, geometry, w_or, w_post, R_ref)
+        H, c, e_or, angles, E_inv, p, J, G_ranges, room_up, room_down = kin(
+            q, T, geometry, w_or, w_post, R_ref, (limits.lower, limits.upper))
         e_or_ref = orientation.compute_error(conf)
         if case == "near pi":
             e_post = posture.compute_error(conf).reshape(-1, 3)
@@ -76,9 +78,39 @@ def test_compiled_residuals_equal_reference(rng, height: float, case: str) -> No
         a = limits.angles(q)
         np.testing.assert_allclose(angles.reshape(-1, 3), a, atol=1e-10)
         np.testing.assert_allclose(E_inv.reshape(-1, 3, 3), limits.rate_matrices(a), atol=1e-9)
+        ranges = limits.linearise(a, None, model.model.nv)  # the nearest triple, flipped rows
+        np.testing.assert_allclose(G_ranges, ranges.G, atol=1e-9)
+        np.testing.assert_allclose(room_up[:, 0], ranges.room_up, atol=1e-10)
+        np.testing.assert_allclose(room_down[:, 0], ranges.room_down, atol=1e-10)
         np.testing.assert_allclose(p.reshape(-1, 3), conf.positions(sites), atol=1e-12)
         np.testing.assert_allclose(J.reshape(-1, 3, model.model.nv), conf.linear_jacobians(sites),
                                    atol=1e-12)
+
+
+def test_compiled_ranges_measure_on_the_triple_nearest_the_range(human: HumanModel,
+                                                                 rng) -> None:
+    """Joints turned anywhere (many beyond their range, on the other Euler branch): the
+    compiled limit rows equal :meth:`JointRangeLimit.linearise`, flipped middle rows included."""
+    joints = list(human.ball_joints.values())
+    frames = [human.segment_frame_id(s) for s in SENSOR_SEGMENTS]
+    kin = CompiledKinematics(human.model, frames, joints, [])
+    limits = JointRangeLimit(human.ball_joints, margin_deg=25.0)
+    flipped = 0
+    for _ in range(5):
+        q = human.neutral()
+        for joint in joints:  # a uniformly random rotation (x, y, z, w)
+            quaternion = rng.normal(size=4)
+            q[joint.idx_q:joint.idx_q + 4] = quaternion / np.linalg.norm(quaternion)
+        outputs = kin(q, random_rotations(len(frames), rng), kin.geometry(human.model),
+                      np.ones(3 * len(frames)), np.ones(3 * len(joints)),
+                      random_rotations(len(joints), rng), (limits.lower, limits.upper))
+        a = limits.angles(q)
+        flipped += int(nearest_to_ranges(a, limits.lower, limits.upper)[1].sum())
+        ranges = limits.linearise(a, None, human.model.nv)
+        np.testing.assert_allclose(outputs[7], ranges.G, atol=1e-8)
+        np.testing.assert_allclose(outputs[8][:, 0], ranges.room_up, atol=1e-10)
+        np.testing.assert_allclose(outputs[9][:, 0], ranges.room_down, atol=1e-10)
+    assert flipped > 0
 
 
 def test_compiled_and_reference_solvers_agree(human: HumanModel, rng) -> None:

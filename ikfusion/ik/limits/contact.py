@@ -51,10 +51,13 @@ class ContactConstraint:
     def equality(self, configuration: Configuration) -> Equality:
         """Linearised rows ``J_i dq = anchor_i - p_i`` for the active points."""
         nv = configuration.model.nv
-        if not self.active.any():
+        on = self.active
+        if not on.any():
             return Equality(np.zeros((0, nv)), np.zeros(0))
-        return self.rows(configuration.positions(self.frame_ids),
-                         configuration.linear_jacobians(self.frame_ids))
+        planted = [f for f, a in zip(self.frame_ids, on) if a]  # Jacobians of these only
+        held = self._held[on]
+        return Equality(configuration.linear_jacobians(planted)[held],
+                        (self.anchors[on] - configuration.positions(planted))[held])
 
     def rows(self, p_world: np.ndarray, J_linear: np.ndarray) -> Equality:
         """Rows from every point's position (k, 3) [m] and linear Jacobian (k, 3, nv)."""

@@ -95,15 +95,9 @@ def add_products(J: np.ndarray, WJ: np.ndarray, e: np.ndarray, H: np.ndarray,
     """``H += J^T WJ`` and ``c += WJ^T e`` for rows (m, nv), (m, nv) and (m,), in place.
 
     Only the columns where ``J`` has a nonzero entry (the joints that move the points: a few
-    chains of the tree) are summed, one row after the other: the same products added in the
-    same order as a dense sum over the rows, without the products that are zero.
+    chains of the tree) are summed, as one matrix product.
     """
-    cols = np.flatnonzero(J.any(axis=0))
+    cols = np.flatnonzero(np.add.reduce(J != 0.0, axis=0))
     J, WJ = J[:, cols], WJ[:, cols]
-    block = np.zeros((len(cols), len(cols)))
-    gradient = np.zeros(len(cols))
-    for J_row, WJ_row, e_row in zip(J, WJ, e):
-        block += J_row[:, None] * WJ_row
-        gradient += WJ_row * e_row
-    H[np.ix_(cols, cols)] += block
-    c[cols] += gradient
+    H[np.ix_(cols, cols)] += J.T @ WJ
+    c[cols] += e @ WJ
