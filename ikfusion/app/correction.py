@@ -48,7 +48,14 @@ from ..settings_files import Overlay, load_settings
 from ..yaml_files import read_yaml_document
 from .far_from_tags import FarInterval, far_intervals
 from .tag_release import FootRelease
-from .tag_tasks import SolvedTags, TagTaskSettings, flight_root_target, planted_feet, tag_targets
+from .tag_tasks import (
+    SolvedTags,
+    SwingClock,
+    TagTaskSettings,
+    flight_root_target,
+    planted_feet,
+    tag_targets,
+)
 
 #: Correction modes.
 MODES = ("off", "slide", "no-slide")
@@ -88,6 +95,7 @@ class CorrectionSettings:
         tag_sigma: ... with this uncertainty [m] added to the fixes' ...
         tag_vertical: ... pulling heights too (else horizontally only).
         tag_time_constant: In flight the pelvis closes the gap to the tags with this lag [s].
+        tag_onset: A swing foot's task grows to full weight over this much of its swing [s].
         release_distance: ``no-slide``: a planted foot whose tag moved farther than this [m]
             is let go (:mod:`.tag_release`) ...
         release_speed: ... until its tag moves slower than this [m/s].
@@ -108,6 +116,7 @@ class CorrectionSettings:
     tag_sigma: float
     tag_vertical: bool
     tag_time_constant: float
+    tag_onset: float
     release_distance: float
     release_speed: float
     far_distance: float
@@ -154,9 +163,11 @@ class DriftCorrection:
     _body: list[bool] = field(default_factory=list)  # per fix: on the body, not on a foot
     _feet: list[str | None] = field(default_factory=list)  # per fix: the foot carrying it
     _foot_of_point: dict[str, str | None] = field(default_factory=dict)
+    _anchors: dict[str, list[str]] = field(default_factory=dict)  # foot -> sites moved by its tag
     _last: SolvedTags | None = None  # what the next frame's tag tasks take from the last
     _ballistic: float = 0.0  # the solver's weight of the pelvis path in flight
     _release: list[FootRelease | None] = field(default_factory=list)  # per fix on a foot
+    _swing: SwingClock = field(default_factory=SwingClock)  # each foot's time off the floor
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -191,6 +202,9 @@ class DriftCorrection:
             self._feet = [topology.foot_of(f.site) for f in self.fixes]
             self._body = [foot is None for foot in self._feet]
             self._foot_of_point = {p: topology.foot_of(p) for p in solver.contact_names}
+            self._anchors = {foot: [f.site] + [p for p in solver.contact_names
+                                               if topology.site_segment[p] == foot]
+                             for f, foot in zip(self.fixes, self._feet) if foot is not None}
             s = self.settings
             self._release = [None if foot is None else
                              FootRelease(s.release_distance, s.release_speed)
@@ -199,9 +213,12 @@ class DriftCorrection:
         v_root = (p_root - self._last.p_root) / dt if self._last is not None and dt > 0 \
             else np.zeros(3)
         self._last = SolvedTags(dict(pose.contacts), p_root, v_root,
-                                np.array([pose.site_position(f.site) for f in self.fixes]))
+                                np.array([pose.site_position(f.site) for f in self.fixes]),
+                                {p: pose.site_position(p) for points in
+                                 self._anchors.values() for p in points})
         self._ballistic = solver.settings.ballistic
         planted = planted_feet(self._last.contacts, self._foot_of_point)
+        self._swing.update(self._feet, planted, dt)
         for f, foot, release in zip(self.fixes, self._feet, self._release):
             if release is not None:
                 release.update(foot in planted, f.p_world[k], f.cov[k], dt)
@@ -239,8 +256,7 @@ class DriftCorrection:
         """
         s = self.settings
         tag_settings = TagTaskSettings(s.tag_speed, s.tag_weight, s.tag_sigma, s.tag_vertical,
-                                       s.tag_time_constant)
-        sites = [f.site for f in self.fixes]
+                                       s.tag_time_constant, s.tag_onset)
         previous: float | None = None
         for k, frame in enumerate(frames):
             dt = 0.0 if previous is None else float(frame.time - previous)
@@ -260,8 +276,8 @@ class DriftCorrection:
                     root_position_weight=self._ballistic)
                 continue
             positions, weights = tag_targets(
-                sites, self._feet, p_fix, cov, planted_feet(last.contacts, self._foot_of_point),
-                tag_settings)
+                self._feet, p_fix, cov, last, planted_feet(last.contacts, self._foot_of_point),
+                self._anchors, tag_settings, self._swing.swung)
             if not positions:
                 yield replace(frame, contacts=hints)
                 continue

@@ -25,7 +25,7 @@ only with ``tag_vertical`` (heights come from the floor and the legs).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -43,6 +43,8 @@ class TagTaskSettings:
         sigma: Uncertainty [m] of where the solved leg can put its tag, added to the fix's.
         vertical: Also pull heights (else horizontal only).
         time_constant: In flight the pelvis closes the gap to the tags with this lag [s].
+        onset: A foot's task grows from nothing to full weight over this much of its swing
+            [s] (0: at once).
     """
 
     speed: float
@@ -50,6 +52,7 @@ class TagTaskSettings:
     sigma: float
     vertical: bool
     time_constant: float
+    onset: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -61,12 +64,14 @@ class SolvedTags:
         p_root: (3,) the pelvis position [m].
         v_root: (3,) its velocity [m/s].
         p_sites: (n, 3) the tag sites [m].
+        p_points: Site -> its position (3,) [m]: the feet's anchors (:func:`tag_targets`).
     """
 
     contacts: Mapping[str, bool]
     p_root: np.ndarray
     v_root: np.ndarray
     p_sites: np.ndarray
+    p_points: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def flight(self) -> bool:
@@ -89,32 +94,74 @@ def tag_information(cov: np.ndarray, settings: TagTaskSettings) -> np.ndarray:
     return info
 
 
-def tag_targets(sites: Sequence[str], feet: Sequence[str | None], p_fix: np.ndarray,
-                cov: np.ndarray, planted: set[str], settings: TagTaskSettings
+def tag_targets(feet: Sequence[str | None], p_fix: np.ndarray, cov: np.ndarray,
+                last: SolvedTags, planted: set[str], anchors: Mapping[str, Sequence[str]],
+                settings: TagTaskSettings, swing: Mapping[str, float] | None = None
                 ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
-    """The swing feet's site targets and information matrices of one frame.
+    """The swing feet's targets and information matrices of one frame.
+
+    A foot's tag says where the foot is, not how it is turned (its sensor says that): so
+    several sites of the foot segment (its ``anchors``: the tag site and the foot's own contact
+    points) are pulled, each by the tag's gap (fix minus the last solved tag site), sharing the
+    fix's information. The foot moves as a whole; the tag site alone would turn the foot about
+    the ankle, against its sensor, and the turn would spring back at touch-down.
 
     Args:
-        sites: The tag sites.
-        feet: Per site, the foot carrying it (None: on the body).
-        p_fix: (n, 3) their fixes [m] (NaN: none).
+        feet: Per tag, the foot carrying it (None: on the body).
+        p_fix: (n, 3) the tags' fixes [m] (NaN: none).
         cov: (n, 3, 3) their covariances [m^2].
+        last: The last solved frame (tag sites and anchors).
         planted: Feet with a planted point in the last frame.
-        settings: Weight and axes.
+        anchors: Foot -> the sites moved with its tag (positions in ``last.p_points``).
+        settings: Weight, axes and onset.
+        swing: Foot -> how long it has been off the floor [s] (missing: a full swing).
 
     Returns:
         ``positions`` site -> target (3,) [m] and ``weights`` site -> information (3, 3).
     """
     positions: dict[str, np.ndarray] = {}
     weights: dict[str, np.ndarray] = {}
-    for site, foot, p, C in zip(sites, feet, p_fix, cov):
+    for foot, p, C, p_site in zip(feet, p_fix, cov, last.p_sites):
         if foot is BODY or foot in planted:
             continue
         if not (np.isfinite(p).all() and np.isfinite(C).all()):
             continue
-        positions[site] = np.asarray(p, dtype=float)
-        weights[site] = tag_information(C, settings)
+        scale = onset_scale((swing or {}).get(foot, np.inf), settings.onset)
+        points = [q for q in anchors.get(foot, ()) if q in last.p_points]
+        if scale <= 0.0 or not points:
+            continue
+        gap = np.asarray(p, dtype=float) - p_site
+        info = scale / len(points) * tag_information(C, settings)
+        for point in points:
+            positions[point] = last.p_points[point] + gap
+            weights[point] = info
     return positions, weights
+
+
+def onset_scale(swung: float, onset: float) -> float:
+    """Weight factor in [0, 1] of a foot's task ``swung`` [s] into its swing.
+
+    A smooth step (zero slope at both ends) over ``onset`` [s]: the pull starts without a kick
+    when the foot lifts.
+    """
+    if onset <= 0.0 or swung >= onset:
+        return 1.0
+    x = max(swung, 0.0) / onset
+    return x * x * (3.0 - 2.0 * x)
+
+
+class SwingClock:
+    """How long each foot has been off the floor [s], counted after each solved frame."""
+
+    def __init__(self) -> None:
+        self.swung: dict[str, float] = {}
+
+    def update(self, feet: Sequence[str | None], planted: set[str], dt: float) -> None:
+        """After a frame: the feet in ``planted`` restart at 0, the others swung ``dt`` more."""
+        for foot in feet:
+            if foot is BODY:
+                continue
+            self.swung[foot] = 0.0 if foot in planted else self.swung.get(foot, 0.0) + dt
 
 
 def flight_root_target(last: SolvedTags, body: Sequence[bool], p_fix: np.ndarray,
