@@ -14,13 +14,16 @@ import heapq
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..io.recording import ImuRecording, normalize_sensor_id
 from ..rotations import matrix_to_quat_wxyz
-from ..uwb.toa_log import ToaLog
 from .samples import ImuSample, Sample, ToaSample
+
+if TYPE_CHECKING:  # the UWB package is loaded only by a solve that reads TOAs
+    from ..uwb.toa_log import ToaLog
 
 
 def recording_frames(recording: ImuRecording, sensor_map: Mapping[str, str],

@@ -78,7 +78,7 @@ def test_truth_file_has_the_documented_keys(sfu_walk, tmp_path: Path) -> None:
                     "site_names", "p_world_site", "contact_names", "contacts",
                     "joint_angle_names", "joint_angles"):
             assert key in npz.files
-        assert npz["p_world_site"].shape == (len(sfu_walk.time), 24, 3)
+        assert npz["p_world_site"].shape == (len(sfu_walk.time), len(sfu_walk.model.site_names), 3)
         assert npz["joint_angles"].shape == (len(sfu_walk.time), 66)
 
 
