@@ -98,7 +98,8 @@ class CorrectionSettings:
         tag_onset: A swing foot's task grows to full weight over this much of its swing [s].
         release_distance: ``no-slide``: a planted foot whose tag moved farther than this [m]
             is let go (:mod:`.tag_release`) ...
-        release_speed: ... until its tag moves slower than this [m/s].
+        release_speed: ... until its tag moves slower than this [m/s]; a step of a fix faster
+            than ``release_jump_speed`` [m/s] is a jump of the positioning, not a foot moving.
         far_distance: A tag site farther than this from its fix [m] ...
         far_duration: ... for longer than this [s] is reported.
     """
@@ -119,6 +120,7 @@ class CorrectionSettings:
     tag_onset: float
     release_distance: float
     release_speed: float
+    release_jump_speed: float
     far_distance: float
     far_duration: float
 
@@ -207,7 +209,8 @@ class DriftCorrection:
                              for f, foot in zip(self.fixes, self._feet) if foot is not None}
             s = self.settings
             self._release = [None if foot is None else
-                             FootRelease(s.release_distance, s.release_speed)
+                             FootRelease(s.release_distance, s.release_speed,
+                                         s.release_jump_speed)
                              for foot in self._feet]
         p_root = np.asarray(pose.q[:3], dtype=float).copy()
         v_root = (p_root - self._last.p_root) / dt if self._last is not None and dt > 0 \

@@ -10,7 +10,9 @@ a foot is planted, its fix is remembered; once the fix has moved farther than ``
 (and three standard deviations of its horizontal noise) from there, the foot is let go (a
 contact hint of the frames, :class:`ikfusion.ik.Frame`), and it stays let go while its fix
 keeps moving faster than ``speed``. Drift of the solved body does not enter: the fix is compared
-with the fix, never with the solved foot.
+with the fix, never with the solved foot. A fix that steps faster than ``jump_speed`` (faster
+than any foot moves: the positioning itself jumped, e.g. a reader came back) moves the
+remembered place with it instead of letting a standing foot go.
 """
 
 from __future__ import annotations
@@ -27,11 +29,14 @@ class FootRelease:
     Attributes:
         distance: A planted foot's fix moved farther than this [m] from where it was ...
         speed: ... and the foot stays let go while its fix moves faster than this [m/s].
+        jump_speed: A step of the fix faster than this [m/s] is a jump of the positioning, not
+            a foot moving.
         released: The foot is let go in the next frames.
     """
 
     distance: float
     speed: float
+    jump_speed: float
     released: bool = False
     _anchor: np.ndarray | None = None
     _last: np.ndarray | None = field(default=None)
@@ -48,8 +53,11 @@ class FootRelease:
         if not (np.isfinite(p_fix).all() and np.isfinite(cov).all()):
             return
         p = np.asarray(p_fix[:2], dtype=float)
-        moving = (self._last is not None and dt > 0
-                  and float(np.linalg.norm(p - self._last)) > self.speed * dt)
+        step = 0.0 if self._last is None else float(np.linalg.norm(p - self._last))
+        jumped = dt > 0 and step > self.jump_speed * dt
+        if jumped and self._anchor is not None and self._last is not None:
+            self._anchor = self._anchor + (p - self._last)
+        moving = self._last is not None and dt > 0 and not jumped and step > self.speed * dt
         self._last = p
         if self.released:
             self.released = moving
