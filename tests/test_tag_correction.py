@@ -197,15 +197,19 @@ def walk(tmp_path_factory: pytest.TempPathFactory):  # type: ignore[no-untyped-d
     return track_capture(capture.folder)
 
 
-def test_tags_the_body_cannot_follow_are_reported(walk) -> None:  # type: ignore[no-untyped-def]
+@pytest.mark.parametrize("causal", [False, True], ids=["offline", "causal"])
+def test_tags_the_body_cannot_follow_are_reported(walk, causal: bool  # type: ignore[no-untyped-def]
+                                                  ) -> None:
     """The tags jump 1 m sideways at 4 s (a wrong reader file swapped in, say): the body walks
-    toward them at a bounded rate, and the solve says that and when it was far from them."""
+    toward them at a bounded rate, and the solve says that and when it was far from them; the
+    causal solve (``solve --causal``, live) too (issue #22: it said nothing)."""
     correction = drift_correction(walk.tags, walk.tracks, walk.recording.time, "no-slide")
     late = walk.recording.time >= 4.0
     for fix in correction.fixes:  # a copy: the tracks are the module's
         fix.p_world = fix.p_world + np.where(late[:, None], [0.0, 1.0, 0.0], 0.0)
     solved = solve_recording(walk.recording, walk.sensor_map, walk.model,
-                             correction=correction, calibration=walk.calibration)
+                             correction=correction, calibration=walk.calibration,
+                             causal=causal)
     far = [w for w in solved.warnings if "stayed more than 10 cm from its tag" in w]
     assert any("HeadTop" in w for w in far)
     reported = uwb_summary(walk.tracks, correction)["far_from_tags"]
@@ -215,10 +219,12 @@ def test_tags_the_body_cannot_follow_are_reported(walk) -> None:  # type: ignore
     assert 0.9 < head[0]["max_m"] < 1.1 and head[0]["mean_m"] <= head[0]["max_m"]
 
 
-def test_a_clean_walk_raises_no_alarm(walk) -> None:  # type: ignore[no-untyped-def]
+@pytest.mark.parametrize("causal", [False, True], ids=["offline", "causal"])
+def test_a_clean_walk_raises_no_alarm(walk, causal: bool) -> None:  # type: ignore[no-untyped-def]
     correction = drift_correction(walk.tags, walk.tracks, walk.recording.time, "no-slide")
     solved = solve_recording(walk.recording, walk.sensor_map, walk.model,
-                             correction=correction, calibration=walk.calibration)
+                             correction=correction, calibration=walk.calibration,
+                             causal=causal)
     assert not [w for w in solved.warnings if "from its tag" in w]
     assert correction.far_from_tags() == []
 

@@ -251,42 +251,54 @@ class DriftCorrection:
             world.lead_steps(delta, self.settings.max_step)
 
     def frames(self, frames: Iterable[Frame]) -> Iterator[Frame]:
-        """``frames`` with the tag tasks of ``no-slide`` (:mod:`.tag_tasks`), lazily.
+        """``frames`` shaped one by one by :meth:`shape`, lazily.
 
-        Each frame is made when the solver asks for it, after :meth:`after_frame` of the one
-        before: which feet are planted comes from there. Other modes pass frames unchanged, and
-        so does ``no-slide`` until the first fix placed the body.
+        Frame ``k`` of the iterable meets the fixes' row ``k``. Each frame is made when the
+        solver asks for it, after :meth:`after_frame` of the one before: which feet are
+        planted comes from there.
         """
-        s = self.settings
-        tag_settings = TagTaskSettings(s.tag_speed, s.tag_weight, s.tag_sigma, s.tag_vertical,
-                                       s.tag_time_constant, s.tag_onset)
         previous: float | None = None
         for k, frame in enumerate(frames):
             dt = 0.0 if previous is None else float(frame.time - previous)
             previous = float(frame.time)
-            last = self._last
-            if self.mode != "no-slide" or not self._placed or last is None or dt <= 0:
-                yield frame
-                continue
-            p_fix = np.array([f.p_world[k] for f in self.fixes])
-            cov = np.array([f.cov[k] for f in self.fixes])
-            hints = self._hints(frame)
-            if last.flight and frame.root_position is None:
-                p_root = flight_root_target(last, self._body, p_fix, cov, dt, GRAVITY,
-                                            tag_settings)
-                yield replace(frame, contacts=hints) if p_root is None else replace(
-                    frame, contacts=hints, root_position=p_root,
-                    root_position_weight=self._ballistic)
-                continue
-            positions, weights = tag_targets(
-                self._feet, p_fix, cov, last, planted_feet(last.contacts, self._foot_of_point),
-                self._anchors, tag_settings, self._swing.swung)
-            if not positions:
-                yield replace(frame, contacts=hints)
-                continue
-            yield replace(frame, positions={**frame.positions, **positions},
-                          position_weights={**frame.position_weights, **weights},
-                          position_reach=s.tag_speed * dt, contacts=hints)
+            yield self.shape(frame, k, dt)
+
+    def shape(self, frame: Frame, k: int, dt: float) -> Frame:
+        """Frame ``k`` with the tag tasks of ``no-slide`` (:mod:`.tag_tasks`).
+
+        Called just before the frame's solve, after :meth:`after_frame` of the frame before
+        (``dt`` [s] after it): which feet are planted and whether the body flies come from
+        there. In flight (and without a root target of its own) the frame gets the pelvis
+        target of :func:`~.tag_tasks.flight_root_target`, else soft position tasks on the tag
+        sites the contacts leave free; the points of feet let go (:mod:`.tag_release`) are
+        hinted off the floor. Other modes return the frame unchanged, and so does
+        ``no-slide`` until the first fix placed the body (or with ``dt`` <= 0). Offline
+        (:meth:`frames`) and the causal stream (:class:`ikfusion.live.actor_stream.
+        ActorStream`) both shape their frames here.
+        """
+        last = self._last
+        if self.mode != "no-slide" or not self._placed or last is None or dt <= 0:
+            return frame
+        s = self.settings
+        tag_settings = TagTaskSettings(s.tag_speed, s.tag_weight, s.tag_sigma, s.tag_vertical,
+                                       s.tag_time_constant, s.tag_onset)
+        p_fix = np.array([f.p_world[k] for f in self.fixes])
+        cov = np.array([f.cov[k] for f in self.fixes])
+        hints = self._hints(frame)
+        if last.flight and frame.root_position is None:
+            p_root = flight_root_target(last, self._body, p_fix, cov, dt, GRAVITY, tag_settings)
+            if p_root is None:
+                return replace(frame, contacts=hints)
+            return replace(frame, contacts=hints, root_position=p_root,
+                           root_position_weight=self._ballistic)
+        positions, weights = tag_targets(
+            self._feet, p_fix, cov, last, planted_feet(last.contacts, self._foot_of_point),
+            self._anchors, tag_settings, self._swing.swung)
+        if not positions:
+            return replace(frame, contacts=hints)
+        return replace(frame, positions={**frame.positions, **positions},
+                       position_weights={**frame.position_weights, **weights},
+                       position_reach=s.tag_speed * dt, contacts=hints)
 
     def _hints(self, frame: Frame) -> dict[str, bool] | None:
         """The frame's contact hints with the points of released feet let go."""

@@ -20,8 +20,10 @@ hysteresis:
 The detector is causal with a fixed lag: whether sample ``k`` is airborne is known once sample
 ``k + lag`` has arrived, ``lag = round(min_duration * rate) - 1 + round(extend * rate)``
 samples (5 samples, 83 ms, at 60 Hz with the defaults). :class:`FlightDetector` runs sample by
-sample (live); :func:`detect_flight` runs it over whole arrays, so offline and live agree
-exactly.
+sample; :func:`detect_flight` runs it over whole arrays and
+:class:`~ikfusion.imu.flight_stream.FlightStream` over IMU samples as they arrive (live), so
+offline and live agree exactly on every decided sample. A live frame cannot wait for the lag:
+it uses :attr:`FlightDetector.flying`, the flight as confirmed up to the newest sample.
 """
 
 from __future__ import annotations
@@ -111,23 +113,56 @@ def flight_evidence(rate: float, acc_pelvis: np.ndarray | None,
         n = len(next(iter(acc_feet.values()))) if acc_feet else 0
         none = np.zeros(n, dtype=bool)
         return FlightEvidence(none, none, none)
-    pelvis = np.linalg.norm(np.asarray(acc_pelvis, dtype=float), axis=1)
+    pelvis = magnitude(np.asarray(acc_pelvis, dtype=float))
     impact = np.zeros(len(pelvis), dtype=bool)
     resting = np.zeros(len(pelvis), dtype=bool)
     for foot, acc in acc_feet.items():
-        magnitude = np.linalg.norm(np.asarray(acc, dtype=float), axis=1)
-        impact |= magnitude > th.impact
+        f_foot = magnitude(np.asarray(acc, dtype=float))
+        impact |= f_foot > th.impact
         gyr = None if gyr_feet is None else gyr_feet.get(foot)
         if gyr is None:  # |f| near |g| alone is also a foot moving steadily through the air
             continue
-        rests = ((np.abs(magnitude - GRAVITY) < th.rest_tolerance)
-                 & (np.linalg.norm(np.asarray(gyr, dtype=float), axis=1) < th.rest_rate))
-        resting |= _held_for(rests, max(1, int(round(th.rest_duration * rate))))
-    free = (pelvis < th.free_fall) & ~resting
-    # a foot's peak is a landing once the trunk also leaves free fall (a foot swung hard in
-    # the air peaks too, while the pelvis still floats)
-    impact &= ~free
-    return FlightEvidence(free, (pelvis < th.release) & ~resting & ~impact, impact)
+        rests = foot_at_rest(f_foot, magnitude(np.asarray(gyr, dtype=float)), th)
+        resting |= _held_for(rests, rest_samples(rate, th))
+    return combined_evidence(pelvis, resting, impact, th)
+
+
+def magnitude(v: np.ndarray) -> np.ndarray:
+    """Euclidean norm over the last axis (3 components), summed in one fixed order.
+
+    The batch (:func:`flight_evidence`) and the sample-by-sample twin
+    (:class:`~ikfusion.imu.flight_stream.FlightStream`) both use it, so their thresholds see
+    bit-identical values.
+    """
+    return np.asarray(np.sqrt(v[..., 0] * v[..., 0] + v[..., 1] * v[..., 1]
+                              + v[..., 2] * v[..., 2]))
+
+
+def foot_at_rest(f_foot: np.ndarray, w_foot: np.ndarray, th: FlightThresholds) -> np.ndarray:
+    """A foot's ``|f|`` [m/s^2] near ``|g|`` while it turns slower than ``rest_rate`` [rad/s].
+
+    One sample's reading; it rests on the floor once this has held for :func:`rest_samples`.
+    """
+    return np.logical_and(np.abs(f_foot - GRAVITY) < th.rest_tolerance, w_foot < th.rest_rate)
+
+
+def rest_samples(rate: float, th: FlightThresholds) -> int:
+    """Samples a foot must read :func:`foot_at_rest` in a row to rest on the floor."""
+    return max(1, int(round(th.rest_duration * rate)))
+
+
+def combined_evidence(f_pelvis: np.ndarray, resting: np.ndarray, impact: np.ndarray,
+                      th: FlightThresholds) -> FlightEvidence:
+    """Free, light and impact from the pelvis ``|f|`` [m/s^2], resting feet and foot peaks.
+
+    A foot's peak (``impact``: some foot read ``|f| > impact``) is a landing once the trunk
+    also leaves free fall (a foot swung hard in the air peaks too, while the pelvis floats).
+    """
+    free = np.logical_and(f_pelvis < th.free_fall, np.logical_not(resting))
+    impact = np.logical_and(impact, np.logical_not(free))
+    light = np.logical_and(np.logical_and(f_pelvis < th.release, np.logical_not(resting)),
+                           np.logical_not(impact))
+    return FlightEvidence(np.asarray(free), np.asarray(light), np.asarray(impact))
 
 
 def _held_for(mask: np.ndarray, n: int) -> np.ndarray:
@@ -188,6 +223,18 @@ class FlightDetector:
             return None
         airborne, landing, _ = self._pending.popleft()
         return airborne, landing
+
+    @property
+    def flying(self) -> bool:
+        """The newest sample belongs to a confirmed flight: known at once, without the lag.
+
+        It is a part of the newest sample's final decision (what :meth:`update` returns
+        ``lag`` samples later) that never changes: the landing is the same, only the start
+        of a flight comes later, at the sample that confirms it (at most ``lag`` samples
+        after the final start: the run of free samples and the take-off it reaches back over
+        are decided only then).
+        """
+        return self._flying
 
     def _confirm(self) -> None:
         """Mark the run of free samples airborne, and the light samples just before it."""

@@ -14,9 +14,19 @@ and ``live --replay`` of the same files give the same poses:
   BridgeStream`);
 * foot stance: from past samples (:class:`~ikfusion.imu.stance_stream.FootStillStream`, which
   recognises a stance ``still_duration`` after it starts);
+* flight: from the pelvis and feet accelerometers sample by sample
+  (:class:`~ikfusion.imu.flight_stream.FlightStream`, the twin of the offline detector). A
+  frame is airborne when its sample is in a flight confirmed up to that sample (the detector's
+  final decision waits ``lag`` samples, 83 ms at 60 Hz, which a live frame cannot): a flight
+  starts on the frame that confirms it, at most ``lag`` frames after the offline start, and
+  ends on the same frame. The pelvis acceleration in the world frame comes with every frame;
 * UWB drift correction: applied after each frame from the fixes of that frame
   (:class:`~ikfusion.app.correction.DriftCorrection`); the buffered frames solved before the
   first fix are moved into the tag frame with it (they are sent together), later ones are not.
+  In ``no-slide`` each frame is shaped before its solve (:meth:`~ikfusion.app.correction.
+  DriftCorrection.shape`: tag tasks, the flight target of the pelvis, released feet) from the
+  frame before, as offline. Stretches far from the tags are among :meth:`ActorStream.
+  all_warnings`.
 """
 
 from __future__ import annotations
@@ -32,6 +42,8 @@ from ..ik.pose import Pose
 from ..imu.bridging import BridgedSegments, BridgingSettings, world_filled
 from ..imu.bridging_stream import BridgeStream
 from ..imu.calibration import Calibration, calibrate
+from ..imu.flight import FlightThresholds, world_acceleration
+from ..imu.flight_stream import FlightStream
 from ..imu.stance import StanceThresholds
 from ..imu.stance_stream import FootStillStream
 from ..io.recording import normalize_sensor_id
@@ -84,8 +96,9 @@ class ActorStream:
         bridging: ``configs/bridging.yaml``.
         solve_startup: Solve the frames of the start-up buffer once calibrated (every frame,
             as ``solve --causal``); False solves only its last one, so a live stream starts
-            at once instead of catching up (the buffered samples still feed the bridging and
-            the stance).
+            at once instead of catching up (the buffered samples still feed the bridging,
+            the stance and the flight detection).
+        flight: Flight detection thresholds (defaults when omitted).
     """
 
     def __init__(self, model: HumanModel, sensor_map: Mapping[str, str], rate: float, *,
@@ -95,7 +108,8 @@ class ActorStream:
                  correction_for: Callable[[Calibration], DriftCorrection | None] | None = None,
                  settings: LiveSettings | None = None,
                  bridging: BridgingSettings | None = None,
-                 solve_startup: bool = True) -> None:
+                 solve_startup: bool = True,
+                 flight: FlightThresholds | None = None) -> None:
         self.model = model
         self.rate = float(rate)
         self.segment_of = {normalize_sensor_id(s): seg for s, seg in sensor_map.items()}
@@ -121,6 +135,7 @@ class ActorStream:
         self._previous: float | None = None
         self._bridge: BridgeStream | None = None
         self._stance: dict[str, FootStillStream] = {}
+        self._flight = FlightStream(self.rate, flight)
         if calibration is not None:
             self._start(calibration)
 
@@ -198,10 +213,15 @@ class ActorStream:
         return None if self._bridge is None else self._bridge.result()
 
     def all_warnings(self) -> list[str]:
-        """The calibration's, the bridging's and the solver's warnings so far."""
+        """The calibration's, the bridging's, the solver's and the UWB correction's so far.
+
+        The correction's are the stretches where a tag site stayed far from its fix
+        (:meth:`~ikfusion.app.correction.DriftCorrection.far_warnings`).
+        """
         bridged = self.bridged()
         return [*self.warnings, *(bridged.warnings if bridged else []),
-                *self.solver.warnings(self.relaxed)]
+                *self.solver.warnings(self.relaxed),
+                *(self.correction.far_warnings() if self.correction is not None else [])]
 
     # ------------------------------------------------------------------ internals
     def _calibrate_buffer(self) -> list[Pose]:
@@ -267,7 +287,7 @@ class ActorStream:
 
     def _solve(self, time_s: float, readings: Mapping[str, Reading], solve: bool = True
                ) -> Pose | None:
-        """Bridge, stance, solve and correct one frame (``solve`` False: the first two)."""
+        """Bridge, stance, flight, solve and correct one frame (``solve`` False: no solve)."""
         assert self.calibration is not None and self._bridge is not None
         mounting = self.calibration.R_sensor_segment
         measured = {s: None if r.R_world_sensor is None else r.R_world_sensor @ mounting[s]
@@ -280,17 +300,43 @@ class ActorStream:
                                   None if r is None else r.gyr)
             if np.isfinite(value):
                 still[foot] = bool(value)
+        self._flight.update(_acc(readings.get("Pelvis")),
+                            {f: _acc(readings.get(f)) for f in FEET},
+                            {f: _gyr(readings.get(f)) for f in FEET})
         if not solve:
             return None
-        pose = self.solver.step(Frame(float(time_s), tracked, feet_still=still))
+        frame = Frame(float(time_s), tracked, feet_still=still, airborne=self._flight.flying,
+                      root_acceleration=_root_acceleration(readings.get("Pelvis")))
+        dt = 0.0 if self._previous is None else float(time_s - self._previous)
+        k = 0
         if self.correction is not None:
-            dt = 0.0 if self._previous is None else float(time_s - self._previous)
             k = min(int(round(time_s * self.rate)), len(self.correction.gap) - 1)
+            frame = self.correction.shape(frame, k, dt)
+        pose = self.solver.step(frame)
+        if self.correction is not None:
             self.correction.after_frame(self.solver, pose, k, dt)
         self._previous = time_s
         self.frames += 1
         self.relaxed += int(pose.relaxed)
         return pose
+
+
+def _acc(reading: Reading | None) -> np.ndarray | None:
+    """The reading's specific force [m/s^2], None when missing."""
+    return None if reading is None else reading.acc
+
+
+def _gyr(reading: Reading | None) -> np.ndarray | None:
+    """The reading's angular rate [rad/s], None when missing."""
+    return None if reading is None else reading.gyr
+
+
+def _root_acceleration(pelvis: Reading | None) -> np.ndarray | None:
+    """``a_world_pelvis`` (3,) [m/s^2] from the pelvis unit's sample; None unless all finite."""
+    if pelvis is None or pelvis.R_world_sensor is None or pelvis.acc is None:
+        return None
+    a = world_acceleration(pelvis.R_world_sensor[None], np.asarray(pelvis.acc)[None])[0]
+    return a if np.isfinite(a).all() else None
 
 
 def _stacked(values: list[np.ndarray | None]) -> np.ndarray | None:
