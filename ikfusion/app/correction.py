@@ -182,6 +182,27 @@ class DriftCorrection:
         self.time = np.full(n, np.nan)
         self._solved = np.full((len(self.fixes), n, 2), np.nan)  # solved sites, horizontal
 
+    def grow(self, n: int) -> None:
+        """Room for at least ``n`` frames (a live stream's fixes are filled frame by frame).
+
+        The fixes and the per-frame records are extended with NaN (no fix, nothing measured
+        yet), by doubling so that a long stream grows them rarely.
+        """
+        size = len(self.gap)
+        if n <= size:
+            return
+        extra = max(n, 2 * size, 64) - size
+        for f in self.fixes:
+            f.p_world = np.concatenate([f.p_world, np.full((extra, 3), np.nan)])
+            f.cov = np.concatenate([f.cov, np.full((extra, 3, 3), np.nan)])
+        self.gap = np.concatenate([self.gap, np.full(extra, np.nan)])
+        self.heading = np.concatenate([self.heading, np.zeros(extra)])
+        self.time = np.concatenate([self.time, np.full(extra, np.nan)])
+        self.distance = np.concatenate(
+            [self.distance, np.full((len(self.fixes), extra), np.nan)], axis=1)
+        self._solved = np.concatenate(
+            [self._solved, np.full((len(self.fixes), extra, 2), np.nan)], axis=1)
+
     def horizontal_error(self, pose: Pose, k: int) -> np.ndarray | None:
         """Information-weighted mean of (measured - solved) over the sites with a fix [m]."""
         info_sum, weighted = np.zeros((2, 2)), np.zeros(2)

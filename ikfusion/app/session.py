@@ -42,7 +42,8 @@ from ..results import write_result_folder
 from ..results.mvn_comparison import compare_with_mvn
 from ..yaml_files import read_yaml
 from .pipeline import solve_recording
-from .uwb_aiding import AidingOnCalibration, UwbAiding, UwbInputs, track_recording_tags, uwb_aiding
+from .tag_stream import open_tag_stream
+from .uwb_aiding import UwbAiding, UwbInputs, track_recording_tags, uwb_aiding
 
 
 @dataclass
@@ -139,8 +140,9 @@ def solve_actor(actor: ActorInputs, out: str | Path, uwb: UwbInputs | None = Non
     file_calibration = mvnx is not None and actor.uses_file_calibration()
     aiding: UwbAiding | None = None
     if actor.causal and not file_calibration:  # calibrated as live, on the first seconds
-        on_calibration = None if uwb is None else AidingOnCalibration(
-            recording, sensor_map, model, uwb, actor.name, correction or "no-slide")
+        on_calibration = None if uwb is None else open_tag_stream(
+            uwb, model, sensor_map, actor.name, correction or "no-slide", recording.rate,
+            replay_log=True)
         window = None if actor.window_s is None else (
             int(round(actor.window_s[0] * recording.rate)),
             int(round(actor.window_s[1] * recording.rate)))
@@ -148,7 +150,7 @@ def solve_actor(actor: ActorInputs, out: str | Path, uwb: UwbInputs | None = Non
                                  actor.forward, Solver(model), progress, causal=True,
                                  correction_for=on_calibration)
         cal = result.calibration
-        aiding = None if on_calibration is None else on_calibration.aiding
+        aiding = None if on_calibration is None else on_calibration.aiding()
     else:
         if mvnx is not None and file_calibration:
             cal = calibration_from_mvnx(mvnx)

@@ -207,9 +207,10 @@ def _close(actor: LiveActor, setup: ActorSetup, loop: LiveLoop) -> None:
                                                  cal.window[1] / setup.rate]}
         bridged = actor.stream.bridged()
         extra["bridged"] = bridged.summary() if bridged else {}
-        if setup.uwb is not None and setup.uwb.aiding is not None:
-            extra["uwb"] = setup.uwb.aiding.summary()
-            warnings += setup.uwb.aiding.warnings
+        if setup.uwb is not None and setup.uwb.correction is not None:
+            aiding = setup.uwb.aiding()
+            extra["uwb"] = aiding.summary()
+            warnings += aiding.warnings
         actor.recorder.set_summary(extra)
         actor.recorder.close(warnings)
     for warning in warnings:

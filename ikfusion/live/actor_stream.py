@@ -27,12 +27,16 @@ and ``live --replay`` of the same files give the same poses:
   DriftCorrection.shape`: tag tasks, the flight target of the pelvis, released feet) from the
   frame before, as offline. Stretches far from the tags are among :meth:`ActorStream.
   all_warnings`.
+  When the correction comes from a :class:`TagFeed` (:class:`ikfusion.app.tag_stream.
+  TagStream`), the TOA samples go to it as they arrive (:meth:`ActorStream.toa`) and it writes
+  each frame's fixes just before the frame is corrected (also for a frame not solved).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -49,7 +53,7 @@ from ..imu.stance_stream import FootStillStream
 from ..io.recording import normalize_sensor_id
 from ..model.human_model import HumanModel
 from ..rotations import quat_wxyz_to_matrix
-from .samples import ImuSample
+from .samples import ImuSample, ToaSample
 from .settings import LiveSettings
 
 #: Segments whose sensor says whether the foot stands still.
@@ -69,6 +73,24 @@ class Reading:
     R_world_sensor: np.ndarray | None
     gyr: np.ndarray | None = None
     acc: np.ndarray | None = None
+
+
+@runtime_checkable
+class TagFeed(Protocol):
+    """Where a causal solve's UWB fixes come from, frame by frame (a ``correction_for``)."""
+
+    def __call__(self, calibration: Calibration) -> DriftCorrection | None:
+        """The drift correction, once the calibration is known."""
+
+    def add_toa(self, sample: ToaSample) -> None:
+        """One TOA sample as it arrived."""
+
+    def frame(self, k: int, time_s: float, readings: Mapping[str, Reading],
+              still: Mapping[str, bool]) -> None:
+        """Fill the fixes of frame ``k`` (at ``time_s`` [s]) from what arrived before it."""
+
+    def status(self) -> str:
+        """What to say on the status line ('' when all is well)."""
 
 
 def segment_parents(model: HumanModel) -> dict[str, str | None]:
@@ -91,7 +113,8 @@ class ActorStream:
             omitted), ``pose`` and ``forward`` as :func:`ikfusion.imu.calibration.calibrate`.
         calibration: A calibration already made (nothing is buffered then).
         correction_for: Builds the UWB drift correction once the calibration is known (None:
-            IMU only); its fixes are indexed by ``round(time * rate)``.
+            IMU only); its fixes are indexed by ``round(time * rate)``. A :class:`TagFeed`
+            also fills them frame by frame.
         settings: ``configs/live.yaml``.
         bridging: ``configs/bridging.yaml``.
         solve_startup: Solve the frames of the start-up buffer once calibrated (every frame,
@@ -124,6 +147,7 @@ class ActorStream:
         self._thresholds = StanceThresholds(st.still_rate, st.still_duration)
         self.window_s, self.pose, self.forward = window_s, pose, forward
         self.correction_for = correction_for
+        self.tag_feed = correction_for if isinstance(correction_for, TagFeed) else None
         self.solve_startup = solve_startup
         self.calibration: Calibration | None = None
         self.correction: DriftCorrection | None = None
@@ -185,6 +209,11 @@ class ActorStream:
             return self._calibrate_buffer()
         return []
 
+    def toa(self, sample: ToaSample) -> None:
+        """One UWB time of arrival as it arrived (to the tag feed; ignored without one)."""
+        if self.tag_feed is not None:
+            self.tag_feed.add_toa(sample)
+
     def finish(self) -> list[Pose]:
         """At the end of the stream: the buffered frames when the buffer never filled."""
         return self._calibrate_buffer() if self.calibration is None and self._buffer else []
@@ -203,9 +232,10 @@ class ActorStream:
             held = self._buffer[-1][0] - self._buffer[0][0] if self._buffer else 0.0
             return (f"calibrating: stand still in N-pose, then walk a few steps "
                     f"({held:.1f}/{self.calibration_due:.0f} s)")
-        if self.missing:
-            return "missing " + ",".join(self.missing)
-        return "ok"
+        uwb = self.tag_feed.status() if self.tag_feed is not None else ""
+        parts = [*(["missing " + ",".join(self.missing)] if self.missing else []),
+                 *([uwb] if uwb else [])]
+        return "; ".join(parts) or "ok"
 
     # ------------------------------------------------------------------ results
     def bridged(self) -> BridgedSegments | None:
@@ -303,6 +333,9 @@ class ActorStream:
         self._flight.update(_acc(readings.get("Pelvis")),
                             {f: _acc(readings.get(f)) for f in FEET},
                             {f: _gyr(readings.get(f)) for f in FEET})
+        k_fix = int(round(time_s * self.rate))
+        if self.tag_feed is not None and self.correction is not None:
+            self.tag_feed.frame(k_fix, time_s, readings, still)
         if not solve:
             return None
         frame = Frame(float(time_s), tracked, feet_still=still, airborne=self._flight.flying,
@@ -310,7 +343,7 @@ class ActorStream:
         dt = 0.0 if self._previous is None else float(time_s - self._previous)
         k = 0
         if self.correction is not None:
-            k = min(int(round(time_s * self.rate)), len(self.correction.gap) - 1)
+            k = min(k_fix, len(self.correction.gap) - 1)
             frame = self.correction.shape(frame, k, dt)
         pose = self.solver.step(frame)
         if self.correction is not None:

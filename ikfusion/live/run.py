@@ -157,6 +157,8 @@ class LiveLoop:
         """One sample arrived at wall time ``arrived`` [s]."""
         if not isinstance(sample, ImuSample):
             self.toa_samples += 1
+            for each in self.actors:  # each actor's tag feed keeps its own tags
+                each.stream.toa(sample)
             return
         actor = self._by_name.get(sample.actor) if sample.actor else self._route.get(
             normalize_sensor_id(sample.sensor))

@@ -2,9 +2,10 @@
 
 ``--replay`` takes a ``simulate`` capture folder (map, body and UWB files taken from it), a
 session file (as ``solve --session``: every actor's recording, one UWB log), or one recording
-(MT Manager prefix, folder or file, IMU CSV, MVNX) with ``--map``. The UWB tag filters of a
-replay run forward over its TOA log once the actor's calibration is known
-(:class:`~ikfusion.app.uwb_aiding.AidingOnCalibration`), exactly as ``solve --causal`` does.
+(MT Manager prefix, folder or file, IMU CSV, MVNX) with ``--map``. The UWB tags of an actor
+are tracked as the TOA samples arrive (:class:`~ikfusion.app.tag_stream.TagStream`), for a
+replay as for ``--udp``/``--lsl`` with a session file naming the UWB files, exactly as
+``solve --causal`` does.
 """
 
 from __future__ import annotations
@@ -14,7 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..app.session import ActorInputs, load_session
-from ..app.uwb_aiding import AidingOnCalibration, UwbInputs
+from ..app.tag_stream import TagStream, open_tag_stream
+from ..app.uwb_aiding import UwbInputs
 from ..errors import InputError
 from ..io.reader import read_imu
 from ..io.recording import ImuRecording, check_sensor_ids
@@ -39,7 +41,7 @@ class ActorSetup:
         sensor_map: Sensor id -> segment.
         rate: Sample rate [Hz].
         recording: The recording replayed, or None (a live source).
-        uwb: Its UWB aiding, built at calibration (replay with UWB files), or None.
+        uwb: Its UWB tags tracked as the TOAs arrive (UWB files given), or None.
     """
 
     name: str
@@ -47,7 +49,7 @@ class ActorSetup:
     sensor_map: Mapping[str, str]
     rate: float
     recording: ImuRecording | None = None
-    uwb: AidingOnCalibration | None = None
+    uwb: TagStream | None = None
 
     def samples(self, named: bool) -> Iterator[Sample]:
         """The replayed samples (``named``: each names the actor)."""
@@ -102,9 +104,9 @@ def replay_setups(path: Path, map_file: Path | None, body: Path | None, height: 
         else:
             recording = read_imu(actor.imu, rate=actor.rate, sensor_map=sensor_map)
         model = actor.model(mvnx)
-        aiding = None if uwb is None else AidingOnCalibration(
-            recording, sensor_map, model, uwb, actor.name,
-            correction or session_correction or "no-slide")
+        aiding = None if uwb is None else open_tag_stream(
+            uwb, model, sensor_map, actor.name, correction or session_correction or "no-slide",
+            recording.rate)
         setups.append(ActorSetup(actor.name or "actor", model, sensor_map, recording.rate,
                                  recording, aiding))
     toa = None if uwb is None else toa_samples(read_toa_csv(uwb.toa))
@@ -118,8 +120,10 @@ def source_setups(map_file: Path | None, body: Path | None, height: float | None
     Raises:
         InputError: Neither given, or bad files.
     """
+    uwb, mode = None, "no-slide"
     if session is not None:
-        actors = load_session(session).actors
+        loaded = load_session(session)
+        actors, uwb, mode = loaded.actors, loaded.uwb, loaded.correction
     elif map_file is not None:
         actors = [ActorInputs(None, Path("."), map_file, body, height)]
     else:
@@ -129,6 +133,8 @@ def source_setups(map_file: Path | None, body: Path | None, height: float | None
     for actor in actors:
         if actor.sensor_map is None:
             raise InputError("every actor needs a sensor map", path=session, field="map")
-        out.append(ActorSetup(actor.name or "actor", actor.model(),
-                              load_sensor_map(actor.sensor_map), rate))
+        model, sensor_map = actor.model(), load_sensor_map(actor.sensor_map)
+        tags = None if uwb is None else open_tag_stream(uwb, model, sensor_map, actor.name,
+                                                        mode, rate)
+        out.append(ActorSetup(actor.name or "actor", model, sensor_map, rate, uwb=tags))
     return out

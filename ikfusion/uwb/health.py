@@ -66,8 +66,13 @@ class TagFit:
 def tag_fit(track: UnitTrack) -> TagFit:
     """Judge one tag's track: does it fit the constellation well enough to aid a solve?"""
     t = track.totals
-    fit = TagFit(int(t.transmissions), int(t.transmissions_used), int(t.toas_used),
-                 int(t.toas_rejected), None)
+    return fit_from_counts(int(t.transmissions), int(t.transmissions_used), int(t.toas_used),
+                           int(t.toas_rejected))
+
+
+def fit_from_counts(received: int, used: int, toas_used: int, toas_rejected: int) -> TagFit:
+    """:func:`tag_fit` from the counts of a tag's transmissions and TOAs (any stretch)."""
+    fit = TagFit(received, used, toas_used, toas_rejected, None)
     if fit.received == 0:
         problem = "no transmission received"
     elif fit.used < TAG_USED_SHARE_MIN * fit.received:

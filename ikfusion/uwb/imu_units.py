@@ -49,8 +49,7 @@ def imu_units_from_recording(recording: ImuRecording, sensor_map: Mapping[str, s
         InputError: A tag whose segment has no sensor, or a sensor without acc/gyr.
     """
     streams = recording.segment_streams(sensor_map)
-    data = model.model.createData()
-    pin.framesForwardKinematics(model.model, data, model.neutral())
+    levers = tag_levers(model, tags, R_segment_sensor)
     out = {}
     for tag_id, tag in tags.items():
         segment = tag_segment(model, tag.site)
@@ -61,15 +60,31 @@ def imu_units_from_recording(recording: ImuRecording, sensor_map: Mapping[str, s
         if stream.acc is None or stream.gyr is None:
             raise InputError(f"sensor {stream.sensor_id} ({segment}) has no Acc/Gyr columns; "
                              "the UWB filter needs both", path=stream.path, field="Acc_X")
+        acc = np.where(stream.valid[:, None], stream.acc, np.nan)
+        gyr = np.where(stream.valid[:, None], stream.gyr, np.nan)
+        out[tag_id] = ImuUnit(recording.time, stream.R_world_sensor, acc, gyr, levers[tag_id],
+                              None if heights is None else heights.get(tag_id),
+                              foot=tag.site in FOOT_TAG_SITES)
+    return out
+
+
+def tag_levers(model: HumanModel, tags: Mapping[str, TagInfo],
+               R_segment_sensor: Mapping[str, np.ndarray] | None = None
+               ) -> dict[str, np.ndarray]:
+    """Tag id -> sensor-to-tag vector in the sensor frame, shape (3,) [m].
+
+    From the model in its neutral pose (segment frames parallel to the world) and the mounting
+    ``R_segment_sensor`` of the tag's segment (the sensor taken as aligned without one).
+    """
+    data = model.model.createData()
+    pin.framesForwardKinematics(model.model, data, model.neutral())
+    out = {}
+    for tag_id, tag in tags.items():
+        segment = tag_segment(model, tag.site)
         R_ws = data.oMf[model.segment_frame_id(segment)].rotation
         mounting = np.eye(3) if R_segment_sensor is None else np.asarray(
             R_segment_sensor.get(segment, np.eye(3)), dtype=float)
         p_tag = data.oMf[model.site_frame_id(tag.site)].translation
         p_sensor = data.oMf[model.site_frame_id(segment)].translation
-        lever = (R_ws @ mounting).T @ (p_tag - p_sensor)
-        acc = np.where(stream.valid[:, None], stream.acc, np.nan)
-        gyr = np.where(stream.valid[:, None], stream.gyr, np.nan)
-        out[tag_id] = ImuUnit(recording.time, stream.R_world_sensor, acc, gyr, lever,
-                              None if heights is None else heights.get(tag_id),
-                              foot=tag.site in FOOT_TAG_SITES)
+        out[tag_id] = (R_ws @ mounting).T @ (p_tag - p_sensor)
     return out

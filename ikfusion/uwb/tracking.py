@@ -248,18 +248,28 @@ def first_start(tx: UnitTransmissions, t_begin: float, t_end: float) -> UnitStar
     if not ok.any():
         return None
     first = int(np.flatnonzero(ok)[0])
-    t0 = float(tx.time[first])
-    window = np.flatnonzero(ok & (tx.time <= t0 + _CLOCK_FIT_SECONDS))
+    window = np.flatnonzero(ok & (tx.time <= float(tx.time[first]) + _CLOCK_FIT_SECONDS))
+    return start_at(tx, first, window)
+
+
+def start_at(tx: UnitTransmissions, row: int, window: np.ndarray) -> UnitStart:
+    """The filter start at the fix of transmission ``row``, its clock rate fitted on ``window``.
+
+    The transmit-time rate is the median slope of the offsets of the fixes ``window`` (rows
+    of ``tx`` with a fix, in time order); 0 with a large uncertainty with fewer than two.
+    """
+    assert tx.fix_p_world_tag is not None and tx.fix_clock is not None
+    assert tx.fix_cov is not None
     rate, rate_sigma = 0.0, 1.0e4
     if window.size >= 2:
         slopes = np.diff(tx.fix_clock[window]) / np.diff(tx.time[window])
         rate = float(np.median(slopes))
         spread = float(np.median(np.abs(slopes - rate))) * 1.4826
         rate_sigma = max(1.0, 3.0 * spread / np.sqrt(window.size - 1))
-    cov = np.asarray(tx.fix_cov[first], dtype=float)
+    cov = np.asarray(tx.fix_cov[row], dtype=float)
     clock_sigma = max(0.05, 3.0 * float(np.sqrt(max(cov[3, 3], 0.0))))
-    return UnitStart(t0, tx.fix_p_world_tag[first], cov[:3, :3], float(tx.fix_clock[first]),
-                     rate, clock_sigma, rate_sigma)
+    return UnitStart(float(tx.time[row]), tx.fix_p_world_tag[row], cov[:3, :3],
+                     float(tx.fix_clock[row]), rate, clock_sigma, rate_sigma)
 
 
 def _empty_track(time: np.ndarray, tx: UnitTransmissions, m: int) -> UnitTrack:
