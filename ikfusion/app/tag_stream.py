@@ -64,6 +64,7 @@ class _Tag:
     waiting: list[ToaSample] = field(default_factory=list)  # stepped before the start
     filter: UnitFilterStream | None = None
     horizon: float = -np.inf  # TOAs before this time were stepped
+    next_try: float = -np.inf  # the start is not tried again before this time [s]
     seq: tuple[float, int, int, int] | None = None  # last (time, raw, unwrapped, max raw)
     late: int = 0
     problem: str | None = None
@@ -152,6 +153,7 @@ class TagStream:
         for tag_id, tag in self.tags.items():
             tag.filter = UnitFilterStream(c.positions, c.clock_offsets, levers[tag_id], c.sigma,
                                           self.rate, self.options or EkfOptions(smooth=False))
+            tag.filter.fill_fix = self._fill_fix
         fixes = [SiteFixes(t.info.site, np.zeros((0, 3)), np.zeros((0, 3, 3)))
                  for t in self.tags.values()]
         self.correction = DriftCorrection(fixes, self.mode, self.settings
@@ -215,7 +217,7 @@ class TagStream:
         tag.pending = [s for s in tag.pending if s.time_s >= time_s]
         tag.horizon = time_s
         if filt.started:
-            p, cov = filt.step(self._transmissions(tag, due), still)
+            p, cov = filt.step(self._transmissions(tag, due, located=False), still)
             self._judge_tag(tag, filt)
             return p, cov
         return self._try_start(tag, filt, due, time_s) or none
@@ -227,6 +229,11 @@ class TagStream:
 
         keep = time_s - _CLOCK_FIT_SECONDS - 0.5
         tag.waiting = [s for s in tag.waiting if s.time_s >= keep] + due
+        heard = [s.time_s for s in tag.waiting]
+        if (time_s < tag.next_try or not heard
+                or time_s - min(heard) < 0.5 * _CLOCK_FIT_SECONDS):
+            return None  # too little heard yet to fit the clock: no fix computed
+        tag.next_try = time_s + 0.25
         tx = self._transmissions(tag, tag.waiting, batch=True)
         assert tx.fix_clock is not None
         ok = np.flatnonzero(np.isfinite(tx.fix_clock)
@@ -239,12 +246,13 @@ class TagStream:
         tag.waiting = []
         return filt.start(start_at(tx, int(ok[-1]), ok))
 
-    def _transmissions(self, tag: _Tag, rows: list[ToaSample], batch: bool = False
-                       ) -> UnitTransmissions:
+    def _transmissions(self, tag: _Tag, rows: list[ToaSample], batch: bool = False,
+                       located: bool = True) -> UnitTransmissions:
         """``rows`` grouped into transmissions with their fixes (seq unwrapped as it goes).
 
         ``batch``: unwrapped on their own (the start's window); else continuing the tag's
-        last transmission.
+        last transmission. ``located`` False: the fixes are left NaN, for the filter to fill
+        (:meth:`_fill_fix`) when it needs one.
         """
         from ..uwb.locate import LocateOptions, locate
         from ..uwb.toa_log import ToaLog, group_transmissions
@@ -272,11 +280,30 @@ class TagStream:
         if not len(seq):
             return UnitTransmissions(np.zeros(0), seq, tau, np.zeros((0, m)), np.zeros((0, 3)),
                                      np.zeros(0), np.zeros((0, 4, 4)))
+        if not located:
+            t_count = len(seq)
+            return UnitTransmissions(grouped.time, seq, tau, grouped.toa,
+                                     np.full((t_count, 3), np.nan), np.full(t_count, np.nan),
+                                     np.full((t_count, 4, 4), np.nan))
         fixes = locate(grouped.toa, self.constellation, LocateOptions())
         ok = fixes.ok
         return UnitTransmissions(grouped.time, seq, tau, grouped.toa,
                                  np.where(ok[:, None], fixes.p_world_tag, np.nan),
                                  np.where(ok, fixes.clock - tau, np.nan), fixes.cov)
+
+    def _fill_fix(self, tx: UnitTransmissions, i: int) -> None:
+        """Locate transmission ``i`` of ``tx`` into its (NaN) fix rows."""
+        from ..uwb.locate import LocateOptions, locate
+
+        assert tx.fix_p_world_tag is not None and tx.fix_clock is not None
+        assert tx.fix_cov is not None
+        if np.isfinite(tx.fix_clock[i]):
+            return
+        fixes = locate(tx.toa[i:i + 1], self.constellation, LocateOptions())
+        if fixes.ok[0]:
+            tx.fix_p_world_tag[i] = fixes.p_world_tag[0]
+            tx.fix_clock[i] = fixes.clock[0] - tx.tau_nominal[i]
+            tx.fix_cov[i] = fixes.cov[0]
 
     # ------------------------------------------------------------------ health
     def _judge_tag(self, tag: _Tag, filt: UnitFilterStream) -> None:

@@ -12,6 +12,7 @@ process noise inflated over its intervals as offline.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -60,6 +61,9 @@ class UnitFilterStream(_UnitFilter):
         self.steps = 0
         self.samples = 0
         self._tx: list[tuple[float, int, np.ndarray, np.ndarray, np.ndarray, bool]] = []
+        #: Fills the fix of transmission ``i`` of the step's ``tx`` when the gate re-opens on
+        #: it (fixes are costly and needed only then); None: the ``tx`` fixes are used as given.
+        self.fill_fix: Callable[[UnitTransmissions, int], None] | None = None
 
     @property
     def started(self) -> bool:
@@ -134,6 +138,11 @@ class UnitFilterStream(_UnitFilter):
             self._tx.append((float(tx.time[i]), int(tx.seq[i]), np.isfinite(tx.toa[i]),
                              self.used[i].copy(), self.rejected[i].copy(), bool(self.reset[i])))
         return self._output(float(time[1] - time[0]))
+
+    def _reopen(self, i: int) -> None:
+        if self.fill_fix is not None:
+            self.fill_fix(self.tx, i)
+        super()._reopen(i)
 
     def _output(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
         p, cov, quat = np.full((1, 3), np.nan), np.full((1, 3, 3), np.nan), np.full((1, 4), 0.0)
