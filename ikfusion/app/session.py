@@ -34,7 +34,7 @@ from ..imu.calibration import calibrate_recording
 from ..imu.mvn_calibration import calibration_from_mvnx
 from ..io.mvnx import MvnxRecording, read_mvnx
 from ..io.reader import read_imu
-from ..io.recording import check_sensor_ids
+from ..io.recording import ImuRecording, check_sensor_ids
 from ..io.sensor_map import load_sensor_map
 from ..model import Body, HumanModel
 from ..output_folders import check_output_folder, folder_name_problem, prepare_output_folder
@@ -89,9 +89,28 @@ class ActorInputs:
 
     def mvnx(self) -> MvnxRecording | None:
         """The MVNX take when ``imu`` is one (MVN's own calibration and result come with it)."""
-        if self.imu.is_file() and self.imu.suffix.lower() == ".mvnx":
-            return read_mvnx(self.imu)
-        return None
+        return read_mvnx(self.imu) if self.is_mvnx() else None
+
+    def is_mvnx(self) -> bool:
+        """Whether ``imu`` is an MVNX file."""
+        return self.imu.is_file() and self.imu.suffix.lower() == ".mvnx"
+
+    def read(self) -> tuple[Mapping[str, str], ImuRecording, MvnxRecording | None]:
+        """The sensor map, the recording and the MVNX take (None for other recordings).
+
+        An MVNX file needs no map (its sensors are named by segment); any other recording needs
+        ``sensor_map`` (the caller checks that first when it wants its own message).
+        """
+        mvnx = self.mvnx()
+        sensor_map: Mapping[str, str] = (load_sensor_map(self.sensor_map)
+                                         if self.sensor_map is not None
+                                         else mvnx.sensor_map() if mvnx is not None else {})
+        if mvnx is not None:
+            recording = mvnx.imu_recording()
+            recording.warnings += check_sensor_ids(sensor_map, recording.sensors, self.imu)
+        else:
+            recording = read_imu(self.imu, rate=self.rate, sensor_map=sensor_map)
+        return sensor_map, recording, mvnx
 
     def uses_file_calibration(self) -> bool:
         """Whether an MVNX take keeps MVN's calibration (no window, T-pose or heading given)."""
@@ -124,18 +143,10 @@ def solve_actor(actor: ActorInputs, out: str | Path, uwb: UwbInputs | None = Non
         InputError: Bad files (file, line and field named), or a refused ``out``.
     """
     check_output_folder(out, force)
-    mvnx = actor.mvnx()
-    if actor.sensor_map is None and mvnx is None:
+    if actor.sensor_map is None and not actor.is_mvnx():
         raise ConfigError("a sensor map is needed (--map) for anything but an MVNX file",
                           path=actor.imu, field="map")
-    sensor_map: Mapping[str, str] = (load_sensor_map(actor.sensor_map)
-                                     if actor.sensor_map is not None
-                                     else mvnx.sensor_map() if mvnx is not None else {})
-    if mvnx is not None:
-        recording = mvnx.imu_recording()
-        recording.warnings += check_sensor_ids(sensor_map, recording.sensors, actor.imu)
-    else:
-        recording = read_imu(actor.imu, rate=actor.rate, sensor_map=sensor_map)
+    sensor_map, recording, mvnx = actor.read()
     model = actor.model(mvnx)
     file_calibration = mvnx is not None and actor.uses_file_calibration()
     aiding: UwbAiding | None = None

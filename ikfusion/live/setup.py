@@ -18,8 +18,7 @@ from ..app.session import ActorInputs, load_session
 from ..app.tag_stream import TagStream, open_tag_stream
 from ..app.uwb_aiding import UwbInputs
 from ..errors import InputError
-from ..io.reader import read_imu
-from ..io.recording import ImuRecording, check_sensor_ids
+from ..io.recording import ImuRecording
 from ..io.sensor_map import load_sensor_map
 from ..model.human_model import HumanModel
 from ..uwb.toa_log import read_toa_csv
@@ -95,14 +94,7 @@ def replay_setups(path: Path, map_file: Path | None, body: Path | None, height: 
     actors, uwb, session_correction = actor_inputs(path, map_file, body, height)
     setups = []
     for actor in actors:
-        mvnx = actor.mvnx()
-        sensor_map = (load_sensor_map(actor.sensor_map) if actor.sensor_map is not None
-                      else mvnx.sensor_map() if mvnx is not None else {})
-        if mvnx is not None:
-            recording = mvnx.imu_recording()
-            recording.warnings += check_sensor_ids(sensor_map, recording.sensors, actor.imu)
-        else:
-            recording = read_imu(actor.imu, rate=actor.rate, sensor_map=sensor_map)
+        sensor_map, recording, mvnx = actor.read()
         model = actor.model(mvnx)
         aiding = None if uwb is None else open_tag_stream(
             uwb, model, sensor_map, actor.name, correction or session_correction or "no-slide",
