@@ -21,7 +21,9 @@ Columns (``ikfusion.app.evaluate`` against the truth, whole capture): head (Head
 slide of planted contact points per contact phase of the truth, mean and max [mm]; joint-angle
 RMS [deg]; the largest error of a frame-to-frame joint-angle change against the truth's
 [deg] (``joint_angle_jump_max_deg``, toes left out); frames solved per second of wall time
-(tag tracking included). The last row holds the worst of each column over all rows.
+(tag tracking included); ``drift %``: the pelvis's horizontal error at the end as a percentage
+of the distance travelled (``evaluate``'s ``drift_percent``; '-' below 2 m travelled). The last
+row holds the worst of each column over all rows.
 
 Nothing is written outside a temporary folder unless ``--out DIR`` keeps the captures and
 results there.
@@ -161,16 +163,18 @@ class Row:
     angle_rms_deg: float
     jump_deg: float
     fps: float
+    drift_pct: float | None = None
 
     def text(self) -> str:
         """The row as printed."""
         return (f"{self.clip:<24s} {self.mode:<16s} {self.head_cm:8.1f} {self.slide_mm:8.1f} "
                 f"{self.slide_max_mm:8.1f} {self.angle_rms_deg:8.2f} {self.jump_deg:8.2f} "
-                f"{self.fps:7.0f}")
+                f"{self.fps:7.0f} "
+                + (f"{self.drift_pct:7.2f}" if self.drift_pct is not None else f"{'-':>7s}"))
 
 
 HEADER = (f"{'clip':<24s} {'mode':<16s} {'head cm':>8s} {'slide mm':>8s} {'max mm':>8s} "
-          f"{'ang deg':>8s} {'jump deg':>8s} {'frame/s':>7s}")
+          f"{'ang deg':>8s} {'jump deg':>8s} {'frame/s':>7s} {'drift %':>7s}")
 
 
 def run_clip(clip: Clip, root: Path, modes: Sequence[str], seconds: float | None, seed: int,
@@ -184,7 +188,7 @@ def run_clip(clip: Clip, root: Path, modes: Sequence[str], seconds: float | None
         ev = evaluate(result, capture / "truth.npz", align="auto")
         rows.append(Row(clip.name, mode, 100.0 * ev.head_position_rms_m, ev.foot_slide_mm,
                         ev.foot_slide_max_mm, ev.joint_angle_rms_deg,
-                        ev.joint_angle_jump_max_deg, ev.frames / wall))
+                        ev.joint_angle_jump_max_deg, ev.frames / wall, ev.drift_percent))
     return rows
 
 
@@ -192,7 +196,8 @@ def worst(rows: Sequence[Row]) -> Row:
     """The worst of each column (the largest error, the fewest frames per second)."""
     return Row("worst", "-", max(r.head_cm for r in rows), max(r.slide_mm for r in rows),
                max(r.slide_max_mm for r in rows), max(r.angle_rms_deg for r in rows),
-               max(r.jump_deg for r in rows), min(r.fps for r in rows))
+               max(r.jump_deg for r in rows), min(r.fps for r in rows),
+               max((r.drift_pct for r in rows if r.drift_pct is not None), default=None))
 
 
 def main(argv: Sequence[str] | None = None) -> int:

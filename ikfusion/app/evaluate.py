@@ -28,7 +28,10 @@ Metrics (all over the common time span):
   at once). Free of Euler artefacts near ``|middle| = 90`` deg; for a pop about one axis it is
   that angle's change. The toe joints, which no sensor of a suit observes, are left out.
   ``joint_angle_jump_at`` says which angle (of the joint, the one whose error changed most),
-  when.
+  when;
+* ``drift_percent``: the pelvis's horizontal error over the last second, as a percentage of the
+  horizontal distance the true pelvis travelled (its track sampled once a second, so sway does
+  not count as distance); None when it travelled less than 2 m (standing, turning on the spot).
 """
 
 from __future__ import annotations
@@ -67,6 +70,7 @@ class Evaluation:
     joint_angle_jump_max_deg: float = 0.0
     joint_angle_jump_at: str = ""
     start_shift_m: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    drift_percent: float | None = None
 
     def as_dict(self) -> dict[str, object]:
         """Plain dictionary (for JSON)."""
@@ -146,6 +150,31 @@ def phase_slides(P: np.ndarray, contacts: np.ndarray) -> list[float]:
                 slides.append(float(np.max(np.linalg.norm(seg - seg[0], axis=1))))
                 start = None
     return slides
+
+
+def drift_percent(time: np.ndarray, p_est: np.ndarray, p_true: np.ndarray,
+                  min_distance_m: float = 2.0) -> float | None:
+    """Horizontal drift at the end as a percentage of the distance travelled.
+
+    Args:
+        time: Sample times [s], shape (N,).
+        p_est: Estimated pelvis positions (world) [m], shape (N, 3).
+        p_true: True pelvis positions (world) [m], shape (N, 3).
+        min_distance_m: Below this horizontal distance travelled the ratio is meaningless
+            (None) [m].
+
+    Returns:
+        The mean horizontal error over the last second [m], over the true track's length
+        sampled once a second [m], in percent; None below ``min_distance_m``.
+    """
+    ticks = np.append(np.arange(time[0], time[-1], 1.0), time[-1])
+    track = np.stack([np.interp(ticks, time, p_true[:, k]) for k in range(2)], axis=1)
+    distance = float(np.sum(np.linalg.norm(np.diff(track, axis=0), axis=1)))
+    if distance < min_distance_m:
+        return None
+    last = time >= time[-1] - 1.0
+    error = float(np.mean(np.linalg.norm(p_est[last, :2] - p_true[last, :2], axis=1)))
+    return 100.0 * error / distance
 
 
 def joint_angle_jump(time: np.ndarray, estimated: np.ndarray, true: np.ndarray,
@@ -257,6 +286,9 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
     P = np.stack([_interp(t, t_site, sites[c]) for c in contact_names], axis=1)
     slides = phase_slides(P, truth["contacts"][span])
     jump, jump_at = joint_angle_jump(t, est_angles, true_angles, common)
+    drift = (drift_percent(t, _interp(t, t_seg, segments["Pelvis"][:, :3]) + shift,
+                           truth["p_world_segment"][span][:, true_seg.index("Pelvis")])
+             if "Pelvis" in segments else None)
     return Evaluation(
         frames=int(span.sum()),
         joint_angle_rms_deg=float(np.sqrt(np.mean(diff**2))),
@@ -270,4 +302,5 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
         joint_angle_jump_max_deg=jump,
         joint_angle_jump_at=jump_at,
         start_shift_m=[float(v) for v in shift],
+        drift_percent=drift,
     )

@@ -58,6 +58,8 @@ def run(args: argparse.Namespace) -> int:
          f"{result.foot_slide_mm:.1f} / {result.foot_slide_max_mm:.1f} mm"),
         ("largest joint-angle jump vs truth",
          f"{result.joint_angle_jump_max_deg:.2f} deg/frame ({result.joint_angle_jump_at})"),
+        ("drift (pelvis, % of distance)", "-" if result.drift_percent is None
+         else f"{result.drift_percent:.2f} %"),
         ("start aligned to truth", "yes" if result.aligned_start else "no"),
     ]
     width = max(len(r[0]) for r in rows)
