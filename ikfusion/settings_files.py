@@ -7,7 +7,8 @@ of mappings, e.g. ``limits: {lag_speed: 0.3}``), then from user overlays holding
 sections with some of the keys, then from keyword overrides. The shipped file must set every
 field exactly once; a key that is no field, a key in another section than the shipped file puts
 it, and a value of the wrong type are :class:`~ikfusion.errors.ConfigError` naming the file, the
-line and the key.
+line and the key. :class:`ShippedSettings` gives such a class its ``load`` (shipped file, one
+user file, keywords).
 """
 
 from __future__ import annotations
@@ -17,12 +18,13 @@ import typing
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, ClassVar, Self, TypeVar
 
 from .errors import ConfigError
+from .paths import shipped_config
 from .yaml_files import YamlDocument, read_yaml_document
 
-__all__ = ["Overlay", "load_settings"]
+__all__ = ["Overlay", "ShippedSettings", "load_settings"]
 
 T = TypeVar("T")
 
@@ -84,6 +86,34 @@ def load_settings(cls: type[T], shipped: str | Path, what: str,
         values[key] = _Value(value, values[key].section, None, None)
     checked = {name: _check(hints[name], values[name], name) for name in names}
     return cls(**checked)
+
+
+class ShippedSettings:
+    """Base of a settings dataclass read from one shipped file and one optional user file.
+
+    A subclass names its file under ``configs/`` in ``shipped_file`` and what it holds, for
+    messages, in ``what`` (``"solver settings"``).
+    """
+
+    shipped_file: ClassVar[str]
+    what: ClassVar[str]
+
+    @classmethod
+    def load(cls, path: str | Path | None = None, **overrides: Any) -> Self:
+        """The shipped ``configs/<shipped_file>``, overlaid by a user file; keywords win.
+
+        Args:
+            path: A user file with some of the shipped sections and keys (e.g.
+                ``limits: {lag_speed: 0.2}``); None: the shipped values only.
+            **overrides: Individual settings by field name.
+
+        Raises:
+            ConfigError: An unknown key, a key in the wrong section or a value of the wrong
+                type, naming the file, the line and the key.
+        """
+        overlays = [] if path is None else [Overlay(read_yaml_document(path, cls.what))]
+        return load_settings(cls, shipped_config(cls.shipped_file), cls.what, overlays,
+                             overrides)
 
 
 def _sections(doc: YamlDocument, prefix: tuple[str, ...], names: list[str],

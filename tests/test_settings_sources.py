@@ -20,9 +20,10 @@ from ikfusion.errors import ConfigError
 from ikfusion.ik.qp import QpSettings
 from ikfusion.ik.settings import SolverSettings
 from ikfusion.imu.bridging import BridgingSettings
+from ikfusion.live.settings import LiveSettings
 from ikfusion.paths import shipped_config
 from ikfusion.retarget.settings import RetargetSettings
-from ikfusion.settings_files import load_settings
+from ikfusion.settings_files import ShippedSettings, load_settings
 
 #: Settings class -> its shipped file.
 SOURCES: dict[type, Path] = {
@@ -30,6 +31,7 @@ SOURCES: dict[type, Path] = {
     CorrectionSettings: shipped_config("correction.yaml"),
     RetargetSettings: shipped_config("retarget", "defaults.yaml"),
     BridgingSettings: shipped_config("bridging.yaml"),
+    LiveSettings: shipped_config("live.yaml"),
 }
 
 
@@ -57,6 +59,26 @@ def test_the_shipped_file_sets_every_field_and_nothing_else(cls: type) -> None:
     loaded = cls.load()  # type: ignore[attr-defined]
     for name in names:
         assert getattr(loaded, name) == values[name], name
+
+
+def test_every_class_loaded_from_a_shipped_file_is_checked_here() -> None:
+    assert set(ShippedSettings.__subclasses__()) <= set(SOURCES)
+
+
+@pytest.mark.parametrize("cls", ShippedSettings.__subclasses__())
+def test_each_shipped_settings_class_takes_a_user_file(tmp_path: Path, cls: Any) -> None:
+    doc = yaml.safe_load(SOURCES[cls].read_text())
+    section = next(iter(doc))
+    key, value = next((k, v) for k, v in doc[section].items() if isinstance(v, float))
+    user = tmp_path / "mine.yaml"
+    user.write_text(f"{section}:\n  {key}: {2.0 * value + 1.0!r}\n")
+    shipped, mine = cls.load(), cls.load(user)
+    assert getattr(mine, key) == 2.0 * value + 1.0
+    assert dataclasses.replace(mine, **{key: getattr(shipped, key)}) == shipped
+    user.write_text(f"{section}:\n  {key}_typo: 1.0\n")
+    with pytest.raises(ConfigError, match="unknown setting") as err:
+        cls.load(user)
+    assert (err.value.path, err.value.line, err.value.field) == (user, 2, f"{section}.{key}_typo")
 
 
 def test_the_solver_runs_the_shipped_values() -> None:

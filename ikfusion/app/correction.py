@@ -33,8 +33,6 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field, replace
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -43,9 +41,7 @@ from ..ik.frame import Frame
 from ..ik.pose import Motion, Pose
 from ..ik.solver import Solver
 from ..ik.world_offset import WorldOffset
-from ..paths import shipped_config
-from ..settings_files import Overlay, load_settings
-from ..yaml_files import read_yaml_document
+from ..settings_files import ShippedSettings
 from .far_from_tags import FarInterval, far_intervals
 from .tag_release import FootRelease
 from .tag_tasks import (
@@ -77,7 +73,7 @@ class SiteFixes:
 
 
 @dataclass(frozen=True)
-class CorrectionSettings:
+class CorrectionSettings(ShippedSettings):
     """Thresholds of the drift correction, all from ``configs/correction.yaml``.
 
     Attributes:
@@ -124,18 +120,8 @@ class CorrectionSettings:
     far_distance: float
     far_duration: float
 
-    @classmethod
-    def load(cls, path: str | Path | None = None, **overrides: Any) -> CorrectionSettings:
-        """The shipped ``configs/correction.yaml``, overlaid by a user file; keywords win.
-
-        Raises:
-            ConfigError: An unknown key, a key in the wrong section or a value of the wrong
-                type, naming the file, the line and the key.
-        """
-        overlays = [] if path is None else [
-            Overlay(read_yaml_document(path, "correction settings"))]
-        return load_settings(cls, shipped_config("correction.yaml"), "correction settings",
-                             overlays, overrides)
+    shipped_file = "correction.yaml"
+    what = "correction settings"
 
 
 @dataclass

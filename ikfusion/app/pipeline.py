@@ -25,13 +25,14 @@ from ..imu.calibration import Calibration, calibrate_recording
 from ..imu.flight import FlightPhases, FlightThresholds, detect_flight, world_acceleration
 from ..imu.stance import StanceThresholds, foot_still
 from ..io.recording import ImuRecording, SensorStream
-from ..live.actor_stream import ActorStream, segment_parents
+from ..live.actor_stream import ActorStream
 from ..live.replay import recording_frames
 from ..model.human_model import HumanModel
+from ..model.topology import segment_parents
 from .correction import DriftCorrection
 
 __all__ = ["SolvedRecording", "bridged_segments", "frames_from_recording", "knee_warning",
-           "segment_parents", "solve_recording"]
+           "solve_recording"]
 
 
 @dataclass

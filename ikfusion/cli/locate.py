@@ -39,6 +39,7 @@ from ..uwb import (
     write_fixes_csv,
 )
 from ..uwb.locate import Fixes
+from .arg_types import positive_number
 
 #: Share of transmissions without a usable fix above which ``locate`` warns (clean simulated
 #: walks in room_6x8 have about 0.013 of them: NLOS and geometry at the edges).
@@ -46,15 +47,7 @@ BAD_SHARE_WARNING = 0.1
 
 
 def _sigma(text: str) -> float | str:
-    if text == "auto":
-        return text
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected metres or 'auto', got {text!r}") from None
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"sigma must be positive, got {text}")
-    return value
+    return text if text == "auto" else positive_number(text, "metres or 'auto'")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

@@ -30,6 +30,7 @@ from ..uwb import (
     save_constellation,
 )
 from ..yaml_files import read_yaml
+from .arg_types import positive_number
 
 
 def _heights(text: str) -> list[float]:
@@ -40,16 +41,6 @@ def _heights(text: str) -> list[float]:
     if not values:
         raise argparse.ArgumentTypeError("give at least one height")
     return values
-
-
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"must be positive, got {text}")
-    return value
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -77,7 +68,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default="free",
         help="free: transmit time unknown (TOA, default); zero: two-way ranges",
     )
-    p.add_argument("--step", type=_positive, metavar="M", help="map grid spacing [m]")
+    p.add_argument("--step", type=positive_number, metavar="M", help="map grid spacing [m]")
     p.add_argument("--out", metavar="FILE.png", help="figure to write (default <name>_dop.png)")
     p.add_argument("--no-plot", action="store_true", help="print the numbers only")
     p.add_argument("--json", action="store_true", help="print the numbers as JSON")
@@ -103,7 +94,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     opt.add_argument(
         "--spacing",
-        type=_positive,
+        type=positive_number,
         default=1.0,
         metavar="M",
         help="spacing of the default candidates along the border [m] (default %(default)s)",

@@ -9,19 +9,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
-from pathlib import Path
-from typing import Any
 
-from ..paths import shipped_config
-from ..settings_files import Overlay, load_settings
-from ..yaml_files import read_yaml_document
+from ..settings_files import ShippedSettings
 from .qp import QpSettings
 
 __all__ = ["SolverSettings"]
 
 
 @dataclass(frozen=True)
-class SolverSettings:
+class SolverSettings(ShippedSettings):
     """Every tunable of :class:`ikfusion.ik.Solver` (see ``configs/solver.yaml`` for units)."""
 
     backend: str
@@ -83,22 +79,8 @@ class SolverSettings:
     speed_window: int
     detection_smoothing: float
 
-    @classmethod
-    def load(cls, path: str | Path | None = None, **overrides: Any) -> SolverSettings:
-        """The shipped ``configs/solver.yaml``, overlaid by a user file; keyword overrides win.
-
-        Args:
-            path: A user file with some of the shipped sections and keys (e.g.
-                ``limits: {lag_speed: 0.2}``); None: the shipped values only.
-            **overrides: Individual settings by field name.
-
-        Raises:
-            ConfigError: An unknown key, a key in the wrong section or a value of the wrong
-                type, naming the file, the line and the key.
-        """
-        overlays = [] if path is None else [Overlay(read_yaml_document(path, "solver settings"))]
-        return load_settings(cls, shipped_config("solver.yaml"), "solver settings", overlays,
-                             overrides)
+    shipped_file = "solver.yaml"
+    what = "solver settings"
 
     @cached_property
     def qp(self) -> QpSettings:

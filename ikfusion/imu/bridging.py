@@ -29,22 +29,18 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from ..paths import shipped_config
 from ..rotations import exp_so3, log_so3, matrix_to_quat_wxyz, quat_wxyz_to_matrix, slerp
-from ..settings_files import Overlay, load_settings
-from ..yaml_files import read_yaml_document
+from ..settings_files import ShippedSettings
 
 __all__ = ["BridgedSegments", "BridgingSettings", "SegmentBridging", "bridge_segments",
            "bridging_report", "runs_of", "world_filled"]
 
 
 @dataclass(frozen=True)
-class BridgingSettings:
+class BridgingSettings(ShippedSettings):
     """How gaps are bridged and when they are worth a warning.
 
     Attributes:
@@ -72,18 +68,8 @@ class BridgingSettings:
         """``blend_rate_deg`` in [rad/s]."""
         return float(np.radians(self.blend_rate_deg))
 
-    @classmethod
-    def load(cls, path: str | Path | None = None, **overrides: Any) -> BridgingSettings:
-        """The shipped ``configs/bridging.yaml``, overlaid by a user file; keywords win.
-
-        Raises:
-            ConfigError: An unknown key, a key in the wrong section or a value of the wrong
-                type, naming the file, the line and the key.
-        """
-        overlays = [] if path is None else [
-            Overlay(read_yaml_document(path, "bridging settings"))]
-        return load_settings(cls, shipped_config("bridging.yaml"), "bridging settings",
-                             overlays, overrides)
+    shipped_file = "bridging.yaml"
+    what = "bridging settings"
 
 
 @dataclass

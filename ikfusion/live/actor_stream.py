@@ -52,6 +52,7 @@ from ..imu.stance import StanceThresholds
 from ..imu.stance_stream import FootStillStream
 from ..io.recording import normalize_sensor_id
 from ..model.human_model import HumanModel
+from ..model.topology import segment_parents
 from ..rotations import quat_wxyz_to_matrix
 from .samples import ImuSample, ToaSample
 from .settings import LiveSettings
@@ -91,14 +92,6 @@ class TagFeed(Protocol):
 
     def status(self) -> str:
         """What to say on the status line ('' when all is well)."""
-
-
-def segment_parents(model: HumanModel) -> dict[str, str | None]:
-    """Segment -> its parent segment in the model's tree (None for the root)."""
-    parents: dict[str, str | None] = {s: None for s in model.segment_names}
-    for joint in model.ball_joints.values():
-        parents[joint.spec.child] = joint.spec.parent
-    return parents
 
 
 class ActorStream:

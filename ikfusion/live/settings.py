@@ -3,16 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any
 
-from ..paths import shipped_config
-from ..settings_files import Overlay, load_settings
-from ..yaml_files import read_yaml_document
+from ..settings_files import ShippedSettings
 
 
 @dataclass(frozen=True)
-class LiveSettings:
+class LiveSettings(ShippedSettings):
     """How samples become frames and how often a recording is flushed.
 
     Attributes:
@@ -31,14 +27,5 @@ class LiveSettings:
     max_lag_s: float
     flush_s: float
 
-    @classmethod
-    def load(cls, path: str | Path | None = None, **overrides: Any) -> LiveSettings:
-        """The shipped ``configs/live.yaml``, overlaid by a user file; keywords win.
-
-        Raises:
-            ConfigError: An unknown key, a key in the wrong section or a value of the wrong
-                type, naming the file, the line and the key.
-        """
-        overlays = [] if path is None else [Overlay(read_yaml_document(path, "live settings"))]
-        return load_settings(cls, shipped_config("live.yaml"), "live settings", overlays,
-                             overrides)
+    shipped_file = "live.yaml"
+    what = "live settings"

@@ -537,20 +537,35 @@ def _first_below(tree: _Tree, candidates: list[int], top: int) -> int | None:
     return next((c for c in candidates if tree.is_ancestor(top, c)), None)
 
 
+def _limb(tree: _Tree, table: Mapping[str, tuple[str, ...]], upper: str, middle: str,
+          end: str) -> tuple[int, int, int | None] | None:
+    """The top, middle and end joints of a limb (hip, knee, ankle; shoulder, elbow, wrist).
+
+    Matched by the names ``table`` gives the segments ``upper``, ``middle`` and ``end``: the
+    middle joint is the first match with an end joint below it (else the first match), the top
+    joint the deepest match above it (else its parent), the end joint the first match below it
+    (else its only child). None when no middle joint below the root is found.
+    """
+    middles = tree.matches(table.get(middle, ()))
+    ends = tree.matches(table.get(end, ()))
+    mid = next((k for k in middles if _first_below(tree, ends, k) is not None),
+               middles[0] if middles else None)
+    if mid is None or tree.parents[mid] < 0:
+        return None
+    above = [a for a in tree.matches(table.get(upper, ())) if tree.is_ancestor(a, mid)]
+    top = max(above, key=lambda a: tree.depth[a]) if above else int(tree.parents[mid])
+    tip = _first_below(tree, ends, mid)
+    if tip is None:
+        tip = tree.single_child(tree.merged(mid))
+    return top, mid, tip
+
+
 def _identify_leg(tree: _Tree, table: Mapping[str, tuple[str, ...]], side: str,
                   found: _Found) -> None:
-    knees = tree.matches(table.get(f"{side}LowerLeg", ()))
-    feet_all = tree.matches(table.get(f"{side}Foot", ()))
-    # Prefer a knee with a foot below it.
-    knee = next((k for k in knees if _first_below(tree, feet_all, k) is not None),
-                knees[0] if knees else None)
-    if knee is None or tree.parents[knee] < 0:
+    limb = _limb(tree, table, f"{side}UpperLeg", f"{side}LowerLeg", f"{side}Foot")
+    if limb is None:
         return
-    above = [a for a in tree.matches(table.get(f"{side}UpperLeg", ())) if tree.is_ancestor(a, knee)]
-    hip = max(above, key=lambda a: tree.depth[a]) if above else int(tree.parents[knee])
-    foot = _first_below(tree, feet_all, knee)
-    if foot is None:
-        foot = tree.single_child(tree.merged(knee))
+    hip, knee, foot = limb
     toe = None
     if foot is not None:
         toe = _first_below(tree, tree.matches(table.get(f"{side}Toe", ())), foot)
@@ -563,18 +578,10 @@ def _identify_leg(tree: _Tree, table: Mapping[str, tuple[str, ...]], side: str,
 
 def _identify_arm(tree: _Tree, table: Mapping[str, tuple[str, ...]], side: str,
                   found: _Found) -> None:
-    elbows = tree.matches(table.get(f"{side}ForeArm", ()))
-    hands_all = tree.matches(table.get(f"{side}Hand", ()))
-    elbow = next((k for k in elbows if _first_below(tree, hands_all, k) is not None),
-                 elbows[0] if elbows else None)
-    if elbow is None or tree.parents[elbow] < 0:
+    limb = _limb(tree, table, f"{side}UpperArm", f"{side}ForeArm", f"{side}Hand")
+    if limb is None:
         return
-    above = [a for a in tree.matches(table.get(f"{side}UpperArm", ()))
-             if tree.is_ancestor(a, elbow)]
-    shoulder = max(above, key=lambda a: tree.depth[a]) if above else int(tree.parents[elbow])
-    hand = _first_below(tree, hands_all, elbow)
-    if hand is None:
-        hand = tree.single_child(tree.merged(elbow))
+    shoulder, elbow, hand = limb
     chain = [(f"{side}UpperArm", shoulder), (f"{side}ForeArm", elbow), (f"{side}Hand", hand)]
     _set_chain(tree, found, chain)
 

@@ -12,7 +12,7 @@ from .layout import (
     BodyLayout,
     build_layout,
 )
-from .topology import BodyTopology, FootLayout
+from .topology import BodyTopology, FootLayout, segment_parents
 from .urdf import body_to_urdf, write_urdf
 
 __all__ = [
@@ -36,5 +36,6 @@ __all__ = [
     "build_layout",
     "load_joint_specs",
     "merge_revolute_triplets",
+    "segment_parents",
     "write_urdf",
 ]

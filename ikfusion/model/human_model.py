@@ -12,6 +12,7 @@ import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -29,6 +30,8 @@ from .urdf import SITE_SUFFIX, write_urdf
 
 #: The shipped default subject (1.75 m).
 DEFAULT_URDF = "human.urdf"
+
+V = TypeVar("V")
 
 
 @dataclass(frozen=True)
@@ -163,17 +166,11 @@ class HumanModel:
 
     def frame_id(self, name: str) -> int:
         """Pinocchio frame index of any frame name (segments, joints, ``<site>_site`` links)."""
-        try:
-            return self._frames[name]
-        except KeyError:
-            raise NameNotFound("frame", name, self._frames) from None
+        return _look_up(self._frames, "frame", name)
 
     def segment_frame_id(self, name: str) -> int:
         """Frame index of a segment."""
-        try:
-            return self._segments[name]
-        except KeyError:
-            raise NameNotFound("segment", name, self._segments) from None
+        return _look_up(self._segments, "segment", name)
 
     def site_frame_id(self, name: str) -> int:
         """Frame index of a site."""
@@ -181,17 +178,11 @@ class HumanModel:
 
     def site(self, name: str) -> SiteInfo:
         """The :class:`SiteInfo` of a site."""
-        try:
-            return self._sites[name]
-        except KeyError:
-            raise NameNotFound("site", name, self._sites) from None
+        return _look_up(self._sites, "site", name)
 
     def ball_joint(self, name: str) -> BallJoint:
         """The :class:`BallJoint` of a joint name."""
-        try:
-            return self.ball_joints[name]
-        except KeyError:
-            raise NameNotFound("joint", name, self.ball_joints) from None
+        return _look_up(self.ball_joints, "joint", name)
 
     @property
     def angle_columns(self) -> list[str]:
@@ -371,3 +362,11 @@ def _in_spec_order(ball_joints: dict[str, BallJoint]) -> dict[str, BallJoint]:
         return ball_joints
     rest = [j for j in ball_joints if j not in JOINTS]
     return {j: ball_joints[j] for j in (*JOINTS, *rest)}
+
+
+def _look_up(table: Mapping[str, V], kind: str, name: str) -> V:
+    """``table[name]``, or :class:`NameNotFound` listing the ``kind`` names of ``table``."""
+    try:
+        return table[name]
+    except KeyError:
+        raise NameNotFound(kind, name, table) from None

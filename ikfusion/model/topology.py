@@ -27,6 +27,14 @@ if TYPE_CHECKING:
     from .human_model import HumanModel
 
 
+def segment_parents(model: HumanModel) -> dict[str, str | None]:
+    """Segment -> its parent segment in the model's tree (None for the root)."""
+    parents: dict[str, str | None] = {s: None for s in model.segment_names}
+    for joint in model.ball_joints.values():
+        parents[joint.spec.child] = joint.spec.parent
+    return parents
+
+
 @dataclass(frozen=True)
 class FootLayout:
     """Which contact points share a foot, and which stand on the foot itself.

@@ -29,10 +29,9 @@ import numpy as np
 from ..ik.frame import Frame
 from ..model.human_model import HumanModel
 from ..rotations import axis_rotation
-from .gait import _UPPER_BODY, GaitParameters, GaitPlanner, _smoothstep
+from .gait import _UPPER_BODY, SIDES, GaitParameters, GaitPlanner, _smoothstep, feet_frame
 
 G = 9.81  #: [m/s^2]
-_SIDES = ("Right", "Left")
 #: Time the free foot takes to lift off after the standing N-pose [s].
 _LIFT = 0.5
 #: Length of the countermovement that launches the first flight [s].
@@ -75,14 +74,14 @@ class BouncePlanner(GaitPlanner):
         self.vz = 0.5 * G * p.flight_time  # vertical speed at take-off and landing
         self._xy = [self.path.at(self.distance(t))[0] for t in self.take_off]
         self._xy_land = [self.path.at(self.distance(t))[0] for t in self.landing]
-        self.stances = {side: self._stances(side, n) for side in _SIDES}
+        self.stances = {side: self._stances(side, n) for side in SIDES}
         q0 = model.neutral()
         self._lengths = {side: (
             float(np.linalg.norm(model.segment_position(q0, f"{side}LowerLeg")
                                  - model.segment_position(q0, f"{side}UpperLeg"))),
             float(np.linalg.norm(model.segment_position(q0, f"{side}Foot")
                                  - model.segment_position(q0, f"{side}LowerLeg"))))
-            for side in _SIDES}
+            for side in SIDES}
 
     def distance(self, t: float) -> float:
         """Arc length [m] of the path at ``t`` [s].
@@ -114,13 +113,9 @@ class BouncePlanner(GaitPlanner):
                 out.append(_Stance(0.0, float(end), p_flat, yaw))
             elif self._on(side, j):
                 mid = 0.5 * (self.landing[j] + self.take_off[j])
-                c, heading = self.path.at(self.distance(mid))
-                body = heading + np.radians(self.p.facing_deg)
-                lateral = np.array([-np.sin(body), np.cos(body)])
-                sign = 1.0 if side == "Left" else -1.0
-                xy = c + sign * self.half_width * lateral
-                out.append(_Stance(float(self.landing[j]), float(self.take_off[j]),
-                                   np.array([xy[0], xy[1], self.ankle_height]), float(body)))
+                p_flat, yaw = self.beside_path(side, self.distance(mid))
+                out.append(_Stance(float(self.landing[j]), float(self.take_off[j]), p_flat,
+                                   float(yaw)))
         return out
 
     def bounce_at(self, t: float) -> tuple[int, bool]:
@@ -192,7 +187,7 @@ class BouncePlanner(GaitPlanner):
 
     def _held_side(self, t: float) -> tuple[str, float] | None:
         """The side of a hop's free foot and how far it is lifted (0 to 1), None if none."""
-        for side in _SIDES:
+        for side in SIDES:
             stances = self.stances[side]
             if len(stances) == 1 and stances[0].end <= t:
                 return side, float(_smoothstep((t - stances[0].end) / _LIFT))
@@ -273,23 +268,16 @@ class BouncePlanner(GaitPlanner):
         data = self.model.forward(q)
         orientations = {s: data.oMf[self.model.segment_frame_id(s)].rotation.copy()
                         for s in segments}
-        positions, hints = {}, {}
-        weights: dict[str, float | np.ndarray] = {}
         R_pelvis = data.oMf[self.model.segment_frame_id("Pelvis")].rotation
-        for side in _SIDES:
-            R_foot, p_ankle, R_toe, heel_on, toe_on = self.foot(side, t)
+        feet = []
+        for side in SIDES:
+            foot = self.foot_targets(side, t)
             if held is None or held[0] != side:  # knees bend forward, not backwards
                 hip = data.oMf[self.model.segment_frame_id(f"{side}UpperLeg")].translation
-                orientations.update(self._leg(side, hip, p_ankle, R_pelvis))
-            orientations[f"{side}Foot"] = R_foot
-            orientations[f"{side}Toe"] = R_toe
-            heel, toe = self.contact_points(R_foot, p_ankle, R_toe)
-            positions[f"{side}Heel"], positions[f"{side}Toe"] = heel, toe
-            weights[f"{side}Heel"] = weights[f"{side}Toe"] = 1e4
-            hints[f"{side}Heel"], hints[f"{side}Toe"] = heel_on, toe_on
-        return Frame(t, orientations, positions, hints, orientation_weights={
-            **{f"{s}Foot": 10.0 for s in _SIDES}, **{f"{s}Toe": 10.0 for s in _SIDES}},
-            position_weights=weights, root_position=q[:3].copy(), root_position_weight=1e4)
+                orientations.update(self._leg(side, hip, foot.p_world_ankle, R_pelvis))
+            orientations.update(foot.orientations)
+            feet.append(foot)
+        return feet_frame(t, orientations, feet, q[:3].copy(), root_position_weight=1e4)
 
 
 def _hermite(t: float, a: float, b: float, x0: Any, v0: Any, x1: Any, v1: Any) -> Any:

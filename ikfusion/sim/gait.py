@@ -34,6 +34,8 @@ from ..model.human_model import HumanModel
 from ..rotations import axis_rotation
 
 _CONTACTS = ("LeftHeel", "LeftToe", "RightHeel", "RightToe")
+#: The feet, in the order their targets enter a frame.
+SIDES = ("Right", "Left")
 #: Segments whose orientation the plan dictates (legs follow from the feet positions).
 _UPPER_BODY = ("Pelvis", "T8", "Neck", "Head", "RightShoulder", "RightUpperArm", "RightForeArm",
                "RightHand", "LeftShoulder", "LeftUpperArm", "LeftForeArm", "LeftHand")
@@ -140,6 +142,46 @@ def gait_preset(name: str, duration: float, stand: float = 2.0) -> GaitParameter
     if name not in GAIT_PRESETS:
         raise ValueError(f"unknown walk {name!r}; use one of {', '.join(GAIT_PRESETS)}")
     return GaitParameters(duration=duration, stand=stand, **GAIT_PRESETS[name])
+
+
+@dataclass(frozen=True)
+class FootTargets:
+    """One foot's targets at an instant (world frame).
+
+    Attributes:
+        p_world_ankle: Ankle position (3,) [m].
+        orientations: ``<side>Foot`` and ``<side>Toe`` -> ``R_world_segment`` (3, 3).
+        positions: ``<side>Heel`` and ``<side>Toe`` contact points -> ``p_world_site`` (3,) [m].
+        contacts: The same contact points -> planted.
+    """
+
+    p_world_ankle: np.ndarray
+    orientations: dict[str, np.ndarray]
+    positions: dict[str, np.ndarray]
+    contacts: dict[str, bool]
+
+
+def feet_frame(time: float, orientations: dict[str, np.ndarray], feet: list[FootTargets],
+               root_position: np.ndarray, root_position_weight: float) -> Frame:
+    """A planner's frame: ``orientations`` (feet included) and the feet's contact points.
+
+    The contact points are held firmly (weight 1e4 [1/m^2]) and their contact phases given as
+    hints; the feet and toes are tracked with weight 10.
+
+    Args:
+        time: [s].
+        orientations: Segment name -> ``R_world_segment`` (3, 3), the feet's among them.
+        feet: The feet's targets.
+        root_position: Target of the pelvis origin ``p_world_pelvis`` (3,) [m].
+        root_position_weight: Its weight [1/m^2].
+    """
+    positions = {name: p for foot in feet for name, p in foot.positions.items()}
+    hints = {name: on for foot in feet for name, on in foot.contacts.items()}
+    weights: dict[str, float | np.ndarray] = dict.fromkeys(positions, 1e4)
+    orientation_weights = {name: 10.0 for foot in feet for name in foot.orientations}
+    return Frame(time, orientations, positions, hints, orientation_weights=orientation_weights,
+                 position_weights=weights, root_position=root_position,
+                 root_position_weight=root_position_weight)
 
 
 class _Path:
@@ -266,6 +308,13 @@ class GaitPlanner:
         else:
             land = (0.4 if side == "Right" else 0.9) * T + k * T
             s = self.distance(self.p.stand + land + 0.22 * T)
+        return self.beside_path(side, s)
+
+    def beside_path(self, side: str, s: float) -> tuple[np.ndarray, float]:
+        """Flat-foot ankle position (x, y, z) [m] and yaw [rad] of a foot at arc length ``s``.
+
+        The foot stands ``half_width`` to the ``side`` of the path, turned with the body.
+        """
         c, heading = self.path.at(s)
         body = heading + np.radians(self.p.facing_deg)
         lateral = np.array([-np.sin(body), np.cos(body)])
@@ -335,6 +384,14 @@ class GaitPlanner:
         ball = p_ankle + R_foot @ self.ball_local
         return heel, ball + R_toe @ self.toe_in_toe
 
+    def foot_targets(self, side: str, t: float) -> FootTargets:
+        """The targets and contact hints of the ``side`` foot at ``t`` [s] (see :meth:`foot`)."""
+        R_foot, p_ankle, R_toe, heel_on, toe_on = self.foot(side, t)
+        heel, toe = self.contact_points(R_foot, p_ankle, R_toe)
+        return FootTargets(p_ankle, {f"{side}Foot": R_foot, f"{side}Toe": R_toe},
+                           {f"{side}Heel": heel, f"{side}Toe": toe},
+                           {f"{side}Heel": heel_on, f"{side}Toe": toe_on})
+
     # ---------------------------------------------------------------- upper body
     def upper_body(self, t: float) -> np.ndarray:
         """A configuration whose upper-body segments give the orientation targets."""
@@ -373,21 +430,10 @@ class GaitPlanner:
         data = self.model.forward(q)
         orientations = {s: data.oMf[self.model.segment_frame_id(s)].rotation.copy()
                         for s in _UPPER_BODY}
-        positions = {}
-        weights: dict[str, float | np.ndarray] = {}
-        hints = {}
-        for side in ("Right", "Left"):
-            R_foot, p_ankle, R_toe, heel_on, toe_on = self.foot(side, t)
-            orientations[f"{side}Foot"] = R_foot
-            orientations[f"{side}Toe"] = R_toe
-            heel, toe = self.contact_points(R_foot, p_ankle, R_toe)
-            positions[f"{side}Heel"], positions[f"{side}Toe"] = heel, toe
-            weights[f"{side}Heel"] = weights[f"{side}Toe"] = 1e4
-            hints[f"{side}Heel"], hints[f"{side}Toe"] = heel_on, toe_on
-        return Frame(t_frame, orientations, positions, hints, orientation_weights={
-            **{f"{s}Foot": 10.0 for s in ("Right", "Left")},
-            **{f"{s}Toe": 10.0 for s in ("Right", "Left")}}, position_weights=weights,
-            root_position=q[:3].copy(), root_position_weight=1e2)
+        feet = [self.foot_targets(side, t) for side in SIDES]
+        for foot in feet:
+            orientations.update(foot.orientations)
+        return feet_frame(t_frame, orientations, feet, q[:3].copy(), root_position_weight=1e2)
 
 
 def generate_gait(model: HumanModel, parameters: GaitParameters | None = None,

@@ -49,6 +49,12 @@ def test_unknown_names_list_the_valid_ones(human: HumanModel) -> None:
         human.site_position(human.neutral(), "Headtop")
     with pytest.raises(NameNotFound, match="Pelvis"):
         human.segment_frame_id("pelvis")
+    with pytest.raises(NameNotFound, match="jLeftKnee") as err:
+        human.ball_joint("jleftknee")
+    assert (err.value.kind, err.value.name) == ("joint", "jleftknee")
+    with pytest.raises(NameNotFound, match="unknown frame 'nowhere'") as err:
+        human.frame_id("nowhere")
+    assert "Pelvis" in err.value.valid
 
 
 def _mirror(p: np.ndarray) -> np.ndarray:

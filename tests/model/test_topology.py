@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ikfusion.model import HumanModel
-from ikfusion.model.topology import BodyTopology
+from ikfusion.model.topology import BodyTopology, segment_parents
 
 
 def test_feet_legs_and_toe_joints_of_the_default_model() -> None:
@@ -26,6 +26,22 @@ def test_feet_legs_and_toe_joints_of_the_default_model() -> None:
     assert layout.on_foot.tolist() == ["Toe" not in p for p in points]
     assert layout.below_foot.tolist() == ["Toe" in p for p in points]
     assert layout.stepping.tolist() == ["Heel" in p or "Toe" in p for p in points]
+
+
+def test_segment_parents_of_the_default_model() -> None:
+    """Every segment once, in the model's order; the root has no parent, the rest lead to it."""
+    model = HumanModel.default()
+    parents = segment_parents(model)
+    assert list(parents) == list(model.segment_names)
+    assert [s for s, p in parents.items() if p is None] == ["Pelvis"]
+    assert parents["LeftToe"] == "LeftFoot" and parents["RightFoot"] == "RightLowerLeg"
+    assert parents["Head"] == "Neck" and parents["LeftShoulder"] == "T8"
+    for segment in parents:
+        chain = [segment]
+        while parents[chain[-1]] is not None:
+            chain.append(str(parents[chain[-1]]))
+            assert len(chain) <= len(parents)
+        assert chain[-1] == "Pelvis"
 
 
 def test_knees_and_palms_are_contact_groups_of_their_own() -> None:

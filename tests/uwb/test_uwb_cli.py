@@ -259,3 +259,20 @@ def test_bounds_without_an_area_use_the_readers_hull(rng):
     toa, _, _ = toa_matrix(open_room.positions, open_room.clock_offsets, p, rng, sigma=0.01)
     labels = locate(toa, open_room).status_labels()
     assert labels == ["ok", "ok", "outside_area", "bad_height"]
+
+
+@pytest.mark.parametrize(("args", "message"), [
+    (["plan", "ROOM", "--no-plot", "--step", "-1"], "argument --step: must be positive, got -1"),
+    (["plan", "ROOM", "--no-plot", "--spacing", "nan"], "argument --spacing: must be positive"),
+    (["plan", "ROOM", "--no-plot", "--step", "fine"], "expected a number, got 'fine'"),
+    (["locate", "toa.csv", "--readers", "ROOM", "--sigma", "0"],
+     "argument --sigma: must be positive, got 0"),
+    (["locate", "toa.csv", "--readers", "ROOM", "--sigma", "abc"],
+     "expected metres or 'auto', got 'abc'"),
+])
+def test_lengths_that_must_be_positive_are_refused_with_exit_2(args, message, capsys):
+    room = str(configs_dir() / "constellations" / "room_6x8.yaml")
+    with pytest.raises(SystemExit) as stop:
+        main([room if a == "ROOM" else a for a in args])
+    assert stop.value.code == 2
+    assert message in capsys.readouterr().err
