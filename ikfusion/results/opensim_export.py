@@ -13,6 +13,7 @@ header row starting with ``time`` and one row per frame.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -86,7 +87,19 @@ def load_opensim_mapping(path: str | Path | None = None) -> OpenSimMapping:
     Raises:
         ConfigError: Not YAML, no ``coordinates`` mapping, or a row that is not one valid rule.
     """
-    file = Path(path) if path is not None else shipped_config("opensim.yaml")
+    if path is None:
+        return _shipped_mapping()
+    return _read_mapping(Path(path))
+
+
+@functools.cache
+def _shipped_mapping() -> OpenSimMapping:
+    """``configs/opensim.yaml``, read once per process (the mapping is immutable)."""
+    return _read_mapping(shipped_config("opensim.yaml"))
+
+
+def _read_mapping(file: Path) -> OpenSimMapping:
+    """:func:`load_opensim_mapping` of one file."""
     doc = read_yaml(file, "OpenSim mapping")
     if not isinstance(doc, dict) or not isinstance(doc.get("coordinates"), dict):
         raise ConfigError("expected a mapping with key 'coordinates'", path=file,

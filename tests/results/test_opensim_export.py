@@ -14,6 +14,7 @@ import pytest
 from ikfusion.errors import ConfigError
 from ikfusion.ik import Motion
 from ikfusion.model import CONTACT_SITES, HumanModel
+from ikfusion.paths import shipped_config
 from ikfusion.results.opensim_export import (
     C_OPENSIM_OURS,
     load_opensim_mapping,
@@ -183,6 +184,16 @@ def test_bad_mapping_names_the_row(tmp_path: Path) -> None:
     bad.write_text("coordinates:\n  knee_angle_r: {angle: jRightKnee_flex, euler: [a, b]}\n")
     with pytest.raises(ConfigError, match="knee_angle_r"):
         load_opensim_mapping(bad)
+
+
+def test_the_shipped_mapping_is_read_once_per_process(tmp_path: Path) -> None:
+    # Every solve exported motion.mot through a fresh YAML parse of configs/opensim.yaml
+    # (~0.1 s of a 2505-frame solve's writing); the immutable mapping is now read once.
+    first = load_opensim_mapping()
+    assert load_opensim_mapping() is first
+    copy = tmp_path / "opensim.yaml"
+    copy.write_text(shipped_config("opensim.yaml").read_text())
+    assert load_opensim_mapping(copy) == first  # a named file is still read as given
 
 
 _OPENSIM_READER = """
