@@ -6,7 +6,9 @@
 ``H`` and ``c`` sum the tasks' ``J^T W J`` and ``J^T W e`` plus a small Levenberg-Marquardt
 damping. When the constraints cannot all hold (a planted foot out of reach within the ranges of
 motion), :func:`solve_qp` solves a relaxed problem in which every equality and inequality row
-has a slack variable with a heavy quadratic penalty, and reports that it did.
+has a slack variable with a heavy quadratic penalty, and reports that it did. With DAQP, a step
+whose equality-constrained optimum already satisfies every inequality (most steps) is solved in
+closed form (:mod:`.equality_qp`) and DAQP is called only when a limit binds.
 """
 
 from __future__ import annotations
