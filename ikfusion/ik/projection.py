@@ -13,6 +13,7 @@ import numpy as np
 
 from ..errors import SolverError
 from .configuration import Configuration
+from .equality_qp import independent_solve
 from .limits import ContactConstraint, FloorLimit, JointRangeLimit
 from .qp import QpSettings, build_qp, solve_qp
 
@@ -52,7 +53,7 @@ def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: 
                 return False
             break
         A, b = contact.equality(conf)
-        conf.update(conf.integrate(np.linalg.lstsq(A, b, rcond=None)[0]))
+        conf.update(conf.integrate(minimum_norm_step(A, b)))
     conf.update(q_start)
     relaxed = False
     for _ in range(max_steps):  # ... unless they fail: the QP with the limits
@@ -68,6 +69,19 @@ def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: 
         relaxed = relaxed or solution.relaxed
         conf.update(conf.integrate(solution.dq))
     return relaxed
+
+
+def minimum_norm_step(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The shortest ``dq`` (nv,) with ``A dq = b`` for contact rows ``A`` (m, nv), ``b`` (m,) [m].
+
+    ``dq = A^T y`` with ``A A^T y = b``, a small (m, m) system (several times cheaper than a
+    least-squares solve of the wide one); (nearly) dependent rows get the least-squares
+    solution instead.
+    """
+    y = independent_solve(A @ A.T, b) if len(b) else None
+    if y is None:
+        return np.asarray(np.linalg.lstsq(A, b, rcond=None)[0])
+    return np.asarray(A.T @ y)
 
 
 def above_floor(p_contacts: np.ndarray, floor_z: float, tolerance: float) -> bool:

@@ -6,7 +6,9 @@
 ``H`` and ``c`` sum the tasks' ``J^T W J`` and ``J^T W e`` plus a small Levenberg-Marquardt
 damping. When the constraints cannot all hold (a planted foot out of reach within the ranges of
 motion), :func:`solve_qp` solves a relaxed problem in which every equality and inequality row
-has a slack variable with a heavy quadratic penalty, and reports that it did.
+has a slack variable with a heavy quadratic penalty, and reports that it did. With DAQP, a step
+whose equality-constrained optimum already satisfies every inequality (most steps) is solved in
+closed form (:mod:`.equality_qp`) and DAQP is called only when a limit binds.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import numpy as np
 
 from ..errors import SolverError
 from .configuration import Configuration
+from .equality_qp import equality_optimum, satisfies
 from .limits.base import Equality, Inequality
 from .tasks.base import Task
 
@@ -142,6 +145,10 @@ def _call(backend: str, settings: QpSettings, H: np.ndarray, c: np.ndarray,
             f"QP backend {backend!r} is not installed; available: "
             f"{', '.join(_qpsolvers().available_solvers)}")
     if backend == "daqp":
+        # most steps touch no limit: their optimum in closed form, DAQP when one binds
+        x = equality_optimum(H, c, A, b)
+        if x is not None and satisfies(x, G, h, lb, ub):
+            return x
         return _call_daqp(settings.max_iterations, H, c, G, h, A, b, lb, ub)
     qpsolvers = _qpsolvers()
     try:

@@ -17,7 +17,8 @@ Global translation without aiding comes from chaining contacts: the planted foot
 correction moves the body through :attr:`Solver.world` (:mod:`.world_offset`) only.
 
 Where the steps live: targets :mod:`.frame_targets`, the QP of a step :mod:`.frame_problem`,
-its lazy limit rows :mod:`.active_set`, the projection onto the contacts and the floor
+its lazy limit rows :mod:`.active_set` (solved in closed form when no limit binds,
+:mod:`.equality_qp`), the projection onto the contacts and the floor
 :mod:`.projection`, the residual report :mod:`.residuals`.
 """
 

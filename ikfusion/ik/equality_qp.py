@@ -1,0 +1,75 @@
+"""The QP of a step solved in closed form when none of its inequalities is active.
+
+Most steps of a frame touch no limit: no range of motion, no floor row and no velocity bound
+binds, and the optimum of the step's strictly convex QP is the minimiser of its objective on
+the equality rows (the planted contact points) alone. That minimiser comes from two Cholesky
+factorisations (of ``H`` and of the small Schur complement ``A H^-1 A^T``) in far less time
+than an active-set solve. When it satisfies every inequality and bound it is the QP's unique
+optimum (the KKT conditions hold with zero inequality multipliers); otherwise the caller solves
+the full QP.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg.lapack import dpotrf, dpotrs
+
+
+def equality_optimum(H: np.ndarray, c: np.ndarray, A: np.ndarray | None,
+                     b: np.ndarray | None) -> np.ndarray | None:
+    """``argmin 1/2 x^T H x + c^T x`` subject to ``A x = b`` (inequalities ignored).
+
+    Args:
+        H: (n, n) the objective's Hessian, symmetric positive definite.
+        c: (n,) the objective's gradient at ``x = 0``.
+        A: (m, n) equality rows, or None.
+        b: (m,) their right-hand sides, or None.
+
+    Returns:
+        The minimiser (n,), or None when ``H`` or ``A H^-1 A^T`` is not numerically positive
+        definite (e.g. dependent equality rows): the caller's QP solver decides then.
+    """
+    L, info = dpotrf(H, lower=1, clean=0)
+    if info != 0:
+        return None
+    x, info = dpotrs(L, -c, lower=1)
+    if info != 0:
+        return None
+    if A is not None and b is not None and len(b):
+        Y, info = dpotrs(L, A.T, lower=1)  # H^-1 A^T
+        if info != 0:
+            return None
+        multipliers = independent_solve(A @ Y, A @ x - b)
+        if multipliers is None:
+            return None
+        x = x - Y @ multipliers
+    return np.asarray(x) if np.isfinite(x).all() else None
+
+
+def independent_solve(S: np.ndarray, r: np.ndarray) -> np.ndarray | None:
+    """``S^-1 r`` for a Gram matrix ``S = A W A^T`` (m, m) of rows ``A`` and ``r`` (m,).
+
+    None when the rows are (nearly) dependent: the smallest squared Cholesky pivot of ``S``
+    is below ``1e-12`` of its largest diagonal entry (a condition number of about 1e6 of the
+    rows), where the solution loses its accuracy.
+    """
+    factor, info = dpotrf(S, lower=1, clean=0)
+    if info != 0 or np.min(np.diag(factor)) ** 2 < _DEPENDENT_ROWS * np.max(np.diag(S)):
+        return None
+    y, info = dpotrs(factor, r, lower=1)
+    return np.asarray(y) if info == 0 else None
+
+
+def satisfies(x: np.ndarray, G: np.ndarray | None, h: np.ndarray | None,
+              lb: np.ndarray | None, ub: np.ndarray | None) -> bool:
+    """Whether ``x`` satisfies ``G x <= h`` and ``lb <= x <= ub`` (exactly, no tolerance)."""
+    if G is not None and h is not None and len(h) and not bool(np.all(G @ x <= h)):
+        return False
+    if lb is not None and not bool(np.all(x >= lb)):
+        return False
+    return ub is None or bool(np.all(x <= ub))
+
+
+#: Smallest squared Cholesky pivot of a Gram matrix relative to its largest diagonal entry
+#: before its rows count as dependent (:func:`independent_solve`).
+_DEPENDENT_ROWS = 1e-12
