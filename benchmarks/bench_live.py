@@ -9,7 +9,7 @@ stamp) to the return of ``sendto`` of its pose; the start-up buffer (the calibra
 is not solved (as ``live`` does with a paced source), every later frame is counted.
 
 Columns: latency p50, p99 and max [ms]; frames counted; frames dropped because the solver fell
-behind (``max_lag_s`` of ``configs/live.yaml``), and apart (``start``) those that arrived while
+behind (``latency_budget_s`` of ``configs/live.yaml``), and apart (``start``) those that arrived while
 the start-up buffer was calibrated; frames released with a sensor missing
 (``deadline``); CPU time of the loop's thread per frame, p50 and p99 [ms] (solve and outputs:
 the latency on an idle machine, less the waiting); ``load``, the mean CPU time per sample
@@ -117,7 +117,7 @@ def run_case(work: Path, rate: float, actors: int, seconds: float) -> dict[str, 
                                    settings.clock_jump_s, settings.deadline_periods / s.rate)
         live.append(LiveActor(s.name, i, stream, assembler, PoseKinematics(s.model)))
     sink = DatagramSink()
-    loop = LiveLoop(live, [sink], paced=True, max_lag_s=settings.max_lag_s)
+    loop = LiveLoop(live, [sink], paced=True, latency_budget_s=settings.latency_budget_s)
     streams = [s.samples(named=actors > 1) for s in setups]
     loop.run(ReplaySource([*streams, *([toa] if toa is not None else [])], speed=1.0))
     sink.close()

@@ -68,6 +68,7 @@ class _Tag:
     seq: tuple[float, int, int, int] | None = None  # last (time, raw, unwrapped, max raw)
     late: int = 0
     problem: str | None = None
+    judged: int = 0  # transmissions its filter had evaluated when its fit was last judged
     times: list[float] = field(default_factory=list)
     p: list[np.ndarray] = field(default_factory=list)
     cov: list[np.ndarray] = field(default_factory=list)
@@ -117,6 +118,12 @@ class TagStream:
         self._toa = toa
         self._next: ToaSample | None = None
         self._column = {rid: j for j, rid in enumerate(constellation.ids)}
+        from ..uwb.ekf import UnitTransmissions
+
+        m = len(self._column)
+        self._no_transmission = UnitTransmissions(
+            np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, m)),
+            np.zeros((0, 3)), np.zeros(0), np.zeros((0, 4, 4)))
         self.unknown_readers: set[str] = set()
         self.heard = np.full(len(constellation.ids), -np.inf)  # last TOA time per reader
         self.lost: dict[str, float] = {}  # reader -> since when [s]
@@ -259,6 +266,8 @@ class TagStream:
         from ..uwb.tracking import SPEED_OF_LIGHT, unwrap_sequence
 
         m = len(self._column)
+        if not rows and not batch:  # most frames of a tag: nothing heard in their interval
+            return self._no_transmission
         rows = _without_repeats(rows)
         log = ToaLog(np.array([s.time_s for s in rows], dtype=float),
                      np.array([s.tag for s in rows], dtype=object),
@@ -310,12 +319,13 @@ class TagStream:
         """The tag aids while its last transmissions fit the constellation."""
         from ..uwb.health import fit_from_counts
 
-        last = filt.last(FIT_TRANSMISSIONS)
-        if len(last) < FIT_MIN_TRANSMISSIONS:
+        if filt.evaluated == tag.judged:  # no transmission since: the same fit
             return
-        used = sum(int(u.any()) for u, _ in last)
-        fit = fit_from_counts(len(last), used, sum(int(u.sum()) for u, _ in last),
-                              sum(int(r.sum()) for _, r in last))
+        tag.judged = filt.evaluated
+        received, used, toas_used, toas_rejected = filt.last_counts(FIT_TRANSMISSIONS)
+        if received < FIT_MIN_TRANSMISSIONS:
+            return
+        fit = fit_from_counts(received, used, toas_used, toas_rejected)
         if fit.problem != tag.problem and (fit.problem is None) != (tag.problem is None):
             self.events.append(
                 f"UWB tag {tag.info.id} ({tag.info.site}) stops aiding at {self.time:.1f} s: "
