@@ -24,6 +24,7 @@ frame into the correction. Every choice looks at the past only:
 
 from __future__ import annotations
 
+import bisect
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -61,6 +62,7 @@ class _Tag:
     info: TagInfo
     segment: str
     pending: list[ToaSample] = field(default_factory=list)  # received, not yet stepped
+    in_order: bool = True  # ``pending`` is in time order (TOAs arrived in time order)
     waiting: list[ToaSample] = field(default_factory=list)  # stepped before the start
     filter: UnitFilterStream | None = None
     horizon: float = -np.inf  # TOAs before this time were stepped
@@ -145,6 +147,8 @@ class TagStream:
         if sample.time_s < tag.horizon:
             tag.late += 1
             return
+        if tag.pending and sample.time_s < tag.pending[-1].time_s:
+            tag.in_order = False
         tag.pending.append(sample)
         self.heard[column] = max(self.heard[column], sample.time_s)
 
@@ -220,8 +224,7 @@ class TagStream:
         filt.sample(time_s, None if reading is None else reading.acc,
                     None if reading is None else reading.gyr,
                     None if reading is None else reading.R_world_sensor)
-        due = [s for s in tag.pending if s.time_s < time_s]
-        tag.pending = [s for s in tag.pending if s.time_s >= time_s]
+        due = _take_due(tag, time_s)
         tag.horizon = time_s
         if filt.started:
             p, cov = filt.step(self._transmissions(tag, due, located=False), still)
@@ -410,6 +413,24 @@ def _unwrap_next(tag: _Tag, time_s: float, raw: int) -> int:
     step = (raw - raw0 - expected + modulus // 2) % modulus - modulus // 2 + expected
     tag.seq = (time_s, raw, unwrapped0 + step, top)
     return unwrapped0 + step
+
+
+def _take_due(tag: _Tag, time_s: float) -> list[ToaSample]:
+    """The tag's pending TOAs before ``time_s`` [s] (in arrival order), taken off ``pending``.
+
+    In time order (the usual case, also a start-up buffer's many TOAs) a bisection; else a
+    scan of them all.
+    """
+    pending = tag.pending
+    if not pending or pending[0].time_s >= time_s and tag.in_order:
+        return []
+    if tag.in_order:
+        i = bisect.bisect_left(pending, time_s, key=lambda s: s.time_s)
+        tag.pending = pending[i:]
+        return pending[:i]
+    tag.pending = [s for s in pending if s.time_s >= time_s]
+    tag.in_order = all(a.time_s <= b.time_s for a, b in zip(tag.pending, tag.pending[1:]))
+    return [s for s in pending if s.time_s < time_s]
 
 
 def _without_repeats(rows: list[ToaSample]) -> list[ToaSample]:
