@@ -9,8 +9,8 @@ stamp) to the return of ``sendto`` of its pose; the start-up buffer (the calibra
 is not solved (as ``live`` does with a paced source), every later frame is counted.
 
 Columns: latency p50, p99 and max [ms]; frames counted; frames dropped because the solver fell
-behind (``latency_budget_s`` of ``configs/live.yaml``), and apart (``start``) those that arrived while
-the start-up buffer was calibrated; frames released with a sensor missing
+behind (``latency_budget_s`` of ``configs/live.yaml``), and apart (``start``) those that arrived
+while the start-up buffer was calibrated; frames released with a sensor missing
 (``deadline``); CPU time of the loop's thread per frame, p50 and p99 [ms] (solve and outputs:
 the latency on an idle machine, less the waiting); ``load``, the mean CPU time per sample
 period over all actors (above 1 one core cannot keep up, whatever else runs). Wall-clock

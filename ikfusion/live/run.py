@@ -116,6 +116,7 @@ class LiveLoop:
     toa_samples: int = 0
     sink_errors: list[str] = field(default_factory=list)
     _route: dict[str, LiveActor] = field(default_factory=dict)
+    _route_sent: dict[str, LiveActor | None] = field(default_factory=dict)
     _status_at: float = 0.0
 
     def __post_init__(self) -> None:
@@ -185,8 +186,13 @@ class LiveLoop:
             for each in self.actors:  # each actor's tag feed keeps its own tags
                 each.stream.toa(sample)
             return None, []
-        actor = self._by_name.get(sample.actor) if sample.actor else self._route.get(
-            normalize_sensor_id(sample.sensor))
+        if sample.actor:
+            actor = self._by_name.get(sample.actor)
+        elif sample.sensor in self._route_sent:
+            actor = self._route_sent[sample.sensor]
+        else:  # the id as sent, normalised once
+            actor = self._route_sent[sample.sensor] = self._route.get(
+                normalize_sensor_id(sample.sensor))
         if actor is None:
             return None, []
         return actor, actor.assembler.add(sample, arrived)

@@ -154,18 +154,17 @@ class UnitFilterStream(_UnitFilter):
         self._record(0, p, cov, quat, dt)
         return p[0], cov[0]
 
-    def last(self, n: int) -> list[tuple[np.ndarray, np.ndarray]]:
-        """(used, rejected) per reader of the last ``n`` transmissions evaluated."""
-        return [(u, r) for _, _, _, u, r, _ in self._tx[-n:]]
-
     @property
     def evaluated(self) -> int:
         """Transmissions evaluated so far."""
         return len(self._counts)
 
     def last_counts(self, n: int) -> tuple[int, int, int, int]:
-        """Of the last ``n`` transmissions evaluated: how many, how many used, TOAs used and
-        TOAs rejected (what :meth:`last` gives, counted; cheap to call every frame)."""
+        """Counts of the last ``n`` transmissions evaluated (cheap to call every frame).
+
+        Returns:
+            How many, how many used, TOAs used and TOAs rejected.
+        """
         rows = self._counts[-n:]
         return (len(rows), sum(r[0] for r in rows), sum(r[1] for r in rows),
                 sum(r[2] for r in rows))
