@@ -30,6 +30,7 @@ Run: .venv/bin/python benchmarks/bench_live.py [--cases 60x1,240x1,60x4] [--seco
 from __future__ import annotations
 
 import argparse
+import os
 import socket
 import struct
 import tempfile
@@ -169,6 +170,8 @@ def main() -> None:
     args = parser.parse_args()
     work = args.work or Path(tempfile.mkdtemp(prefix="bench_live_"))
     work.mkdir(parents=True, exist_ok=True)
+    print("machine load average (1, 5, 15 min): "
+          + ", ".join(f"{v:.2f}" for v in os.getloadavg()))
     print(f"{'case':>8} {'p50 ms':>8} {'p99 ms':>8} {'max ms':>8} {'frames':>7} "
           f"{'dropped':>8} {'start':>6} {'deadline':>8} {'cpu p50':>8} {'cpu p99':>8} "
           f"{'load':>5}")
