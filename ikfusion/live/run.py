@@ -14,8 +14,10 @@ still leave within ``latency_budget_s`` of ``configs/live.yaml`` (counted from t
 sample's arrival, with the recent solve time as the cost of each frame still to solve) are
 solved; the others are dropped (not solved, counted; their samples still feed the bridging, the
 stance, the flight detection and the UWB tags). The newest frame waiting is always solved, so
-the poses go on at a lower rate and the latency stays bounded. Drops of frames that arrived
-while the actor calibrated are counted apart. An unpaced replay (``--speed 0``) drops nothing,
+the poses go on at a lower rate and the latency stays bounded. The calibration blocks the loop
+(a fraction of a second); the frames that arrived until the actor caught up after it (its
+first pose within the budget) are the start-up: their drops are counted apart and their
+latency is not in the percentiles. An unpaced replay (``--speed 0``) drops nothing,
 so it gives the poses of ``solve --causal`` exactly. A paced stream does not solve the frames of
 its start-up buffer (only the last one: the stream starts at once instead of catching up;
 ``ActorStream(solve_startup=False)``), so its ``--record`` starts at the end of the calibration.
@@ -56,8 +58,11 @@ class LiveActor:
         frames: Frames solved; ``dropped``: frames dropped because the solver fell behind;
             ``dropped_startup``: those of them that arrived during the calibration.
         latency_s: (frame time [s], arrival of its first sample to its pose sent [s]) of the
-            frames that arrived after the start-up buffer was solved.
-        live_since: Wall time [s] the start-up buffer was solved (None before).
+            frames that arrived after ``live_since``.
+        live_since: Wall time [s] the actor caught up after its calibration: its first pose
+            sent within the latency budget, or of a frame that arrived after the calibration
+            (None before; the frames that arrived until then are the start-up).
+        calibrated_at: Wall time [s] its calibration ended (None before).
         cpu_s: CPU time [s] of the loop's thread per frame of ``latency_s`` (solve, outputs):
             what the latency would be on an idle machine, less the waiting.
         solve_s: Recent wall time [s] to solve and send one frame (a running mean), what a
@@ -75,6 +80,7 @@ class LiveActor:
     dropped_startup: int = 0
     latency_s: list[tuple[float, float]] = field(default_factory=list)
     live_since: float | None = None
+    calibrated_at: float | None = None
     cpu_s: list[float] = field(default_factory=list)
     solve_s: float = 0.0
 
@@ -209,25 +215,31 @@ class LiveLoop:
     def _solve(self, actor: LiveActor, frames: list[AssembledFrame]) -> None:
         """Solve the frames waiting, in time order; behind, those too late are dropped."""
         for i, frame in enumerate(frames):
+            calibrated = actor.stream.calibration is not None
             steady = actor.live_since is not None and frame.first_arrival > actor.live_since
-            if self.paced and actor.live_since is not None and i < len(frames) - 1 \
+            if self.paced and calibrated and i < len(frames) - 1 \
                     and not self._in_budget(actor, frames[i:]):
                 if steady:
                     actor.dropped += 1
-                else:  # arrived while the start-up buffer was calibrated
+                else:  # arrived while the actor calibrated or caught up after it
                     actor.dropped_startup += 1
                 actor.stream.push(frame.time, frame.samples, solve=False)  # bridging, stance
                 continue
             cpu, start = time.thread_time(), self.clock()
             poses = actor.stream.push(frame.time, frame.samples)
             self._send(actor, poses, frame if steady else None)
-            if actor.live_since is not None:
-                spent = self.clock() - start
+            done = self.clock()
+            if calibrated:  # not the calibration itself
+                spent = done - start
                 actor.solve_s = spent if not actor.solve_s else 0.9 * actor.solve_s + 0.1 * spent
+            elif actor.stream.calibration is not None:
+                actor.calibrated_at = done
             if steady:
                 actor.cpu_s.append(time.thread_time() - cpu)
-            if actor.live_since is None and actor.stream.calibration is not None and poses:
-                actor.live_since = self.clock()
+            if actor.live_since is None and actor.calibrated_at is not None and poses and (
+                    not self.paced or done - frame.first_arrival <= self.latency_budget_s
+                    or frame.first_arrival > actor.calibrated_at):
+                actor.live_since = done
 
     def _in_budget(self, actor: LiveActor, backlog: list[AssembledFrame]) -> bool:
         """Solving ``backlog[0]`` keeps it and the newest waiting frame within the budget.
