@@ -9,8 +9,8 @@ stamp) to the return of ``sendto`` of its pose; the start-up buffer (the calibra
 is not solved (as ``live`` does with a paced source), every later frame is counted.
 
 Columns: latency p50, p99 and max [ms]; frames counted; frames dropped because the solver fell
-behind (``max_lag_s`` of ``configs/live.yaml``), and apart (``start``) those that arrived while
-the start-up buffer was calibrated; frames released with a sensor missing
+behind (``latency_budget_s`` of ``configs/live.yaml``), and apart (``start``) those that arrived
+while the start-up buffer was calibrated; frames released with a sensor missing
 (``deadline``); CPU time of the loop's thread per frame, p50 and p99 [ms] (solve and outputs:
 the latency on an idle machine, less the waiting); ``load``, the mean CPU time per sample
 period over all actors (above 1 one core cannot keep up, whatever else runs). Wall-clock
@@ -30,6 +30,7 @@ Run: .venv/bin/python benchmarks/bench_live.py [--cases 60x1,240x1,60x4] [--seco
 from __future__ import annotations
 
 import argparse
+import os
 import socket
 import struct
 import tempfile
@@ -117,7 +118,7 @@ def run_case(work: Path, rate: float, actors: int, seconds: float) -> dict[str, 
                                    settings.clock_jump_s, settings.deadline_periods / s.rate)
         live.append(LiveActor(s.name, i, stream, assembler, PoseKinematics(s.model)))
     sink = DatagramSink()
-    loop = LiveLoop(live, [sink], paced=True, max_lag_s=settings.max_lag_s)
+    loop = LiveLoop(live, [sink], paced=True, latency_budget_s=settings.latency_budget_s)
     streams = [s.samples(named=actors > 1) for s in setups]
     loop.run(ReplaySource([*streams, *([toa] if toa is not None else [])], speed=1.0))
     sink.close()
@@ -169,6 +170,8 @@ def main() -> None:
     args = parser.parse_args()
     work = args.work or Path(tempfile.mkdtemp(prefix="bench_live_"))
     work.mkdir(parents=True, exist_ok=True)
+    print("machine load average (1, 5, 15 min): "
+          + ", ".join(f"{v:.2f}" for v in os.getloadavg()))
     print(f"{'case':>8} {'p50 ms':>8} {'p99 ms':>8} {'max ms':>8} {'frames':>7} "
           f"{'dropped':>8} {'start':>6} {'deadline':>8} {'cpu p50':>8} {'cpu p99':>8} "
           f"{'load':>5}")

@@ -24,6 +24,7 @@ frame into the correction. Every choice looks at the past only:
 
 from __future__ import annotations
 
+import bisect
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -61,6 +62,7 @@ class _Tag:
     info: TagInfo
     segment: str
     pending: list[ToaSample] = field(default_factory=list)  # received, not yet stepped
+    in_order: bool = True  # ``pending`` is in time order (TOAs arrived in time order)
     waiting: list[ToaSample] = field(default_factory=list)  # stepped before the start
     filter: UnitFilterStream | None = None
     horizon: float = -np.inf  # TOAs before this time were stepped
@@ -68,6 +70,7 @@ class _Tag:
     seq: tuple[float, int, int, int] | None = None  # last (time, raw, unwrapped, max raw)
     late: int = 0
     problem: str | None = None
+    judged: int = 0  # transmissions its filter had evaluated when its fit was last judged
     times: list[float] = field(default_factory=list)
     p: list[np.ndarray] = field(default_factory=list)
     cov: list[np.ndarray] = field(default_factory=list)
@@ -117,6 +120,12 @@ class TagStream:
         self._toa = toa
         self._next: ToaSample | None = None
         self._column = {rid: j for j, rid in enumerate(constellation.ids)}
+        from ..uwb.ekf import UnitTransmissions
+
+        m = len(self._column)
+        self._no_transmission = UnitTransmissions(
+            np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros((0, m)),
+            np.zeros((0, 3)), np.zeros(0), np.zeros((0, 4, 4)))
         self.unknown_readers: set[str] = set()
         self.heard = np.full(len(constellation.ids), -np.inf)  # last TOA time per reader
         self.lost: dict[str, float] = {}  # reader -> since when [s]
@@ -138,6 +147,8 @@ class TagStream:
         if sample.time_s < tag.horizon:
             tag.late += 1
             return
+        if tag.pending and sample.time_s < tag.pending[-1].time_s:
+            tag.in_order = False
         tag.pending.append(sample)
         self.heard[column] = max(self.heard[column], sample.time_s)
 
@@ -213,8 +224,7 @@ class TagStream:
         filt.sample(time_s, None if reading is None else reading.acc,
                     None if reading is None else reading.gyr,
                     None if reading is None else reading.R_world_sensor)
-        due = [s for s in tag.pending if s.time_s < time_s]
-        tag.pending = [s for s in tag.pending if s.time_s >= time_s]
+        due = _take_due(tag, time_s)
         tag.horizon = time_s
         if filt.started:
             p, cov = filt.step(self._transmissions(tag, due, located=False), still)
@@ -259,6 +269,8 @@ class TagStream:
         from ..uwb.tracking import SPEED_OF_LIGHT, unwrap_sequence
 
         m = len(self._column)
+        if not rows and not batch:  # most frames of a tag: nothing heard in their interval
+            return self._no_transmission
         rows = _without_repeats(rows)
         log = ToaLog(np.array([s.time_s for s in rows], dtype=float),
                      np.array([s.tag for s in rows], dtype=object),
@@ -310,12 +322,13 @@ class TagStream:
         """The tag aids while its last transmissions fit the constellation."""
         from ..uwb.health import fit_from_counts
 
-        last = filt.last(FIT_TRANSMISSIONS)
-        if len(last) < FIT_MIN_TRANSMISSIONS:
+        if filt.evaluated == tag.judged:  # no transmission since: the same fit
             return
-        used = sum(int(u.any()) for u, _ in last)
-        fit = fit_from_counts(len(last), used, sum(int(u.sum()) for u, _ in last),
-                              sum(int(r.sum()) for _, r in last))
+        tag.judged = filt.evaluated
+        received, used, toas_used, toas_rejected = filt.last_counts(FIT_TRANSMISSIONS)
+        if received < FIT_MIN_TRANSMISSIONS:
+            return
+        fit = fit_from_counts(received, used, toas_used, toas_rejected)
         if fit.problem != tag.problem and (fit.problem is None) != (tag.problem is None):
             self.events.append(
                 f"UWB tag {tag.info.id} ({tag.info.site}) stops aiding at {self.time:.1f} s: "
@@ -400,6 +413,24 @@ def _unwrap_next(tag: _Tag, time_s: float, raw: int) -> int:
     step = (raw - raw0 - expected + modulus // 2) % modulus - modulus // 2 + expected
     tag.seq = (time_s, raw, unwrapped0 + step, top)
     return unwrapped0 + step
+
+
+def _take_due(tag: _Tag, time_s: float) -> list[ToaSample]:
+    """The tag's pending TOAs before ``time_s`` [s] (in arrival order), taken off ``pending``.
+
+    In time order (the usual case, also a start-up buffer's many TOAs) a bisection; else a
+    scan of them all.
+    """
+    pending = tag.pending
+    if not pending or pending[0].time_s >= time_s and tag.in_order:
+        return []
+    if tag.in_order:
+        i = bisect.bisect_left(pending, time_s, key=lambda s: s.time_s)
+        tag.pending = pending[i:]
+        return pending[:i]
+    tag.pending = [s for s in pending if s.time_s >= time_s]
+    tag.in_order = all(a.time_s <= b.time_s for a, b in zip(tag.pending, tag.pending[1:]))
+    return [s for s in pending if s.time_s < time_s]
 
 
 def _without_repeats(rows: list[ToaSample]) -> list[ToaSample]:

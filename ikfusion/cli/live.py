@@ -174,7 +174,7 @@ def run(args: argparse.Namespace) -> int:
                                    settings.clock_jump_s, wall)
         actors.append(LiveActor(setup.name, i, stream, assembler, PoseKinematics(setup.model),
                                 recorder))
-    loop = LiveLoop(actors, sinks, paced, settings.max_lag_s,
+    loop = LiveLoop(actors, sinks, paced, settings.latency_budget_s,
                     None if args.quiet else sys.stderr)
     stopped = False
     try:

@@ -107,7 +107,8 @@ class ActorStream:
         calibration: A calibration already made (nothing is buffered then).
         correction_for: Builds the UWB drift correction once the calibration is known (None:
             IMU only); its fixes are indexed by ``round(time * rate)``. A :class:`TagFeed`
-            also fills them frame by frame.
+            also fills them frame by frame, indexed from the first frame pushed
+            (``round((time - first time) * rate)``, so a source on epoch times works).
         settings: ``configs/live.yaml``.
         bridging: ``configs/bridging.yaml``.
         solve_startup: Solve the frames of the start-up buffer once calibrated (every frame,
@@ -150,6 +151,7 @@ class ActorStream:
         self.relaxed = 0
         self._buffer: list[tuple[float, dict[str, Reading]]] = []
         self._previous: float | None = None
+        self._time0: float | None = None  # first frame time of a TagFeed's fix index [s]
         self._bridge: BridgeStream | None = None
         self._stance: dict[str, FootStillStream] = {}
         self._flight = FlightStream(self.rate, flight)
@@ -194,6 +196,8 @@ class ActorStream:
                 moved) or a bad ``forward``.
         """
         readings = self.readings(samples)
+        if self._time0 is None:
+            self._time0 = float(time_s) if self.tag_feed is not None else 0.0
         if self.calibration is not None:
             pose = self._solve(time_s, readings, solve)
             return [] if pose is None else [pose]
@@ -293,10 +297,14 @@ class ActorStream:
             return
         k, delta = placed
         for pose in poses:
-            if int(round(pose.time * self.rate)) <= k:
+            if self._fix_index(pose.time) <= k:
                 pose.q = pose.q.copy()  # the solver keeps the array it returned
                 pose.q[:2] += delta[:2]
         self.correction.gap[:k + 1] = np.nan  # measured before the placement
+
+    def _fix_index(self, time_s: float) -> int:
+        """Index of the frame at ``time_s`` [s] in the correction's fixes."""
+        return int(round((time_s - (self._time0 or 0.0)) * self.rate))
 
     def _start(self, calibration: Calibration) -> None:
         """Begin solving with ``calibration``."""
@@ -326,7 +334,7 @@ class ActorStream:
         self._flight.update(_acc(readings.get("Pelvis")),
                             {f: _acc(readings.get(f)) for f in FEET},
                             {f: _gyr(readings.get(f)) for f in FEET})
-        k_fix = int(round(time_s * self.rate))
+        k_fix = self._fix_index(time_s)
         if self.tag_feed is not None and self.correction is not None:
             self.tag_feed.frame(k_fix, time_s, readings, still)
         if not solve:

@@ -8,14 +8,19 @@ pose to every sink (one :class:`~ikfusion.live.actor_pose.ActorPose` per call, a
 solved) and to the actor's recorder. Nothing waits for a missing sample: frames are released on
 their deadline, also when the source goes quiet.
 
-When the solver falls behind a paced source (``max_lag_s`` of ``configs/live.yaml``), frames
-released (complete or due) more than that long ago when their turn comes are dropped (not
-solved, counted; their samples still feed the bridging and the stance) once the actor is
-calibrated; those that arrived while it calibrated are counted apart. An unpaced replay
-(``--speed 0``) drops nothing, so it gives the poses of ``solve --causal`` exactly. A paced
-stream does not solve the frames of its start-up buffer (only the last one: the stream starts
-at once instead of catching up; ``ActorStream(solve_startup=False)``), so its ``--record``
-starts at the end of the calibration.
+When the solver falls behind a paced source, the loop skips to the newest frame: every sample
+that arrived meanwhile is taken first, and of the frames then waiting only those whose pose can
+still leave within ``latency_budget_s`` of ``configs/live.yaml`` (counted from their first
+sample's arrival, with the recent solve time as the cost of each frame still to solve) are
+solved; the others are dropped (not solved, counted; their samples still feed the bridging, the
+stance, the flight detection and the UWB tags). The newest frame waiting is always solved, so
+the poses go on at a lower rate and the latency stays bounded. The calibration blocks the loop
+(a fraction of a second); the frames that arrived until the actor caught up after it (its
+first pose within the budget) are the start-up: their drops are counted apart and their
+latency is not in the percentiles. An unpaced replay (``--speed 0``) drops nothing,
+so it gives the poses of ``solve --causal`` exactly. A paced stream does not solve the frames of
+its start-up buffer (only the last one: the stream starts at once instead of catching up;
+``ActorStream(solve_startup=False)``), so its ``--record`` starts at the end of the calibration.
 """
 
 from __future__ import annotations
@@ -53,10 +58,15 @@ class LiveActor:
         frames: Frames solved; ``dropped``: frames dropped because the solver fell behind;
             ``dropped_startup``: those of them that arrived during the calibration.
         latency_s: (frame time [s], arrival of its first sample to its pose sent [s]) of the
-            frames that arrived after the start-up buffer was solved.
-        live_since: Wall time [s] the start-up buffer was solved (None before).
+            frames that arrived after ``live_since``.
+        live_since: Wall time [s] the actor caught up after its calibration: its first pose
+            sent within the latency budget, or of a frame that arrived after the calibration
+            (None before; the frames that arrived until then are the start-up).
+        calibrated_at: Wall time [s] its calibration ended (None before).
         cpu_s: CPU time [s] of the loop's thread per frame of ``latency_s`` (solve, outputs):
             what the latency would be on an idle machine, less the waiting.
+        solve_s: Recent wall time [s] to solve and send one frame (a running mean), what a
+            frame still to solve is expected to cost.
     """
 
     name: str
@@ -70,7 +80,9 @@ class LiveActor:
     dropped_startup: int = 0
     latency_s: list[tuple[float, float]] = field(default_factory=list)
     live_since: float | None = None
+    calibrated_at: float | None = None
     cpu_s: list[float] = field(default_factory=list)
+    solve_s: float = 0.0
 
     def summary(self) -> dict[str, Any]:
         """The ``live`` block of its ``summary.json``."""
@@ -95,8 +107,8 @@ class LiveLoop:
         sinks: Outputs receiving every pose.
         paced: The source delivers at the capture's pace (live, or a replay at a speed > 0):
             frames may then be dropped when the solver falls behind.
-        max_lag_s: Frames released longer ago than this when their turn comes are dropped
-            (paced only) [s].
+        latency_budget_s: A frame waiting behind a newer one is solved only when its pose can
+            still leave this soon after its first sample arrived (paced only) [s].
         status: Where the one-line status goes (None: nowhere).
         clock: Wall clock [s].
     """
@@ -104,12 +116,13 @@ class LiveLoop:
     actors: list[LiveActor]
     sinks: Sequence[PoseSink] = ()
     paced: bool = True
-    max_lag_s: float = 0.012
+    latency_budget_s: float = 0.015
     status: TextIO | None = None
     clock: Callable[[], float] = time.perf_counter
     toa_samples: int = 0
     sink_errors: list[str] = field(default_factory=list)
     _route: dict[str, LiveActor] = field(default_factory=dict)
+    _route_sent: dict[str, LiveActor | None] = field(default_factory=dict)
     _status_at: float = 0.0
 
     def __post_init__(self) -> None:
@@ -133,37 +146,62 @@ class LiveLoop:
         reader = threading.Thread(target=read, name="ikfusion-live-source", daemon=True)
         reader.start()
         try:
-            while True:
+            ended = False
+            while not ended:
                 try:
                     item = inbox.get(timeout=poll_s)
                 except queue.Empty:
                     item = None
-                if item is _END:
-                    break
-                if isinstance(item, BaseException):
-                    raise item
-                if item is not None:
-                    self.take(*item)
+                waiting: dict[str, list[AssembledFrame]] = {a.name: [] for a in self.actors}
+                while item is not None:  # paced: every sample that arrived, then the solves
+                    if item is _END:
+                        ended = True
+                        break
+                    if isinstance(item, BaseException):
+                        raise item
+                    actor, frames = self._assemble(*item)
+                    if actor is not None:
+                        waiting[actor.name] += frames
+                    if not self.paced:
+                        break
+                    try:
+                        item = inbox.get_nowait()
+                    except queue.Empty:
+                        item = None
                 now = self.clock()
-                if inbox.empty():  # wall deadlines only once every sample that arrived is in
-                    for actor in self.actors:
-                        self._solve(actor, actor.assembler.poll(now))
-                self._show_status(now)
+                for actor in self.actors:
+                    if inbox.empty():  # wall deadlines once every sample that arrived is in
+                        waiting[actor.name] += actor.assembler.poll(now)
+                    self._solve(actor, waiting[actor.name])
+                self._show_status(self.clock())
         finally:
             source.close()
         self.finish()
 
     def take(self, sample: Sample, arrived: float) -> None:
-        """One sample arrived at wall time ``arrived`` [s]."""
+        """One sample arrived at wall time ``arrived`` [s]: the frames it releases solved."""
+        actor, frames = self._assemble(sample, arrived)
+        if actor is not None:
+            self._solve(actor, frames)
+
+    def _assemble(self, sample: Sample, arrived: float
+                  ) -> tuple[LiveActor | None, list[AssembledFrame]]:
+        """One sample to its actor's assembler (TOAs to every tag feed); the frames released."""
         if not isinstance(sample, ImuSample):
             self.toa_samples += 1
             for each in self.actors:  # each actor's tag feed keeps its own tags
                 each.stream.toa(sample)
-            return
-        actor = self._by_name.get(sample.actor) if sample.actor else self._route.get(
-            normalize_sensor_id(sample.sensor))
-        if actor is not None:
-            self._solve(actor, actor.assembler.add(sample, arrived))
+            return None, []
+        if sample.actor:
+            actor = self._by_name.get(sample.actor)
+        elif sample.sensor in self._route_sent:
+            actor = self._route_sent[sample.sensor]
+        else:  # the id as sent, normalised once
+            actor = self._route_sent[sample.sensor] = self._route.get(
+                normalize_sensor_id(sample.sensor))
+        if actor is None:
+            return None, []
+        return actor, actor.assembler.add(sample, arrived)
 
     def finish(self) -> None:
         """The stream ended: the pending frames and the start-up buffers solved."""
@@ -175,24 +213,44 @@ class LiveLoop:
             self.status.write("\n")
 
     def _solve(self, actor: LiveActor, frames: list[AssembledFrame]) -> None:
-        for frame in frames:
-            now = self.clock()
+        """Solve the frames waiting, in time order; behind, those too late are dropped."""
+        for i, frame in enumerate(frames):
+            calibrated = actor.stream.calibration is not None
             steady = actor.live_since is not None and frame.first_arrival > actor.live_since
-            if (self.paced and actor.live_since is not None
-                    and now - frame.released > self.max_lag_s):
+            if self.paced and calibrated and i < len(frames) - 1 \
+                    and not self._in_budget(actor, frames[i:]):
                 if steady:
                     actor.dropped += 1
-                else:  # arrived while the start-up buffer was calibrated
+                else:  # arrived while the actor calibrated or caught up after it
                     actor.dropped_startup += 1
                 actor.stream.push(frame.time, frame.samples, solve=False)  # bridging, stance
                 continue
-            cpu = time.thread_time()
+            cpu, start = time.thread_time(), self.clock()
             poses = actor.stream.push(frame.time, frame.samples)
             self._send(actor, poses, frame if steady else None)
+            done = self.clock()
+            if calibrated:  # not the calibration itself
+                spent = done - start
+                actor.solve_s = spent if not actor.solve_s else 0.9 * actor.solve_s + 0.1 * spent
+            elif actor.stream.calibration is not None:
+                actor.calibrated_at = done
             if steady:
                 actor.cpu_s.append(time.thread_time() - cpu)
-            if actor.live_since is None and actor.stream.calibration is not None and poses:
-                actor.live_since = self.clock()
+            if actor.live_since is None and actor.calibrated_at is not None and poses and (
+                    not self.paced or done - frame.first_arrival <= self.latency_budget_s
+                    or frame.first_arrival > actor.calibrated_at):
+                actor.live_since = done
+
+    def _in_budget(self, actor: LiveActor, backlog: list[AssembledFrame]) -> bool:
+        """Solving ``backlog[0]`` keeps it and the newest waiting frame within the budget.
+
+        Each frame still to solve is expected to cost ``actor.solve_s``; the newest waiting
+        frame leaves after all of them.
+        """
+        now, cost = self.clock(), actor.solve_s
+        return (now + cost - backlog[0].first_arrival <= self.latency_budget_s
+                and now + len(backlog) * cost - backlog[-1].first_arrival
+                <= self.latency_budget_s)
 
     def _send(self, actor: LiveActor, poses: list[Any], frame: AssembledFrame | None) -> None:
         for pose in poses:

@@ -16,15 +16,16 @@ class LiveSettings(ShippedSettings):
         deadline_periods: A frame is complete when every sensor is in or this many sample
             periods passed (in capture time, or live in wall time) [periods].
         clock_jump_s: A sensor this far from the stream's newest frame has jumped [s].
-        max_lag_s: Live, a frame released (complete or due) longer ago than this when its
-            turn comes is dropped (the solver fell behind) [s].
+        latency_budget_s: Live, when the solver fell behind: a frame waiting behind a newer one
+            is solved only if its pose can still leave this soon after its first sample
+            arrived, else dropped (the newest frame waiting is always solved) [s].
         flush_s: ``--record`` flushes its rows this often [s].
     """
 
     calibration_s: float
     deadline_periods: float
     clock_jump_s: float
-    max_lag_s: float
+    latency_budget_s: float
     flush_s: float
 
     shipped_file = "live.yaml"

@@ -61,6 +61,8 @@ class UnitFilterStream(_UnitFilter):
         self.steps = 0
         self.samples = 0
         self._tx: list[tuple[float, int, np.ndarray, np.ndarray, np.ndarray, bool]] = []
+        #: (used at all, TOAs used, TOAs rejected) per transmission evaluated, for the fit
+        self._counts: list[tuple[int, int, int]] = []
         #: Fills the fix of transmission ``i`` of the step's ``tx`` when the gate re-opens on
         #: it (fixes are costly and needed only then); None: the ``tx`` fixes are used as given.
         self.fill_fix: Callable[[UnitTransmissions, int], None] | None = None
@@ -135,8 +137,11 @@ class UnitFilterStream(_UnitFilter):
         if still:
             self._zero_velocity_update()
         for i in range(len(tx)):
+            used, rejected = self.used[i].copy(), self.rejected[i].copy()
             self._tx.append((float(tx.time[i]), int(tx.seq[i]), np.isfinite(tx.toa[i]),
-                             self.used[i].copy(), self.rejected[i].copy(), bool(self.reset[i])))
+                             used, rejected, bool(self.reset[i])))
+            toas_used = int(np.count_nonzero(used))
+            self._counts.append((int(toas_used > 0), toas_used, int(np.count_nonzero(rejected))))
         return self._output(float(time[1] - time[0]))
 
     def _reopen(self, i: int) -> None:
@@ -149,9 +154,20 @@ class UnitFilterStream(_UnitFilter):
         self._record(0, p, cov, quat, dt)
         return p[0], cov[0]
 
-    def last(self, n: int) -> list[tuple[np.ndarray, np.ndarray]]:
-        """(used, rejected) per reader of the last ``n`` transmissions evaluated."""
-        return [(u, r) for _, _, _, u, r, _ in self._tx[-n:]]
+    @property
+    def evaluated(self) -> int:
+        """Transmissions evaluated so far."""
+        return len(self._counts)
+
+    def last_counts(self, n: int) -> tuple[int, int, int, int]:
+        """Counts of the last ``n`` transmissions evaluated (cheap to call every frame).
+
+        Returns:
+            How many, how many used, TOAs used and TOAs rejected.
+        """
+        rows = self._counts[-n:]
+        return (len(rows), sum(r[0] for r in rows), sum(r[1] for r in rows),
+                sum(r[2] for r in rows))
 
     def track(self, time: np.ndarray, p_world_tag: np.ndarray, cov: np.ndarray) -> UnitTrack:
         """The :class:`~ikfusion.uwb.ekf.UnitTrack` of the stream so far.

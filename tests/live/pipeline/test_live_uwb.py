@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import heapq
 import json
 from collections.abc import Callable, Iterator
@@ -169,3 +170,27 @@ def test_a_vanishing_reader_a_silent_tag_and_late_toas_do_not_stop_the_stream(
     assert "arrived after their frame" in warnings
     assert "R1" in statuses[0]  # still lost at the end: on the status line
     assert evaluate(out, capture / "truth.npz", align="none").head_position_rms_m < 0.1
+
+
+def test_a_source_on_epoch_times_gives_the_same_poses(capture: Path, tmp_path: Path) -> None:
+    """A live source stamping its IMU and TOA samples with epoch times (1.79e9 s): the same
+    poses as from the capture's own times (before, the UWB fix arrays were indexed by
+    ``round(time * rate)`` and grown to 1e11 frames)."""
+    epoch = 1.79e9
+
+    def shifted(samples: Iterator[Sample]) -> Iterator[Sample]:
+        for s in samples:
+            yield dataclasses.replace(s, time_s=s.time_s + epoch)
+
+    (tmp_path / "base").mkdir()
+    (tmp_path / "epoch").mkdir()
+    base, _ = _live(capture, tmp_path / "base")
+    moved, loop = _live(capture, tmp_path / "epoch", shifted)
+    a = np.loadtxt(base / "joint_angles.csv", delimiter=",", skiprows=1)
+    b = np.loadtxt(moved / "joint_angles.csv", delimiter=",", skiprows=1)
+    assert a.shape == b.shape and len(a) > 500
+    np.testing.assert_allclose(b[:, 0] - epoch, a[:, 0], atol=1e-5)
+    # the same poses up to the rounding of epoch times (their resolution is 2.4e-7 s)
+    assert np.abs(b[:, 1:] - a[:, 1:]).max() < 0.05
+    summary = json.loads((moved / "summary.json").read_text())
+    assert summary["uwb"]["used"] is True
