@@ -84,7 +84,7 @@ def test_a_swing_foot_is_pulled_as_a_whole_as_it_lifts() -> None:
     """Every anchor of a lifted foot is pulled by its tag's gap, so the foot moves without
     turning; the pull grows smoothly from nothing at lift-off; a planted foot is not pulled."""
     settings = TagTaskSettings(1.0, 0.1, 0.05, False, 0.02, onset=0.2)
-    last = SolvedTags({"LeftHeel": False, "RightHeel": True}, np.zeros(3), np.zeros(3),
+    last = SolvedTags({"LeftHeel": False, "RightHeel": True},
                       np.array([[0.1, 0.0, 0.1], [0.1, 0.3, 0.1]]),
                       {"LeftFootTop": np.array([0.1, 0.0, 0.1]),
                        "LeftHeel": np.array([0.0, 0.0, 0.0]),
