@@ -7,11 +7,12 @@ positions (horizontal error, weighted by the measurements' covariances) and acts
 * ``slide``: every planted point is moved toward the correction at once (a first-order lag of
   ``time_constant``); the body follows at once, planted feet slide.
 * ``no-slide``: planted points never move; the tag fixes are soft position tasks of each frame's
-  QP on what the contacts leave free (swing feet, the whole body in flight) at a bounded rate
-  (:mod:`.tag_tasks`); each swing foot is also led toward the mean correction (at most
-  ``max_step`` per step), the pelvis leans toward it a little and follows each foot it is
-  handed to gradually (:class:`ikfusion.ik.support.SupportFollower`), so the body walks (runs,
-  jumps) into place step by step without a jump.
+  QP on what the contacts leave free (swing feet; in flight they move the solver's ballistic
+  path of the whole body) at a bounded rate (:mod:`.tag_tasks`); each swing foot is also led
+  toward the mean correction (at most ``max_step`` per step), the pelvis leans toward it a
+  little and follows each foot it is handed to gradually
+  (:class:`ikfusion.ik.support.SupportFollower`), so the body walks (runs, jumps) into place
+  step by step without a jump.
 * ``off``: tags are only reported.
 
 A heading drift of the sensors (a magnetically disturbed area) makes the body walk the wrong
