@@ -61,10 +61,6 @@ def test_planted_points_do_not_slide(closed) -> None:  # type: ignore[no-untyped
     assert len(slides) > 20 and max(slides) <= 1e-3
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "issue #19, open: the no-slide swing-foot tag tasks pop the ankles by 3.5-4.9 deg/frame "
-    "while a 1 m gap closes with perfect sensors (even with the pull capped at 1 cm); the "
-    "step lead alone (tag_weight 0) passes. The positioning-jump release pop is fixed."))
 def test_no_joint_pops_while_it_closes(closed) -> None:  # type: ignore[no-untyped-def]
     motion, correction, truth = closed
     names = [str(n) for n in truth["joint_angle_names"]]

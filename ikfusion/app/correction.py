@@ -7,11 +7,12 @@ positions (horizontal error, weighted by the measurements' covariances) and acts
 * ``slide``: every planted point is moved toward the correction at once (a first-order lag of
   ``time_constant``); the body follows at once, planted feet slide.
 * ``no-slide``: planted points never move; the tag fixes are soft position tasks of each frame's
-  QP on what the contacts leave free (swing feet, the whole body in flight) at a bounded rate
-  (:mod:`.tag_tasks`); each swing foot is also led toward the mean correction (at most
-  ``max_step`` per step), the pelvis leans toward it a little and follows each foot it is
-  handed to gradually (:class:`ikfusion.ik.support.SupportFollower`), so the body walks (runs,
-  jumps) into place step by step without a jump.
+  QP on what the contacts leave free (swing feet; in flight they move the solver's ballistic
+  path of the whole body) at a bounded rate (:mod:`.tag_tasks`); each swing foot is also led
+  toward the mean correction (at most ``max_step`` per step), the pelvis leans toward it a
+  little and follows each foot it is handed to gradually
+  (:class:`ikfusion.ik.support.SupportFollower`), so the body walks (runs, jumps) into place
+  step by step without a jump.
 * ``off``: tags are only reported.
 
 A heading drift of the sensors (a magnetically disturbed area) makes the body walk the wrong
@@ -36,7 +37,6 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..ik.ballistic import GRAVITY
 from ..ik.frame import Frame
 from ..ik.pose import Motion, Pose
 from ..ik.solver import Solver
@@ -48,7 +48,7 @@ from .tag_tasks import (
     SolvedTags,
     SwingClock,
     TagTaskSettings,
-    flight_root_target,
+    flight_pull,
     planted_feet,
     tag_targets,
 )
@@ -90,8 +90,10 @@ class CorrectionSettings(ShippedSettings):
         tag_weight: ... with the fixes' information scaled by this.
         tag_sigma: ... with this uncertainty [m] added to the fixes' ...
         tag_vertical: ... pulling heights too (else horizontally only).
-        tag_time_constant: In flight the pelvis closes the gap to the tags with this lag [s].
-        tag_onset: A swing foot's task grows to full weight over this much of its swing [s].
+        tag_time_constant: In flight the pelvis closes the gap to the tags with this lag [s] ...
+        tag_flight_speed: ... moving at most this fast toward them [m/s].
+        tag_onset: A swing foot's task grows to full weight over this much of its swing [s],
+            and fades out over as long before its predicted touch-down.
         release_distance: ``no-slide``: a planted foot whose tag moved farther than this [m]
             is let go (:mod:`.tag_release`) ...
         release_speed: ... until its tag moves slower than this [m/s]; a step of a fix faster
@@ -113,6 +115,7 @@ class CorrectionSettings(ShippedSettings):
     tag_sigma: float
     tag_vertical: bool
     tag_time_constant: float
+    tag_flight_speed: float
     tag_onset: float
     release_distance: float
     release_speed: float
@@ -153,7 +156,6 @@ class DriftCorrection:
     _foot_of_point: dict[str, str | None] = field(default_factory=dict)
     _anchors: dict[str, list[str]] = field(default_factory=dict)  # foot -> sites moved by its tag
     _last: SolvedTags | None = None  # what the next frame's tag tasks take from the last
-    _ballistic: float = 0.0  # the solver's weight of the pelvis path in flight
     _release: list[FootRelease | None] = field(default_factory=list)  # per fix on a foot
     _swing: SwingClock = field(default_factory=SwingClock)  # each foot's time off the floor
 
@@ -205,7 +207,7 @@ class DriftCorrection:
 
     def after_frame(self, solver: Solver, pose: Pose, k: int, dt: float) -> None:
         """Compare frame ``k`` with the fixes and steer the solver's feet for the next frames."""
-        world = solver.world  # the only part of the solver a correction touches
+        world = solver.world  # what a correction moves (and, in flight, solver.ballistic)
         if len(self._body) != len(self.fixes):  # sites on the body, not on a foot
             topology = solver.topology
             self._feet = [topology.foot_of(f.site) for f in self.fixes]
@@ -219,16 +221,17 @@ class DriftCorrection:
                              FootRelease(s.release_distance, s.release_speed,
                                          s.release_jump_speed)
                              for foot in self._feet]
-        p_root = np.asarray(pose.q[:3], dtype=float).copy()
-        v_root = (p_root - self._last.p_root) / dt if self._last is not None and dt > 0 \
-            else np.zeros(3)
-        self._last = SolvedTags(dict(pose.contacts), p_root, v_root,
+        self._last = SolvedTags(dict(pose.contacts),
                                 np.array([pose.site_position(f.site) for f in self.fixes]),
                                 {p: pose.site_position(p) for points in
                                  self._anchors.values() for p in points})
-        self._ballistic = solver.settings.ballistic
         planted = planted_feet(self._last.contacts, self._foot_of_point)
         self._swing.update(self._feet, planted, dt)
+        floor_z = solver.settings.floor_z
+        self._swing.update_landing(
+            {foot: np.array([pose.site_position(p)[2] - floor_z for p, of in
+                             self._foot_of_point.items() if of == foot])
+             for foot in self._anchors}, planted, dt)
         for f, foot, release in zip(self.fixes, self._feet, self._release):
             if release is not None:
                 release.update(foot in planted, f.p_world[k], f.cov[k], dt)
@@ -240,6 +243,8 @@ class DriftCorrection:
             self.distance[i, k] = float(np.linalg.norm(f.p_world[k, :2] - p_site[:2]))
         if self.mode != "off" and self._placed:
             self._correct_heading(world, k, dt)
+        if self.mode == "no-slide" and self._placed and self._last.flight:
+            self._pull_flight(solver, k, dt)
         self.heading[k] = world.heading
         error = self.horizontal_error(pose, k)
         if error is None:
@@ -275,37 +280,52 @@ class DriftCorrection:
 
         Called just before the frame's solve, after :meth:`after_frame` of the frame before
         (``dt`` [s] after it): which feet are planted and whether the body flies come from
-        there. In flight (and without a root target of its own) the frame gets the pelvis
-        target of :func:`~.tag_tasks.flight_root_target`, else soft position tasks on the tag
-        sites the contacts leave free; the points of feet let go (:mod:`.tag_release`) are
-        hinted off the floor. Other modes return the frame unchanged, and so does
-        ``no-slide`` until the first fix placed the body (or with ``dt`` <= 0). Offline
+        there. Outside flight the frame gets soft position tasks on the tag sites the contacts
+        leave free (in flight the tags move the solver's ballistic path instead:
+        :meth:`after_frame`, :func:`~.tag_tasks.flight_pull`); the points of feet let go
+        (:mod:`.tag_release`) are hinted off the floor. Other modes return the frame unchanged,
+        and so does ``no-slide`` until the first fix placed the body (or with ``dt`` <= 0). Offline
         (:meth:`frames`) and the causal stream (:class:`ikfusion.live.actor_stream.
         ActorStream`) both shape their frames here.
         """
         last = self._last
         if self.mode != "no-slide" or not self._placed or last is None or dt <= 0:
             return frame
-        s = self.settings
-        tag_settings = TagTaskSettings(s.tag_speed, s.tag_weight, s.tag_sigma, s.tag_vertical,
-                                       s.tag_time_constant, s.tag_onset)
+        s, tag_settings = self.settings, self._tag_settings()
         p_fix = np.array([f.p_world[k] for f in self.fixes])
         cov = np.array([f.cov[k] for f in self.fixes])
         hints = self._hints(frame)
-        if last.flight and frame.root_position is None:
-            p_root = flight_root_target(last, self._body, p_fix, cov, dt, GRAVITY, tag_settings)
-            if p_root is None:
-                return replace(frame, contacts=hints)
-            return replace(frame, contacts=hints, root_position=p_root,
-                           root_position_weight=self._ballistic)
+        if last.flight:  # the legs are left to their sensors; the tags move the body's path
+            return replace(frame, contacts=hints)
         positions, weights = tag_targets(
             self._feet, p_fix, cov, last, planted_feet(last.contacts, self._foot_of_point),
-            self._anchors, tag_settings, self._swing.swung)
+            self._anchors, tag_settings, self._swing.swung, self._swing.landing)
         if not positions:
             return replace(frame, contacts=hints)
         return replace(frame, positions={**frame.positions, **positions},
                        position_weights={**frame.position_weights, **weights},
                        position_reach=s.tag_speed * dt, contacts=hints)
+
+    def _tag_settings(self) -> TagTaskSettings:
+        """The ``no-slide`` tag tasks' part of the settings."""
+        s = self.settings
+        return TagTaskSettings(s.tag_speed, s.tag_weight, s.tag_sigma, s.tag_vertical,
+                               s.tag_time_constant, s.tag_onset, s.tag_flight_speed)
+
+    def _pull_flight(self, solver: Solver, k: int, dt: float) -> None:
+        """In flight: move the solver's ballistic path toward frame ``k``'s tags.
+
+        The body flies (and lands) on the solver's one path (:mod:`ikfusion.ik.ballistic`);
+        the tags move it at a bounded rate (:func:`~.tag_tasks.flight_pull`).
+        """
+        last = self._last
+        if last is None:
+            return
+        p_fix = np.array([f.p_world[k] for f in self.fixes])
+        cov = np.array([f.cov[k] for f in self.fixes])
+        pull = flight_pull(last.p_sites, self._body, p_fix, cov, dt, self._tag_settings())
+        if pull is not None:
+            solver.ballistic.shift(pull)
 
     def _hints(self, frame: Frame) -> dict[str, bool] | None:
         """The frame's contact hints with the points of released feet let go."""

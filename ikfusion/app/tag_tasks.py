@@ -11,9 +11,11 @@ their fixes
   (:attr:`ikfusion.ik.tasks.PositionTask.reach`), so the leg bends toward it at a bounded rate
   and no joint jumps, however far behind the body fell;
 * in flight (no point planted) the root translation is free and the legs and trunk are best
-  left to their sensors: the tags place the pelvis instead (:func:`flight_root_target`): its
-  ballistic path (the last velocity, gravity) moved toward where the tags put it, by at most
-  ``tag_speed * dt`` more per frame, closing the gap with a lag of ``tag_time_constant``.
+  left to their sensors: the tags move the solver's ballistic path of the pelvis instead
+  (:func:`flight_pull`) toward where they put it, by at most ``tag_flight_speed * dt`` per frame,
+  closing the gap with a lag of ``tag_time_constant``. It is the solver's one path, which
+  lands where the sensed legs meet the floor; a second parabola of the tags' own landed
+  elsewhere and the hips popped at the landing.
 
 A tag on the body (the head) acts in flight only; while a foot stands it could only bend the
 trunk away from its sensors, and the pelvis leans toward the correction there
@@ -44,7 +46,9 @@ class TagTaskSettings:
         vertical: Also pull heights (else horizontal only).
         time_constant: In flight the pelvis closes the gap to the tags with this lag [s].
         onset: A foot's task grows from nothing to full weight over this much of its swing
-            [s] (0: at once).
+            [s] (0: at once), and fades out over as long before it lands.
+        flight_speed: In flight the tags move the pelvis's path at most this fast [m/s]
+            (None: ``speed``).
     """
 
     speed: float
@@ -53,6 +57,7 @@ class TagTaskSettings:
     vertical: bool
     time_constant: float
     onset: float = 0.0
+    flight_speed: float | None = None
 
 
 @dataclass(frozen=True)
@@ -61,15 +66,11 @@ class SolvedTags:
 
     Attributes:
         contacts: Contact point -> planted.
-        p_root: (3,) the pelvis position [m].
-        v_root: (3,) its velocity [m/s].
         p_sites: (n, 3) the tag sites [m].
         p_points: Site -> its position (3,) [m]: the feet's anchors (:func:`tag_targets`).
     """
 
     contacts: Mapping[str, bool]
-    p_root: np.ndarray
-    v_root: np.ndarray
     p_sites: np.ndarray
     p_points: Mapping[str, np.ndarray] = field(default_factory=dict)
 
@@ -96,7 +97,8 @@ def tag_information(cov: np.ndarray, settings: TagTaskSettings) -> np.ndarray:
 
 def tag_targets(feet: Sequence[str | None], p_fix: np.ndarray, cov: np.ndarray,
                 last: SolvedTags, planted: set[str], anchors: Mapping[str, Sequence[str]],
-                settings: TagTaskSettings, swing: Mapping[str, float] | None = None
+                settings: TagTaskSettings, swing: Mapping[str, float] | None = None,
+                landing: Mapping[str, float] | None = None
                 ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """The swing feet's targets and information matrices of one frame.
 
@@ -105,6 +107,14 @@ def tag_targets(feet: Sequence[str | None], p_fix: np.ndarray, cov: np.ndarray,
     points) are pulled, each by the tag's gap (fix minus the last solved tag site), sharing the
     fix's information. The foot moves as a whole; the tag site alone would turn the foot about
     the ankle, against its sensor, and the turn would spring back at touch-down.
+
+    The pull grows smoothly over the first ``onset`` [s] of a swing and fades out as smoothly
+    over the last ``onset`` [s] before the foot is predicted to touch down (``landing``). Only
+    the horizontal of a site is pulled, so part of the pull is taken up by turning the foot
+    about its ankle (a heel below the ankle moves horizontally when the foot pitches); once the
+    heel is planted it cannot, and the turn sprang back within a frame: an ankle pop at every
+    heel strike while a gap closed. Faded out before the touch-down, the turn unwinds over the
+    fade instead.
 
     Args:
         feet: Per tag, the foot carrying it (None: on the body).
@@ -115,6 +125,7 @@ def tag_targets(feet: Sequence[str | None], p_fix: np.ndarray, cov: np.ndarray,
         anchors: Foot -> the sites moved with its tag (positions in ``last.p_points``).
         settings: Weight, axes and onset.
         swing: Foot -> how long it has been off the floor [s] (missing: a full swing).
+        landing: Foot -> predicted time to its touch-down [s] (missing: not coming down).
 
     Returns:
         ``positions`` site -> target (3,) [m] and ``weights`` site -> information (3, 3).
@@ -126,7 +137,8 @@ def tag_targets(feet: Sequence[str | None], p_fix: np.ndarray, cov: np.ndarray,
             continue
         if not (np.isfinite(p).all() and np.isfinite(C).all()):
             continue
-        scale = onset_scale((swing or {}).get(foot, np.inf), settings.onset)
+        scale = (onset_scale((swing or {}).get(foot, np.inf), settings.onset)
+                 * onset_scale((landing or {}).get(foot, np.inf), settings.onset))
         points = [q for q in anchors.get(foot, ()) if q in last.p_points]
         if scale <= 0.0 or not points:
             continue
@@ -139,10 +151,10 @@ def tag_targets(feet: Sequence[str | None], p_fix: np.ndarray, cov: np.ndarray,
 
 
 def onset_scale(swung: float, onset: float) -> float:
-    """Weight factor in [0, 1] of a foot's task ``swung`` [s] into its swing.
+    """Weight factor in [0, 1] of a foot's task ``swung`` [s] into its swing (or before landing).
 
     A smooth step (zero slope at both ends) over ``onset`` [s]: the pull starts without a kick
-    when the foot lifts.
+    when the foot lifts, and ends without one when it lands.
     """
     if onset <= 0.0 or swung >= onset:
         return 1.0
@@ -150,11 +162,53 @@ def onset_scale(swung: float, onset: float) -> float:
     return x * x * (3.0 - 2.0 * x)
 
 
+def time_to_touchdown(height: np.ndarray, v_z: np.ndarray) -> float:
+    """When the first of a foot's points reaches the floor at its vertical speed [s].
+
+    Args:
+        height: (k,) the points' heights above the floor [m].
+        v_z: (k,) their vertical velocities [m/s].
+
+    Returns:
+        The least ``height / -v_z`` over the descending points (0 for a point on or below the
+        floor), infinity when none descends.
+    """
+    h = np.maximum(np.asarray(height, dtype=float), 0.0)
+    v = np.asarray(v_z, dtype=float)
+    down = np.isfinite(h) & np.isfinite(v) & (v < 0.0)
+    return float(np.min(h[down] / -v[down])) if down.any() else float("inf")
+
+
 class SwingClock:
-    """How long each foot has been off the floor [s], counted after each solved frame."""
+    """How long each foot has been off the floor and how soon it lands [s], per solved frame.
+
+    Attributes:
+        swung: Foot -> time since it lifted [s] (0 while planted).
+        landing: Foot -> predicted time to its touch-down [s] (:func:`time_to_touchdown`).
+    """
 
     def __init__(self) -> None:
         self.swung: dict[str, float] = {}
+        self.landing: dict[str, float] = {}
+        self._z: dict[str, np.ndarray] = {}  # foot -> its contact points' last heights [m]
+
+    def update_landing(self, heights: Mapping[str, np.ndarray], planted: set[str],
+                       dt: float) -> None:
+        """After a frame: each foot's contact points' heights above the floor (k,) [m].
+
+        Within a swing the predicted touch-down only comes nearer: at least ``dt`` nearer
+        each frame, sooner when the foot says so (a heel that slows just above the floor
+        would otherwise push it back, and the pull would return for the landing).
+        """
+        for foot, z in heights.items():
+            z = np.asarray(z, dtype=float)
+            last = self._z.get(foot)
+            self._z[foot] = z
+            if foot in planted or last is None or last.shape != z.shape or dt <= 0.0:
+                self.landing[foot] = float("inf")
+                continue
+            before = self.landing.get(foot, float("inf")) - dt
+            self.landing[foot] = max(0.0, min(before, time_to_touchdown(z, (z - last) / dt)))
 
     def update(self, feet: Sequence[str | None], planted: set[str], dt: float) -> None:
         """After a frame: the feet in ``planted`` restart at 0, the others swung ``dt`` more."""
@@ -164,45 +218,50 @@ class SwingClock:
             self.swung[foot] = 0.0 if foot in planted else self.swung.get(foot, 0.0) + dt
 
 
-def flight_root_target(last: SolvedTags, body: Sequence[bool], p_fix: np.ndarray,
-                       cov: np.ndarray, dt: float, gravity: np.ndarray,
-                       settings: TagTaskSettings) -> np.ndarray | None:
-    """Where the pelvis should be in a frame of flight (3,) [m], or None without a fix.
+def flight_pull(p_sites: np.ndarray, body: Sequence[bool], p_fix: np.ndarray, cov: np.ndarray,
+                dt: float, settings: TagTaskSettings) -> np.ndarray | None:
+    """How far the tags move the pelvis's ballistic path in one frame of flight (3,) [m].
 
-    The ballistic path from the last frame (``p + v dt + g dt^2 / 2``), moved horizontally
-    toward where the tags put the pelvis (the last pelvis moved by the tags' information-
-    weighted mean of fix minus last site; body tags only when one has a fix, as the head moves
-    with the pelvis more than a foot does): by ``dt / time_constant`` of the gap, at most
-    ``speed * dt``.
+    The gap from a solved frame to where its tags put the pelvis (the information-weighted
+    mean of fix minus solved site; body tags only when one has a fix, as the head moves with
+    the pelvis more than a foot does), closed by ``dt / time_constant`` of it per frame and by
+    at most ``flight_speed * dt``; horizontal unless ``vertical``. In flight this moves the
+    whole body and bends no joint, so its bound is the body's visible change of speed, higher
+    than a swing foot's ``speed``. The solver's own path
+    (:meth:`ikfusion.ik.ballistic.BallisticRoot.shift`) is moved by it, so the body flies and
+    lands on one path, not on a parabola of the correction's.
 
     Args:
-        last: The last solved frame.
+        p_sites: (n, 3) the solved tag sites [m].
         body: Per tag, on the body (not on a foot).
-        p_fix: (n, 3) this frame's fixes [m] (NaN: none).
+        p_fix: (n, 3) the same frame's fixes [m] (NaN: none).
         cov: (n, 3, 3) their covariances [m^2].
-        dt: Time since the last frame [s].
-        gravity: (3,) [m/s^2].
-        settings: Speed and lag.
+        dt: Time to the next frame [s].
+        settings: Speed, lag and axes.
+
+    Returns:
+        The move (3,) [m], None without a fix.
     """
     ok = np.isfinite(p_fix).all(axis=1) & np.isfinite(cov).all(axis=(1, 2))
     use = ok & np.asarray(body, dtype=bool)
     if not use.any():
         use = ok
-    if not use.any():
+    if not use.any() or dt <= 0.0:
         return None
     info_sum, weighted = np.zeros((3, 3)), np.zeros(3)
     for i in np.flatnonzero(use):
         info = np.linalg.inv(cov[i] + 1e-9 * np.eye(3))
         info_sum += info
-        weighted += info @ (p_fix[i] - last.p_sites[i])
-    by_tags = last.p_root + np.linalg.solve(info_sum, weighted)
-    ballistic = last.p_root + last.v_root * dt + 0.5 * gravity * dt**2
-    gap = (by_tags - ballistic) * min(1.0, dt / settings.time_constant)
+        weighted += info @ (p_fix[i] - p_sites[i])
+    gap = np.linalg.solve(info_sum, weighted)
+    if not settings.vertical:
+        gap[2] = 0.0
+    gap *= min(1.0, dt / settings.time_constant) if settings.time_constant > 0 else 1.0
+    step = (settings.speed if settings.flight_speed is None else settings.flight_speed) * dt
     length = float(np.linalg.norm(gap))
-    if length > settings.speed * dt:
-        gap *= settings.speed * dt / length
-    ballistic += gap
-    return ballistic
+    if length > step:
+        gap *= step / length
+    return np.asarray(gap)
 
 
 def planted_feet(contacts: Mapping[str, bool], foot_of: Mapping[str, str | None]) -> set[str]:

@@ -23,6 +23,10 @@ Without that, a flight that the accelerometers end a few frames after the feet m
 sensor watches, the toes, by tens of degrees, and the knees popped when the feet were planted.
 Only a descending path lands: at a take-off the sensed feet, pointed with level toes, reach
 through the floor where the real toes bend.
+
+An outside estimate of where the body is (the UWB tags of the drift correction) moves the path
+itself (:meth:`BallisticRoot.shift`), so there is one path that lands once: the correction
+never flies the pelvis on a parabola of its own.
 """
 
 from __future__ import annotations
@@ -52,13 +56,25 @@ class BallisticRoot:
         self.position: np.ndarray | None = None  # on the path in flight, None on the ground
         #: the path came down onto the floor and follows the feet there
         self.landed = False
+        self._shift = np.zeros(3)  # moves the next target (and the path after it) [m]
+
+    def shift(self, delta: np.ndarray) -> None:
+        """Move the path by ``delta`` (3,) [m] from the next frame of flight on.
+
+        Given between two frames (after :meth:`update`), it moves the next :meth:`target` and
+        so the rest of the flight; a shift the next frame does not fly on (a planted point
+        carries the body, a planner's target) is dropped. The caller bounds it per frame. The
+        landing height still bounds the moved path.
+        """
+        self._shift = self._shift + np.asarray(delta, dtype=float)
 
     def target(self, p_last: np.ndarray, dt: float, a_world: np.ndarray | None,
                lowest_z: float | None = None) -> np.ndarray:
         """The pelvis position (3,) [m] ``dt`` [s] further on the ballistic path.
 
         The path starts at ``p_last`` (the solved pelvis) at the take-off and then runs on by
-        itself, so a solve that lags its target does not slow the flight down.
+        itself, so a solve that lags its target does not slow the flight down. A pending
+        :meth:`shift` moves it before the landing height is applied.
 
         Args:
             p_last: (3,) the solved pelvis of the last frame [m].
@@ -70,7 +86,9 @@ class BallisticRoot:
         """
         a = GRAVITY if a_world is None or not np.all(np.isfinite(a_world)) else a_world
         start = p_last if self.position is None else self.position
-        self.position = np.asarray(start + self.velocity * dt + 0.5 * a * dt * dt)
+        self.position = np.asarray(start + self.velocity * dt + 0.5 * a * dt * dt
+                                   + self._shift)
+        self._shift = np.zeros(3)
         descending = self.velocity[2] <= 0.0
         self.landed = (lowest_z is not None and descending
                        and (self.landed or bool(self.position[2] < lowest_z)))
@@ -90,6 +108,7 @@ class BallisticRoot:
                 alone changes it).
             supported: Whether a planted point carried the body this frame.
         """
+        self._shift = np.zeros(3)  # a shift is for the frame after the one it was given in
         measured = a_world is not None and bool(np.all(np.isfinite(a_world)))
         if not supported:  # in flight: the path's own velocity
             a = a_world if measured and a_world is not None else GRAVITY

@@ -36,6 +36,32 @@ def test_the_target_path_is_the_closed_form_parabola() -> None:
                                    atol=1e-12)
 
 
+def test_a_shift_moves_the_rest_of_the_flight_and_the_floor_still_lands_it() -> None:
+    """The drift correction moves the solver's one path (issue #19: a parabola of its own
+    landed elsewhere and the hips popped): the move stays for the rest of the flight, the
+    landing height still bounds the moved path, and a shift no flight uses is dropped."""
+    v0, p0, dt = np.array([1.0, 0.0, 1.0]), np.array([0.0, 0.0, 1.0]), 1.0 / RATE
+    root = BallisticRoot(tau=0.2)
+    root.velocity = v0.copy()
+    shift = np.array([0.02, -0.01, 0.0])
+    for k in range(1, 31):
+        if k == 3:
+            root.shift(shift)
+        p = root.target(p0, dt, None, lowest_z=0.95)
+        root.update(np.zeros(3), dt, None, supported=False)
+        t = k * dt
+        free = p0 + v0 * t + 0.5 * GRAVITY * t * t + (shift if k >= 3 else 0.0)
+        np.testing.assert_allclose(p[:2], free[:2], atol=1e-12)
+        descending = v0[2] + GRAVITY[2] * (t - dt) <= 0.0
+        assert p[2] == pytest.approx(max(free[2], 0.95) if descending else free[2], abs=1e-12)
+    assert root.landed
+    root.shift(shift)  # given, but the next frame stands: dropped with the flight
+    root.update(np.zeros(3), dt, None, supported=True)
+    root.velocity = np.zeros(3)
+    np.testing.assert_allclose(root.target(p0, dt, None), p0 + 0.5 * GRAVITY * dt * dt,
+                               atol=1e-12)
+
+
 def test_the_velocity_follows_the_accelerometer_and_leans_on_the_support() -> None:
     root, dt = BallisticRoot(tau=0.5), 1.0 / RATE
     a = np.array([0.0, 0.0, 6.0])
