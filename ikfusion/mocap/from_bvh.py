@@ -2,9 +2,11 @@
 
 The clip's skeleton is mapped onto the 23 segments (:mod:`ikfusion.mocap.skeleton_map`), the
 body is scaled to the skeleton's proportions, and every frame is solved with the whole-body
-solver from the mapped segment orientations and the pelvis position. Contact phases come from
-the resulting kinematics (points near the floor and nearly still), so a clip whose feet slide in
-the capture keeps that slide in the truth instead of being forced to stand still.
+solver from the mapped segment orientations and the pelvis position. Mocap clips skate (by 1-3
+cm per step on CMU's; the BVH skeleton's own ankles slide as much as ours), which a real body
+does not: the root is then shifted horizontally so that planted contact points hold still
+(:mod:`ikfusion.mocap.foot_lock`), and contact phases come from the result's kinematics (points
+near the floor and nearly still).
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from ..io.bvh import read_bvh
 from ..model.body import Body
 from ..model.human_model import HumanModel
 from ..rotations import angle_between
+from .foot_lock import lock_planted_points
 from .model_motion import TruthMotion, contact_phases, moved_configurations, site_positions
 from .skeleton_map import map_motion
 
@@ -112,18 +115,22 @@ def _starts_with_reference_pose(R_world_segment: dict[str, np.ndarray]) -> bool:
                for R in R_world_segment.values())
 
 
-def motion_from_bvh(path: str | Path, rate: float = 60.0,
-                    progress: bool = False) -> TruthMotion:
+def motion_from_bvh(path: str | Path, rate: float = 60.0, progress: bool = False,
+                    lock_contacts: bool = True) -> TruthMotion:
     """Solve a BVH clip into a ground-truth motion of a body scaled to it.
 
     Args:
         path: The BVH file (any skeleton with named joints, see the skeleton map).
         rate: Output rate [Hz]; the clip is decimated to the nearest integer step.
         progress: Show a progress bar.
+        lock_contacts: Shift the root horizontally so planted contact points do not skate
+            (:func:`~ikfusion.mocap.foot_lock.lock_planted_points`; orientations, joint angles
+            and heights are kept, a clip without skating or without stance is unchanged).
 
     Returns:
         The truth, on the floor (lowest contact point at z = 0), with contact phases;
-        ``info["warnings"]`` lists the bad samples the reader bridged.
+        ``info["warnings"]`` lists the bad samples the reader bridged,
+        ``info["lock_offset_max_m"]`` the largest root shift of the lock [m].
 
     Raises:
         InputError: A malformed file, or bad samples that cannot be bridged (file, line,
@@ -149,8 +156,12 @@ def motion_from_bvh(path: str | Path, rate: float = 60.0,
     q = np.array(qs)
     contacts = model.sites_of_kind("contact")
     q = level_on_floor(q, site_positions(model, q, contacts), time)
+    offset = np.zeros((len(time), 2))
+    if lock_contacts:
+        q, offset = lock_planted_points(model, q, time, contacts)
     phases = contact_phases(model, q, time, contacts)
     return TruthMotion(model, time, q, contacts, phases, str(path), {
         "bvh_rate": bvh.frame_rate, "step": step, "missing_segments": list(mapped.missing),
         "body": body.to_dict(), "dropped_dimensions": dropped,
-        "warnings": list(bvh.warnings)})
+        "warnings": list(bvh.warnings),
+        "lock_offset_max_m": float(np.linalg.norm(offset, axis=1).max(initial=0.0))})

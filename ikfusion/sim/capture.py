@@ -19,6 +19,7 @@ from ..atomic import atomic_folder
 from ..errors import InputError
 from ..io.mtmanager import read_mtmanager
 from ..io.mtmanager_writer import write_mtmanager
+from ..mocap.foot_lock import lock_planted_points
 from ..mocap.from_bvh import motion_from_bvh
 from ..mocap.model_motion import TruthMotion, contact_phases
 from ..model import SENSOR_SEGMENTS
@@ -165,6 +166,7 @@ def lead_in(truth: TruthMotion, npose_seconds: float = 2.0,
     q = np.vstack([np.repeat(q_npose[None], n_still, axis=0), np.array(moving).reshape(
         -1, len(first)), truth.q])
     time = np.arange(len(q)) / rate
+    q = lock_planted_points(model, q, time, list(truth.contact_names))[0]
     contacts = contact_phases(model, q, time, truth.contact_names)
     # standing still in the N-pose: the feet's points are on the floor, knees and palms are not
     contacts[:n_still] = contact_phases(model, q[:1], time[:1], list(truth.contact_names))[0]
