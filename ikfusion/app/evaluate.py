@@ -21,7 +21,13 @@ Metrics (all over the common time span):
   and horizontal [m];
 * ``foot_slide_mm`` and ``foot_slide_max_mm``: per contact phase of the truth, the largest
   horizontal distance of the estimated contact point from where it was when the phase began;
-  mean and maximum over phases [mm];
+  mean and maximum over phases [mm]. It mixes two faults: a point the solver let slide and a
+  planted point of the truth the solver released (a detection miss);
+* ``held_slide_mm`` and ``held_slide_max_mm``: the same per contact phase of the *solver*
+  (``contacts.csv``): how far a point the solver holds planted moves, mean and maximum [mm];
+* ``contact_agreement_pct``: share of frames and contact points (those of both the truth and
+  ``contacts.csv``) where the solver's contact state equals the truth's [%]; ``contact_missed_pct``
+  the share of the truth's planted samples the solver released [%];
 * ``joint_angle_jump_max_deg``: the largest frame-to-frame change of a joint's error against
   the truth (the geodesic angle between the error rotations ``R_true^T R_est`` of its angles in
   two consecutive frames) [deg]: the pops of a solve (a contact that lets go, a correction applied
@@ -67,6 +73,10 @@ class Evaluation:
     joint_angle_jump_max_deg: float = 0.0
     joint_angle_jump_at: str = ""
     start_shift_m: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    held_slide_mm: float = 0.0
+    held_slide_max_mm: float = 0.0
+    contact_agreement_pct: float = 100.0
+    contact_missed_pct: float = 0.0
 
     def as_dict(self) -> dict[str, object]:
         """Plain dictionary (for JSON)."""
@@ -146,6 +156,27 @@ def phase_slides(P: np.ndarray, contacts: np.ndarray) -> list[float]:
                 slides.append(float(np.max(np.linalg.norm(seg - seg[0], axis=1))))
                 start = None
     return slides
+
+
+def _solver_contacts(path: Path, t: np.ndarray,
+                     names: list[str]) -> tuple[list[str], np.ndarray]:
+    """The solver's contact states of ``contacts.csv`` at times ``t`` [s] (nearest sample).
+
+    Returns the names among ``names`` the file has and their states (len(t), k) as booleans;
+    no names when the file is absent (older results).
+    """
+    if not path.is_file():
+        return [], np.zeros((len(t), 0), dtype=bool)
+    header, rows = _read_table(path)
+    have = [n for n in names if n in header]
+    values = _floats(path, header, rows, ["time", *have])
+    if len(values) == 0:
+        return [], np.zeros((len(t), 0), dtype=bool)
+    nearest = np.clip(np.searchsorted(values[:, 0], t), 0, len(values) - 1)
+    before = np.clip(nearest - 1, 0, len(values) - 1)
+    closer = np.abs(values[before, 0] - t) < np.abs(values[nearest, 0] - t)
+    pick = np.where(closer, before, nearest)
+    return have, values[pick, 1:] > 0.5
 
 
 def joint_angle_jump(time: np.ndarray, estimated: np.ndarray, true: np.ndarray,
@@ -255,7 +286,15 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
     head_err = head - head_true
     contact_names = [str(c) for c in truth["contact_names"]]
     P = np.stack([_interp(t, t_site, sites[c]) for c in contact_names], axis=1)
-    slides = phase_slides(P, truth["contacts"][span])
+    true_contacts = np.asarray(truth["contacts"][span], dtype=bool)
+    slides = phase_slides(P, true_contacts)
+    held_names, held = _solver_contacts(folder / "contacts.csv", t, contact_names)
+    held_cols = [contact_names.index(n) for n in held_names]
+    held_slides = phase_slides(P[:, held_cols], held)
+    truth_held = true_contacts[:, held_cols]
+    agreement = 100.0 * float(np.mean(held == truth_held)) if held.size else float("nan")
+    planted = int(truth_held.sum())
+    missed = 100.0 * float(np.sum(truth_held & ~held)) / planted if planted else 0.0
     jump, jump_at = joint_angle_jump(t, est_angles, true_angles, common)
     return Evaluation(
         frames=int(span.sum()),
@@ -270,4 +309,8 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
         joint_angle_jump_max_deg=jump,
         joint_angle_jump_at=jump_at,
         start_shift_m=[float(v) for v in shift],
+        held_slide_mm=1e3 * float(np.mean(held_slides)) if held_slides else 0.0,
+        held_slide_max_mm=1e3 * float(np.max(held_slides)) if held_slides else 0.0,
+        contact_agreement_pct=agreement,
+        contact_missed_pct=missed,
     )

@@ -56,6 +56,11 @@ def run(args: argparse.Namespace) -> int:
         ("head position RMS (horizontal)", f"{100 * result.head_position_rms_xy_m:.1f} cm"),
         ("foot slide per contact (mean / max)",
          f"{result.foot_slide_mm:.1f} / {result.foot_slide_max_mm:.1f} mm"),
+        ("slide of held contacts (mean / max)",
+         f"{result.held_slide_mm:.1f} / {result.held_slide_max_mm:.1f} mm"),
+        ("contact agreement with truth",
+         f"{result.contact_agreement_pct:.1f} % ({result.contact_missed_pct:.1f} % of planted "
+         "samples missed)"),
         ("largest joint-angle jump vs truth",
          f"{result.joint_angle_jump_max_deg:.2f} deg/frame ({result.joint_angle_jump_at})"),
         ("start aligned to truth", "yes" if result.aligned_start else "no"),

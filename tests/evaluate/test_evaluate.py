@@ -155,3 +155,39 @@ def test_angles_through_the_euler_singularity_compare_like_with_like(walk,
     assert e.per_joint_rms_deg["jRightShoulder_abd"] < 1e-3
     assert e.per_joint_rms_deg["jRightShoulder_rot"] == pytest.approx(1.0, abs=1e-3)
     assert e.joint_angle_jump_max_deg < 1e-3
+
+
+def result_with_contacts(truth, q: np.ndarray, contacts: np.ndarray, folder: Path) -> Path:
+    n = len(truth.time)
+    motion = Motion(truth.model, truth.time, q, truth.contact_names, contacts,
+                    np.zeros(n), np.ones(n, dtype=int), np.zeros(n, dtype=bool))
+    return write_result_folder(motion, folder)
+
+
+def test_held_slide_and_detection_misses_are_told_apart(walk, tmp_path: Path) -> None:
+    """Issue #19: the slide of the points the solver holds is measured over the solver's contact
+    phases, apart from the truth's planted samples the solver released (detection misses)."""
+    truth_file = write_truth(tmp_path / "truth.npz", walk)
+    planted = np.asarray(walk.contacts, dtype=bool)
+    # exact poses, the solver releases everything: nothing held slides, every plant is missed
+    e = evaluate(result_with_contacts(walk, walk.q, np.zeros_like(planted), tmp_path / "off"),
+                 truth_file)
+    assert e.held_slide_max_mm == 0.0
+    assert e.contact_missed_pct == pytest.approx(100.0)
+    assert e.contact_agreement_pct == pytest.approx(100.0 * (1.0 - planted.mean()), abs=1e-6)
+    # the body drifts at 0.1 m/s along x; the solver holds one phase of one point only
+    speed = 0.1  # [m/s]
+    q = walk.q.copy()
+    q[:, 0] += speed * (walk.time - walk.time[0])
+    column = planted[:, 0]
+    start = int(np.argmax(column))
+    end = start + int(np.argmin(column[start:])) if not column[start:].all() else len(column)
+    held = np.zeros_like(planted)
+    held[start:end, 0] = True
+    e = evaluate(result_with_contacts(walk, q, held, tmp_path / "drift"), truth_file, align="none")
+    held_for = walk.time[end - 1] - walk.time[start]
+    assert e.held_slide_max_mm == pytest.approx(1e3 * speed * held_for, rel=1e-3)
+    assert e.held_slide_mm == pytest.approx(e.held_slide_max_mm)
+    # the truth's phases all drift (the old metric), most of them never held by the solver
+    assert e.foot_slide_max_mm >= e.held_slide_max_mm
+    assert 0.0 < e.contact_missed_pct < 100.0
