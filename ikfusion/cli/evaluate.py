@@ -16,7 +16,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "evaluate",
         help="accuracy metrics of a result folder against truth.npz",
         description="Compare a `solve` result folder with the truth.npz of `simulate`: joint "
-        "angles, segment orientations, head position, foot slide, the largest frame-to-frame "
+        "angles, segment orientations, head position, foot slide, held-contact slide and contact "
+        "agreement, the largest frame-to-frame "
         "joint-angle jump (SPEC section 6).",
     )
     p.add_argument("result", metavar="RESULT_DIR", help="result folder of `ikfusion solve`")

@@ -88,7 +88,8 @@ def test_cli_json_and_bad_input(walk, tmp_path: Path, capsys) -> None:
     metrics = json.loads(capsys.readouterr().out)
     for key in ("frames", "joint_angle_rms_deg", "segment_orientation_rms_deg",
                 "head_position_rms_m", "head_position_rms_xy_m", "foot_slide_mm",
-                "foot_slide_max_mm", "joint_angle_jump_max_deg"):
+                "foot_slide_max_mm", "joint_angle_jump_max_deg", "held_slide_mm",
+                "held_slide_max_mm", "contact_agreement_pct", "contact_missed_pct"):
         assert key in metrics
     (result / "sites.csv").write_text("time,site,x,y,z\n0.0,HeadTop,1,2,oops\n")
     assert main(["evaluate", str(result), str(truth_file)]) == 2
