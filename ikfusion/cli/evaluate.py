@@ -56,7 +56,8 @@ def run(args: argparse.Namespace) -> int:
         ("head position RMS (3-D)", f"{100 * result.head_position_rms_m:.1f} cm"),
         ("head position RMS (horizontal)", f"{100 * result.head_position_rms_xy_m:.1f} cm"),
         ("foot slide per contact (mean / max)",
-         f"{result.foot_slide_mm:.1f} / {result.foot_slide_max_mm:.1f} mm"),
+         f"{result.foot_slide_mm:.1f} / {result.foot_slide_max_mm:.1f} mm (the truth's own "
+         f"{result.truth_slide_mm:.1f} mean)"),
         ("slide of held contacts (mean / max)",
          f"{result.held_slide_mm:.1f} / {result.held_slide_max_mm:.1f} mm"),
         ("contact agreement with truth",

@@ -42,6 +42,9 @@ def test_truth_against_itself_is_exact(walk, tmp_path: Path) -> None:
     assert e.segment_orientation_rms_deg < 1e-3
     assert e.head_position_rms_m < 1e-5
     assert e.foot_slide_max_mm < 0.1
+    assert e.truth_slide_mm == pytest.approx(e.foot_slide_mm, abs=1e-3)  # CSV: 1 um
+    assert e.held_slide_max_mm < 0.1
+    assert e.contact_agreement_pct == pytest.approx(100.0)
     assert e.joint_angle_jump_max_deg < 1e-3
 
 
@@ -192,3 +195,4 @@ def test_held_slide_and_detection_misses_are_told_apart(walk, tmp_path: Path) ->
     # the truth's phases all drift (the old metric), most of them never held by the solver
     assert e.foot_slide_max_mm >= e.held_slide_max_mm
     assert 0.0 < e.contact_missed_pct < 100.0
+    assert e.truth_slide_mm < 0.1  # the truth's own points do not drift
