@@ -27,6 +27,9 @@ Metrics (all over the common time span):
   ``truth_slide_mm`` is the same measure of the truth's own points (its floor) [mm];
 * ``held_slide_mm`` and ``held_slide_max_mm``: the same per contact phase of the *solver*
   (``contacts.csv``): how far a point the solver holds planted moves, mean and maximum [mm];
+  ``held_truth_slide_mm`` the same of the *true* point over those phases, mean [mm]: a point the
+  solver holds while the true one moves (held too early or too long, a rolling knee or palm, a
+  skating mocap clip) shifts the whole body by that much;
 * ``contact_agreement_pct``: share of frames and contact points (those of both the truth and
   ``contacts.csv``) where the solver's contact state equals the truth's [%]; ``contact_missed_pct``
   the share of the truth's planted samples the solver released [%];
@@ -80,6 +83,7 @@ class Evaluation:
     contact_agreement_pct: float = 100.0
     contact_missed_pct: float = 0.0
     truth_slide_mm: float = 0.0
+    held_truth_slide_mm: float = 0.0
 
     def as_dict(self) -> dict[str, object]:
         """Plain dictionary (for JSON)."""
@@ -292,10 +296,12 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
     true_contacts = np.asarray(truth["contacts"][span], dtype=bool)
     slides = phase_slides(P, true_contacts)
     own = [n for n in contact_names if n in true_sites]
-    own_slides = phase_slides(
-        truth["p_world_site"][span][:, [true_sites.index(n) for n in own]],
-        true_contacts[:, [contact_names.index(n) for n in own]])
+    P_true = truth["p_world_site"][span][:, [true_sites.index(n) for n in own]]
+    own_slides = phase_slides(P_true, true_contacts[:, [contact_names.index(n) for n in own]])
     held_names, held = _solver_contacts(folder / "contacts.csv", t, contact_names)
+    held_true = [i for i, n in enumerate(held_names) if n in own]
+    held_truth_slides = phase_slides(P_true[:, [own.index(held_names[i]) for i in held_true]],
+                                     held[:, held_true])
     held_cols = [contact_names.index(n) for n in held_names]
     held_slides = phase_slides(P[:, held_cols], held)
     truth_held = true_contacts[:, held_cols]
@@ -321,4 +327,6 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
         contact_agreement_pct=agreement,
         contact_missed_pct=missed,
         truth_slide_mm=1e3 * float(np.mean(own_slides)) if own_slides else 0.0,
+        held_truth_slide_mm=(1e3 * float(np.mean(held_truth_slides)) if held_truth_slides
+                             else 0.0),
     )

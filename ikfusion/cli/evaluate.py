@@ -59,7 +59,8 @@ def run(args: argparse.Namespace) -> int:
          f"{result.foot_slide_mm:.1f} / {result.foot_slide_max_mm:.1f} mm (the truth's own "
          f"{result.truth_slide_mm:.1f} mean)"),
         ("slide of held contacts (mean / max)",
-         f"{result.held_slide_mm:.1f} / {result.held_slide_max_mm:.1f} mm"),
+         f"{result.held_slide_mm:.1f} / {result.held_slide_max_mm:.1f} mm (the true points "
+         f"{result.held_truth_slide_mm:.1f} mean)"),
         ("contact agreement with truth",
          f"{result.contact_agreement_pct:.1f} % ({result.contact_missed_pct:.1f} % of planted "
          "samples missed)"),

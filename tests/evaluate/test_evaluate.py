@@ -14,6 +14,7 @@ from ikfusion.app.evaluate import evaluate
 from ikfusion.cli import main
 from ikfusion.errors import InputError
 from ikfusion.ik import Motion
+from ikfusion.mocap.model_motion import site_positions
 from ikfusion.model import HumanModel
 from ikfusion.results import write_result_folder
 from ikfusion.sim.gait import GaitParameters, generate_gait
@@ -92,7 +93,8 @@ def test_cli_json_and_bad_input(walk, tmp_path: Path, capsys) -> None:
     for key in ("frames", "joint_angle_rms_deg", "segment_orientation_rms_deg",
                 "head_position_rms_m", "head_position_rms_xy_m", "foot_slide_mm",
                 "foot_slide_max_mm", "joint_angle_jump_max_deg", "held_slide_mm",
-                "held_slide_max_mm", "contact_agreement_pct", "contact_missed_pct"):
+                "held_slide_max_mm", "contact_agreement_pct", "contact_missed_pct",
+                "truth_slide_mm", "held_truth_slide_mm"):
         assert key in metrics
     (result / "sites.csv").write_text("time,site,x,y,z\n0.0,HeadTop,1,2,oops\n")
     assert main(["evaluate", str(result), str(truth_file)]) == 2
@@ -196,3 +198,13 @@ def test_held_slide_and_detection_misses_are_told_apart(walk, tmp_path: Path) ->
     assert e.foot_slide_max_mm >= e.held_slide_max_mm
     assert 0.0 < e.contact_missed_pct < 100.0
     assert e.truth_slide_mm < 0.1  # the truth's own points do not drift
+    assert e.held_truth_slide_mm < 0.1  # ... nor while the solver holds them
+    # holding the point past the truth's phase (the foot is in swing): a false hold, measured
+    late = held.copy()
+    late[end:min(end + 12, len(late)), 0] = True
+    e = evaluate(result_with_contacts(walk, walk.q, late, tmp_path / "late"), truth_file)
+    P = site_positions(walk.model, walk.q, [walk.contact_names[0]])[:, 0, :2]
+    stop = min(end + 12, len(late))
+    moved = np.max(np.linalg.norm(P[start:stop] - P[start], axis=1))
+    assert e.held_truth_slide_mm == pytest.approx(1e3 * moved, abs=0.01)
+    assert e.held_truth_slide_mm > 1.0
