@@ -18,12 +18,17 @@ does it (17 IMUs with the default errors or perfect ones, UWB tags on the head a
 * ``no-slide-causal``: ``--correction no-slide --causal`` (tag tracks from the past only).
 
 Columns (``ikfusion.app.evaluate`` against the truth, whole capture): head (HeadTop) 3-D RMS [cm];
-slide of planted contact points per contact phase of the truth, mean and max [mm]; joint-angle
-RMS [deg]; the largest error of a frame-to-frame joint-angle change against the truth's
-[deg] (``joint_angle_jump_max_deg``, toes left out); frames solved per second of wall time
-(tag tracking included); ``drift %``: the pelvis's horizontal error at the end as a percentage
-of the distance travelled (``evaluate``'s ``drift_percent``; '-' below 2 m travelled). The last
-row holds the worst of each column over all rows.
+``slide``/``max``: slide of the contact points per contact phase of the truth, mean and max [mm]
+(detection misses and slides mixed); ``truth``: the true points' own mean slide over those phases
+(the truth's phases are loose, its points move in them: the floor of ``slide``); ``held``/``held
+max``: slide of the points the solver holds per contact phase of the solver, mean and max [mm];
+``held tru``: the true points' mean slide over the solver's phases (a point held while the true
+one moves shifts the body); ``agree``: the solver's contact states equal to the truth's [%];
+joint-angle RMS [deg]; the largest error of a frame-to-frame joint-angle change against the
+truth's [deg] (``joint_angle_jump_max_deg``, toes left out); frames solved per second of wall
+time (tag tracking included); ``drift %``: the pelvis's horizontal error at the end as a
+percentage of the distance travelled (``evaluate``'s ``drift_percent``; '-' below 2 m travelled).
+The last row holds the worst of each column over all rows.
 
 Nothing is written outside a temporary folder unless ``--out DIR`` keeps the captures and
 results there.
@@ -160,6 +165,11 @@ class Row:
     head_cm: float
     slide_mm: float
     slide_max_mm: float
+    truth_mm: float
+    held_mm: float
+    held_max_mm: float
+    held_truth_mm: float
+    agree_pct: float
     angle_rms_deg: float
     jump_deg: float
     fps: float
@@ -168,13 +178,15 @@ class Row:
     def text(self) -> str:
         """The row as printed."""
         return (f"{self.clip:<24s} {self.mode:<16s} {self.head_cm:8.1f} {self.slide_mm:8.1f} "
-                f"{self.slide_max_mm:8.1f} {self.angle_rms_deg:8.2f} {self.jump_deg:8.2f} "
-                f"{self.fps:7.0f} "
+                f"{self.slide_max_mm:8.1f} {self.truth_mm:8.1f} {self.held_mm:8.1f} "
+                f"{self.held_max_mm:8.1f} {self.held_truth_mm:8.1f} {self.agree_pct:7.1f} "
+                f"{self.angle_rms_deg:8.2f} {self.jump_deg:8.2f} {self.fps:7.0f} "
                 + (f"{self.drift_pct:7.2f}" if self.drift_pct is not None else f"{'-':>7s}"))
 
 
 HEADER = (f"{'clip':<24s} {'mode':<16s} {'head cm':>8s} {'slide mm':>8s} {'max mm':>8s} "
-          f"{'ang deg':>8s} {'jump deg':>8s} {'frame/s':>7s} {'drift %':>7s}")
+          f"{'truth mm':>8s} {'held mm':>8s} {'held max':>8s} {'held tru':>8s} "
+          f"{'agree %':>7s} {'ang deg':>8s} {'jump deg':>8s} {'frame/s':>7s} {'drift %':>7s}")
 
 
 def run_clip(clip: Clip, root: Path, modes: Sequence[str], seconds: float | None, seed: int,
@@ -187,7 +199,9 @@ def run_clip(clip: Clip, root: Path, modes: Sequence[str], seconds: float | None
         wall = solve(capture, result, mode)
         ev = evaluate(result, capture / "truth.npz", align="auto")
         rows.append(Row(clip.name, mode, 100.0 * ev.head_position_rms_m, ev.foot_slide_mm,
-                        ev.foot_slide_max_mm, ev.joint_angle_rms_deg,
+                        ev.foot_slide_max_mm, ev.truth_slide_mm, ev.held_slide_mm,
+                        ev.held_slide_max_mm, ev.held_truth_slide_mm,
+                        ev.contact_agreement_pct, ev.joint_angle_rms_deg,
                         ev.joint_angle_jump_max_deg, ev.frames / wall, ev.drift_percent))
     return rows
 
@@ -195,7 +209,11 @@ def run_clip(clip: Clip, root: Path, modes: Sequence[str], seconds: float | None
 def worst(rows: Sequence[Row]) -> Row:
     """The worst of each column (the largest error, the fewest frames per second)."""
     return Row("worst", "-", max(r.head_cm for r in rows), max(r.slide_mm for r in rows),
-               max(r.slide_max_mm for r in rows), max(r.angle_rms_deg for r in rows),
+               max(r.slide_max_mm for r in rows), max(r.truth_mm for r in rows),
+               max(r.held_mm for r in rows),
+               max(r.held_max_mm for r in rows), max(r.held_truth_mm for r in rows),
+               min(r.agree_pct for r in rows),
+               max(r.angle_rms_deg for r in rows),
                max(r.jump_deg for r in rows), min(r.fps for r in rows),
                max((r.drift_pct for r in rows if r.drift_pct is not None), default=None))
 

@@ -21,7 +21,18 @@ Metrics (all over the common time span):
   and horizontal [m];
 * ``foot_slide_mm`` and ``foot_slide_max_mm``: per contact phase of the truth, the largest
   horizontal distance of the estimated contact point from where it was when the phase began;
-  mean and maximum over phases [mm];
+  mean and maximum over phases [mm]. It mixes two faults: a point the solver let slide and a
+  planted point of the truth the solver released (a detection miss); and the truth's phases
+  (a point below 3 cm slower than 0.3 m/s) let the true point itself move:
+  ``truth_slide_mm`` is the same measure of the truth's own points (its floor) [mm];
+* ``held_slide_mm`` and ``held_slide_max_mm``: the same per contact phase of the *solver*
+  (``contacts.csv``): how far a point the solver holds planted moves, mean and maximum [mm];
+  ``held_truth_slide_mm`` the same of the *true* point over those phases, mean [mm]: a point the
+  solver holds while the true one moves (held too early or too long, a rolling knee or palm, a
+  skating mocap clip) shifts the whole body by that much;
+* ``contact_agreement_pct``: share of frames and contact points (those of both the truth and
+  ``contacts.csv``) where the solver's contact state equals the truth's [%]; ``contact_missed_pct``
+  the share of the truth's planted samples the solver released [%];
 * ``joint_angle_jump_max_deg``: the largest frame-to-frame change of a joint's error against
   the truth (the geodesic angle between the error rotations ``R_true^T R_est`` of its angles in
   two consecutive frames) [deg]: the pops of a solve (a contact that lets go, a correction applied
@@ -71,6 +82,12 @@ class Evaluation:
     joint_angle_jump_at: str = ""
     start_shift_m: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
     drift_percent: float | None = None
+    held_slide_mm: float = 0.0
+    held_slide_max_mm: float = 0.0
+    contact_agreement_pct: float = 100.0
+    contact_missed_pct: float = 0.0
+    truth_slide_mm: float = 0.0
+    held_truth_slide_mm: float = 0.0
 
     def as_dict(self) -> dict[str, object]:
         """Plain dictionary (for JSON)."""
@@ -175,6 +192,25 @@ def drift_percent(time: np.ndarray, p_est: np.ndarray, p_true: np.ndarray,
     last = time >= time[-1] - 1.0
     error = float(np.mean(np.linalg.norm(p_est[last, :2] - p_true[last, :2], axis=1)))
     return 100.0 * error / distance
+def _solver_contacts(path: Path, t: np.ndarray,
+                     names: list[str]) -> tuple[list[str], np.ndarray]:
+    """The solver's contact states of ``contacts.csv`` at times ``t`` [s] (nearest sample).
+
+    Returns the names among ``names`` the file has and their states (len(t), k) as booleans;
+    no names when the file is absent (older results).
+    """
+    if not path.is_file():
+        return [], np.zeros((len(t), 0), dtype=bool)
+    header, rows = _read_table(path)
+    have = [n for n in names if n in header]
+    values = _floats(path, header, rows, ["time", *have])
+    if len(values) == 0:
+        return [], np.zeros((len(t), 0), dtype=bool)
+    nearest = np.clip(np.searchsorted(values[:, 0], t), 0, len(values) - 1)
+    before = np.clip(nearest - 1, 0, len(values) - 1)
+    closer = np.abs(values[before, 0] - t) < np.abs(values[nearest, 0] - t)
+    pick = np.where(closer, before, nearest)
+    return have, values[pick, 1:] > 0.5
 
 
 def joint_angle_jump(time: np.ndarray, estimated: np.ndarray, true: np.ndarray,
@@ -284,7 +320,21 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
     head_err = head - head_true
     contact_names = [str(c) for c in truth["contact_names"]]
     P = np.stack([_interp(t, t_site, sites[c]) for c in contact_names], axis=1)
-    slides = phase_slides(P, truth["contacts"][span])
+    true_contacts = np.asarray(truth["contacts"][span], dtype=bool)
+    slides = phase_slides(P, true_contacts)
+    own = [n for n in contact_names if n in true_sites]
+    P_true = truth["p_world_site"][span][:, [true_sites.index(n) for n in own]]
+    own_slides = phase_slides(P_true, true_contacts[:, [contact_names.index(n) for n in own]])
+    held_names, held = _solver_contacts(folder / "contacts.csv", t, contact_names)
+    held_true = [i for i, n in enumerate(held_names) if n in own]
+    held_truth_slides = phase_slides(P_true[:, [own.index(held_names[i]) for i in held_true]],
+                                     held[:, held_true])
+    held_cols = [contact_names.index(n) for n in held_names]
+    held_slides = phase_slides(P[:, held_cols], held)
+    truth_held = true_contacts[:, held_cols]
+    agreement = 100.0 * float(np.mean(held == truth_held)) if held.size else float("nan")
+    planted = int(truth_held.sum())
+    missed = 100.0 * float(np.sum(truth_held & ~held)) / planted if planted else 0.0
     jump, jump_at = joint_angle_jump(t, est_angles, true_angles, common)
     drift = (drift_percent(t, _interp(t, t_seg, segments["Pelvis"][:, :3]) + shift,
                            truth["p_world_segment"][span][:, true_seg.index("Pelvis")])
@@ -303,4 +353,11 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
         joint_angle_jump_at=jump_at,
         start_shift_m=[float(v) for v in shift],
         drift_percent=drift,
+        held_slide_mm=1e3 * float(np.mean(held_slides)) if held_slides else 0.0,
+        held_slide_max_mm=1e3 * float(np.max(held_slides)) if held_slides else 0.0,
+        contact_agreement_pct=agreement,
+        contact_missed_pct=missed,
+        truth_slide_mm=1e3 * float(np.mean(own_slides)) if own_slides else 0.0,
+        held_truth_slide_mm=(1e3 * float(np.mean(held_truth_slides)) if held_truth_slides
+                             else 0.0),
     )

@@ -16,7 +16,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "evaluate",
         help="accuracy metrics of a result folder against truth.npz",
         description="Compare a `solve` result folder with the truth.npz of `simulate`: joint "
-        "angles, segment orientations, head position, foot slide, the largest frame-to-frame "
+        "angles, segment orientations, head position, foot slide, held-contact slide and contact "
+        "agreement, the largest frame-to-frame "
         "joint-angle jump (SPEC section 6).",
     )
     p.add_argument("result", metavar="RESULT_DIR", help="result folder of `ikfusion solve`")
@@ -55,7 +56,14 @@ def run(args: argparse.Namespace) -> int:
         ("head position RMS (3-D)", f"{100 * result.head_position_rms_m:.1f} cm"),
         ("head position RMS (horizontal)", f"{100 * result.head_position_rms_xy_m:.1f} cm"),
         ("foot slide per contact (mean / max)",
-         f"{result.foot_slide_mm:.1f} / {result.foot_slide_max_mm:.1f} mm"),
+         f"{result.foot_slide_mm:.1f} / {result.foot_slide_max_mm:.1f} mm (the truth's own "
+         f"{result.truth_slide_mm:.1f} mean)"),
+        ("slide of held contacts (mean / max)",
+         f"{result.held_slide_mm:.1f} / {result.held_slide_max_mm:.1f} mm (the true points "
+         f"{result.held_truth_slide_mm:.1f} mean)"),
+        ("contact agreement with truth",
+         f"{result.contact_agreement_pct:.1f} % ({result.contact_missed_pct:.1f} % of planted "
+         "samples missed)"),
         ("largest joint-angle jump vs truth",
          f"{result.joint_angle_jump_max_deg:.2f} deg/frame ({result.joint_angle_jump_at})"),
         ("drift (pelvis, % of distance)", "-" if result.drift_percent is None

@@ -14,6 +14,7 @@ from ikfusion.app.evaluate import drift_percent, evaluate
 from ikfusion.cli import main
 from ikfusion.errors import InputError
 from ikfusion.ik import Motion
+from ikfusion.mocap.model_motion import site_positions
 from ikfusion.model import HumanModel
 from ikfusion.results import write_result_folder
 from ikfusion.sim.gait import GaitParameters, generate_gait
@@ -42,6 +43,9 @@ def test_truth_against_itself_is_exact(walk, tmp_path: Path) -> None:
     assert e.segment_orientation_rms_deg < 1e-3
     assert e.head_position_rms_m < 1e-5
     assert e.foot_slide_max_mm < 0.1
+    assert e.truth_slide_mm == pytest.approx(e.foot_slide_mm, abs=1e-3)  # CSV: 1 um
+    assert e.held_slide_max_mm < 0.1
+    assert e.contact_agreement_pct == pytest.approx(100.0)
     assert e.joint_angle_jump_max_deg < 1e-3
 
 
@@ -88,7 +92,9 @@ def test_cli_json_and_bad_input(walk, tmp_path: Path, capsys) -> None:
     metrics = json.loads(capsys.readouterr().out)
     for key in ("frames", "joint_angle_rms_deg", "segment_orientation_rms_deg",
                 "head_position_rms_m", "head_position_rms_xy_m", "foot_slide_mm",
-                "foot_slide_max_mm", "joint_angle_jump_max_deg"):
+                "foot_slide_max_mm", "joint_angle_jump_max_deg", "held_slide_mm",
+                "held_slide_max_mm", "contact_agreement_pct", "contact_missed_pct",
+                "truth_slide_mm", "held_truth_slide_mm"):
         assert key in metrics
     (result / "sites.csv").write_text("time,site,x,y,z\n0.0,HeadTop,1,2,oops\n")
     assert main(["evaluate", str(result), str(truth_file)]) == 2
@@ -181,3 +187,50 @@ def test_drift_of_a_result(walk, tmp_path: Path) -> None:
     walked = np.sum(np.linalg.norm(np.diff(track, axis=0), axis=1))
     last = walk.time >= walk.time[-1] - 1.0
     assert e.drift_percent == pytest.approx(100.0 * ramp[last].mean() / walked, rel=1e-3)
+
+
+def result_with_contacts(truth, q: np.ndarray, contacts: np.ndarray, folder: Path) -> Path:
+    n = len(truth.time)
+    motion = Motion(truth.model, truth.time, q, truth.contact_names, contacts,
+                    np.zeros(n), np.ones(n, dtype=int), np.zeros(n, dtype=bool))
+    return write_result_folder(motion, folder)
+
+
+def test_held_slide_and_detection_misses_are_told_apart(walk, tmp_path: Path) -> None:
+    """Issue #19: the slide of the points the solver holds is measured over the solver's contact
+    phases, apart from the truth's planted samples the solver released (detection misses)."""
+    truth_file = write_truth(tmp_path / "truth.npz", walk)
+    planted = np.asarray(walk.contacts, dtype=bool)
+    # exact poses, the solver releases everything: nothing held slides, every plant is missed
+    e = evaluate(result_with_contacts(walk, walk.q, np.zeros_like(planted), tmp_path / "off"),
+                 truth_file)
+    assert e.held_slide_max_mm == 0.0
+    assert e.contact_missed_pct == pytest.approx(100.0)
+    assert e.contact_agreement_pct == pytest.approx(100.0 * (1.0 - planted.mean()), abs=1e-6)
+    # the body drifts at 0.1 m/s along x; the solver holds one phase of one point only
+    speed = 0.1  # [m/s]
+    q = walk.q.copy()
+    q[:, 0] += speed * (walk.time - walk.time[0])
+    column = planted[:, 0]
+    start = int(np.argmax(column))
+    end = start + int(np.argmin(column[start:])) if not column[start:].all() else len(column)
+    held = np.zeros_like(planted)
+    held[start:end, 0] = True
+    e = evaluate(result_with_contacts(walk, q, held, tmp_path / "drift"), truth_file, align="none")
+    held_for = walk.time[end - 1] - walk.time[start]
+    assert e.held_slide_max_mm == pytest.approx(1e3 * speed * held_for, rel=1e-3)
+    assert e.held_slide_mm == pytest.approx(e.held_slide_max_mm)
+    # the truth's phases all drift (the old metric), most of them never held by the solver
+    assert e.foot_slide_max_mm >= e.held_slide_max_mm
+    assert 0.0 < e.contact_missed_pct < 100.0
+    assert e.truth_slide_mm < 0.1  # the truth's own points do not drift
+    assert e.held_truth_slide_mm < 0.1  # ... nor while the solver holds them
+    # holding the point past the truth's phase (the foot is in swing): a false hold, measured
+    late = held.copy()
+    late[end:min(end + 12, len(late)), 0] = True
+    e = evaluate(result_with_contacts(walk, walk.q, late, tmp_path / "late"), truth_file)
+    P = site_positions(walk.model, walk.q, [walk.contact_names[0]])[:, 0, :2]
+    stop = min(end + 12, len(late))
+    moved = np.max(np.linalg.norm(P[start:stop] - P[start], axis=1))
+    assert e.held_truth_slide_mm == pytest.approx(1e3 * moved, abs=0.01)
+    assert e.held_truth_slide_mm > 1.0
