@@ -98,10 +98,10 @@ def floor_lines(scene: Scene, spacing: float = 0.5, margin: float = 1.0) -> list
     return lines
 
 
-def log_floor(rec: Any, scene: Scene) -> None:
-    """The floor grid (static)."""
+def log_floor(rec: Any, scene: Scene, margin: float = 1.0) -> None:
+    """The floor grid (static), ``margin`` [m] beyond the actors' paths and the readers."""
     rr = require_rerun()
-    rec.log("world/floor", rr.LineStrips3D(floor_lines(scene), radii=0.003,
+    rec.log("world/floor", rr.LineStrips3D(floor_lines(scene, margin=margin), radii=0.003,
                                            colors=(120, 120, 120)), static=True)
 
 
@@ -192,15 +192,25 @@ def path_color(color: tuple[int, ...]) -> tuple[int, ...]:
 
 
 def log_actor_frames(rec: Any, actor: Actor, tag_sites: tuple[str, ...],
-                     color: tuple[int, ...]) -> None:
-    """Body, segment axes, contact points and tag sites at every frame (sent as columns)."""
+                     color: tuple[int, ...], styles: bool = True) -> None:
+    """Body, segment axes, contact points and tag sites at every frame (sent as columns).
+
+    Args:
+        rec: The ``rerun.RecordingStream``.
+        actor: The actor; all its frames are sent on the timeline at ``actor.time`` [s].
+        tag_sites: Sites drawn as tags (when the actor has them).
+        color: The actor's colour.
+        styles: Also log the static look of each entity (radii, colours, labels); a stream
+            that sends an actor in several batches (``live --view``) does so with its first.
+    """
     rr = require_rerun()
     base = f"world/{entity_name(actor.name)}"
     n = actor.frames
     index = [rr.TimeColumn(TIMELINE, duration=actor.time)]
 
     def send(path: str, archetype: Any, per_frame: int, style: Any, **columns: Any) -> None:
-        rec.log(path, style, static=True)
+        if styles:
+            rec.log(path, style, static=True)
         rec.send_columns(path, indexes=index, columns=archetype.columns(**columns).partition(
             lengths=np.full(n, per_frame)))
 
@@ -212,7 +222,7 @@ def log_actor_frames(rec: Any, actor: Actor, tag_sites: tuple[str, ...],
     if actor.meshes is not None:
         log_link_meshes(rec, base, index, actor.meshes, path_color(color))
     elif not actor.ghost and strips.shape[1]:
-        log_capsules(rec, f"{base}/capsules", index, strips, names, color)
+        log_capsules(rec, f"{base}/capsules", index, strips, names, color, styles)
     S = len(actor.segment_names)
     send(f"{base}/joints", rr.Points3D, S,
          rr.Points3D.from_fields(radii=1.3 * radius, colors=color),
@@ -241,7 +251,8 @@ def log_actor_frames(rec: Any, actor: Actor, tag_sites: tuple[str, ...],
 
 
 def log_actor_curves(rec: Any, actor: Actor, color: tuple[int, ...],
-                     curve_colors: dict[str, tuple[int, int, int]], tag: str = "") -> None:
+                     curve_colors: dict[str, tuple[int, int, int]], tag: str = "",
+                     styles: bool = True) -> None:
     """Joint angles [deg], stacked contact phases and solve time [ms] on the timeline.
 
     Every series is named after its column (``jRightKnee_flex``, ``LeftHeel``), followed by
@@ -254,13 +265,17 @@ def log_actor_curves(rec: Any, actor: Actor, color: tuple[int, ...],
         curve_colors: Colour of each joint-angle column (see :func:`series_colors`); a ghost's
             curves are drawn paler.
         tag: Text appended to every series name.
+        styles: Also log each series' name, colour and width (static), as
+            :func:`log_actor_frames`.
     """
     rr = require_rerun()
     base = f"plots/{entity_name(actor.name)}"
     index = [rr.TimeColumn(TIMELINE, duration=actor.time)]
 
     def series(path: str, name: str, values: np.ndarray, rgb: tuple[int, ...]) -> None:
-        rec.log(path, rr.SeriesLines(names=name + tag, colors=rgb[:3], widths=1.5), static=True)
+        if styles:
+            rec.log(path, rr.SeriesLines(names=name + tag, colors=rgb[:3], widths=1.5),
+                    static=True)
         rec.send_columns(path, indexes=index,
                          columns=rr.Scalars.columns(scalars=np.asarray(values, dtype=float)))
 
@@ -332,8 +347,11 @@ def contact_title(scene: Scene) -> str:
     return f"Contacts (rows 0-{len(rows) - 1}: {names}; raised = in contact)"
 
 
-def make_blueprint(scene: Scene) -> Any:
-    """The viewer layout: 3-D view left; joint angles, contacts, solve time right; paused."""
+def make_blueprint(scene: Scene, live: bool = False) -> Any:
+    """The viewer layout: 3-D view left; joint angles, contacts, solve time right.
+
+    A recording opens paused at its start; ``live``: the time cursor follows the newest frame.
+    """
     require_rerun()
     import rerun.blueprint as rrb
 
@@ -365,5 +383,6 @@ def make_blueprint(scene: Scene) -> Any:
         main,
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
-        rrb.TimePanel(timeline=TIMELINE, play_state="paused", loop_mode="all"),
+        rrb.TimePanel(timeline=TIMELINE, play_state="following" if live else "paused",
+                      loop_mode="off" if live else "all"),
     )
