@@ -23,6 +23,8 @@ class LiveSettings:
         max_lag_s: Live, a frame released (complete or due) longer ago than this when its
             turn comes is dropped (the solver fell behind) [s].
         flush_s: ``--record`` flushes its rows this often [s].
+        view_rate_hz: ``--view`` sends batches of frames at most this often per second of
+            capture time [Hz] (every frame is sent).
     """
 
     calibration_s: float
@@ -30,6 +32,7 @@ class LiveSettings:
     clock_jump_s: float
     max_lag_s: float
     flush_s: float
+    view_rate_hz: float
 
     @classmethod
     def load(cls, path: str | Path | None = None, **overrides: Any) -> LiveSettings:
