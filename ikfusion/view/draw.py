@@ -21,7 +21,7 @@ Rerun is optional (the ``view`` extra); :func:`require_rerun` imports it with a 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -208,16 +208,17 @@ def log_actor_frames(rec: Any, actor: Actor, tag_sites: tuple[str, ...],
     n = actor.frames
     index = [rr.TimeColumn(TIMELINE, duration=actor.time)]
 
-    def send(path: str, archetype: Any, per_frame: int, style: Any, **columns: Any) -> None:
-        if styles:
-            rec.log(path, style, static=True)
+    def send(path: str, archetype: Any, per_frame: int, style: Callable[[], Any],
+             **columns: Any) -> None:
+        if styles:  # built only when logged: a live batch sends the frames alone
+            rec.log(path, style(), static=True)
         rec.send_columns(path, indexes=index, columns=archetype.columns(**columns).partition(
             lengths=np.full(n, per_frame)))
 
     radius = 0.012 if actor.ghost else 0.02
     strips, names = bones(actor)
     send(f"{base}/bones", rr.LineStrips3D, strips.shape[1],
-         rr.LineStrips3D.from_fields(radii=radius, colors=color),
+         lambda: rr.LineStrips3D.from_fields(radii=radius, colors=color),
          strips=strips.reshape(-1, 2, 3))
     if actor.meshes is not None:
         log_link_meshes(rec, base, index, actor.meshes, path_color(color))
@@ -225,19 +226,19 @@ def log_actor_frames(rec: Any, actor: Actor, tag_sites: tuple[str, ...],
         log_capsules(rec, f"{base}/capsules", index, strips, names, color, styles)
     S = len(actor.segment_names)
     send(f"{base}/joints", rr.Points3D, S,
-         rr.Points3D.from_fields(radii=1.3 * radius, colors=color),
+         lambda: rr.Points3D.from_fields(radii=1.3 * radius, colors=color),
          positions=actor.p_world_segment.reshape(-1, 3))
     R = segment_rotations(actor)
     if R is not None and not actor.ghost:
         origins, vectors = segment_axes(actor, R)
         send(f"{base}/axes", rr.Arrows3D, 3 * S,
-             rr.Arrows3D.from_fields(radii=0.004, colors=np.tile(_AXIS_COLORS, (S, 1))),
+             lambda: rr.Arrows3D.from_fields(radii=0.004, colors=np.tile(_AXIS_COLORS, (S, 1))),
              origins=origins.reshape(-1, 3), vectors=vectors.reshape(-1, 3))
     sites = [actor.site_index(c) for c in actor.contact_names]
     if actor.contact_names and all(j is not None for j in sites):
         on = actor.contacts.reshape(-1)
         send(f"{base}/contacts", rr.Points3D, len(sites),
-             rr.Points3D.from_fields(labels=list(actor.contact_names), show_labels=False),
+             lambda: rr.Points3D.from_fields(labels=list(actor.contact_names), show_labels=False),
              positions=actor.p_world_site[:, [int(j) for j in sites if j is not None]]
              .reshape(-1, 3),
              radii=np.where(on, 0.035, 0.015),
@@ -246,7 +247,7 @@ def log_actor_frames(rec: Any, actor: Actor, tag_sites: tuple[str, ...],
         j = actor.site_index(site)
         if j is not None:
             send(f"{base}/tags/{site}", rr.Points3D, 1,
-                 rr.Points3D.from_fields(radii=0.03, colors=color),
+                 lambda: rr.Points3D.from_fields(radii=0.03, colors=color),
                  positions=actor.p_world_site[:, j])
 
 
