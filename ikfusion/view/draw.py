@@ -311,9 +311,19 @@ def scene_curve_colors(scene: Scene) -> dict[str, tuple[int, int, int]]:
     return series_colors(shown + [c for a in scene.actors for c in a.angle_names])
 
 
-def camera(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """Eye position and look target [m]: a side view (from -Y) of the main actor's path."""
+def camera(scene: Scene, live: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Eye position and look target [m]: a side view (from -Y) of the main actor's path.
+
+    ``live``: the path is still to come, so the view takes in the UWB readers' area as well
+    (the capture area), or at least 4 m around the first frames.
+    """
     pelvis = scene.main.p_world_segment[:, 0]
+    if live:
+        around = [pelvis[:, :2] - 2.0, pelvis[:, :2] + 2.0]
+        if scene.readers is not None and len(scene.readers.ids):
+            around.append(scene.readers.p_world_reader[:, :2])
+        pelvis = np.concatenate([np.column_stack([xy, np.full(len(xy), 0.9)])
+                                 for xy in around])
     pelvis = pelvis[np.all(np.isfinite(pelvis), axis=1)]
     centre = pelvis.mean(axis=0) if len(pelvis) else np.zeros(3)
     span = float(np.ptp(pelvis[:, :2], axis=0).max()) if len(pelvis) else 0.0
@@ -376,7 +386,7 @@ def make_blueprint(scene: Scene, live: bool = False) -> Any:
                                         contents=timing))
     if scene.notes:
         plots.append(rrb.TextDocumentView(name="Summary", origin="/notes"))
-    eye, target = camera(scene)
+    eye, target = camera(scene, live)
     body = rrb.Spatial3DView(name="Body", origin="/world", eye_controls=rrb.EyeControls3D(
         position=eye, look_target=target, eye_up=[0.0, 0.0, 1.0]))
     main = rrb.Horizontal(body, rrb.Vertical(*plots), column_shares=[3, 2]) if plots else body

@@ -13,6 +13,7 @@ from __future__ import annotations
 import errno
 import socket
 import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -176,7 +177,8 @@ def web_viewer_server(port: int, host: str = DEFAULT_HOST,
             server = subprocess.Popen(
                 [str(program), "--serve-web", "--bind", host, "--web-viewer-port", str(port),
                  "--port", str(grpc_port), *([str(rrd)] if rrd is not None else [])],
-                stdin=subprocess.DEVNULL, stdout=log_file, stderr=subprocess.STDOUT)
+                stdin=subprocess.DEVNULL, stdout=log_file, stderr=subprocess.STDOUT,
+                preexec_fn=_die_with_parent if sys.platform == "linux" else None)
         try:
             name = page_host(host)
             local = "127.0.0.1" if name == socket.gethostname() else name
@@ -190,6 +192,18 @@ def web_viewer_server(port: int, host: str = DEFAULT_HOST,
             except subprocess.TimeoutExpired:
                 server.kill()
                 server.wait()
+
+
+def _die_with_parent() -> None:
+    """Ask Linux to end the server when this process ends (run in the server before it starts).
+
+    Even when this process is killed (SIGKILL), no orphan server keeps the ports.
+    """
+    import ctypes
+    import signal
+
+    pr_set_pdeathsig = 1
+    ctypes.CDLL(None).prctl(pr_set_pdeathsig, signal.SIGTERM)
 
 
 def _wait_listening(host: str, port: int, server: subprocess.Popen[bytes], log: Path) -> None:

@@ -8,6 +8,7 @@ import re
 import signal
 import subprocess
 import sys
+import time
 import urllib.request
 from pathlib import Path
 
@@ -132,3 +133,38 @@ def test_web_view_serves_the_page_and_a_closed_viewer_does_not_stop_live(
     assert summary["live"]["complete"] is True and summary["frames"] == solved > 0
     assert len((live / "joint_angles.csv").read_text().splitlines()) == solved + 1
     assert any("the viewer went away" in w for w in summary["warnings"])
+
+
+def test_the_web_viewer_server_ends_with_a_killed_live(capture: Path) -> None:
+    """``live --view web`` killed (SIGKILL, no clean-up) leaves no viewer server holding its
+    ports (Linux)."""
+    if not sys.platform.startswith("linux"):
+        pytest.skip("the server is tied to live's lifetime on Linux")
+    env = {**os.environ, "PYTHONPATH": os.environ.get("PYTHONPATH") or
+           str(Path(__file__).resolve().parents[3])}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "ikfusion", "live", "--replay", str(capture), "--speed", "1",
+         "--view", "web", "--no-browser", "--view-port", str(free_port()), "--quiet"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
+    servers: list[int] = []
+    try:
+        assert proc.stderr is not None
+        assert any("viewer at http://" in line for line in proc.stderr)
+        servers = _children(proc.pid)
+        assert servers, "no viewer server process"
+    finally:
+        proc.kill()
+        proc.wait()
+    deadline = time.monotonic() + 10.0
+    while any(_state(pid) and "zombie" not in _state(pid) for pid in servers):
+        assert time.monotonic() < deadline, "the viewer server outlived live"
+        time.sleep(0.1)
+
+
+def _state(pid: int) -> str:
+    """A process's state from /proc (``zombie``, ``sleeping``...), or "" once it is gone."""
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return ""
+    return next((line for line in status.splitlines() if line.startswith("State:")), "").lower()
