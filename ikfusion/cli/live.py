@@ -140,7 +140,7 @@ def _view_sink(args: argparse.Namespace, setups: list[ActorSetup],
                                                uwb.constellation.positions)
     return open_view(args.view, settings.view_rate_hz, readers, args.view_port,
                      args.view_host, not args.no_browser,
-                     lambda text: print(text, file=sys.stderr, flush=True))
+                     lambda text: print(text, file=sys.stderr, flush=True), len(setups) > 1)
 
 
 def _sinks(args: argparse.Namespace, setups: list[ActorSetup],

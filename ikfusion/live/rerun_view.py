@@ -86,11 +86,13 @@ class RerunViewSink:
         rate_hz: Batches sent per second of capture time, at most [Hz].
         readers: UWB readers drawn at the start, or None.
         on_close: Called after the last batch is sent (stops a server).
+        several: Several actors will come: their curves are named with the actor's name.
     """
 
     def __init__(self, rec: Any, rate_hz: float, readers: Readers | None = None,
-                 on_close: Callable[[], None] | None = None) -> None:
+                 on_close: Callable[[], None] | None = None, several: bool = False) -> None:
         self.rec = rec
+        self.several = several
         self.period_s = 1.0 / rate_hz
         self.readers = readers
         self._on_close = on_close
@@ -159,7 +161,7 @@ class RerunViewSink:
         actor = pose_actor(poses, self._curves[name])
         color = actor_color(list(self._firsts).index(name), actor)
         log_actor_frames(self.rec, actor, (), color, styles=first)
-        tag = f" ({name})" if len(self._firsts) > 1 else ""
+        tag = f" ({name})" if self.several else ""
         log_actor_curves(self.rec, actor, color, self._curve_colors, tag, styles=first)
 
     def _start(self) -> None:
@@ -177,7 +179,7 @@ class RerunViewSink:
 
 def open_view(target: str, rate_hz: float, readers: Readers | None = None, port: int = 9090,
               host: str = "127.0.0.1", open_browser: bool = True,
-              announce: Callable[[str], None] = print) -> RerunViewSink:
+              announce: Callable[[str], None] = print, several: bool = False) -> RerunViewSink:
     """The sink of ``live --view TARGET``, connected and ready.
 
     Args:
@@ -189,6 +191,7 @@ def open_view(target: str, rate_hz: float, readers: Readers | None = None, port:
         host: Interface the web viewer listens on (127.0.0.1: this machine only).
         open_browser: Open the page in the default browser (``web``).
         announce: Called with the page address (``web``) or the file written.
+        several: Several actors will come (a session).
 
     Raises:
         InputError: rerun-sdk is missing (the message names the extra ``view``), the target
@@ -199,7 +202,7 @@ def open_view(target: str, rate_hz: float, readers: Readers | None = None, port:
     rec = rr.RecordingStream(APPLICATION_ID)
     if target == "native":
         rr.spawn(recording=rec, memory_limit="25%")
-        return RerunViewSink(rec, rate_hz, readers)
+        return RerunViewSink(rec, rate_hz, readers, several=several)
     if target != "web":
         out = Path(target)
         if out.suffix.lower() != ".rrd":
@@ -208,7 +211,7 @@ def open_view(target: str, rate_hz: float, readers: Readers | None = None, port:
         out.parent.mkdir(parents=True, exist_ok=True)
         rec.save(out)
         announce(f"recording the view into {out}")
-        return RerunViewSink(rec, rate_hz, readers)
+        return RerunViewSink(rec, rate_hz, readers, several=several)
     check_port_free(port, host)
     stack = ExitStack()
     url, grpc = stack.enter_context(web_viewer_server(port, host))
@@ -220,4 +223,4 @@ def open_view(target: str, rate_hz: float, readers: Readers | None = None, port:
     if open_browser:
         webbrowser.open(url)
     announce(f"viewer at {url}")
-    return RerunViewSink(rec, rate_hz, readers, on_close=stack.close)
+    return RerunViewSink(rec, rate_hz, readers, on_close=stack.close, several=several)

@@ -168,3 +168,31 @@ def _state(pid: int) -> str:
     except OSError:
         return ""
     return next((line for line in status.splitlines() if line.startswith("State:")), "").lower()
+
+
+def test_sink_draws_every_frame_of_every_actor(result_poses: list, tmp_path: Path) -> None:
+    """Two actors in 20 Hz batches of a 30 Hz stream: each actor's every frame is on the
+    timeline with its own segment origins, its curves named after it."""
+    from dataclasses import replace
+
+    from ikfusion.live.rerun_view import RerunViewSink
+
+    rrd = tmp_path / "two.rrd"
+    rec = rerun.RecordingStream("test")
+    rec.save(rrd)
+    sink = RerunViewSink(rec, 20.0, several=True)
+    shifted = [replace(p, actor="B", p_world_segment=p.p_world_segment + [1.0, 0.0, 0.0])
+               for p in result_poses]
+    for a, b in zip(result_poses, shifted):
+        sink.send([a, b])
+    sink.close()
+    for poses in (result_poses, shifted):
+        t, p = _joint_frames(rrd, f"/world/{poses[0].actor}/joints")
+        np.testing.assert_allclose(t, [q.time_s for q in poses], atol=1e-6, rtol=0)
+        np.testing.assert_allclose(p, np.stack([q.p_world_segment for q in poses]),
+                                   atol=1e-4, rtol=0)
+    for actor in ("A", "B"):
+        names = [str(v) for c in rerun.chunk.RrdReader(rrd).store().stream().to_chunks()
+                 if c.entity_path == f"/plots/{actor}/angles/jRightKnee_flex" and c.is_static
+                 for v in c.to_record_batch().column("SeriesLines:names").to_pylist()]
+        assert names and f"jRightKnee_flex ({actor})" in names[0]
