@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -58,8 +59,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--view", nargs="?", const="web", metavar="web|native|FILE.rrd",
                    help="draw the bodies in Rerun as they are solved, the timeline following "
                    "the newest frame: 'web' (default) serves the viewer page from the "
-                   "installed package (offline), 'native' opens Rerun's desktop viewer, "
-                   "FILE.rrd writes a recording (open it with 'rerun FILE'); needs pip install "
+                   "installed package (offline), 'native' opens Rerun's desktop viewer (needs "
+                   "a display), FILE.rrd writes a recording (open it with 'rerun FILE'); needs "
+                   "pip install "
                    "'ikfusion[view]'")
     p.add_argument("--view-port", type=int, default=9090, metavar="PORT",
                    help="HTTP port of the --view web page (default 9090)")
@@ -110,11 +112,11 @@ def host_port(text: str, option: str) -> tuple[str, int]:
 
 
 def _check_view(args: argparse.Namespace) -> None:
-    """``--view``: Rerun installed, a known target, a free port; before anything starts.
+    """``--view`` checked before anything starts: Rerun installed, its target, port, display.
 
     Raises:
-        InputError: rerun-sdk is missing (naming the ``view`` extra), the target is unknown or
-            the page's port is taken.
+        InputError: rerun-sdk is missing (naming the ``view`` extra), the target is unknown,
+            the page's port is taken, or ``native`` has no display.
     """
     if args.view is None:
         return
@@ -127,6 +129,11 @@ def _check_view(args: argparse.Namespace) -> None:
                          f"{args.view!r}", field="view")
     if args.view == "web":
         check_port_free(args.view_port, args.view_host)
+    if (args.view == "native" and sys.platform.startswith("linux")
+            and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))):
+        raise InputError("--view native needs a display (DISPLAY and WAYLAND_DISPLAY are "
+                         "unset); use --view web and open the page from another machine "
+                         "(--view-host 0.0.0.0), or --view FILE.rrd", field="view")
 
 
 def _view_sink(args: argparse.Namespace, setups: list[ActorSetup],

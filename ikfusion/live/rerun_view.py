@@ -40,7 +40,7 @@ from ..view.draw import (
 )
 from ..view.rerun_lib import require_rerun
 from ..view.scene import Actor, Readers, Scene
-from ..view.serve import check_port_free, web_viewer_server
+from ..view.serve import check_port_free, rerun_program, web_viewer_server
 from .actor_pose import ActorPose
 
 #: Application id of the live recordings (Rerun groups recordings by it).
@@ -201,7 +201,7 @@ def open_view(target: str, rate_hz: float, readers: Readers | None = None, port:
     rr = require_rerun("live --view")
     rec = rr.RecordingStream(APPLICATION_ID)
     if target == "native":
-        rr.spawn(recording=rec, memory_limit="25%")
+        rr.spawn(recording=rec, memory_limit="25%", executable_path=str(rerun_program()))
         return RerunViewSink(rec, rate_hz, readers, several=several)
     if target != "web":
         out = Path(target)

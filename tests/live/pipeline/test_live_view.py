@@ -196,3 +196,20 @@ def test_sink_draws_every_frame_of_every_actor(result_poses: list, tmp_path: Pat
                  if c.entity_path == f"/plots/{actor}/angles/jRightKnee_flex" and c.is_static
                  for v in c.to_record_batch().column("SeriesLines:names").to_pylist()]
         assert names and f"jRightKnee_flex ({actor})" in names[0]
+
+
+def test_native_view_without_a_display_is_a_usage_error(capture: Path, tmp_path: Path,
+                                                        monkeypatch: pytest.MonkeyPatch,
+                                                        capsys: pytest.CaptureFixture[str]
+                                                        ) -> None:
+    """``--view native`` on a Linux machine without a display: exit 2 at once, nothing
+    recorded (it was an internal error: the viewer program was looked up on PATH)."""
+    if not sys.platform.startswith("linux"):
+        pytest.skip("the display check is for Linux")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    live = tmp_path / "live"
+    assert main(["live", "--replay", str(capture), "--speed", "0", "--record", str(live),
+                 "--view", "native", "--quiet"]) == 2
+    assert "--view native needs a display" in capsys.readouterr().err
+    assert not live.exists()
