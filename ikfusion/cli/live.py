@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -55,7 +56,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--vmc", metavar="HOST:PORT", help="send the VMC protocol over OSC (VMC "
                    "has no actor id: actor i of a session goes to PORT + i)")
     p.add_argument("--lsl-out", action="store_true", help="open an LSL outlet of the poses")
-    p.add_argument("--view", action="store_true", help="show the motion in the browser")
+    p.add_argument("--view", nargs="?", const="web", metavar="web|native|FILE.rrd",
+                   help="draw the bodies in Rerun as they are solved, the timeline following "
+                   "the newest frame: 'web' (default) serves the viewer page from the "
+                   "installed package (offline), 'native' opens Rerun's desktop viewer (needs "
+                   "a display), FILE.rrd writes a recording (open it with 'rerun FILE'); needs "
+                   "pip install "
+                   "'ikfusion[view]'")
+    p.add_argument("--view-port", type=int, default=9090, metavar="PORT",
+                   help="HTTP port of the --view web page (default 9090)")
+    p.add_argument("--view-host", default="127.0.0.1", metavar="HOST",
+                   help="interface the --view web page listens on (default 127.0.0.1: this "
+                   "machine only; 0.0.0.0 shows it to a trusted network, no password)")
+    p.add_argument("--no-browser", action="store_true",
+                   help="--view web: print the page address, do not open a browser")
     p.add_argument("--record", metavar="DIR", help="write the result folder of solve as it "
                    "goes (one sub-folder per actor of a session); readable if the process is "
                    "killed, up to the last second")
@@ -97,11 +111,48 @@ def host_port(text: str, option: str) -> tuple[str, int]:
     return host, int(port)
 
 
-def _sinks(args: argparse.Namespace, setups: list[ActorSetup]) -> list[PoseSink]:
+def _check_view(args: argparse.Namespace) -> None:
+    """``--view`` checked before anything starts: Rerun installed, its target, port, display.
+
+    Raises:
+        InputError: rerun-sdk is missing (naming the ``view`` extra), the target is unknown,
+            the page's port is taken, or ``native`` has no display.
+    """
+    if args.view is None:
+        return
+    from ..view.rerun_lib import require_rerun
+    from ..view.serve import check_port_free
+
+    require_rerun("live --view")
+    if args.view not in ("web", "native") and not args.view.lower().endswith(".rrd"):
+        raise InputError("--view takes web, native or a file name ending in .rrd, not "
+                         f"{args.view!r}", field="view")
+    if args.view == "web":
+        check_port_free(args.view_port, args.view_host)
+    if (args.view == "native" and sys.platform.startswith("linux")
+            and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))):
+        raise InputError("--view native needs a display (DISPLAY and WAYLAND_DISPLAY are "
+                         "unset); use --view web and open the page from another machine "
+                         "(--view-host 0.0.0.0), or --view FILE.rrd", field="view")
+
+
+def _view_sink(args: argparse.Namespace, setups: list[ActorSetup],
+               settings: LiveSettings) -> PoseSink:
+    """The ``--view`` output, its viewer started (the UWB readers of the first actor drawn)."""
+    from ..live.rerun_view import open_view
+    from ..view.scene import Readers
+
+    uwb = next((s.uwb for s in setups if s.uwb is not None), None)
+    readers = None if uwb is None else Readers(uwb.constellation.ids,
+                                               uwb.constellation.positions)
+    return open_view(args.view, settings.view_rate_hz, readers, args.view_port,
+                     args.view_host, not args.no_browser,
+                     lambda text: print(text, file=sys.stderr, flush=True), len(setups) > 1)
+
+
+def _sinks(args: argparse.Namespace, setups: list[ActorSetup],
+           settings: LiveSettings) -> list[PoseSink]:
     sinks: list[PoseSink] = []
-    if args.view:
-        raise InputError("--view is not available in live yet; use --record DIR and "
-                         "'ikfusion view DIR'", field="view")
     if args.mvn:
         sinks.append(optional_class("ikfusion.live.mvn_stream", "MvnStreamSink", "--mvn")(
             *host_port(args.mvn, "--mvn")))
@@ -113,6 +164,8 @@ def _sinks(args: argparse.Namespace, setups: list[ActorSetup]) -> list[PoseSink]
     if args.lsl_out:
         sinks.append(optional_class("ikfusion.live.lsl_outlet", "LslOutletSink", "--lsl-out")(
             setups[0].rate))
+    if args.view is not None:  # last: the others' mistakes are found before a server starts
+        sinks.append(_view_sink(args, setups, settings))
     return sinks
 
 
@@ -146,6 +199,7 @@ def run(args: argparse.Namespace) -> int:
     """Run ``ikfusion live``."""
     if args.speed < 0:
         raise InputError("--speed must be 0 (as fast as possible) or more", field="speed")
+    _check_view(args)
     settings = LiveSettings.load()
     if args.replay:
         if args.session:
@@ -164,7 +218,7 @@ def run(args: argparse.Namespace) -> int:
                            settings=settings, solve_startup=not paced) for s in setups]
     recorders = _recorders(args, setups, settings,
                            [st.solver.contact_names for st in streams])
-    sinks = _sinks(args, setups)
+    sinks = _sinks(args, setups, settings)
     actors = []
     for i, (setup, stream, recorder) in enumerate(zip(setups, streams, recorders)):
         period = 1.0 / setup.rate
@@ -184,7 +238,10 @@ def run(args: argparse.Namespace) -> int:
         loop.finish()
     finally:
         for sink in sinks:
-            sink.close()
+            try:
+                sink.close()
+            except OSError as err:  # an output gone at the end: said, the results are kept
+                loop.sink_errors.append(f"{type(sink).__name__}: {err}")
         for actor, setup in zip(actors, setups):
             _close(actor, setup, loop)
     if stopped:

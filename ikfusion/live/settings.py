@@ -20,6 +20,8 @@ class LiveSettings(ShippedSettings):
             is solved only if its pose can still leave this soon after its first sample
             arrived, else dropped (the newest frame waiting is always solved) [s].
         flush_s: ``--record`` flushes its rows this often [s].
+        view_rate_hz: ``--view`` sends batches of frames at most this often per second of
+            capture time [Hz] (every frame is sent).
     """
 
     calibration_s: float
@@ -27,6 +29,7 @@ class LiveSettings(ShippedSettings):
     clock_jump_s: float
     latency_budget_s: float
     flush_s: float
+    view_rate_hz: float
 
     shipped_file = "live.yaml"
     what = "live settings"

@@ -21,7 +21,7 @@ Rerun is optional (the ``view`` extra); :func:`require_rerun` imports it with a 
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -98,10 +98,10 @@ def floor_lines(scene: Scene, spacing: float = 0.5, margin: float = 1.0) -> list
     return lines
 
 
-def log_floor(rec: Any, scene: Scene) -> None:
-    """The floor grid (static)."""
+def log_floor(rec: Any, scene: Scene, margin: float = 1.0) -> None:
+    """The floor grid (static), ``margin`` [m] beyond the actors' paths and the readers."""
     rr = require_rerun()
-    rec.log("world/floor", rr.LineStrips3D(floor_lines(scene), radii=0.003,
+    rec.log("world/floor", rr.LineStrips3D(floor_lines(scene, margin=margin), radii=0.003,
                                            colors=(120, 120, 120)), static=True)
 
 
@@ -192,42 +192,53 @@ def path_color(color: tuple[int, ...]) -> tuple[int, ...]:
 
 
 def log_actor_frames(rec: Any, actor: Actor, tag_sites: tuple[str, ...],
-                     color: tuple[int, ...]) -> None:
-    """Body, segment axes, contact points and tag sites at every frame (sent as columns)."""
+                     color: tuple[int, ...], styles: bool = True) -> None:
+    """Body, segment axes, contact points and tag sites at every frame (sent as columns).
+
+    Args:
+        rec: The ``rerun.RecordingStream``.
+        actor: The actor; all its frames are sent on the timeline at ``actor.time`` [s].
+        tag_sites: Sites drawn as tags (when the actor has them).
+        color: The actor's colour.
+        styles: Also log the static look of each entity (radii, colours, labels); a stream
+            that sends an actor in several batches (``live --view``) does so with its first.
+    """
     rr = require_rerun()
     base = f"world/{entity_name(actor.name)}"
     n = actor.frames
     index = [rr.TimeColumn(TIMELINE, duration=actor.time)]
 
-    def send(path: str, archetype: Any, per_frame: int, style: Any, **columns: Any) -> None:
-        rec.log(path, style, static=True)
+    def send(path: str, archetype: Any, per_frame: int, style: Callable[[], Any],
+             **columns: Any) -> None:
+        if styles:  # built only when logged: a live batch sends the frames alone
+            rec.log(path, style(), static=True)
         rec.send_columns(path, indexes=index, columns=archetype.columns(**columns).partition(
             lengths=np.full(n, per_frame)))
 
     radius = 0.012 if actor.ghost else 0.02
     strips, names = bones(actor)
     send(f"{base}/bones", rr.LineStrips3D, strips.shape[1],
-         rr.LineStrips3D.from_fields(radii=radius, colors=color),
+         lambda: rr.LineStrips3D.from_fields(radii=radius, colors=color),
          strips=strips.reshape(-1, 2, 3))
     if actor.meshes is not None:
         log_link_meshes(rec, base, index, actor.meshes, path_color(color))
     elif not actor.ghost and strips.shape[1]:
-        log_capsules(rec, f"{base}/capsules", index, strips, names, color)
+        log_capsules(rec, f"{base}/capsules", index, strips, names, color, styles)
     S = len(actor.segment_names)
     send(f"{base}/joints", rr.Points3D, S,
-         rr.Points3D.from_fields(radii=1.3 * radius, colors=color),
+         lambda: rr.Points3D.from_fields(radii=1.3 * radius, colors=color),
          positions=actor.p_world_segment.reshape(-1, 3))
     R = segment_rotations(actor)
     if R is not None and not actor.ghost:
         origins, vectors = segment_axes(actor, R)
         send(f"{base}/axes", rr.Arrows3D, 3 * S,
-             rr.Arrows3D.from_fields(radii=0.004, colors=np.tile(_AXIS_COLORS, (S, 1))),
+             lambda: rr.Arrows3D.from_fields(radii=0.004, colors=np.tile(_AXIS_COLORS, (S, 1))),
              origins=origins.reshape(-1, 3), vectors=vectors.reshape(-1, 3))
     sites = [actor.site_index(c) for c in actor.contact_names]
     if actor.contact_names and all(j is not None for j in sites):
         on = actor.contacts.reshape(-1)
         send(f"{base}/contacts", rr.Points3D, len(sites),
-             rr.Points3D.from_fields(labels=list(actor.contact_names), show_labels=False),
+             lambda: rr.Points3D.from_fields(labels=list(actor.contact_names), show_labels=False),
              positions=actor.p_world_site[:, [int(j) for j in sites if j is not None]]
              .reshape(-1, 3),
              radii=np.where(on, 0.035, 0.015),
@@ -236,12 +247,13 @@ def log_actor_frames(rec: Any, actor: Actor, tag_sites: tuple[str, ...],
         j = actor.site_index(site)
         if j is not None:
             send(f"{base}/tags/{site}", rr.Points3D, 1,
-                 rr.Points3D.from_fields(radii=0.03, colors=color),
+                 lambda: rr.Points3D.from_fields(radii=0.03, colors=color),
                  positions=actor.p_world_site[:, j])
 
 
 def log_actor_curves(rec: Any, actor: Actor, color: tuple[int, ...],
-                     curve_colors: dict[str, tuple[int, int, int]], tag: str = "") -> None:
+                     curve_colors: dict[str, tuple[int, int, int]], tag: str = "",
+                     styles: bool = True) -> None:
     """Joint angles [deg], stacked contact phases and solve time [ms] on the timeline.
 
     Every series is named after its column (``jRightKnee_flex``, ``LeftHeel``), followed by
@@ -254,13 +266,17 @@ def log_actor_curves(rec: Any, actor: Actor, color: tuple[int, ...],
         curve_colors: Colour of each joint-angle column (see :func:`series_colors`); a ghost's
             curves are drawn paler.
         tag: Text appended to every series name.
+        styles: Also log each series' name, colour and width (static), as
+            :func:`log_actor_frames`.
     """
     rr = require_rerun()
     base = f"plots/{entity_name(actor.name)}"
     index = [rr.TimeColumn(TIMELINE, duration=actor.time)]
 
     def series(path: str, name: str, values: np.ndarray, rgb: tuple[int, ...]) -> None:
-        rec.log(path, rr.SeriesLines(names=name + tag, colors=rgb[:3], widths=1.5), static=True)
+        if styles:
+            rec.log(path, rr.SeriesLines(names=name + tag, colors=rgb[:3], widths=1.5),
+                    static=True)
         rec.send_columns(path, indexes=index,
                          columns=rr.Scalars.columns(scalars=np.asarray(values, dtype=float)))
 
@@ -295,9 +311,19 @@ def scene_curve_colors(scene: Scene) -> dict[str, tuple[int, int, int]]:
     return series_colors(shown + [c for a in scene.actors for c in a.angle_names])
 
 
-def camera(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """Eye position and look target [m]: a side view (from -Y) of the main actor's path."""
+def camera(scene: Scene, live: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Eye position and look target [m]: a side view (from -Y) of the main actor's path.
+
+    ``live``: the path is still to come, so the view takes in the UWB readers' area as well
+    (the capture area), or at least 4 m around the first frames.
+    """
     pelvis = scene.main.p_world_segment[:, 0]
+    if live:
+        around = [pelvis[:, :2] - 2.0, pelvis[:, :2] + 2.0]
+        if scene.readers is not None and len(scene.readers.ids):
+            around.append(scene.readers.p_world_reader[:, :2])
+        pelvis = np.concatenate([np.column_stack([xy, np.full(len(xy), 0.9)])
+                                 for xy in around])
     pelvis = pelvis[np.all(np.isfinite(pelvis), axis=1)]
     centre = pelvis.mean(axis=0) if len(pelvis) else np.zeros(3)
     span = float(np.ptp(pelvis[:, :2], axis=0).max()) if len(pelvis) else 0.0
@@ -332,8 +358,11 @@ def contact_title(scene: Scene) -> str:
     return f"Contacts (rows 0-{len(rows) - 1}: {names}; raised = in contact)"
 
 
-def make_blueprint(scene: Scene) -> Any:
-    """The viewer layout: 3-D view left; joint angles, contacts, solve time right; paused."""
+def make_blueprint(scene: Scene, live: bool = False) -> Any:
+    """The viewer layout: 3-D view left; joint angles, contacts, solve time right.
+
+    A recording opens paused at its start; ``live``: the time cursor follows the newest frame.
+    """
     require_rerun()
     import rerun.blueprint as rrb
 
@@ -357,7 +386,7 @@ def make_blueprint(scene: Scene) -> Any:
                                         contents=timing))
     if scene.notes:
         plots.append(rrb.TextDocumentView(name="Summary", origin="/notes"))
-    eye, target = camera(scene)
+    eye, target = camera(scene, live)
     body = rrb.Spatial3DView(name="Body", origin="/world", eye_controls=rrb.EyeControls3D(
         position=eye, look_target=target, eye_up=[0.0, 0.0, 1.0]))
     main = rrb.Horizontal(body, rrb.Vertical(*plots), column_shares=[3, 2]) if plots else body
@@ -365,5 +394,6 @@ def make_blueprint(scene: Scene) -> Any:
         main,
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
-        rrb.TimePanel(timeline=TIMELINE, play_state="paused", loop_mode="all"),
+        rrb.TimePanel(timeline=TIMELINE, play_state="following" if live else "paused",
+                      loop_mode="off" if live else "all"),
     )

@@ -12,13 +12,20 @@ class ViewerUnavailable(InputError):
     """The optional viewer library is missing; the message says which extra to install."""
 
 
-def require_rerun() -> ModuleType:
-    """Import ``rerun`` (package ``rerun-sdk``) or explain how to install it."""
+def require_rerun(what: str = "ikfusion view") -> ModuleType:
+    """Import ``rerun`` (package ``rerun-sdk``) or explain how to install it.
+
+    Args:
+        what: The command or option that needs it, named in the message.
+
+    Raises:
+        ViewerUnavailable: rerun-sdk is not installed.
+    """
     try:
         import rerun
     except ImportError as err:
         raise ViewerUnavailable(
-            "ikfusion view needs the optional package rerun-sdk: install it with "
+            f"{what} needs the optional package rerun-sdk: install it with "
             "pip install 'ikfusion[view]' (or pip install rerun-sdk)") from err
     return rerun
 

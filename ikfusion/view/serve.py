@@ -13,11 +13,13 @@ from __future__ import annotations
 import errno
 import socket
 import subprocess
+import sys
 import tempfile
 import threading
 import time
 import webbrowser
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from urllib.parse import quote
 
@@ -139,25 +141,50 @@ def serve(scene: Scene, port: int = 9090, open_browser: bool = True,
     """
     require_rerun()
     check_port_free(port, host)
-    program = rerun_program()
     with tempfile.TemporaryDirectory(prefix="ikfusion_view_") as tmp:
         rrd = save_recording(scene, Path(tmp) / "scene.rrd")
-        grpc_port = free_port(host)
-        log = Path(tmp) / "rerun.log"
-        with log.open("w") as log_file:
-            server = subprocess.Popen(
-                [str(program), "--serve-web", "--bind", host, "--web-viewer-port", str(port),
-                 "--port", str(grpc_port), str(rrd)],
-                stdin=subprocess.DEVNULL, stdout=log_file, stderr=subprocess.STDOUT)
-        try:
-            name = page_host(host)
-            _wait_listening("127.0.0.1" if name == socket.gethostname() else name, port,
-                            server, log)
-            url = viewer_url(port, f"rerun+http://{name}:{grpc_port}/proxy", name)
+        with web_viewer_server(port, host, rrd) as (url, _):
             if open_browser:
                 webbrowser.open(url)
             announce(url)
             (stop or threading.Event()).wait()
+
+
+@contextmanager
+def web_viewer_server(port: int, host: str = DEFAULT_HOST,
+                      rrd: Path | None = None) -> Iterator[tuple[str, str]]:
+    """Rerun's server (its ``rerun`` program) serving the web viewer, stopped on exit.
+
+    Args:
+        port: HTTP port of the viewer page (checked free by the caller).
+        host: Interface both ports listen on.
+        rrd: A recording to serve; None serves what a logging process sends to the gRPC
+            address (``live --view``; the server keeps at most a memory limit of it for late
+            pages, oldest dropped first).
+
+    Yields:
+        The page address (connected to the recording) and the gRPC address to log to
+        (``rerun+http://HOST:PORT/proxy``, reachable from this machine).
+
+    Raises:
+        RuntimeError: The server did not start (its own message is included).
+    """
+    program = rerun_program()
+    grpc_port = free_port(host)
+    with tempfile.TemporaryDirectory(prefix="ikfusion_viewer_") as tmp:
+        log = Path(tmp) / "rerun.log"
+        with log.open("w") as log_file:
+            server = subprocess.Popen(
+                [str(program), "--serve-web", "--bind", host, "--web-viewer-port", str(port),
+                 "--port", str(grpc_port), *([str(rrd)] if rrd is not None else [])],
+                stdin=subprocess.DEVNULL, stdout=log_file, stderr=subprocess.STDOUT,
+                preexec_fn=_die_with_parent if sys.platform == "linux" else None)
+        try:
+            name = page_host(host)
+            local = "127.0.0.1" if name == socket.gethostname() else name
+            _wait_listening(local, port, server, log)
+            url = viewer_url(port, f"rerun+http://{name}:{grpc_port}/proxy", name)
+            yield url, f"rerun+http://{local}:{grpc_port}/proxy"
         finally:
             server.terminate()
             try:
@@ -165,6 +192,18 @@ def serve(scene: Scene, port: int = 9090, open_browser: bool = True,
             except subprocess.TimeoutExpired:
                 server.kill()
                 server.wait()
+
+
+def _die_with_parent() -> None:
+    """Ask Linux to end the server when this process ends (run in the server before it starts).
+
+    Even when this process is killed (SIGKILL), no orphan server keeps the ports.
+    """
+    import ctypes
+    import signal
+
+    pr_set_pdeathsig = 1
+    ctypes.CDLL(None).prctl(pr_set_pdeathsig, signal.SIGTERM)
 
 
 def _wait_listening(host: str, port: int, server: subprocess.Popen[bytes], log: Path) -> None:

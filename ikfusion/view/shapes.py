@@ -88,7 +88,8 @@ def capsule_poses(strips: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarra
 
 
 def log_capsules(rec: Any, path: str, index: list[Any], strips: np.ndarray,
-                 bones: Sequence[tuple[str, str]], color: tuple[int, ...]) -> None:
+                 bones: Sequence[tuple[str, str]], color: tuple[int, ...],
+                 styles: bool = True) -> None:
     """Capsules around the bones at every frame (sent as columns).
 
     Args:
@@ -98,15 +99,18 @@ def log_capsules(rec: Any, path: str, index: list[Any], strips: np.ndarray,
         strips: (N, B, 2, 3) bones per frame [m].
         bones: (start, end) names of the B bones.
         color: RGB(A) of the capsules.
+        styles: Also log the capsules' radii (from these frames' median bone lengths),
+            colour and labels (static); a later batch of the same body keeps them.
     """
     rr = require_rerun()
     n, b = strips.shape[:2]
     start, quat_xyzw, length = capsule_poses(strips)
-    radii = capsule_radii(bones, np.nanmedian(np.where(np.isfinite(length), length, np.nan),
-                                              axis=0) if n else np.zeros(b))
-    rec.log(path, rr.Capsules3D.from_fields(radii=radii, colors=color,
-                                            labels=[f"{a}>{e}" for a, e in bones],
-                                            show_labels=False), static=True)
+    if styles:
+        radii = capsule_radii(bones, np.nanmedian(np.where(np.isfinite(length), length, np.nan),
+                                                  axis=0) if n else np.zeros(b))
+        rec.log(path, rr.Capsules3D.from_fields(radii=radii, colors=color,
+                                                labels=[f"{a}>{e}" for a, e in bones],
+                                                show_labels=False), static=True)
     rec.send_columns(path, indexes=index, columns=rr.Capsules3D.columns(
         translations=start.reshape(-1, 3), quaternions=quat_xyzw.reshape(-1, 4),
         lengths=length.reshape(-1)).partition(lengths=np.full(n, b)))

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from view_headless import CHROMIUM, Browser
+from view_headless import CHROMIUM, Browser, body_pixels, wait_for_body
 from view_motion import FRAMES, RATE
 
 from ikfusion.view.serve import free_port
@@ -55,16 +55,6 @@ def test_save_needs_rrd_suffix(result_folder: Path, tmp_path: Path) -> None:
     assert ".rrd" in done.stderr
 
 
-def _body_pixels(png: Path) -> np.ndarray:
-    """Mask of the 3-D view area (left 55 %, between the top bar and the time panel) where the
-    main actor's blue (66, 135, 245) is drawn."""
-    image = pytest.importorskip("PIL.Image")
-    rgb = np.asarray(image.open(png).convert("RGB")).astype(int)
-    h, w, _ = rgb.shape
-    area = rgb[int(0.08 * h):int(0.72 * h), :int(0.55 * w)]
-    return np.all(np.abs(area - np.array([66, 135, 245])) <= 12, axis=2)
-
-
 def _read_url(proc: subprocess.Popen[str], timeout: float) -> str:
     """The page address the server prints (``viewer at URL``)."""
     lines: queue.Queue[str] = queue.Queue()
@@ -89,17 +79,6 @@ def _read_url(proc: subprocess.Popen[str], timeout: float) -> str:
     raise AssertionError(f"no viewer address within {timeout} s (exit code {proc.poll()})")
 
 
-def _wait_for_body(browser: Browser, png: Path, timeout: float) -> int:
-    """Screenshot until the body shows (the wasm viewer starts slowly in software GL)."""
-    deadline = time.monotonic() + timeout
-    while True:
-        browser.screenshot(png)
-        count = int(_body_pixels(png).sum())
-        if count > 200 or time.monotonic() > deadline:
-            return count
-        time.sleep(2.0)
-
-
 def _step_until_moved(browser: Browser, start: np.ndarray, png: Path, timeout: float) -> float:
     """Step the time cursor forward (arrow key) until the body has walked away from where it
     stood in ``start``; returns how far its pixels' centroid moved [px].
@@ -113,7 +92,7 @@ def _step_until_moved(browser: Browser, start: np.ndarray, png: Path, timeout: f
             browser.press_key("ArrowRight", "ArrowRight", 39)
         time.sleep(4.0)
         browser.screenshot(png)
-        body = _body_pixels(png)
+        body = body_pixels(png)
         shift = float(np.linalg.norm(np.argwhere(body).mean(axis=0) - origin)) if body.sum() > 200 \
             else 0.0
         if shift > 20.0 or time.monotonic() > deadline:
@@ -134,6 +113,7 @@ def demo_result(tmp_path_factory: pytest.TempPathFactory) -> Path:
                     reason=f"{CHROMIUM} is absent (apt-get install chromium)")
 def test_served_page_draws_the_body_and_plays(demo_result: Path, tmp_path: Path) -> None:
     """The acceptance test: a demo's result (and its truth as a ghost) in headless Chromium."""
+    pytest.importorskip("PIL.Image")
     port = free_port()
     proc = subprocess.Popen(
         [sys.executable, "-m", "ikfusion", "view", str(demo_result / "result"), "--truth",
@@ -147,10 +127,10 @@ def test_served_page_draws_the_body_and_plays(demo_result: Path, tmp_path: Path)
             browser.press_space()  # play and pause at once: the time cursor appears near 0 s
             browser.press_space()
             start = tmp_path / "view_start.png"
-            assert _wait_for_body(browser, start, timeout=150) > 200, "no body drawn at the start"
+            assert wait_for_body(browser, start, timeout=150) > 200, "no body drawn at the start"
             later = tmp_path / "view_later.png"
-            shift = _step_until_moved(browser, _body_pixels(start), later, timeout=240)
-            assert int(_body_pixels(later).sum()) > 200, "no body drawn later on the timeline"
+            shift = _step_until_moved(browser, body_pixels(start), later, timeout=240)
+            assert int(body_pixels(later).sum()) > 200, "no body drawn later on the timeline"
             assert shift > 20.0, "the body did not move along the timeline"
     finally:
         proc.terminate()

@@ -18,6 +18,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 CHROMIUM = "/usr/bin/chromium"
 
 _FLAGS = (
@@ -144,3 +146,24 @@ class Browser:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
+
+def body_pixels(png: Path) -> np.ndarray:
+    """Mask of the 3-D view area (left 55 %, between the top bar and the time panel) where the
+    main actor's blue (66, 135, 245) is drawn."""
+    from PIL import Image
+
+    rgb = np.asarray(Image.open(png).convert("RGB")).astype(int)
+    h, w, _ = rgb.shape
+    area = rgb[int(0.08 * h):int(0.72 * h), :int(0.55 * w)]
+    return np.all(np.abs(area - np.array([66, 135, 245])) <= 12, axis=2)
+
+
+def wait_for_body(browser: Browser, png: Path, timeout: float) -> int:
+    """Screenshot until the body shows (the wasm viewer starts slowly in software GL)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        browser.screenshot(png)
+        count = int(body_pixels(png).sum())
+        if count > 200 or time.monotonic() > deadline:
+            return count
+        time.sleep(2.0)
