@@ -142,13 +142,26 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         if hints and name in hints:
             leave[i] = active[i] and not hints[name]
             plant[i] = not active[i] and bool(hints[name]) and plant[i]
+    handover = False
     if active.any() and not (active & ~leave).any() and not plant.any() and not hints:
-        # Without a flight hint the lowest planted point of the sensed pose keeps the body down.
-        candidates = np.where(active, p_sensed[:, 2], np.inf)
-        leave[int(np.argmin(candidates))] = False
+        # Without a flight hint the lowest point of the sensed pose keeps the body down: the
+        # lowest planted one, unless the body rests on another point (hands in a cartwheel)
+        # or the planted points are all well above the lowest (a foot swung overhead).
+        kept = int(np.argmin(np.where(active, p_sensed[:, 2], np.inf)))
+        lowest = int(np.argmin(p_sensed[:, 2]))
+        handover = bool(not active[lowest] and not tilted[lowest]
+                        and (not layout.stepping[lowest]
+                             or height_rel[kept] > th.still_relative))
+        if handover:
+            plant[lowest] = True
+        else:
+            leave[kept] = False
     anchors, age = state.anchors.copy(), state.age.copy()
     if plant.any():
-        if p_solved is not None:
+        if handover:
+            # where the sensed pose puts it, aligned on the points that let go this frame
+            anchors[plant] = p_sensed[plant] + _sensed_offset(p_sensed, anchors, active)
+        elif p_solved is not None:
             anchors[plant] = _landing_anchors(layout, active & ~leave, anchors, p_solved,
                                               plant)
         else:
