@@ -11,6 +11,10 @@ the kinematics: a still foot keeps its planted points, a still foot near the flo
 once where the sensed pose puts it relative to the points planted so far, and a moving foot lets
 go as soon as the other foot stands still (the body is handed over to the still foot, so a
 kinematic threshold missed by a few centimetres cannot hold a swinging foot on the floor).
+Knees and palms may carry the same evidence from their accelerometers
+(:mod:`ikfusion.imu.resting`), weaker than a foot's: it plants and hands over, but does not
+stop the sensed pose from lifting them. When every planted point lets go, the lowest point of
+the sensed pose takes the body (a palm in a cartwheel), not a foot swung overhead.
 """
 
 from __future__ import annotations
@@ -136,7 +140,9 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     # Two planted feet that disagree: the foot planted earlier lets go (toe-off), even a
     # still one (its anchor is out of date); a still foot ignores the sensed height and pitch.
     pulled = (drift > th.leave_distance) & (state.age >= other_age)
-    lifted = ((height_rel > th.leave_relative) | tilted) & ~still
+    # a resting knee or palm (calm accelerometer) is weaker evidence than a still foot: the
+    # sensed pose may still lift it
+    lifted = ((height_rel > th.leave_relative) | tilted) & ~(still & layout.stepping)
     leave = handed_over | (staying & (lifted | pulled))
     for i, name in enumerate(state.names):
         if hints and name in hints:
