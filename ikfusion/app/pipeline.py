@@ -23,7 +23,7 @@ from ..ik.assumed import coverage_warning
 from ..imu.bridging import BridgedSegments, BridgingSettings, bridge_segments
 from ..imu.calibration import Calibration, calibrate_recording
 from ..imu.flight import FlightPhases, FlightThresholds, detect_flight, world_acceleration
-from ..imu.resting import segment_resting
+from ..imu.resting import RESTING_SEGMENTS, segment_resting
 from ..imu.stance import StanceThresholds, foot_still
 from ..io.recording import ImuRecording, SensorStream
 from ..live.actor_stream import ActorStream
@@ -31,9 +31,6 @@ from ..live.replay import recording_frames
 from ..model.human_model import HumanModel
 from ..model.topology import segment_parents
 from .correction import DriftCorrection
-
-# segments whose contact points (knees, palms) rest on the floor while their sensor is calm
-RESTING_SEGMENTS = ("LeftLowerLeg", "RightLowerLeg", "LeftHand", "RightHand")
 
 __all__ = ["SolvedRecording", "bridged_segments", "frames_from_recording", "knee_warning",
            "solve_recording"]

@@ -18,6 +18,9 @@ import numpy as np
 
 from .stance import _bridge_short_gaps, _drop_short_runs, _running_max
 
+#: Segments whose contact points (knees, palms) rest on the floor while their sensor is calm.
+RESTING_SEGMENTS = ("LeftLowerLeg", "RightLowerLeg", "LeftHand", "RightHand")
+
 
 @dataclass(frozen=True)
 class RestThresholds:

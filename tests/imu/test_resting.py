@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ikfusion.imu.resting import RestThresholds, segment_resting
+from ikfusion.imu.resting_stream import SegmentRestingStream
 
 RATE = 60.0
 
@@ -39,3 +40,19 @@ def test_lost_samples_are_unknown_and_do_not_cut_a_rest() -> None:
     assert np.isnan(out[50:53]).all()
     assert (out[:50] == 1.0).all() and (out[53:88] == 1.0).all()
     assert (out[91:] == 0.0).all()
+
+
+def test_stream_agrees_with_offline_after_its_lag() -> None:
+    # a hand at rest (its sensor tilted, gravity in its specific force), then lifted off
+    n = 120
+    R = np.tile(np.eye(3), (n, 1, 1))
+    R[:] = [[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]  # turned 90 deg about x
+    a_world = np.zeros((n, 3))
+    a_world[80:, 2] = 4.0
+    f_sensor = np.einsum("nji,nj->ni", R, a_world + [0.0, 0.0, 9.81])  # R^T (a - g)
+    offline = segment_resting(a_world, RATE)
+    stream = SegmentRestingStream(RATE)
+    causal = np.array([stream.update(k / RATE, R[k], f_sensor[k]) for k in range(n)])
+    lag = int(round(RestThresholds().min_duration * RATE))
+    assert (causal[lag:79] == 1.0).all() and (causal[:lag - 1] == 0.0).all()
+    assert (causal[80:] == 0.0).all() and (offline[82:] == 0.0).all()
