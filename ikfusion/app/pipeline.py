@@ -23,6 +23,7 @@ from ..ik.assumed import coverage_warning
 from ..imu.bridging import BridgedSegments, BridgingSettings, bridge_segments
 from ..imu.calibration import Calibration, calibrate_recording
 from ..imu.flight import FlightPhases, FlightThresholds, detect_flight, world_acceleration
+from ..imu.resting import RESTING_SEGMENTS, segment_resting
 from ..imu.stance import StanceThresholds, foot_still
 from ..io.recording import ImuRecording, SensorStream
 from ..live.actor_stream import ActorStream
@@ -74,7 +75,8 @@ def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str]
     """One frame per sample: calibrated segment orientations (measured or bridged).
 
     Without ``bridged`` only the valid samples are tracked. The feet's stance from their IMUs
-    (gyroscopes when recorded, else orientations; invalid samples left out) comes along for
+    (gyroscopes when recorded, else orientations; invalid samples left out) and the rest of
+    the knees and hands (their accelerometers, :mod:`ikfusion.imu.resting`) come along for
     contact detection, and so do the flight phases from the pelvis and feet accelerometers
     (:func:`flight_phases`) and the pelvis acceleration in the world frame.
     """
@@ -92,6 +94,10 @@ def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str]
             R = np.where(st.valid[:, None, None], st.R_world_sensor, np.nan)
             gyr = None if st.gyr is None else np.where(st.valid[:, None], st.gyr, np.nan)
             still[s] = foot_still(R, recording.rate, gyr, stance)
+        elif s in RESTING_SEGMENTS and st.acc is not None:
+            a = world_acceleration(st.R_world_sensor, st.acc)
+            a[~st.valid] = np.nan
+            still[s] = segment_resting(a, recording.rate)
     airborne = flight_phases(recording, streams, flight).airborne.tolist()
     pelvis = streams.get("Pelvis")
     a_pelvis = None

@@ -11,6 +11,10 @@ the kinematics: a still foot keeps its planted points, a still foot near the flo
 once where the sensed pose puts it relative to the points planted so far, and a moving foot lets
 go as soon as the other foot stands still (the body is handed over to the still foot, so a
 kinematic threshold missed by a few centimetres cannot hold a swinging foot on the floor).
+Knees and palms may carry the same evidence from their accelerometers
+(:mod:`ikfusion.imu.resting`), weaker than a foot's: it plants and hands over, but does not
+stop the sensed pose from lifting them. When every planted point lets go, the lowest point of
+the sensed pose takes the body (a palm in a cartwheel), not a foot swung overhead.
 """
 
 from __future__ import annotations
@@ -136,19 +140,34 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     # Two planted feet that disagree: the foot planted earlier lets go (toe-off), even a
     # still one (its anchor is out of date); a still foot ignores the sensed height and pitch.
     pulled = (drift > th.leave_distance) & (state.age >= other_age)
-    lifted = ((height_rel > th.leave_relative) | tilted) & ~still
+    # a resting knee or palm (calm accelerometer) is weaker evidence than a still foot: the
+    # sensed pose may still lift it
+    lifted = ((height_rel > th.leave_relative) | tilted) & ~(still & layout.stepping)
     leave = handed_over | (staying & (lifted | pulled))
     for i, name in enumerate(state.names):
         if hints and name in hints:
             leave[i] = active[i] and not hints[name]
             plant[i] = not active[i] and bool(hints[name]) and plant[i]
+    handover = False
     if active.any() and not (active & ~leave).any() and not plant.any() and not hints:
-        # Without a flight hint the lowest planted point of the sensed pose keeps the body down.
-        candidates = np.where(active, p_sensed[:, 2], np.inf)
-        leave[int(np.argmin(candidates))] = False
+        # Without a flight hint the lowest point of the sensed pose keeps the body down: the
+        # lowest planted one, unless the body rests on another point (hands in a cartwheel)
+        # or the planted points are all well above the lowest (a foot swung overhead).
+        kept = int(np.argmin(np.where(active, p_sensed[:, 2], np.inf)))
+        lowest = int(np.argmin(p_sensed[:, 2]))
+        handover = bool(not active[lowest] and not tilted[lowest]
+                        and (not layout.stepping[lowest]
+                             or height_rel[kept] > th.still_relative))
+        if handover:
+            plant[lowest] = True
+        else:
+            leave[kept] = False
     anchors, age = state.anchors.copy(), state.age.copy()
     if plant.any():
-        if p_solved is not None:
+        if handover:
+            # where the sensed pose puts it, aligned on the points that let go this frame
+            anchors[plant] = p_sensed[plant] + _sensed_offset(p_sensed, anchors, active)
+        elif p_solved is not None:
             anchors[plant] = _landing_anchors(layout, active & ~leave, anchors, p_solved,
                                               plant)
         else:

@@ -25,9 +25,11 @@ class Frame:
             farther target acts as if it were this far (a correction at a bounded rate).
         root_position: Optional target for the pelvis origin ``p_world_pelvis`` [m] (a planner's
             or a ballistic path), with weight ``root_position_weight`` [1/m^2].
-        feet_still: Foot segment (``LeftFoot``/``RightFoot``) -> its IMU says it stands still
-            (:func:`ikfusion.imu.stance.foot_still`); absent when unknown. Contact detection
-            keeps a still foot planted and hands the body over to it.
+        feet_still: Segment carrying contact points -> its IMU says they stand still: a foot
+            (``LeftFoot``/``RightFoot``) by its gyroscope
+            (:func:`ikfusion.imu.stance.foot_still`), a shin or hand (knee, palm) by its
+            accelerometer (:func:`ikfusion.imu.resting.segment_resting`); absent when unknown.
+            Contact detection keeps a still foot planted and hands the body over to it.
         airborne: The body is in the air (:func:`ikfusion.imu.flight.detect_flight`): no point
             is planted and none touches down; the pelvis flies on the ballistic path from its
             take-off velocity. Contact hints, when given, take precedence.

@@ -13,7 +13,8 @@ and ``live --replay`` of the same files give the same poses:
 * lost or invalid samples: bridged from the past (:class:`~ikfusion.imu.bridging_stream.
   BridgeStream`);
 * foot stance: from past samples (:class:`~ikfusion.imu.stance_stream.FootStillStream`, which
-  recognises a stance ``still_duration`` after it starts);
+  recognises a stance ``still_duration`` after it starts), and the rest of the knees and hands
+  from their accelerometers (:class:`~ikfusion.imu.resting_stream.SegmentRestingStream`);
 * flight: from the pelvis and feet accelerometers sample by sample
   (:class:`~ikfusion.imu.flight_stream.FlightStream`, the twin of the offline detector). A
   frame is airborne when its sample is in a flight confirmed up to that sample (the detector's
@@ -48,6 +49,8 @@ from ..imu.bridging_stream import BridgeStream
 from ..imu.calibration import Calibration, calibrate
 from ..imu.flight import FlightThresholds, world_acceleration
 from ..imu.flight_stream import FlightStream
+from ..imu.resting import RESTING_SEGMENTS
+from ..imu.resting_stream import SegmentRestingStream
 from ..imu.stance import StanceThresholds
 from ..imu.stance_stream import FootStillStream
 from ..io.recording import normalize_sensor_id
@@ -154,6 +157,7 @@ class ActorStream:
         self._time0: float | None = None  # first frame time of a TagFeed's fix index [s]
         self._bridge: BridgeStream | None = None
         self._stance: dict[str, FootStillStream] = {}
+        self._resting: dict[str, SegmentRestingStream] = {}
         self._flight = FlightStream(self.rate, flight)
         if calibration is not None:
             self._start(calibration)
@@ -314,6 +318,8 @@ class ActorStream:
         self._bridge = BridgeStream(sensed, segment_parents(self.model), self._bridging)
         self._stance = {f: FootStillStream(self.rate, self._thresholds) for f in FEET
                         if f in self.sensor_ids}
+        self._resting = {s: SegmentRestingStream(self.rate) for s in RESTING_SEGMENTS
+                         if s in self.sensor_ids}
         self.correction = self.correction_for(calibration) if self.correction_for else None
 
     def _solve(self, time_s: float, readings: Mapping[str, Reading], solve: bool = True
@@ -331,6 +337,13 @@ class ActorStream:
                                   None if r is None else r.gyr)
             if np.isfinite(value):
                 still[foot] = bool(value)
+        resting = {}  # knees and palms, for the contacts only (the tags' feet ignore them)
+        for segment, rest in self._resting.items():
+            r = readings.get(segment)
+            value = rest.update(time_s, None if r is None else r.R_world_sensor,
+                                None if r is None else r.acc)
+            if np.isfinite(value):
+                resting[segment] = bool(value)
         self._flight.update(_acc(readings.get("Pelvis")),
                             {f: _acc(readings.get(f)) for f in FEET},
                             {f: _gyr(readings.get(f)) for f in FEET})
@@ -339,7 +352,8 @@ class ActorStream:
             self.tag_feed.frame(k_fix, time_s, readings, still)
         if not solve:
             return None
-        frame = Frame(float(time_s), tracked, feet_still=still, airborne=self._flight.flying,
+        frame = Frame(float(time_s), tracked, feet_still={**still, **resting},
+                      airborne=self._flight.flying,
                       root_acceleration=_root_acceleration(readings.get("Pelvis")))
         dt = 0.0 if self._previous is None else float(time_s - self._previous)
         k = 0

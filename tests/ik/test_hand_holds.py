@@ -1,0 +1,75 @@
+"""Hands on the floor: a cartwheel is carried by its palms, never by a foot swung overhead."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from motions import frames_from
+
+from ikfusion.app.evaluate import phase_slides
+from ikfusion.ik import Solver
+from ikfusion.ik.contacts import ContactState, ContactThresholds, release_contacts
+from ikfusion.mocap.model_motion import TruthMotion, contact_phases, site_positions
+from ikfusion.model import HumanModel
+from ikfusion.model.topology import BodyTopology
+from ikfusion.sim.capture import motion_from_bvh
+
+CARTWHEELS = (Path(__file__).resolve().parents[2] / "benchmarks" / "motions"
+              / "cmu_49_08_cartwheels_amp.bvh.gz")
+
+
+@pytest.fixture(scope="module")
+def cartwheels() -> TruthMotion:
+    """Two cartwheels of the motion library (CMU 49_08, 4.8 s at 60 Hz)."""
+    return motion_from_bvh(CARTWHEELS, rate=60.0)
+
+
+def test_cartwheel_holds_no_point_off_the_floor(cartwheels: TruthMotion) -> None:
+    model, q = cartwheels.model, cartwheels.q
+    names = model.sites_of_kind("contact")
+    motion = Solver(model).solve(frames_from(model, q, stance=True))
+    p_true = site_positions(model, q, names)
+    held = motion.contacts
+    # a point is held only where the true one is on the floor (the old code held a heel that
+    # rose to 1.7 m while the body turned over the hands)
+    assert not (held & (p_true[..., 2] > 0.2)).any()
+    # the true points barely move while they are held (old: 1.1 m)
+    assert max(phase_slides(p_true, held)) < 0.3
+    # the palms carry the body while the feet are up
+    truth = contact_phases(model, q, cartwheels.time, names)
+    palms = [names.index("LeftPalm"), names.index("RightPalm")]
+    on_hands = truth[:, palms].any(axis=1)
+    assert held[on_hands][:, palms].any(axis=1).mean() > 0.5
+    # the pelvis follows: old 2.8 m off at the end
+    err = motion.q[:, :2] - q[:, :2]
+    assert np.linalg.norm(err[-1] - err[0]) < 0.5
+
+
+def test_body_handed_to_the_lowest_palm_when_the_planted_toe_swings_up(
+        human: HumanModel) -> None:
+    names = list(human.sites_of_kind("contact"))
+    layout = BodyTopology.of(human).foot_layout(names)
+    th = ContactThresholds(floor_z=0.0, enter_height=0.03, enter_speed=0.5,
+                           enter_relative=0.03, leave_relative=0.025, leave_distance=0.02,
+                           settle_speed=0.2, tilt_deg=2.0, still_relative=0.06,
+                           reenter_delay=0.2)
+    toe, palm = names.index("RightToe"), names.index("LeftPalm")
+    state = ContactState.empty(names)
+    state.active[toe] = True
+    state.anchors[toe] = [1.0, 2.0, 0.0]
+    # sensed pose (any translation): the palm lowest, the toe 1.2 m above it, the rest between
+    p_sensed = np.tile([0.0, 0.0, 0.8], (len(names), 1))
+    p_sensed[palm] = [0.3, -0.2, 0.1]
+    p_sensed[toe] = [0.5, 0.4, 1.3]
+    out = release_contacts(state, p_sensed, th, layout=layout)
+    assert not out.active[toe]
+    assert out.active[palm] and out.active.sum() == 1
+    # anchored where the sensed pose puts it relative to the toe's anchor, on the floor
+    np.testing.assert_allclose(out.anchors[palm], [0.8, 1.4, 0.0], atol=1e-9)
+    # a heel slightly below a lifting toe of the other foot is not taken over (walking)
+    heel = names.index("LeftHeel")
+    p_sensed[toe, 2], p_sensed[heel, 2], p_sensed[palm, 2] = 0.14, 0.1, 0.5
+    out = release_contacts(state, p_sensed, th, layout=layout)
+    assert out.active[toe] and out.active.sum() == 1
