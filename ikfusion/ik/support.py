@@ -224,8 +224,9 @@ class SupportFollower:
         where the pelvis was solved, their offsets take that back, so they are not pulled along.
 
         A foot that lets go again within ``confirm`` seconds of touching down (a heel strike
-        its gyroscope did not confirm) resumes its swing where it was, so its offset is
-        neither lost nor counted twice.
+        its gyroscope did not confirm) resumes its swing toward the same goal, from where its
+        heel is (held while the body moved on, it is no longer where it was led: a swing
+        resumed there jumped the heel by centimetres), and its landing is not counted.
         """
         for f in np.flatnonzero(~planted):
             points = self._feet[f]
@@ -235,12 +236,12 @@ class SupportFollower:
             if not self._swinging[f]:
                 self._swinging[f] = True
                 if self._planted_for[f] < self.confirm and np.any(self._landed_swing[f]):
-                    self.swing[f] = self._landed_swing[f]
-                    self.landed -= self._landed_swing[f]
+                    self.landed -= self._landed_swing[f]  # not counted; its goal is kept
                 else:
                     self._goal[f] = _clip_norm(self._step - self.pending, self._max_step)
-                    # the heel leaves the floor where it is, not where the sensed leg puts it
-                    self.swing[f] = mean_rows(self._deviation[points & self._led])
+                # the heel leaves the floor where it is, not where the sensed leg puts it (nor
+                # where it was led before a short touch-down: the body moved under it since)
+                self.swing[f] = mean_rows(self._deviation[points & self._led])
                 self._landed_swing[f] = 0.0
             self.swing[f] += _clip_norm(self._goal[f] - self.swing[f], self.swing_speed * dt)
             self.swing[f] -= moved
