@@ -16,7 +16,10 @@ For the ``no-slide`` correction it also leads swing feet and leans the pelvis: w
 off, the correction still to make (less what the lag will still bring) is latched for it, at
 most ``max_step``, and the foot is led toward it during the swing (a soft position task on its
 heels, relative to the pelvis), starting from where its heel left the floor; it lands where the
-corrected body wants it, with no jump at touch-down. Meanwhile the pelvis leans toward the
+corrected body wants it, with no jump at touch-down. The lead is horizontal, as the correction
+is: how high the heel is stays with the sensed leg and the floor (a heel held at its sensed
+height while the floor lifts a toe the sensed leg puts under it pitches the foot about the
+ankle, and the pitch springs back when the toe rises: a pop). Meanwhile the pelvis leans toward the
 correction by at most ``lean_max``; the lean passes into the lag when the body is handed to a
 foot that was placed leaning.
 """
@@ -29,6 +32,8 @@ import numpy as np
 
 from ..model.topology import FootLayout
 from .fast_math import mean_rows
+
+_HORIZONTAL = np.diag([1.0, 1.0, 0.0])  # information of a lead: the x and y axes only
 
 
 class SupportFollower:
@@ -219,8 +224,9 @@ class SupportFollower:
         where the pelvis was solved, their offsets take that back, so they are not pulled along.
 
         A foot that lets go again within ``confirm`` seconds of touching down (a heel strike
-        its gyroscope did not confirm) resumes its swing where it was, so its offset is
-        neither lost nor counted twice.
+        its gyroscope did not confirm) resumes its swing toward the same goal, from where its
+        heel is (held while the body moved on, it is no longer where it was led: a swing
+        resumed there jumped the heel by centimetres), and its landing is not counted.
         """
         for f in np.flatnonzero(~planted):
             points = self._feet[f]
@@ -230,12 +236,12 @@ class SupportFollower:
             if not self._swinging[f]:
                 self._swinging[f] = True
                 if self._planted_for[f] < self.confirm and np.any(self._landed_swing[f]):
-                    self.swing[f] = self._landed_swing[f]
-                    self.landed -= self._landed_swing[f]
+                    self.landed -= self._landed_swing[f]  # not counted; its goal is kept
                 else:
                     self._goal[f] = _clip_norm(self._step - self.pending, self._max_step)
-                    # the heel leaves the floor where it is, not where the sensed leg puts it
-                    self.swing[f] = mean_rows(self._deviation[points & self._led])
+                # the heel leaves the floor where it is, not where the sensed leg puts it (nor
+                # where it was led before a short touch-down: the body moved under it since)
+                self.swing[f] = mean_rows(self._deviation[points & self._led])
                 self._landed_swing[f] = 0.0
             self.swing[f] += _clip_norm(self._goal[f] - self.swing[f], self.swing_speed * dt)
             self.swing[f] -= moved
@@ -271,7 +277,10 @@ class SupportFollower:
         return out
 
     def swing_targets(self, p_points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Targets (k, 3) [m] and weights (k,) (0 or 1) for the heels of swing feet.
+        """Targets (k, 3) [m] and information (k, 3, 3) for the heels of swing feet.
+
+        The information is 1 on the horizontal axes of a led heel, 0 elsewhere: the lead moves
+        the heel sideways only, its height is left to the sensed leg and the floor.
 
         Args:
             p_points: (k, 3) contact points of the warm start (the sensed pose on the support,
@@ -279,12 +288,12 @@ class SupportFollower:
         """
         self._base = p_points.copy()
         targets = p_points.copy()
-        weights = np.zeros(len(p_points))
+        led = np.zeros(len(p_points), dtype=bool)
         for f, points in enumerate(self._feet):
             if self._swinging[f] and np.any(self._goal[f]):
                 targets[points] += self.swing[f]
-                weights[points & self._led] = 1.0
-        return targets, weights
+                led |= points & self._led
+        return targets, led[:, None, None] * _HORIZONTAL
 
 
 def _shrink(v: np.ndarray, by: float) -> np.ndarray:
