@@ -1,0 +1,75 @@
+"""Segment orientations put onto the human model directly: configurations without a solver.
+
+Every ball joint of the model is the rotation between its two segments, so a mapped BVH frame
+(all 23 segment orientations and the pelvis origin) fixes a configuration in closed form:
+``R_parent_child = R_world_parent^T R_world_child``, decomposed into the joint's anatomical
+angles and held inside its range of motion. Joints are taken parents first and each one turns
+from the orientation its parent actually reached, so a segment past a limit stops there and its
+children still take their own orientations. Inside the ranges this is the exact pose the
+per-frame solver converges to; at a limit the solver spreads the excess over neighbouring
+joints where this keeps it on the joint that exceeds.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from ..model.human_model import HumanModel
+from ..rotations import matrix_to_quat_wxyz, wxyz_to_xyzw
+
+#: A joint angle past its range by more than this counts as held by the range [rad] (the
+#: whole-body solver's own step tolerance: closer than this, the two poses agree).
+LIMIT_TOLERANCE_RAD = 1e-3
+
+
+def configurations_from_orientations(model: HumanModel,
+                                     R_world_segment: Mapping[str, np.ndarray],
+                                     p_world_pelvis: np.ndarray
+                                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Configurations (N, nq) whose segments take the given orientations, within joint ranges.
+
+    Args:
+        model: A human model with ball joints (every segment and joint of SPEC section 2).
+        R_world_segment: Segment name -> (N, 3, 3) world orientation (MVN segment convention,
+            world Z up); every segment of the model.
+        p_world_pelvis: (N, 3) pelvis origin [m].
+
+    Returns:
+        Configurations (N, nq) in Pinocchio's layout (quaternions x, y, z, w), and (N,) whether
+        a joint range held a segment away from its orientation by more than
+        :data:`LIMIT_TOLERANCE_RAD` in that frame.
+    """
+    p_pelvis = np.asarray(p_world_pelvis, dtype=float).reshape(-1, 3)
+    n = len(p_pelvis)
+    pin_model = model.model
+    frames = {s: pin_model.frames[model.segment_frame_id(s)] for s in model.segment_names}
+    root = frames["Pelvis"]
+    q = np.tile(model.neutral(), (n, 1))
+    # the pelvis frame sits on the free-flyer joint: R_world_root = R_world_pelvis F^T
+    R_root = R_world_segment["Pelvis"] @ root.placement.rotation.T
+    q[:, 3:7] = wxyz_to_xyzw(matrix_to_quat_wxyz(R_root))
+    q[:, :3] = p_pelvis - R_root @ root.placement.translation
+    limited = np.zeros(n, dtype=bool)
+    reached = {"Pelvis": np.asarray(R_world_segment["Pelvis"], dtype=float)}
+    for joint in model.ball_joints.values():  # parents before children
+        spec = joint.spec
+        F_parent = frames[spec.parent].placement.rotation
+        F_child = frames[spec.child].placement.rotation
+        placement = pin_model.jointPlacements[joint.joint_id].rotation
+        # R_world_child = R_world_parent F_parent^T placement R_joint F_child
+        R_before = reached[spec.parent] @ (F_parent.T @ placement)
+        R_joint = np.swapaxes(R_before, 1, 2) @ R_world_segment[spec.child] @ F_child.T
+        angles = spec.angles_from_rotation(R_joint)
+        lower = np.radians([a.lower_deg for a in spec.angles])
+        upper = np.radians([a.upper_deg for a in spec.angles])
+        outside = ((angles < lower - LIMIT_TOLERANCE_RAD)
+                   | (angles > upper + LIMIT_TOLERANCE_RAD)).any(axis=1)
+        limited |= outside
+        if outside.any():
+            R_joint = R_joint.copy()
+            R_joint[outside] = spec.rotation(np.clip(angles[outside], lower, upper))
+        reached[spec.child] = R_before @ R_joint @ F_child
+        q[:, joint.idx_q:joint.idx_q + 4] = wxyz_to_xyzw(matrix_to_quat_wxyz(R_joint))
+    return q, limited
