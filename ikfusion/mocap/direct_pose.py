@@ -5,19 +5,23 @@ Every ball joint of the model is the rotation between its two segments, so a map
 ``R_parent_child = R_world_parent^T R_world_child``, decomposed into the joint's anatomical
 angles and held inside its range of motion. Joints are taken parents first and each one turns
 from the orientation its parent actually reached, so a segment past a limit stops there and its
-children still take their own orientations. Inside the ranges this is the exact pose the
-per-frame solver converges to; at a limit the solver spreads the excess over neighbouring
-joints where this keeps it on the joint that exceeds.
+children still take their own orientations. What a limited segment misses is split with its
+parent segment when that one moves only it (limbs: a thigh and a shank, a forearm and a hand):
+the parent turns by half, the least-squares split of two equally weighted orientation errors,
+as the per-frame solver spreads it. Inside the ranges this is the exact pose the solver
+converges to (up to its step tolerance).
 """
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Mapping
 
 import numpy as np
 
+from ..model.ball_joints import BallJoint
 from ..model.human_model import HumanModel
-from ..rotations import matrix_to_quat_wxyz, wxyz_to_xyzw
+from ..rotations import exp_so3, log_so3, matrix_to_quat_wxyz, wxyz_to_xyzw
 
 #: A joint angle past its range by more than this counts as held by the range [rad] (the
 #: whole-body solver's own step tolerance: closer than this, the two poses agree).
@@ -53,23 +57,43 @@ def configurations_from_orientations(model: HumanModel,
     q[:, :3] = p_pelvis - R_root @ root.placement.translation
     limited = np.zeros(n, dtype=bool)
     reached = {"Pelvis": np.asarray(R_world_segment["Pelvis"], dtype=float)}
-    for joint in model.ball_joints.values():  # parents before children
+    by_child = {j.spec.child: j for j in model.ball_joints.values()}
+    children = Counter(j.spec.parent for j in model.ball_joints.values())
+
+    def place(joint: BallJoint, target: np.ndarray, rows: np.ndarray | slice) -> np.ndarray:
+        """Turn ``joint`` toward the child orientation ``target`` in ``rows``, within range."""
         spec = joint.spec
         F_parent = frames[spec.parent].placement.rotation
         F_child = frames[spec.child].placement.rotation
         placement = pin_model.jointPlacements[joint.joint_id].rotation
         # R_world_child = R_world_parent F_parent^T placement R_joint F_child
-        R_before = reached[spec.parent] @ (F_parent.T @ placement)
-        R_joint = np.swapaxes(R_before, 1, 2) @ R_world_segment[spec.child] @ F_child.T
+        R_before = reached[spec.parent][rows] @ (F_parent.T @ placement)
+        R_joint = np.swapaxes(R_before, 1, 2) @ target @ F_child.T
         angles = spec.angles_from_rotation(R_joint)
         lower = np.radians([a.lower_deg for a in spec.angles])
         upper = np.radians([a.upper_deg for a in spec.angles])
         outside = ((angles < lower - LIMIT_TOLERANCE_RAD)
                    | (angles > upper + LIMIT_TOLERANCE_RAD)).any(axis=1)
-        limited |= outside
         if outside.any():
-            R_joint = R_joint.copy()
             R_joint[outside] = spec.rotation(np.clip(angles[outside], lower, upper))
-        reached[spec.child] = R_before @ R_joint @ F_child
-        q[:, joint.idx_q:joint.idx_q + 4] = wxyz_to_xyzw(matrix_to_quat_wxyz(R_joint))
+        if spec.child not in reached:
+            reached[spec.child] = np.empty((n, 3, 3))
+        reached[spec.child][rows] = R_before @ R_joint @ F_child
+        q[rows, joint.idx_q:joint.idx_q + 4] = wxyz_to_xyzw(matrix_to_quat_wxyz(R_joint))
+        return outside
+
+    for joint in model.ball_joints.values():  # parents before children
+        spec = joint.spec
+        target = np.asarray(R_world_segment[spec.child], dtype=float)
+        outside = place(joint, target, slice(None))
+        limited |= outside
+        above = by_child.get(spec.parent)
+        if not outside.any() or above is None or children[spec.parent] != 1:
+            continue
+        # Held by the range: the parent takes half of what the child misses (equal weights:
+        # the least-squares split of the two orientation errors), then the child again.
+        rows = np.flatnonzero(outside)
+        missed = log_so3(target[rows] @ np.swapaxes(reached[spec.child][rows], 1, 2))
+        place(above, exp_so3(0.5 * missed) @ reached[spec.parent][rows], rows)
+        place(joint, target[rows], rows)
     return q, limited
