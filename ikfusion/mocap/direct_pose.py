@@ -72,8 +72,8 @@ def configurations_from_orientations(model: HumanModel,
         angles = spec.angles_from_rotation(R_joint)
         lower = np.radians([a.lower_deg for a in spec.angles])
         upper = np.radians([a.upper_deg for a in spec.angles])
-        outside = ((angles < lower - LIMIT_TOLERANCE_RAD)
-                   | (angles > upper + LIMIT_TOLERANCE_RAD)).any(axis=1)
+        outside = np.any((angles < lower - LIMIT_TOLERANCE_RAD)
+                         | (angles > upper + LIMIT_TOLERANCE_RAD), axis=1)
         if outside.any():
             R_joint[outside] = spec.rotation(np.clip(angles[outside], lower, upper))
         if spec.child not in reached:
