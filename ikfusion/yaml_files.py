@@ -21,6 +21,7 @@ file may hold:
 from __future__ import annotations
 
 import codecs
+import copy
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -130,14 +131,43 @@ def read_yaml(path: str | Path, what: str = "file",
     return read_yaml_document(path, what, loader).data
 
 
+#: Documents parsed before, by (file, modification time [ns], size, loader): a process that
+#: reads the same config again (a batch worker, a retarget per clip) parses it once.
+_PARSED: dict[tuple[str, str, int, int, type[yaml.SafeLoader]], YamlDocument] = {}
+#: At most this many documents are kept (the oldest goes first).
+_PARSED_MAX = 64
+
+
 def read_yaml_document(path: str | Path, what: str = "file",
                        loader: type[yaml.SafeLoader] = yaml.SafeLoader) -> YamlDocument:
     """Like :func:`read_yaml`, with the line of every mapping key (for messages about values).
+
+    A file unchanged since it was last read (same modification time and size) is not parsed
+    again: the caller gets its own deep copy of the earlier result.
 
     Raises:
         ConfigError: As :func:`read_yaml`.
     """
     file = Path(path)
+    try:
+        stat = file.stat()
+        key: tuple[str, str, int, int, type[yaml.SafeLoader]] | None = (
+            str(file), str(file.absolute()), stat.st_mtime_ns, stat.st_size, loader)
+    except OSError:
+        key = None  # read_user_file names the problem
+    if key is not None and key in _PARSED:
+        return copy.deepcopy(_PARSED[key])
+    document = _parse_yaml_document(file, what, loader)
+    if key is not None:
+        if len(_PARSED) >= _PARSED_MAX:
+            del _PARSED[next(iter(_PARSED))]
+        _PARSED[key] = copy.deepcopy(document)
+    return document
+
+
+def _parse_yaml_document(file: Path, what: str,
+                         loader: type[yaml.SafeLoader]) -> YamlDocument:
+    """Read and parse ``file`` (see :func:`read_yaml_document`)."""
     text = decode_text(read_user_file(file, what), file)
     try:
         parser = loader(text)  # checks the characters

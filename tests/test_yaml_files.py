@@ -212,3 +212,15 @@ def test_session_file_goes_through_the_reader(tmp_path: Path) -> None:
     with pytest.raises(ConfigError) as err:
         load_session(path)
     assert err.value.line == 2
+
+
+def test_a_file_read_again_is_a_fresh_copy_and_a_changed_file_is_parsed_again(
+        tmp_path: Path) -> None:
+    path = tmp_path / "config.yaml"
+    path.write_text("weights: {a: 1.0}\n", encoding="utf-8")
+    first = read_yaml(path)
+    first["weights"]["a"] = 99.0  # a caller changing what it got
+    assert read_yaml(path) == {"weights": {"a": 1.0}}
+    path.write_text("weights: {a: 2.0, b: 3.0}\n", encoding="utf-8")
+    assert read_yaml(path) == {"weights": {"a": 2.0, "b": 3.0}}
+    assert read_yaml_document(path).line_of("weights", "b") == 1

@@ -11,7 +11,7 @@ near the floor and nearly still).
 
 from __future__ import annotations
 
-from dataclasses import fields
+from dataclasses import fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -25,9 +25,10 @@ from ..io.bvh import read_bvh
 from ..model.body import Body
 from ..model.human_model import HumanModel
 from ..rotations import angle_between
+from .direct_pose import configurations_from_orientations
 from .foot_lock import lock_planted_points
 from .model_motion import TruthMotion, contact_phases, moved_configurations, site_positions
-from .skeleton_map import map_motion
+from .skeleton_map import MappedMotion, map_motion
 
 
 def body_from_dims(dims: dict[str, float]) -> tuple[Body, list[str]]:
@@ -115,8 +116,16 @@ def _starts_with_reference_pose(R_world_segment: dict[str, np.ndarray]) -> bool:
                for R in R_world_segment.values())
 
 
+def _without_first_frame(mapped: MappedMotion) -> MappedMotion:
+    """The mapped motion from its second frame on (the skeleton map does not depend on it)."""
+    return replace(mapped, time=mapped.time[1:],
+                   R_world_segment={s: R[1:] for s, R in mapped.R_world_segment.items()},
+                   p_world_joint={j: p[1:] for j, p in mapped.p_world_joint.items()},
+                   root_position=mapped.root_position[1:])
+
+
 def motion_from_bvh(path: str | Path, rate: float = 60.0, progress: bool = False,
-                    lock_contacts: bool = True) -> TruthMotion:
+                    lock_contacts: bool = True, direct: bool = False) -> TruthMotion:
     """Solve a BVH clip into a ground-truth motion of a body scaled to it.
 
     Args:
@@ -126,6 +135,9 @@ def motion_from_bvh(path: str | Path, rate: float = 60.0, progress: bool = False
         lock_contacts: Shift the root horizontally so planted contact points do not skate
             (:func:`~ikfusion.mocap.foot_lock.lock_planted_points`; orientations, joint angles
             and heights are kept, a clip without skating or without stance is unchanged).
+        direct: Put the mapped orientations onto the joints in closed form, held inside the
+            ranges of motion (:mod:`~ikfusion.mocap.direct_pose`), instead of solving every
+            frame; tens of times faster, the same pose wherever no range binds.
 
     Returns:
         The truth, on the floor (lowest contact point at z = 0), with contact phases;
@@ -142,18 +154,15 @@ def motion_from_bvh(path: str | Path, rate: float = 60.0, progress: bool = False
     mapped = map_motion(bvh, frames=frames)
     if len(frames) > 2 and _starts_with_reference_pose(mapped.R_world_segment):
         frames = frames[1:]
-        mapped = map_motion(bvh, frames=frames)
+        mapped = _without_first_frame(mapped)
     body, dropped = body_from_dims(mapped.body_dims)
     model = HumanModel.from_body(body)
-    solver = Solver(model, contacts=False, max_iterations=8, step_tolerance=1e-3)
     time = np.arange(len(frames)) * step / bvh.frame_rate
-    qs = []
-    for k in tqdm(range(len(frames)), disable=not progress, unit="frame", desc="mocap"):
-        targets = {s: R[k] for s, R in mapped.R_world_segment.items()}
-        frame = Frame(float(time[k]), targets, root_position=mapped.root_position[k],
-                      root_position_weight=1e3)
-        qs.append(solver.step(frame).q)
-    q = np.array(qs)
+    if direct:
+        q, _ = configurations_from_orientations(model, mapped.R_world_segment,
+                                                mapped.root_position)
+    else:
+        q = _solved_configurations(model, mapped, time, progress)
     contacts = model.sites_of_kind("contact")
     q = level_on_floor(q, site_positions(model, q, contacts), time)
     offset = np.zeros((len(time), 2))
@@ -165,3 +174,16 @@ def motion_from_bvh(path: str | Path, rate: float = 60.0, progress: bool = False
         "body": body.to_dict(), "dropped_dimensions": dropped,
         "warnings": list(bvh.warnings),
         "lock_offset_max_m": float(np.linalg.norm(offset, axis=1).max(initial=0.0))})
+
+
+def _solved_configurations(model: HumanModel, mapped: MappedMotion, time: np.ndarray,
+                           progress: bool) -> np.ndarray:
+    """Configurations (N, nq) solved frame by frame from the mapped orientations and root."""
+    solver = Solver(model, contacts=False, max_iterations=8, step_tolerance=1e-3)
+    qs = []
+    for k in tqdm(range(len(time)), disable=not progress, unit="frame", desc="mocap"):
+        targets = {s: R[k] for s, R in mapped.R_world_segment.items()}
+        frame = Frame(float(time[k]), targets, root_position=mapped.root_position[k],
+                      root_position_weight=1e3)
+        qs.append(solver.step(frame).q)
+    return np.array(qs)

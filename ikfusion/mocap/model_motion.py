@@ -13,6 +13,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..model.human_model import HumanModel
+from ..model.motion_kinematics import frame_placements
 
 
 @dataclass
@@ -79,17 +80,10 @@ def frame_poses(model: pin.Model, q: np.ndarray,
     """World origins (N, F, 3) [m] and rotations (N, F, 3, 3) of frames along ``q`` (N, nq).
 
     ``R_world_frame`` and ``p_world_frame`` of the Pinocchio frames ``frame_ids``, in that
-    order; forward kinematics runs once per configuration.
+    order; each joint is composed for all configurations at once
+    (:func:`~ikfusion.model.motion_kinematics.frame_placements`, Pinocchio's results to rounding).
     """
-    data = model.createData()
-    p = np.empty((len(q), len(frame_ids), 3))
-    R = np.empty((len(q), len(frame_ids), 3, 3))
-    for k, qk in enumerate(q):
-        pin.framesForwardKinematics(model, data, qk)
-        for i, f in enumerate(frame_ids):
-            T = data.oMf[f]
-            p[k, i], R[k, i] = T.translation, T.rotation
-    return p, R
+    return frame_placements(model, q, frame_ids)
 
 
 def segment_poses(model: HumanModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -65,19 +65,19 @@ class ConvertedModel:
 
 def revolute_axes(model: pin.Model) -> dict[int, np.ndarray]:
     """Unit rotation axis, in its own frame, of every 1-DoF revolute joint of ``model``."""
-    data = model.createData()
     q0 = pin.neutral(model)
     axes = {}
     for j in range(1, model.njoints):
         if model.nqs[j] != 1 or model.nvs[j] != 1:
             continue
+        joint = model.joints[j]
         q = q0.copy()
         q[model.idx_qs[j]] = 1.0
-        pin.forwardKinematics(model, data, q)
-        placement = model.jointPlacements[j]
-        if np.linalg.norm(data.liMi[j].translation - placement.translation) > 1e-12:
+        motion = joint.createData()
+        joint.calc(motion, q)  # the joint's own motion at 1 rad, without the whole tree
+        if np.linalg.norm(motion.M.translation) > 1e-12:
             continue  # prismatic or helical
-        axis = log_so3(placement.rotation.T @ data.liMi[j].rotation)
+        axis = log_so3(motion.M.rotation)
         axes[j] = axis / np.linalg.norm(axis)
     return axes
 

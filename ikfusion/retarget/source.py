@@ -163,7 +163,7 @@ def _from_bvh(path: Path) -> HumanMotion:
     from ..mocap.from_bvh import motion_from_bvh
     from ..mocap.model_motion import segment_poses
 
-    truth = motion_from_bvh(path)
+    truth = motion_from_bvh(path, direct=True)  # no per-frame solve: see mocap.direct_pose
     segments = list(truth.model.segment_names)
     p, R = segment_poses(truth.model, truth.q)
     names = list(truth.contact_names) or list(CONTACT_SITES)
