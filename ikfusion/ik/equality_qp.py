@@ -32,19 +32,20 @@ def equality_optimum(H: np.ndarray, c: np.ndarray, A: np.ndarray | None,
     L, info = dpotrf(H, lower=1, clean=0)
     if info != 0:
         return None
-    m = len(b) if A is not None and b is not None else 0
+    rows = A if A is not None and b is not None and len(b) else None
+    m = 0 if rows is None else len(rows)
     # one solve for every right-hand side: -c, then the equality rows (H^-1 A^T)
     rhs = np.empty((len(c), 1 + m), order="F")
     rhs[:, 0] = -c
-    if m:
-        rhs[:, 1:] = A.T
+    if rows is not None:
+        rhs[:, 1:] = rows.T
     X, info = dpotrs(L, rhs, lower=1, overwrite_b=1)
     if info != 0:
         return None
     x = X[:, 0]
-    if m:
+    if rows is not None and b is not None:
         Y = X[:, 1:]
-        multipliers = independent_solve(A @ Y, A @ x - b)
+        multipliers = independent_solve(rows @ Y, rows @ x - b)
         if multipliers is None:
             return None
         x = x - Y @ multipliers
