@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import SolverError
 from .configuration import Configuration
-from .equality_qp import closed_form_optimum
+from .equality_qp import equality_optimum, satisfies
 from .limits.base import Equality, Inequality
 from .tasks.base import Task
 
@@ -146,8 +146,8 @@ def _call(backend: str, settings: QpSettings, H: np.ndarray, c: np.ndarray,
             f"{', '.join(_qpsolvers().available_solvers)}")
     if backend == "daqp":
         # most steps touch no limit: their optimum in closed form, DAQP when one binds
-        x = closed_form_optimum(H, c, G, h, A, b, lb, ub)
-        if x is not None:
+        x = equality_optimum(H, c, A, b)
+        if x is not None and satisfies(x, G, h, lb, ub):
             return x
         return _call_daqp(settings.max_iterations, H, c, G, h, A, b, lb, ub)
     qpsolvers = _qpsolvers()
