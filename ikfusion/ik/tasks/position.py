@@ -38,6 +38,12 @@ class PositionTask(Task):
         """Targets (k, 3) [m] and weights: (k,) scalars or (k, 3, 3) information matrices."""
         p = np.asarray(p_world_target, dtype=float).reshape(-1, 3)
         w = np.asarray(weights, dtype=float)
+        if w.ndim == 1 and np.isfinite(p.sum() + w.sum()):  # finite scalar weights: at once
+            self.targets = p.copy()
+            self._information = w[:, None, None] * np.eye(3)
+            self._active = w != 0.0
+            self._scalar = w.copy()
+            return
         info = w[:, None, None] * np.eye(3) if w.ndim == 1 else w.reshape(-1, 3, 3)
         bad = ~np.isfinite(p).all(axis=1)
         self.targets = np.where(bad[:, None], 0.0, p)
