@@ -164,3 +164,25 @@ def test_compiled_and_numpy_steps_agree_with_contacts_and_limits(human: HumanMod
     assert (fast_motion.contacts != fast_motion.contacts[0]).any()  # feet lift and plant
     assert np.array_equal(fast_motion.contacts, plain.contacts)
     np.testing.assert_allclose(fast_motion.q, plain.q, atol=1e-6)
+
+
+def test_frame_targets_follow_the_segments_each_frame_holds(human: HumanModel) -> None:
+    """The rows of a set of segments are kept from frame to frame: a sensor that drops out or
+    comes back, a heading turn and an unknown segment name are still read right."""
+    from ikfusion.errors import NameNotFound
+    from ikfusion.ik import Frame, Solver
+
+    rng = np.random.default_rng(13)
+    solver = Solver(human, contacts=False)
+    names = ["Pelvis", "LeftFoot", "Head"]
+    R = dict(zip(names, random_rotations(3, rng)))
+    heading = random_rotations(1, rng)[0]
+    index = {n: i for i, n in enumerate(human.segment_names)}
+    for held in (names, names[::2], names[::-1]):
+        targets = solver.targets.load(Frame(0.0, {n: R[n] for n in held}), heading)
+        assert set(np.flatnonzero(targets.tracked)) >= {index[n] for n in held}
+        for n in held:
+            np.testing.assert_allclose(targets.R_sensed[index[n]], heading @ R[n], atol=1e-15)
+        assert solver.tasks.orientation.weights[index[names[1]]] == (names[1] in held)
+    with pytest.raises(NameNotFound, match="Pelvis"):  # the message lists the valid names
+        solver.targets.load(Frame(0.0, {"Pelvis": R["Pelvis"], "Tail": R["Head"]}), None)
