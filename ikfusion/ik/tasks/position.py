@@ -31,6 +31,7 @@ class PositionTask(Task):
         self.weight = float(weight)
         k = len(self.frame_ids)
         self.targets = np.zeros((k, 3))
+        self._scalar: np.ndarray | None = None  # the weights w when every matrix is w I
         self.information = np.zeros((k, 3, 3))  # also sets the rows' activity (setter)
         self.reach: float | None = None  # longest error one step acts on [m] (None: any)
 
