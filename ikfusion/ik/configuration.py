@@ -27,6 +27,7 @@ class Configuration:
         self.data = model.createData()
         self._placements: dict[int, pin.SE3] = {}
         self._jacobians: dict[int, np.ndarray] = {}
+        self._points: dict[tuple[int, ...], np.ndarray] = {}
         self.update(q)
 
     @property
@@ -42,6 +43,7 @@ class Configuration:
         self._kinematics_done = False
         self._placements.clear()
         self._jacobians.clear()
+        self._points.clear()
 
     def _kinematics(self) -> None:
         if not self._kinematics_done:
@@ -71,8 +73,18 @@ class Configuration:
         return np.array([self.placement(f).rotation for f in frame_ids]).reshape(-1, 3, 3)
 
     def positions(self, frame_ids: Sequence[int]) -> np.ndarray:
-        """``p_world_frame`` [m] of several frames, shape (k, 3)."""
-        return np.array([self.placement(f).translation for f in frame_ids]).reshape(-1, 3)
+        """``p_world_frame`` [m] of several frames, shape (k, 3), read-only.
+
+        Kept until the next :meth:`update`: the contact points are asked for several times
+        per configuration (the projection, then the touch-down).
+        """
+        key = tuple(frame_ids)
+        P = self._points.get(key)
+        if P is None:
+            P = np.array([self.placement(f).translation for f in frame_ids]).reshape(-1, 3)
+            P.setflags(write=False)
+            self._points[key] = P
+        return P
 
     def angular_jacobians(self, frame_ids: Sequence[int]) -> np.ndarray:
         """World angular-velocity Jacobians, shape (k, 3, nv)."""

@@ -91,12 +91,11 @@ class ContactTracker:
         if not len(self._feet):  # no contact points
             return np.zeros(0)
         forward = np.full((len(self._feet), 3), np.nan)
-        for i, k in enumerate(self._feet):
-            if k < 0:
-                continue
-            R = (R_world_sensed[k] if tracked[k]
-                 else self.model.segment_rotation(q, self.model.segment_names[k]))
-            forward[i] = R[:, 0]
+        feet = self._feet >= 0
+        forward[feet] = R_world_sensed[self._feet[feet], :, 0]
+        for i in np.flatnonzero(feet & ~tracked[self._feet]):  # a foot without its sensor
+            name = self.model.segment_names[self._feet[i]]
+            forward[i] = self.model.segment_rotation(q, name)[:, 0]
         return np.arctan2(-forward[:, 2], np.hypot(forward[:, 0], forward[:, 1]))
 
     def start(self, p_sensed: np.ndarray, pitch: np.ndarray) -> None:

@@ -32,18 +32,24 @@ def equality_optimum(H: np.ndarray, c: np.ndarray, A: np.ndarray | None,
     L, info = dpotrf(H, lower=1, clean=0)
     if info != 0:
         return None
-    x, info = dpotrs(L, -c, lower=1)
+    rows = A if A is not None and b is not None and len(b) else None
+    m = 0 if rows is None else len(rows)
+    # one solve for every right-hand side: -c, then the equality rows (H^-1 A^T)
+    rhs = np.empty((len(c), 1 + m), order="F")
+    rhs[:, 0] = -c
+    if rows is not None:
+        rhs[:, 1:] = rows.T
+    X, info = dpotrs(L, rhs, lower=1, overwrite_b=1)
     if info != 0:
         return None
-    if A is not None and b is not None and len(b):
-        Y, info = dpotrs(L, A.T, lower=1)  # H^-1 A^T
-        if info != 0:
-            return None
-        multipliers = independent_solve(A @ Y, A @ x - b)
+    x = X[:, 0]
+    if rows is not None and b is not None:
+        Y = X[:, 1:]
+        multipliers = independent_solve(rows @ Y, rows @ x - b)
         if multipliers is None:
             return None
         x = x - Y @ multipliers
-    return np.asarray(x) if np.isfinite(x).all() else None
+    return np.asarray(x) if np.isfinite(x.sum()) else None
 
 
 def independent_solve(S: np.ndarray, r: np.ndarray) -> np.ndarray | None:
@@ -54,7 +60,7 @@ def independent_solve(S: np.ndarray, r: np.ndarray) -> np.ndarray | None:
     rows), where the solution loses its accuracy.
     """
     factor, info = dpotrf(S, lower=1, clean=0)
-    if info != 0 or np.min(np.diag(factor)) ** 2 < _DEPENDENT_ROWS * np.max(np.diag(S)):
+    if info != 0 or factor.diagonal().min() ** 2 < _DEPENDENT_ROWS * S.diagonal().max():
         return None
     y, info = dpotrs(factor, r, lower=1)
     return np.asarray(y) if info == 0 else None

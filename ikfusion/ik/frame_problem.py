@@ -19,7 +19,7 @@ from .compiled import CompiledKinematics, SensedPoseSpec, compiled_kinematics
 from .configuration import Configuration
 from .limits import ContactConstraint, FloorLimit, JointRangeLimit, VelocityLimit
 from .limits.joint_range import LinearisedRanges
-from .qp import QpProblem, assemble_qp, build_qp
+from .qp import QpProblem, build_qp
 from .settings import SolverSettings
 from .tasks import DampingTask, OrientationTask, PositionTask, PostureTask, Task
 
@@ -172,6 +172,10 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     ranges = LinearisedRanges(G_ranges.copy(), room_up[:, 0].copy(), room_down[:, 0].copy())
     up, down = ranges.near(limits.margin)
     floor = tasks.floor.rows(Pc, Jc)
-    qp = assemble_qp(H, c, [ranges.inequality(up, down), floor],
-                     [tasks.contact.rows(Pc, Jc)], None, levenberg_marquardt)
+    contact = tasks.contact.rows(Pc, Jc)
+    # what assemble_qp makes of these blocks, stacked at once (a step is built every frame)
+    H.flat[::nv + 1] += levenberg_marquardt  # the diagonal
+    G = np.concatenate([ranges.G[up], -ranges.G[down], floor.G])
+    h = np.concatenate([ranges.room_up[up], ranges.room_down[down], floor.h])
+    qp = QpProblem(H, c, G, h, contact.A, contact.b)
     return FrameProblem(qp, LimitRows(ranges, up, down, floor, bounds))

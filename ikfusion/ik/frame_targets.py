@@ -59,6 +59,7 @@ class TargetLoader:
         self.assumed = AssumedTargets(segments, model.ball_joints, settings.hinge_joints)
         self._posture_weights = tasks.posture.weights.copy()
         self._identities = np.tile(np.eye(3), (len(segments), 1, 1))
+        self._rows: dict[tuple[str, ...], np.ndarray] = {}  # tracked names -> rows
         self._positions_set = True  # the position task starts without targets: clear it once
 
     def load(self, frame: Frame, R_heading: np.ndarray | None) -> FrameTargets:
@@ -66,15 +67,16 @@ class TargetLoader:
         tasks = self.tasks
         R = self._identities.copy()
         w = np.zeros(len(self._segment_index))
-        names = [n for n in frame.orientations if n in self._segment_index]
-        if len(names) < len(frame.orientations):
-            for name in frame.orientations:
+        names = tuple(frame.orientations)
+        rows = self._rows.get(names)
+        if rows is None:  # a new set of tracked segments (a sensor dropped out or came back)
+            for name in names:
                 self.model.segment_frame_id(name)  # raises NameNotFound with the valid names
+            rows = self._rows[names] = np.array([self._segment_index[n] for n in names],
+                                                dtype=int)
         if names:  # one assignment of all the rows instead of one per segment
-            rows = [self._segment_index[n] for n in names]
-            targets = [frame.orientations[n] for n in names]
-            R[rows] = (targets if R_heading is None
-                       else [R_heading @ R_target for R_target in targets])
+            targets = np.array(list(frame.orientations.values()), dtype=float)
+            R[rows] = targets if R_heading is None else R_heading @ targets
             weights = frame.orientation_weights
             w[rows] = [weights.get(n, 1.0) for n in names] if weights else 1.0
         if self.assumed_weight > 0:  # open hinge parents (a thigh between pelvis and shank)

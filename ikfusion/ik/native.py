@@ -204,7 +204,9 @@ def native_functions(functions: Sequence[ca.Function], key: str
             for function in functions:
                 generator.add(function)
             generator.generate(f"{tmp}{os.sep}")
-            subprocess.run([compiler, "-O1", "-shared", "-fPIC", str(source), "-o",
+            # -O2: evaluates about a fifth faster than -O1 with the same numbers (no fast-math),
+            # for a few more seconds of the one-time build (-O3 doubles it for nothing more)
+            subprocess.run([compiler, "-O2", "-shared", "-fPIC", str(source), "-o",
                             str(built), "-lm"], check=True, capture_output=True, timeout=600)
             digest = _sha256(built.read_bytes())
         atomic_write_text(_record(library), digest + "\n")

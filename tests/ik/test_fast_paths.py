@@ -90,3 +90,99 @@ def test_qp_settings_are_made_once() -> None:
     settings = SolverSettings.load()
     assert settings.qp is settings.qp
     assert settings.qp.max_iterations == settings.qp_max_iterations
+
+
+@pytest.mark.parametrize("reach", [None, 0.05])
+def test_scalar_position_weights_are_their_information_matrices(human: HumanModel,
+                                                                 reach: float | None) -> None:
+    """Scalar weights (the root, swing feet) take a row-by-row shortcut; a NaN target, a zero
+    weight and information matrices ``w I`` give the very numbers of the 3x3 products."""
+    rng = np.random.default_rng(11)
+    sites = ["LeftHeel", "RightToe", "HeadTop", "RightHand"]
+    targets = rng.normal(size=(4, 3))
+    targets[1] = np.nan  # a site whose target is lost this frame
+    w = np.array([2.0, 1.0, 0.0, 0.5])  # HeadTop: no target
+    conf = Configuration(human.model, random_configuration(human, rng))
+    results = []
+    for weights in (w, w[:, None, None] * np.eye(3)):
+        task = PositionTask([human.site_frame_id(s) for s in sites], sites, weight=3.0)
+        task.reach = reach
+        task.set_targets(targets, weights)
+        H, c = np.zeros((human.model.nv,) * 2), np.zeros(human.model.nv)
+        task.add_rows(conf.positions(task.frame_ids), conf.linear_jacobians(task.frame_ids),
+                      H, c)
+        results.append((task.targets, task.information, H, c))
+    for scalar, matrix in zip(*results):
+        assert np.array_equal(scalar, matrix)
+    # ... and those of the plain formula, with the lost and the zero-weight rows left out
+    on = np.array([True, False, False, True])
+    J = conf.linear_jacobians(task.frame_ids)[on]
+    e = conf.positions(task.frame_ids)[on] - targets[on]
+    if reach is not None:
+        e *= np.minimum(1.0, reach / np.linalg.norm(e, axis=1))[:, None]
+    WJ = 3.0 * w[on][:, None, None] * J
+    np.testing.assert_allclose(results[0][2], np.einsum("kin,kim->nm", J, WJ), rtol=1e-13,
+                               atol=1e-12)
+    np.testing.assert_allclose(results[0][3], np.einsum("kin,ki->n", WJ, e), rtol=1e-13,
+                               atol=1e-12)
+
+
+def test_information_assigned_directly_weighs_the_rows(human: HumanModel) -> None:
+    """The residual report assigns ``information`` itself: the rows follow what it holds."""
+    rng = np.random.default_rng(12)
+    sites = ["LeftHeel", "HeadTop"]
+    task = PositionTask([human.site_frame_id(s) for s in sites], sites)
+    task.set_targets(rng.normal(size=(2, 3)), np.zeros(2))  # no target: no rows
+    conf = Configuration(human.model, random_configuration(human, rng))
+    P, J = conf.positions(task.frame_ids), conf.linear_jacobians(task.frame_ids)
+    nv = human.model.nv
+    H, c = np.zeros((nv, nv)), np.zeros(nv)
+    task.add_rows(P, J, H, c)
+    assert not H.any() and not c.any()
+    W = np.array([[[4.0, 1.0, 0.0], [1.0, 3.0, 0.0], [0.0, 0.0, 1.0]], np.zeros((3, 3))])
+    task.information = W  # an anisotropic matrix on the heel only
+    task.add_rows(P, J, H, c)
+    np.testing.assert_allclose(H, J[0].T @ W[0] @ J[0], rtol=1e-13, atol=1e-12)
+    np.testing.assert_allclose(c, J[0].T @ W[0] @ (P[0] - task.targets[0]), rtol=1e-13,
+                               atol=1e-12)
+
+
+def test_compiled_and_numpy_steps_agree_with_contacts_and_limits(human: HumanModel) -> None:
+    """A walk with planted feet, the floor and the ranges of motion: the compiled step (its QP
+    stacked at once) and the NumPy tasks' step give the same motion and the same contacts."""
+    from ikfusion.ik import Solver
+    from ikfusion.model import SENSOR_SEGMENTS
+    from ikfusion.sim.gait import GaitParameters, generate_gait
+    from ikfusion.sim.truth import orientation_frames
+
+    truth = generate_gait(human, GaitParameters(duration=2.5, stand=0.5), rate=60.0)
+    frames = orientation_frames(human, truth.q, truth.time, SENSOR_SEGMENTS)
+    fast = Solver(human, contacts=True)
+    assert fast.compiled is not None
+    fast_motion = fast.solve(frames)
+    plain = Solver(human, contacts=True, compiled=False).solve(frames)
+    assert (fast_motion.contacts != fast_motion.contacts[0]).any()  # feet lift and plant
+    assert np.array_equal(fast_motion.contacts, plain.contacts)
+    np.testing.assert_allclose(fast_motion.q, plain.q, atol=1e-6)
+
+
+def test_frame_targets_follow_the_segments_each_frame_holds(human: HumanModel) -> None:
+    """The rows of a set of segments are kept from frame to frame: a sensor that drops out or
+    comes back, a heading turn and an unknown segment name are still read right."""
+    from ikfusion.errors import NameNotFound
+    from ikfusion.ik import Frame, Solver
+
+    rng = np.random.default_rng(13)
+    solver = Solver(human, contacts=False)
+    names = ["Pelvis", "LeftFoot", "Head"]
+    R = dict(zip(names, random_rotations(3, rng)))
+    heading = random_rotations(1, rng)[0]
+    index = {n: i for i, n in enumerate(human.segment_names)}
+    for held in (names, names[::2], names[::-1]):
+        targets = solver.targets.load(Frame(0.0, {n: R[n] for n in held}), heading)
+        assert set(np.flatnonzero(targets.tracked)) >= {index[n] for n in held}
+        for n in held:
+            np.testing.assert_allclose(targets.R_sensed[index[n]], heading @ R[n], atol=1e-15)
+        assert solver.tasks.orientation.weights[index[names[1]]] == (names[1] in held)
+    with pytest.raises(NameNotFound, match="Pelvis"):  # the message lists the valid names
+        solver.targets.load(Frame(0.0, {"Pelvis": R["Pelvis"], "Tail": R["Head"]}), None)
