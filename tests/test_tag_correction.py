@@ -16,7 +16,7 @@ import pytest
 from ikfusion.app.evaluate import evaluate, joint_angle_jump
 from ikfusion.app.far_from_tags import far_intervals
 from ikfusion.app.pipeline import solve_recording
-from ikfusion.app.tag_release import FootRelease
+from ikfusion.app.tag_release import BodyRelease, FootRelease
 from ikfusion.app.tag_tasks import (
     SolvedTags,
     SwingClock,
@@ -202,6 +202,36 @@ def test_a_jump_of_the_positioning_does_not_let_a_standing_foot_go() -> None:
     for k in range(120):
         shift = 1.0 if k >= 60 else 0.0
         release.update(True, np.array([1.0 + shift, 2.0, 0.1]), cov, 1 / 60)
+        assert not release.released
+
+
+def test_a_held_body_whose_head_tag_runs_away_is_let_go() -> None:
+    """A false hold keeps the solved head in place while its tag moves on at 1 m/s: once the
+    gap has grown by 10 cm the hold is let go, and held again once the gap is closed."""
+    release = BodyRelease(distance=0.10, jump_speed=20.0)
+    cov, dt, site = np.eye(3) * 0.01**2, 1 / 60, np.array([1.0, 2.0, 1.7])
+    offset = np.array([0.03, -0.02, 0.0])  # the drift the hold began with, not a reason
+    for k in range(60):
+        release.update(True, site + offset + np.array([1.0 * k * dt, 0, 0]), cov, site, dt)
+        if release.released:
+            break
+    assert release.released and 1.0 * k * dt == pytest.approx(0.10, abs=0.03)
+    release.update(False, site + offset, cov, site, dt)  # the tags moved the body back
+    assert not release.released
+
+
+def test_a_standing_body_with_a_drift_and_noisy_fixes_stays_held(
+        rng: np.random.Generator) -> None:
+    """Standing 15 cm from its tag (a drift the steps close) with 2 cm noise, a lean of the
+    head (the solved site moves with it) and a jump of the positioning: never let go."""
+    release = BodyRelease(distance=0.10, jump_speed=20.0)
+    cov, dt = np.eye(3) * 0.02**2, 1 / 60
+    for k in range(600):
+        lean = np.array([0.2 * np.sin(k * dt), 0.0, 0.0])
+        site = np.array([1.0, 2.0, 1.7]) + lean
+        jump = np.array([0.5, 0.0, 0.0]) if k >= 300 else np.zeros(3)
+        fix = site + np.array([0.15, 0.0, 0.0]) + jump + rng.normal(0, 0.02, 3)
+        release.update(True, fix, cov, site, dt)
         assert not release.released
 
 

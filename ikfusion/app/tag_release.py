@@ -73,3 +73,68 @@ class FootRelease:
         if float(np.linalg.norm(p - self._anchor)) > max(self.distance, noise):
             self.released = True
             self._anchor = None
+
+
+@dataclass
+class BodyRelease:
+    """Contacts held while a body tag runs away from the solved body: all let go.
+
+    A planted point is a hard constraint: a false hold (a foot planted that is in the air, a
+    hand held while the body crawls on) keeps the whole body in place while the person moves,
+    and no soft task can move it. The tag on the body (the head) tells: while the body holds
+    on to the floor, the distance from the solved site to its fix stays what it was when the
+    hold began (a lean moves both). When it has grown by more than ``distance`` (and three
+    standard deviations of the noise of two fixes' difference) during one hold, the hold is
+    false and every held point is let go: the body flies, and the tags move its path
+    (:func:`ikfusion.app.tag_tasks.flight_pull`) until the distance is back within half
+    ``distance`` of what it was; then the points may be planted again where the sensed legs
+    meet the floor. Only a growth within a hold counts: a slow inertial drift, or a gap the
+    correction closes step by step (after a jump of the positioning, say), never lets a
+    standing body go.
+
+    Attributes:
+        distance: The gap grew by more than this during a hold [m] ...
+        jump_speed: A step of the fix faster than this [m/s] is a jump of the positioning:
+            the gap's reference moves with it.
+        released: The held points are let go in the next frames.
+    """
+
+    distance: float
+    jump_speed: float
+    released: bool = False
+    _anchor: float | None = None  # the gap [m] when the hold began (or when let go)
+    _last: np.ndarray | None = field(default=None)
+
+    def update(self, held: bool, p_fix: np.ndarray, cov: np.ndarray, p_site: np.ndarray,
+               dt: float) -> None:
+        """After a frame: did the body hold a point, the body tag's fix and solved site.
+
+        Args:
+            held: A contact point is planted in the solved frame.
+            p_fix: (3,) the fix [m] (NaN: none this frame).
+            cov: (3, 3) its covariance [m^2].
+            p_site: (3,) the solved tag site [m].
+            dt: Time since the last frame [s].
+        """
+        if not (np.isfinite(p_fix).all() and np.isfinite(cov).all()):
+            return
+        p = np.asarray(p_fix[:2], dtype=float)
+        gap = float(np.linalg.norm(p - np.asarray(p_site[:2], dtype=float)))
+        step = 0.0 if self._last is None else float(np.linalg.norm(p - self._last))
+        jumped = dt > 0 and step > self.jump_speed * dt
+        self._last = p
+        if self.released:
+            self.released = self._anchor is not None and gap > self._anchor + 0.5 * self.distance
+            if not self.released:
+                self._anchor = None
+            return
+        if not held or jumped:  # a jump of the positioning starts the comparison anew
+            self._anchor = None if not held else gap
+            return
+        if self._anchor is None:
+            self._anchor = gap
+            return
+        # the change of the gap is the difference of two fixes: sqrt(2) times one's noise
+        noise = 3.0 * float(np.sqrt(max(2.0 * np.trace(cov[:2, :2]), 0.0)))
+        if gap - self._anchor > max(self.distance, noise):
+            self.released = True
