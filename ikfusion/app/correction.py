@@ -12,7 +12,8 @@ positions (horizontal error, weighted by the measurements' covariances) and acts
   toward the mean correction (at most ``max_step`` per step), the pelvis leans toward it a
   little and follows each foot it is handed to gradually
   (:class:`ikfusion.ik.support.SupportFollower`), so the body walks (runs, jumps) into place
-  step by step without a jump.
+  step by step without a jump. A foot whose tag runs away from where it stands, and every held
+  point when the head's tag runs away from the held body, are let go (:mod:`.tag_release`).
 * ``off``: tags are only reported.
 
 A heading drift of the sensors (a magnetically disturbed area) makes the body walk the wrong
