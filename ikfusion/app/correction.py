@@ -12,7 +12,8 @@ positions (horizontal error, weighted by the measurements' covariances) and acts
   toward the mean correction (at most ``max_step`` per step), the pelvis leans toward it a
   little and follows each foot it is handed to gradually
   (:class:`ikfusion.ik.support.SupportFollower`), so the body walks (runs, jumps) into place
-  step by step without a jump.
+  step by step without a jump. A foot whose tag runs away from where it stands, and every held
+  point when the head's tag runs away from the held body, are let go (:mod:`.tag_release`).
 * ``off``: tags are only reported.
 
 A heading drift of the sensors (a magnetically disturbed area) makes the body walk the wrong
@@ -43,7 +44,7 @@ from ..ik.solver import Solver
 from ..ik.world_offset import WorldOffset
 from ..settings_files import ShippedSettings
 from .far_from_tags import FarInterval, far_intervals
-from .tag_release import FootRelease
+from .tag_release import BodyRelease, FootRelease
 from .tag_tasks import (
     SolvedTags,
     SwingClock,
@@ -157,6 +158,7 @@ class DriftCorrection:
     _anchors: dict[str, list[str]] = field(default_factory=dict)  # foot -> sites moved by its tag
     _last: SolvedTags | None = None  # what the next frame's tag tasks take from the last
     _release: list[FootRelease | None] = field(default_factory=list)  # per fix on a foot
+    _body_release: list[BodyRelease | None] = field(default_factory=list)  # per fix on the body
     _swing: SwingClock = field(default_factory=SwingClock)  # each foot's time off the floor
 
     def __post_init__(self) -> None:
@@ -221,6 +223,8 @@ class DriftCorrection:
                              FootRelease(s.release_distance, s.release_speed,
                                          s.release_jump_speed)
                              for foot in self._feet]
+            self._body_release = [BodyRelease(s.release_distance, s.release_jump_speed)
+                                  if foot is None else None for foot in self._feet]
         self._last = SolvedTags(dict(pose.contacts),
                                 np.array([pose.site_position(f.site) for f in self.fixes]),
                                 {p: pose.site_position(p) for points in
@@ -235,6 +239,10 @@ class DriftCorrection:
         for f, foot, release in zip(self.fixes, self._feet, self._release):
             if release is not None:
                 release.update(foot in planted, f.p_world[k], f.cov[k], dt)
+        held = any(self._last.contacts.values())
+        for f, body_release, p_site in zip(self.fixes, self._body_release, self._last.p_sites):
+            if body_release is not None:
+                body_release.update(held, f.p_world[k], f.cov[k], p_site, dt)
         self.time[k] = pose.time
         shifted = world.shifted[:2]  # the sites' travel without the corrections' moves
         for i, f in enumerate(self.fixes):
@@ -328,12 +336,13 @@ class DriftCorrection:
             solver.ballistic.shift(pull)
 
     def _hints(self, frame: Frame) -> dict[str, bool] | None:
-        """The frame's contact hints with the points of released feet let go."""
+        """The frame's contact hints with the points of released feet (or body) let go."""
         released = {foot for foot, r in zip(self._feet, self._release)
                     if r is not None and r.released}
+        body = any(r is not None and r.released for r in self._body_release)
         hints = dict(frame.contacts or {})
         for point, foot in self._foot_of_point.items():
-            if foot in released and point not in hints:
+            if (body or foot in released) and point not in hints:
                 hints[point] = False
         return hints or None
 

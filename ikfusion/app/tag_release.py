@@ -73,3 +73,80 @@ class FootRelease:
         if float(np.linalg.norm(p - self._anchor)) > max(self.distance, noise):
             self.released = True
             self._anchor = None
+
+
+@dataclass
+class BodyRelease:
+    """Contacts held while a body tag runs away from the solved body: all let go.
+
+    A planted point is a hard constraint: a false hold (a foot planted that is in the air, a
+    hand held while the body crawls on) keeps the whole body in place while the person moves,
+    and no soft task can move it. The tag on the body (the head) tells: while the body holds
+    on to the floor, the gap from the solved site to its fix (horizontal) stays what it was
+    when the hold began (a lean moves both). When it has changed by more than ``distance``
+    (and three standard deviations of the noise of two fixes' difference) during one hold,
+    the hold is false and every held point is let go: the body flies, and the tags move its
+    path (:func:`ikfusion.app.tag_tasks.flight_pull`) until the gap is below half
+    ``distance``; then the points may be planted again where the sensed legs meet the floor.
+    Only a change within a hold counts, and not the part of it that closes the gap (the
+    correction walking the body toward its tags, after a jump of the positioning say): a slow
+    inertial drift never lets a standing body go.
+
+    Attributes:
+        distance: The gap changed by more than this during a hold [m] (not closing it) ...
+        jump_speed: A step of the fix faster than this [m/s] is a jump of the positioning:
+            the gap's reference moves with it.
+        released: The held points are let go in the next frames.
+    """
+
+    distance: float
+    jump_speed: float
+    released: bool = False
+    _anchor: np.ndarray | None = None  # (2,) the gap [m] when the hold began
+    _last: np.ndarray | None = field(default=None)
+
+    def update(self, held: bool, p_fix: np.ndarray, cov: np.ndarray, p_site: np.ndarray,
+               dt: float) -> None:
+        """After a frame: did the body hold a point, the body tag's fix and solved site.
+
+        Args:
+            held: A contact point is planted in the solved frame.
+            p_fix: (3,) the fix [m] (NaN: none this frame).
+            cov: (3, 3) its covariance [m^2].
+            p_site: (3,) the solved tag site [m].
+            dt: Time since the last frame [s].
+        """
+        if not (np.isfinite(p_fix).all() and np.isfinite(cov).all()):
+            return
+        p = np.asarray(p_fix[:2], dtype=float)
+        gap = p - np.asarray(p_site[:2], dtype=float)
+        step = 0.0 if self._last is None else float(np.linalg.norm(p - self._last))
+        jumped = dt > 0 and step > self.jump_speed * dt
+        self._last = p
+        if self.released:
+            self.released = float(np.linalg.norm(gap)) > 0.5 * self.distance
+            self._anchor = None
+            return
+        if not held or jumped or self._anchor is None:  # a jump of the fixes starts anew
+            self._anchor = gap if held else None
+            return
+        # the change of the gap is the difference of two fixes: sqrt(2) times one's noise
+        noise = 3.0 * float(np.sqrt(max(2.0 * np.trace(cov[:2, :2]), 0.0)))
+        if float(np.linalg.norm(unclosed_change(self._anchor, gap))) > max(self.distance, noise):
+            self.released = True
+
+
+def unclosed_change(before: np.ndarray, after: np.ndarray) -> np.ndarray:
+    """The change from gap ``before`` to gap ``after`` (2,) [m] without its closing part.
+
+    The part of the change along ``-before`` (the gap shrinking toward zero, as a correction
+    closes it) is left out, up to the whole of ``before``; what remains is how the gap moved
+    otherwise.
+    """
+    change = np.asarray(after, dtype=float) - before
+    length = float(np.linalg.norm(before))
+    if length <= 0.0:
+        return change
+    u = np.asarray(before, dtype=float) / length
+    along = float(change @ u)
+    return change - max(min(along, 0.0), -length) * u

@@ -19,9 +19,11 @@ their fixes
 
 A tag on the body (the head) acts in flight only; while a foot stands it could only bend the
 trunk away from its sensors, and the pelvis leans toward the correction there
-(:mod:`ikfusion.ik.support`). Each foot task is weighted by its fix's information (inverse
-covariance, with ``tag_sigma`` added) scaled by ``tag_weight``, horizontally, and vertically
-only with ``tag_vertical`` (heights come from the floor and the legs).
+(:mod:`ikfusion.ik.support`). A hold the head's tag runs away from is false: all its points are
+let go (:class:`ikfusion.app.tag_release.BodyRelease`) and the body flies to its tags.
+Each foot task is weighted by its fix's information (inverse covariance, with ``tag_sigma``
+added) scaled by ``tag_weight``, horizontally, and vertically only with ``tag_vertical``
+(heights come from the floor and the legs).
 """
 
 from __future__ import annotations
