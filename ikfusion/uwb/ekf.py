@@ -93,6 +93,17 @@ class EkfOptions:
         output_time_constant: Decay time of the output offset [s].
         max_output_speed: Largest speed at which the output offset decays [m/s].
         zupt_sigma: Velocity noise of a zero-velocity update [m/s] (a foot rolls a little).
+        missing_acc_noise: Over an interval of a silent sensor (more than ``fill_trusted_s``
+            since its last sample) the specific force is a fill, not a measurement: the
+            velocity noise density is at least this, the unit's unknown motion (a limb's
+            ~10 m/s^2 RMS over ~25 Hz) [m/s^2/sqrt(Hz)]. With the sensor's own noise a foot's
+            track coasted metres off in a 2 s dropout, every TOA was gated out as NLOS, and the
+            smoother spread it back.
+        missing_gyr_noise: ... and the attitude noise density at least this (~2.5 rad/s RMS)
+            [rad/s/sqrt(Hz)].
+        fill_trusted_s: Samples missing for up to this long (a lost packet or two) are filled
+            faithfully (interpolated offline, body motion is slower than ~10 Hz): their
+            interval keeps the sensor's noise, inflated [s].
         smooth: Also run the Rauch-Tung-Striebel pass backward (:mod:`ikfusion.uwb.smoother`):
             every instant then uses the whole recording; False gives the causal filter.
     """
@@ -119,6 +130,9 @@ class EkfOptions:
     output_time_constant: float = 0.2
     max_output_speed: float = 1.5
     zupt_sigma: float = 0.05
+    missing_acc_noise: float = 2.0
+    missing_gyr_noise: float = 0.5
+    fill_trusted_s: float = 0.05
     smooth: bool = True
 
 
@@ -323,9 +337,15 @@ class _UnitFilter:
         self.acc, missing_acc = _bridge_missing(np.asarray(imu.acc, dtype=float))
         self.gyr, missing_gyr = _bridge_missing(np.asarray(imu.gyr, dtype=float))
         self.missing = missing_acc | missing_gyr
+        #: per sample, the time of the last measured sample at or before it [s] (-inf: none)
+        self.measured_time = np.maximum.accumulate(
+            np.where(self.missing, -np.inf, np.asarray(imu.time, dtype=float)))
         self.q_density = process_noise_diagonal(
             opts.acc_noise, opts.gyr_noise, opts.acc_bias_walk, opts.gyr_bias_walk,
             opts.clock_noise, opts.clock_rate_walk)
+        self.q_missing = self.q_density * _MISSING_SAMPLE_INFLATION  # a filled IMU sample
+        self.q_missing[VEL] = np.maximum(self.q_missing[VEL], opts.missing_acc_noise**2)
+        self.q_missing[ATT] = np.maximum(self.q_missing[ATT], opts.missing_gyr_noise**2)
         self.F = new_transition()
         self.P = np.zeros((N_ERROR, N_ERROR))
         self.x: NominalState | None = None
@@ -425,28 +445,32 @@ class _UnitFilter:
         """Propagate over one IMU interval, processing the transmissions inside it."""
         f = 0.5 * (self.acc[k] + self.acc[k + 1])
         w = 0.5 * (self.gyr[k] + self.gyr[k + 1])
-        inflation = _MISSING_SAMPLE_INFLATION if (self.missing[k] or self.missing[k + 1]) else 1.0
+        q_density = self.q_density
+        if self.missing[k] or self.missing[k + 1]:
+            silent = t_b - float(self.measured_time[k]) > self.opts.fill_trusted_s
+            q_density = self.q_missing if silent else self.q_density * _MISSING_SAMPLE_INFLATION
         t = t_a
         tx_time = self.tx.time
         while next_tx < tx_time.shape[0] and tx_time[next_tx] < t_b:
             t_tx = float(tx_time[next_tx])
             if t_tx > t:
-                self._propagate(f, w, t_tx - t, inflation)
+                self._propagate(f, w, t_tx - t, q_density)
                 t = t_tx
             self._transmission_update(next_tx)
             next_tx += 1
         if t_b > t:
-            self._propagate(f, w, t_b - t, inflation)
+            self._propagate(f, w, t_b - t, q_density)
         return next_tx
 
-    def _propagate(self, f: np.ndarray, w: np.ndarray, dt: float, inflation: float) -> None:
+    def _propagate(self, f: np.ndarray, w: np.ndarray, dt: float, q_density: np.ndarray
+                   ) -> None:
         x = self.x
         assert x is not None
         before = x.copy() if self.log is not None else None
         R_mid = propagate_nominal(x, f, w, dt)  # (the biases stay: the transition uses them)
         f_free, w_free = f - x.b_acc, w - x.b_gyr
         fill_transition(self.F, R_mid, f_free, w_free, dt)
-        q = self.q_density * (dt * inflation)
+        q = q_density * dt
         if self.log is not None and before is not None:
             self.log.propagated(before, self.P.copy(), (R_mid, f_free, w_free, dt), q, x.copy())
         P = self.F @ self.P @ self.F.T
@@ -574,12 +598,27 @@ class _UnitFilter:
         R = x.R_world_sensor
         residual = log_so3(R_meas @ R.T)
         if float(residual @ residual) > math.radians(30.0) ** 2:
+            # a disturbed aid, unless the filter knows its attitude even less (its IMU was
+            # silent): then the attitude restarts from the aid, or it never came back
+            if float(np.trace(self.P[ATT, ATT])) > math.radians(30.0) ** 2:
+                self._restart_attitude(R_meas)
             return
         H = np.zeros((3, N_ERROR))
         H[:, ATT] = R
         heading_deg = self.opts.attitude_heading_sigma_deg
         var = np.radians([sigma_deg, sigma_deg, heading_deg]) ** 2
         self._update(H, residual, var)
+
+    def _restart_attitude(self, R_world_sensor: np.ndarray) -> None:
+        """Take the IMU's own orientation as the attitude, with its initial uncertainty."""
+        x = self.x
+        assert x is not None
+        before = tag_position(x, self.lever)
+        x.quat_wxyz_world_sensor = matrix_to_quat(R_world_sensor)
+        self.P[ATT, :] = 0.0
+        self.P[:, ATT] = 0.0
+        self.P[ATT, ATT] = math.radians(self.opts.initial_attitude_sigma_deg) ** 2 * np.eye(3)
+        self.offset_out -= tag_position(x, self.lever) - before
 
     # ------------------------------------------------------------------ output
     def _record(self, k: int, p_out: np.ndarray, cov_out: np.ndarray, quat_out: np.ndarray,

@@ -57,6 +57,7 @@ class UnitFilterStream(_UnitFilter):
                          opts.sigma if opts.sigma is not None else sigma, opts)
         self.acc, self.gyr = np.zeros((2, 3)), np.zeros((2, 3))
         self.missing = np.ones(2, dtype=bool)
+        self.measured_time = np.full(2, -np.inf)
         self.attitude_every = max(1, round(float(rate) / opts.attitude_rate))
         self.steps = 0
         self.samples = 0
@@ -88,7 +89,8 @@ class UnitFilterStream(_UnitFilter):
             R_world_sensor: The IMU's own orientation (3, 3), the weak attitude aid.
         """
         imu = self.imu
-        for rows in (imu.time, self.acc, self.gyr, self.missing, imu.R_world_sensor_aid):
+        for rows in (imu.time, self.acc, self.gyr, self.missing, self.measured_time,
+                     imu.R_world_sensor_aid):
             assert rows is not None
             rows[0] = rows[1]
         imu.time[1] = time_s
@@ -98,6 +100,8 @@ class UnitFilterStream(_UnitFilter):
             assert acc is not None and gyr is not None
             self.acc[1], self.gyr[1] = acc, gyr
         self.missing[1] = not good
+        if good:
+            self.measured_time[1] = time_s
         aid = imu.R_world_sensor_aid
         assert aid is not None
         aid[1] = R_world_sensor if R_world_sensor is not None else np.nan
