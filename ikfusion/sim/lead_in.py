@@ -8,13 +8,12 @@ person makes, and the IMUs and the solver see nothing a real start would not sho
   planted in that pose); during the transition that foot only pivots about its lowest point
   (a heel rising onto the toes), so no planted point slides. The other foot steps: it is
   lifted while it moves.
-* A clip that does not start upright (lying, kneeling, mid-cartwheel) but stands somewhere
-  later is entered through that standing moment: N-pose, a step into the standing pose, then
-  the clip played backwards to its first frame (lying down, kneeling down), eased to rest at
-  both ends. The backwards part is the clip's own motion, so its contacts are the clip's.
-* A clip that never stands (a crawl) is entered directly from the N-pose in a longer
-  transition with the same anchored foot; the body is lifted where a contact point would go
-  under the floor.
+* A clip that does not start upright (lying, on all fours, mid-cartwheel) is entered by
+  getting down: the same anchored transition, longer, into the first pose held a few
+  centimetres above its place, points kept off the floor until then, and the body lowered
+  vertically onto it (so knees and palms land, never drag). Playing the clip backwards from
+  a standing moment was tried: it replays the clip's own skating and floor errors and doubles
+  its hardest motion.
 
 Contact phases of the lead-in come from its kinematics (points near the floor and nearly still).
 """
@@ -36,10 +35,6 @@ UPRIGHT_HEIGHT = 0.8
 SWING_ANGLES_DEG = {"Hip_flex": 30.0, "Knee_flex": 60.0, "Ankle_flex": 30.0}
 #: Parts of a step: the free foot rises, then the body moves into the pose, then the foot lands.
 STEP_LIFT = 0.3
-#: A standing moment's carrying foot: heel and toe below this [m] ...
-STANDING_FOOT_HEIGHT = 0.1
-#: ... and slower than this [m/s].
-STANDING_FOOT_SPEED = 0.3
 #: Transition into a pose that is not upright (kneeling, on all fours) [s].
 GET_DOWN_SECONDS = 2.5
 #: A pose that is not upright is reached this high above its place [m] (above the height at
@@ -47,9 +42,6 @@ GET_DOWN_SECONDS = 2.5
 GET_DOWN_HOVER = 0.05
 #: ... in this time [s].
 GET_DOWN_LOWER_SECONDS = 0.4
-#: The backwards part plays at most this much slower than the clip at its middle (cosine
-#: easing to rest at both ends needs a peak speed of pi/2 times the mean).
-REVERSE_STRETCH = 1.6
 
 _FEET = {"Left": ("LeftHeel", "LeftToe"), "Right": ("RightHeel", "RightToe")}
 
@@ -59,26 +51,6 @@ def is_upright(model: HumanModel, q: np.ndarray) -> bool:
     R = model.segment_rotation(q, model.segment_names[0])
     return bool(R[2, 2] >= np.cos(np.radians(UPRIGHT_TILT_DEG))
                 and q[2] >= UPRIGHT_HEIGHT * model.neutral()[2])
-
-
-def standing_moment(truth: TruthMotion) -> int | None:
-    """The first frame where the clip stands upright on a still foot, or None.
-
-    The foot's heel and toe are both below :data:`STANDING_FOOT_HEIGHT` and slower than
-    :data:`STANDING_FOOT_SPEED` (a clip whose floor is a few centimetres off still stands).
-    """
-    if len(truth.time) < 2:
-        return None
-    P = {side: site_positions(truth.model, truth.q, list(pair)) for side, pair in _FEET.items()}
-    still = np.zeros(len(truth.time), dtype=bool)
-    for points in P.values():
-        speed = np.linalg.norm(np.gradient(points, truth.time, axis=0), axis=2)
-        still |= ((points[..., 2] < STANDING_FOOT_HEIGHT)
-                  & (speed < STANDING_FOOT_SPEED)).all(axis=1)
-    for k in np.flatnonzero(still):
-        if is_upright(truth.model, truth.q[k]):
-            return int(k)
-    return None
 
 
 def _cosine_blend(n: int) -> np.ndarray:
@@ -170,25 +142,12 @@ def _above_floor(model: HumanModel, q: np.ndarray) -> np.ndarray:
 
 
 def _lowered_onto(target: np.ndarray, height: float, n: int) -> np.ndarray:
-    """``n`` configurations lowering ``target`` vertically from ``height`` [m] onto its place."""
-    out = np.repeat(target[None], n, axis=0)
-    out[:, 2] += height * (1.0 - _cosine_blend(n))
-    return out
+    """``n`` configurations lowering ``target`` vertically from ``height`` [m] to its place.
 
-
-def _reversed_to_start(truth: TruthMotion, stand: int) -> np.ndarray:
-    """The clip from frame ``stand`` back to frame 0 (exclusive of ``stand``), eased to rest.
-
-    Played at most :data:`REVERSE_STRETCH` times slower than the clip; frames between samples
-    are interpolated on the configuration manifold.
+    The last is just above it: ``target`` itself is the clip's first frame, which follows.
     """
-    n = max(2, int(round(stand * REVERSE_STRETCH)))
-    u = stand * (1.0 - _cosine_blend(n))  # fractional clip frames from stand down to 0
-    out = np.empty((n, truth.q.shape[1]))
-    for k, uk in enumerate(u):
-        i = min(int(np.floor(uk)), len(truth.q) - 2)
-        out[k] = pin.interpolate(truth.model.model, truth.q[i], truth.q[i + 1], float(uk - i))
-    out[-1] = truth.q[0]
+    out = np.repeat(target[None], n, axis=0)
+    out[:, 2] += height * (1.0 - _cosine_blend(n + 1)[:-1])
     return out
 
 
@@ -196,8 +155,8 @@ def lead_in(truth: TruthMotion, npose_seconds: float = 2.0,
             transition_seconds: float = 1.5) -> TruthMotion:
     """Prepend a still N-pose and a way a person gets from it into the clip's first frame.
 
-    See the module's docstring for the three cases (upright start, a later standing moment,
-    never standing). The clip itself is kept unchanged after the lead-in.
+    See the module's docstring for the two cases (upright start or not). The clip itself is
+    kept unchanged after the lead-in.
 
     Args:
         truth: The clip, floor at z = 0.
@@ -207,29 +166,23 @@ def lead_in(truth: TruthMotion, npose_seconds: float = 2.0,
 
     Returns:
         The motion with the lead-in; ``info["lead_in_s"]`` is its length [s] and
-        ``info["lead_in"]`` says how it enters the clip (``"step"``, ``"reverse"`` from the
-        standing moment, or ``"get-down"``).
+        ``info["lead_in"]`` says how it enters the clip (``"step"`` or ``"get-down"``).
     """
     model, rate = truth.model, truth.rate
     n_still = int(round(npose_seconds * rate))
     first = truth.q[0]
-    stand = None if is_upright(model, first) else standing_moment(truth)
     if is_upright(model, first):
-        kind, target, n_move = "step", first, int(round(transition_seconds * rate))
-    elif stand is not None:
-        kind, target, n_move = "reverse", truth.q[stand], int(round(transition_seconds * rate))
+        kind = "step"
+        parts = [anchored_transition(model, first, n_still,
+                                     max(2, int(round(transition_seconds * rate))))]
     else:
-        kind, target, n_move = "get-down", first, int(round(GET_DOWN_SECONDS * rate))
-    if kind == "get-down":
-        raised = target.copy()
+        kind = "get-down"
+        raised = first.copy()
         raised[2] += GET_DOWN_HOVER
-        n_lower = max(2, int(round(GET_DOWN_LOWER_SECONDS * rate)))
-        parts = [anchored_transition(model, raised, n_still, max(n_move, 2), GET_DOWN_HOVER),
-                 _lowered_onto(target, GET_DOWN_HOVER, n_lower)]
-    else:
-        parts = [anchored_transition(model, target, n_still, max(n_move, 2))]
-    if stand is not None and stand > 0:
-        parts.append(_above_floor(model, _reversed_to_start(truth, stand)))
+        parts = [anchored_transition(model, raised, n_still,
+                                     max(2, int(round(GET_DOWN_SECONDS * rate))), GET_DOWN_HOVER),
+                 _above_floor(model, _lowered_onto(
+                     first, GET_DOWN_HOVER, max(2, int(round(GET_DOWN_LOWER_SECONDS * rate)))))]
     lead = np.vstack(parts)
     q = np.vstack([lead, truth.q])
     time = np.arange(len(q)) / rate
