@@ -69,8 +69,8 @@ def truth_motion(motion: str, seconds: float, rate: float, progress: bool = Fals
     ``slow``, ``fast``, ``backwards``, ``sidestep``, ``turn-on-spot``, ``start-stop``, ``hop``,
     ``skip``, ``jump``, ...).
     Walks start with a 2 s N-pose; a BVH clip gets a 2 s N-pose and a way into its first frame
-    (:func:`ikfusion.sim.lead_in.lead_in`: a step, the clip backwards from its standing moment,
-    or getting down).
+    (:func:`ikfusion.sim.lead_in.lead_in`: a step, or getting down onto a first pose that is
+    not upright).
 
     Raises:
         InputError: An unknown walk name (the message lists the known ones).
