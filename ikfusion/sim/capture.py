@@ -3,7 +3,8 @@
 Writes ``imu/`` (MT Manager files, one per sensor, trial prefix ``SIM_``), ``sensors.yaml``
 (the sensor map), ``body.yaml``, ``truth.npz`` and, with a constellation, the UWB files
 (``readers.yaml``; TOA simulation comes with the UWB filter). Sensors are strapped with random
-mountings; the motion starts with a still N-pose, as a real session does.
+mountings; the motion starts with a still N-pose, as a real session does
+(:mod:`ikfusion.sim.lead_in`).
 """
 
 from __future__ import annotations
@@ -12,21 +13,20 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 import yaml
 
 from ..atomic import atomic_folder
 from ..errors import InputError
 from ..io.mtmanager import read_mtmanager
 from ..io.mtmanager_writer import write_mtmanager
-from ..mocap.foot_lock import lock_planted_points
 from ..mocap.from_bvh import motion_from_bvh
-from ..mocap.model_motion import TruthMotion, contact_phases
+from ..mocap.model_motion import TruthMotion
 from ..model import SENSOR_SEGMENTS
 from ..rotations import axis_rotation
 from ..uwb.constellation import Constellation
 from .gait import gait_preset, generate_gait
 from .imu import ImuNoise, simulate_imus
+from .lead_in import lead_in
 from .truth import write_truth
 from .uwb_capture import UwbCaptureOptions, simulate_uwb, smooth_truth, write_uwb_files
 
@@ -68,8 +68,9 @@ def truth_motion(motion: str, seconds: float, rate: float, progress: bool = Fals
     ``<walk>`` names a walk of :data:`ikfusion.sim.gait.GAIT_PRESETS` (``straight``, ``turns``,
     ``slow``, ``fast``, ``backwards``, ``sidestep``, ``turn-on-spot``, ``start-stop``, ``hop``,
     ``skip``, ``jump``, ...).
-    Walks start with a 2 s N-pose; a BVH clip gets a 2 s N-pose and a 1 s transition into its
-    first frame.
+    Walks start with a 2 s N-pose; a BVH clip gets a 2 s N-pose and a way into its first frame
+    (:func:`ikfusion.sim.lead_in.lead_in`: a step, or getting down onto a first pose that is
+    not upright).
 
     Raises:
         InputError: An unknown walk name (the message lists the known ones).
@@ -142,34 +143,3 @@ def add_heading_drift(imu_folder: str | Path, start: float, end: float,
         gyr = stream.gyr + rate[:, None] * R[:, 2, :]  # R^T e_z is the third row of R
         write_mtmanager(imu_folder, PREFIX, sensor_id, stream.packet_counter, R, recording.rate,
                         acc=stream.acc, gyr=gyr)
-
-
-def lead_in(truth: TruthMotion, npose_seconds: float = 2.0,
-            transition_seconds: float = 1.0) -> TruthMotion:
-    """Prepend a still N-pose and a smooth transition into the first frame.
-
-    A real session starts so; the N-pose faces the first frame's heading at its place on the
-    floor.
-    """
-    model = truth.model
-    rate = truth.rate
-    first = truth.q[0]
-    R0 = model.segment_rotation(first, model.segment_names[0])
-    yaw = float(np.arctan2(R0[1, 0], R0[0, 0]))
-    q_npose = model.neutral()
-    q_npose[:2] = first[:2]
-    q_npose[3:7] = pin.Quaternion(pin.utils.rotate("z", yaw)).coeffs()
-    n_still = int(round(npose_seconds * rate))
-    n_move = int(round(transition_seconds * rate))
-    blend = 0.5 - 0.5 * np.cos(np.pi * np.arange(1, n_move + 1) / (n_move + 1))
-    moving = [pin.interpolate(model.model, q_npose, first, float(a)) for a in blend]
-    q = np.vstack([np.repeat(q_npose[None], n_still, axis=0), np.array(moving).reshape(
-        -1, len(first)), truth.q])
-    time = np.arange(len(q)) / rate
-    q = lock_planted_points(model, q, time, list(truth.contact_names))[0]
-    contacts = contact_phases(model, q, time, truth.contact_names)
-    # standing still in the N-pose: the feet's points are on the floor, knees and palms are not
-    contacts[:n_still] = contact_phases(model, q[:1], time[:1], list(truth.contact_names))[0]
-    contacts[n_still + n_move:] = truth.contacts
-    return TruthMotion(model, time, q, truth.contact_names, contacts, truth.source,
-                       {**truth.info, "lead_in_s": npose_seconds + transition_seconds})

@@ -1,0 +1,93 @@
+"""The simulated lead-in (issue #19): N-pose, then a way into the clip a person makes.
+
+For every library clip that does not start standing (lying, on all fours, mid-cartwheel), the
+lead-in's contact points never go more than 1 cm under the floor and a point labelled planted
+(near the floor and nearly still, from the lead-in's own kinematics) never slides more than
+5 mm. The old lead-in blended the whole configuration from the N-pose into the first frame:
+feet dragged ~1 m along and ~20 cm through the floor.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from ikfusion.app.evaluate import phase_slides
+from ikfusion.mocap.from_bvh import motion_from_bvh
+from ikfusion.mocap.model_motion import TruthMotion, contact_phases_from_points, site_positions
+from ikfusion.sim.capture import lead_in
+
+MOTIONS = Path(__file__).resolve().parents[2] / "benchmarks" / "motions"
+RATE = 60.0  # [Hz]
+#: Lowest a contact point may go under the floor [m] ...
+UNDER_FLOOR_M = 0.01
+#: ... and farthest a planted point may slide [m].
+SLIDE_M = 0.005
+#: Clips of the issue that start lying, on all fours or mid-cartwheel.
+ISSUE_CLIPS = {"dm-crawl", "dm-getup-faceup", "dm-getup-facedown", "amp-cartwheels"}
+
+
+def _starts_down(truth: TruthMotion) -> bool:
+    """Whether the first frame is not standing: pelvis tilted > 30 deg or below 80 % height."""
+    R = truth.model.segment_rotation(truth.q[0], "Pelvis")
+    return bool(R[2, 2] < np.cos(np.radians(30.0))
+                or truth.q[0, 2] < 0.8 * truth.model.neutral()[2])
+
+
+def _library_bvh_clips() -> dict[str, Path]:
+    data = yaml.safe_load((MOTIONS / "library.yaml").read_text())
+    return {c["name"]: MOTIONS / c["motion"] for c in data["clips"]
+            if not str(c["motion"]).startswith("gait")}
+
+
+@pytest.fixture(scope="module")
+def down_starts() -> dict[str, TruthMotion]:
+    """The library's BVH clips that start down, read as the simulation reads them."""
+    out = {}
+    for name, path in _library_bvh_clips().items():
+        truth = motion_from_bvh(path, rate=RATE)
+        if _starts_down(truth):
+            out[name] = truth
+    return out
+
+
+def test_the_issue_clips_start_down(down_starts: dict[str, TruthMotion]) -> None:
+    assert ISSUE_CLIPS <= set(down_starts)
+
+
+def _worst(P: np.ndarray, time: np.ndarray) -> tuple[float, float]:
+    """Deepest point under the floor [m] and largest planted slide [m] of points (N, k, 3)."""
+    planted = contact_phases_from_points(P, time)
+    return float(-P[..., 2].min()), max(phase_slides(P, planted), default=0.0)
+
+
+@pytest.mark.parametrize("name", sorted(ISSUE_CLIPS) + ["others"])
+def test_lead_in_feet_above_floor_and_planted_points_still(
+        down_starts: dict[str, TruthMotion], name: str) -> None:
+    clips = ({name: down_starts[name]} if name != "others"
+             else {k: v for k, v in down_starts.items() if k not in ISSUE_CLIPS})
+    for clip, truth in clips.items():
+        out = lead_in(truth)
+        n_lead = int(round(out.info["lead_in_s"] * RATE))
+        P = site_positions(out.model, out.q[:n_lead + 1], out.contact_names)
+        time = out.time[:n_lead + 1]
+        under, slide = _worst(P[:n_lead], time[:n_lead])
+        assert under <= UNDER_FLOOR_M, f"{clip}: a point {1000 * under:.0f} mm under the floor"
+        assert slide <= SLIDE_M, f"{clip}: a planted point slides {1000 * slide:.0f} mm"
+        # the labels of the lead-in are its kinematics' (no point held while it moves)
+        np.testing.assert_array_equal(out.contacts[:n_lead],
+                                      contact_phases_from_points(P, time)[:n_lead])
+        # the N-pose stands on the floor, on both flat feet
+        feet = P[0, :4, 2]
+        assert np.all(np.abs(feet) < UNDER_FLOOR_M), f"{clip}: N-pose feet at {feet}"
+
+
+def test_clip_kept_after_lead_in(down_starts: dict[str, TruthMotion]) -> None:
+    truth = down_starts["dm-crawl"]
+    out = lead_in(truth)
+    n_lead = int(round(out.info["lead_in_s"] * RATE))
+    np.testing.assert_array_equal(out.q[n_lead:], truth.q)
+    np.testing.assert_array_equal(out.contacts[n_lead:], truth.contacts)
