@@ -23,7 +23,7 @@ from ..ik.assumed import coverage_warning
 from ..imu.bridging import BridgedSegments, BridgingSettings, bridge_segments
 from ..imu.calibration import Calibration, calibrate_recording
 from ..imu.flight import FlightPhases, FlightThresholds, detect_flight, world_acceleration
-from ..imu.stance import StanceThresholds, foot_still
+from ..imu.stance import StanceThresholds, foot_still, stance_thresholds
 from ..io.recording import ImuRecording, SensorStream
 from ..live.actor_stream import ActorStream
 from ..live.replay import recording_frames
@@ -91,7 +91,8 @@ def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str]
         if s in ("LeftFoot", "RightFoot"):
             R = np.where(st.valid[:, None, None], st.R_world_sensor, np.nan)
             gyr = None if st.gyr is None else np.where(st.valid[:, None], st.gyr, np.nan)
-            still[s] = foot_still(R, recording.rate, gyr, stance)
+            acc = None if st.acc is None else np.where(st.valid[:, None], st.acc, np.nan)
+            still[s] = foot_still(R, recording.rate, gyr, stance, acc)
     airborne = flight_phases(recording, streams, flight).airborne.tolist()
     pelvis = streams.get("Pelvis")
     a_pelvis = None
@@ -202,7 +203,7 @@ def solve_recording(recording: ImuRecording, sensor_map: Mapping[str, str], mode
     bridged = bridged_segments(recording, sensor_map, cal, segment_parents(model), causal)
     warnings += bridged.warnings
     frames = frames_from_recording(recording, sensor_map, cal,
-                                   StanceThresholds(st.still_rate, st.still_duration), bridged)
+                                   stance_thresholds(st), bridged)
     motion = solver.solve(correction.frames(frames) if correction else frames,
                           progress=progress, total=len(frames),
                           after_step=correction.after_frame if correction else None)

@@ -76,6 +76,7 @@ class SolverSettings(ShippedSettings):
     reenter_delay: float
     still_rate: float
     still_duration: float
+    still_acceleration: float
     speed_window: int
     detection_smoothing: float
 

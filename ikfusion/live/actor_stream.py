@@ -48,7 +48,7 @@ from ..imu.bridging_stream import BridgeStream
 from ..imu.calibration import Calibration, calibrate
 from ..imu.flight import FlightThresholds, world_acceleration
 from ..imu.flight_stream import FlightStream
-from ..imu.stance import StanceThresholds
+from ..imu.stance import stance_thresholds
 from ..imu.stance_stream import FootStillStream
 from ..io.recording import normalize_sensor_id
 from ..model.human_model import HumanModel
@@ -138,7 +138,7 @@ class ActorStream:
         st = self.solver.settings
         self.settings = settings or LiveSettings.load()
         self._bridging = bridging
-        self._thresholds = StanceThresholds(st.still_rate, st.still_duration)
+        self._thresholds = stance_thresholds(st)
         self.window_s, self.pose, self.forward = window_s, pose, forward
         self.correction_for = correction_for
         self.tag_feed = correction_for if isinstance(correction_for, TagFeed) else None
@@ -328,7 +328,7 @@ class ActorStream:
         for foot, stream in self._stance.items():
             r = readings.get(foot)
             value = stream.update(time_s, None if r is None else r.R_world_sensor,
-                                  None if r is None else r.gyr)
+                                  None if r is None else r.gyr, _acc(r))
             if np.isfinite(value):
                 still[foot] = bool(value)
         self._flight.update(_acc(readings.get("Pelvis")),
