@@ -28,6 +28,9 @@ class Frame:
         feet_still: Foot segment (``LeftFoot``/``RightFoot``) -> its IMU says it stands still
             (:func:`ikfusion.imu.stance.foot_still`); absent when unknown. Contact detection
             keeps a still foot planted and hands the body over to it.
+        points_moving: Contact point name -> its foot's IMU says the point moves (faster than
+            ``release_speed``, :func:`ikfusion.imu.point_speed.points_moving`); absent when
+            unknown. A planted point that moves lets go.
         airborne: The body is in the air (:func:`ikfusion.imu.flight.detect_flight`): no point
             is planted and none touches down; the pelvis flies on the ballistic path from its
             take-off velocity. Contact hints, when given, take precedence.
@@ -46,5 +49,6 @@ class Frame:
     root_position: np.ndarray | None = None
     root_position_weight: float = 1.0
     feet_still: Mapping[str, bool] = field(default_factory=dict)
+    points_moving: Mapping[str, bool] = field(default_factory=dict)
     airborne: bool = False
     root_acceleration: np.ndarray | None = None
