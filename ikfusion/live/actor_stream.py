@@ -13,7 +13,8 @@ and ``live --replay`` of the same files give the same poses:
 * lost or invalid samples: bridged from the past (:class:`~ikfusion.imu.bridging_stream.
   BridgeStream`);
 * foot stance: from past samples (:class:`~ikfusion.imu.stance_stream.FootStillStream`, which
-  recognises a stance ``still_duration`` after it starts);
+  recognises a stance ``still_duration`` after it starts), and whether each heel and toe moves
+  (:class:`~ikfusion.imu.point_speed_stream.FootPointsStream`, for ``horizon`` after a stance);
 * flight: from the pelvis and feet accelerometers sample by sample
   (:class:`~ikfusion.imu.flight_stream.FlightStream`, the twin of the offline detector). A
   frame is airborne when its sample is in a flight confirmed up to that sample (the detector's
@@ -48,6 +49,8 @@ from ..imu.bridging_stream import BridgeStream
 from ..imu.calibration import Calibration, calibrate
 from ..imu.flight import FlightThresholds, world_acceleration
 from ..imu.flight_stream import FlightStream
+from ..imu.point_speed import foot_point_offsets
+from ..imu.point_speed_stream import FootPointsStream
 from ..imu.stance import stance_thresholds
 from ..imu.stance_stream import FootStillStream
 from ..io.recording import normalize_sensor_id
@@ -154,6 +157,7 @@ class ActorStream:
         self._time0: float | None = None  # first frame time of a TagFeed's fix index [s]
         self._bridge: BridgeStream | None = None
         self._stance: dict[str, FootStillStream] = {}
+        self._points: dict[str, FootPointsStream] = {}
         self._flight = FlightStream(self.rate, flight)
         if calibration is not None:
             self._start(calibration)
@@ -314,6 +318,11 @@ class ActorStream:
         self._bridge = BridgeStream(sensed, segment_parents(self.model), self._bridging)
         self._stance = {f: FootStillStream(self.rate, self._thresholds) for f in FEET
                         if f in self.sensor_ids}
+        offsets = foot_point_offsets(self.model)
+        self._points = {f: FootPointsStream(calibration.R_sensor_segment[f], offsets[f],
+                                            self.solver.settings.release_speed)
+                        for f in self._stance if f in offsets
+                        and f in calibration.R_sensor_segment}
         self.correction = self.correction_for(calibration) if self.correction_for else None
 
     def _solve(self, time_s: float, readings: Mapping[str, Reading], solve: bool = True
@@ -325,12 +334,17 @@ class ActorStream:
                     for s, r in readings.items() if s in mounting}
         tracked = self._bridge.step(time_s, measured)
         still = {}
+        moving: dict[str, bool] = {}
         for foot, stream in self._stance.items():
             r = readings.get(foot)
             value = stream.update(time_s, None if r is None else r.R_world_sensor,
                                   None if r is None else r.gyr, _acc(r))
             if np.isfinite(value):
                 still[foot] = bool(value)
+            if foot in self._points:
+                moving.update(self._points[foot].update(
+                    time_s, None if r is None else r.R_world_sensor, _acc(r), _gyr(r),
+                    still.get(foot)))
         self._flight.update(_acc(readings.get("Pelvis")),
                             {f: _acc(readings.get(f)) for f in FEET},
                             {f: _gyr(readings.get(f)) for f in FEET})
@@ -339,7 +353,8 @@ class ActorStream:
             self.tag_feed.frame(k_fix, time_s, readings, still)
         if not solve:
             return None
-        frame = Frame(float(time_s), tracked, feet_still=still, airborne=self._flight.flying,
+        frame = Frame(float(time_s), tracked, feet_still=still, points_moving=moving,
+                      airborne=self._flight.flying,
                       root_acceleration=_root_acceleration(readings.get("Pelvis")))
         dt = 0.0 if self._previous is None else float(time_s - self._previous)
         k = 0
