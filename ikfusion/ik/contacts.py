@@ -110,7 +110,9 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
             sensed legs put them (a swing foot led by the drift correction): not drift.
         layout: Which points share a foot (:meth:`BodyTopology.foot_layout`).
         points_moving: (k,) True where a point's foot IMU says the point itself moves (a heel that
-            rises, a toe that pushes off while its foot turns): it lets go.
+            rises, a toe that pushes off while its foot turns): it lets go while a point of the
+            other foot that does not move stays planted (when every point moves, as on a
+            skating mocap clip, the kinematic rules decide alone).
 
     Returns:
         A new state: the same anchors for the points that stay, fewer active points, and
@@ -141,8 +143,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     pulled = (drift > th.leave_distance) & (state.age >= other_age)
     lifted = ((height_rel > th.leave_relative) | tilted) & ~still
     leave = handed_over | (staying & (lifted | pulled))
-    if points_moving is not None:
-        leave |= staying & points_moving
+    if points_moving is not None:  # while a still point of the other foot holds the body
+        leave |= staying & points_moving & _other_foot(layout, staying & ~points_moving)
     for i, name in enumerate(state.names):
         if hints and name in hints:
             leave[i] = active[i] and not hints[name]
@@ -208,7 +210,8 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
         hints: Name -> in contact, overriding the detection for those points.
         foot_pitch: See :func:`release_contacts`.
         layout: See :func:`release_contacts`.
-        points_moving: See :func:`release_contacts`: a moving point does not touch down.
+        points_moving: See :func:`release_contacts`: a moving point does not touch down
+            while a point of the other foot that does not move is planted.
 
     Returns:
         A new state; anchors above the floor settle toward it at ``settle_speed``.
@@ -225,8 +228,8 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     enter = (~active & (p_solved[:, 2] < th.floor_z + th.enter_height)
              & (speed < th.enter_speed) & (height_rel < th.enter_relative) & ~tilted
              & (released >= th.reenter_delay))
-    if points_moving is not None:
-        enter &= ~points_moving
+    if points_moving is not None:  # see release_contacts
+        enter &= ~(points_moving & _other_foot(layout, active & ~points_moving))
     for i, name in enumerate(state.names):
         if hints and name in hints:
             enter[i] = (not active[i]) and bool(hints[name])

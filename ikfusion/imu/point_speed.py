@@ -8,7 +8,10 @@ still (its velocity is zero there: pedestrian dead reckoning's zero-velocity upd
 sensor's velocity ``v_world_sensor``, and a point rigidly on the foot at ``r`` from the sensor
 moves at ``v_world_sensor + omega_world x r``. Offline, the velocity integrated over a stretch
 between two still stances is corrected linearly so it ends at zero too (this removes a constant
-accelerometer or tilt error).
+accelerometer or tilt error). An error that is not constant still grows with the time
+integrated, so a sample farther than ``horizon`` from both stances around it (a long stretch
+without stance, the end of a recording) has no velocity: the contact detection then decides
+without it.
 
 Points below the foot (the toes) are taken at the ball of the foot, where the toes hinge: the
 foot pivots about it at push-off.
@@ -23,7 +26,8 @@ from ..model.topology import BodyTopology
 from .flight import world_acceleration
 
 
-def sensor_velocity(a_world: np.ndarray, still: np.ndarray, rate: float) -> np.ndarray:
+def sensor_velocity(a_world: np.ndarray, still: np.ndarray, rate: float,
+                    horizon: float = 0.5) -> np.ndarray:
     """``v_world_sensor`` (N, 3) [m/s] by zero-velocity updates at the still samples.
 
     Args:
@@ -31,29 +35,38 @@ def sensor_velocity(a_world: np.ndarray, still: np.ndarray, rate: float) -> np.n
             where unknown).
         still: (N,) True where the foot stands still (velocity zero).
         rate: Sample rate [Hz].
+        horizon: Longest time from a stance over which the integral is trusted [s].
 
     Returns:
         Zero at still samples; between them the integral of ``a_world`` from the last still
-        sample, less a linear ramp that brings it to zero at the next still sample (none after
-        the last one). NaN over a moving stretch with an unknown acceleration, and before the
-        first still sample.
+        sample, less a linear ramp that brings it to zero at the next still sample. NaN over a
+        moving stretch with an unknown acceleration, and at samples farther than ``horizon``
+        from the stances on both sides (a side without a stance counts as infinitely far; on a
+        stretch with a stance on one side only, the plain integral from that side).
     """
     n = len(a_world)
     v = np.full((n, 3), np.nan)
     v[still] = 0.0
     edges = np.diff(np.r_[1, still.astype(np.int8), 1])
     dt = 1.0 / rate
+    reach = int(np.floor(horizon * rate))
     for start, end in zip(np.flatnonzero(edges == -1), np.flatnonzero(edges == 1)):
-        if start == 0:
-            continue  # no still sample before: the velocity is unknown
-        a = a_world[start - 1:end + 1] if end < n else a_world[start - 1:end]
-        if not np.isfinite(a).all():
+        before, after = start > 0, end < n  # a still sample on that side
+        a = a_world[max(start - 1, 0):min(end + 1, n)]
+        if not (before or after) or not np.isfinite(a).all():
             continue
-        stretch = np.cumsum(0.5 * (a[1:] + a[:-1]) * dt, axis=0)  # from the still sample
-        if end < n:  # a still sample follows: the velocity must return to zero there
-            ramp = np.linspace(0.0, 1.0, len(stretch) + 1)[1:, None]
-            stretch = stretch - ramp * stretch[-1]
-            stretch = stretch[:-1]
+        steps = np.cumsum(0.5 * (a[1:] + a[:-1]) * dt, axis=0)
+        if before and after:  # from zero at the still sample before to zero at the one after
+            ramp = np.linspace(0.0, 1.0, len(steps) + 1)[1:, None]
+            stretch = (steps - ramp * steps[-1])[:-1]
+        elif before:  # the plain integral forward from the last stance
+            stretch = steps
+        else:  # backward from the next stance (the stretch starts the recording)
+            stretch = (np.vstack([np.zeros((1, 3)), steps]) - steps[-1])[:-1]
+        k = np.arange(start, end)
+        known = ((k - start < reach) if before else False) | ((end - 1 - k < reach) if after
+                                                              else False)
+        stretch[~known] = np.nan
         v[start:end] = stretch
     return v
 

@@ -43,14 +43,15 @@ class StanceThresholds:
             low rates only for an instant).
         window: Width of the running maximum taken over the angular speed [s].
         max_acceleration: Acceleration without gravity (world frame) below which the foot may
-            be still, when the accelerometer is recorded [m/s^2] (an orientation error of 1
-            deg already shows 0.17 m/s^2).
+            be still, when the accelerometer is recorded [m/s^2] (a side step braked onto
+            the floor shows 5-10 m/s^2 until it lands; a foot standing on a jittery mocap
+            clip up to 3).
     """
 
     max_rate: float = 0.6
     min_duration: float = 0.1
     window: float = 0.05
-    max_acceleration: float = 1.0
+    max_acceleration: float = 3.0
 
 
 def stance_thresholds(settings: SolverSettings) -> StanceThresholds:
