@@ -1,6 +1,6 @@
 """Every clip of the motion library, simulated in a UWB room and solved in four modes.
 
-Run: ``PYTHONPATH=. .venv/bin/python benchmarks/bench_motions.py [--seconds S] [--clips PATTERN]
+Run: ``PYTHONPATH=. .venv/bin/python benchmarks/bench_motions.py [--seconds S] [--clips PATTERN...]
 [--modes imu-only slide no-slide no-slide-causal] [--seed N] [--noise default|none] [--shared]
 [--out DIR]``
 
@@ -224,8 +224,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--seconds", type=float, default=None, metavar="S",
                         help="simulate only the first S s of each clip (standing start "
                         "included; default: whole clips, at most 30 s)")
-    parser.add_argument("--clips", default="*", metavar="PATTERN",
-                        help="clip names to run (shell pattern, e.g. 'gen-*'; default all)")
+    parser.add_argument("--clips", nargs="+", default=["*"], metavar="PATTERN",
+                        help="clip names to run (shell patterns, e.g. 'gen-*' amp-walk; "
+                        "default all)")
     parser.add_argument("--modes", nargs="+", choices=MODES, default=list(MODES))
     parser.add_argument("--seed", type=int, default=1, help="random seed of the simulations")
     parser.add_argument("--noise", choices=["default", "none"], default="default",
@@ -238,9 +239,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.seconds is not None and args.seconds <= 3.5:
         parser.error("--seconds must exceed 3.5 (2 s of N-pose come first)")
     clips = load_library().clips + (shared_clips() if args.shared else [])
-    clips = [c for c in clips if fnmatch.fnmatch(c.name, args.clips)]
+    clips = [c for c in clips if any(fnmatch.fnmatch(c.name, p) for p in args.clips)]
     if not clips:
-        parser.error(f"no clip matches {args.clips!r}")
+        parser.error(f"no clip matches {' '.join(args.clips)!r}")
     span = "whole clips" if args.seconds is None else f"first {args.seconds:g} s"
     print(f"{len(clips)} clips ({span}), room_6x8 UWB, "
           f"{'default sensor errors' if args.noise == 'default' else 'perfect sensors'}, "

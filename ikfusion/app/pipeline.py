@@ -23,8 +23,9 @@ from ..ik.assumed import coverage_warning
 from ..imu.bridging import BridgedSegments, BridgingSettings, bridge_segments
 from ..imu.calibration import Calibration, calibrate_recording
 from ..imu.flight import FlightPhases, FlightThresholds, detect_flight, world_acceleration
+from ..imu.point_speed import foot_point_offsets, points_moving
 from ..imu.resting import RESTING_SEGMENTS, segment_resting
-from ..imu.stance import StanceThresholds, foot_still
+from ..imu.stance import StanceThresholds, foot_still, stance_thresholds
 from ..io.recording import ImuRecording, SensorStream
 from ..live.actor_stream import ActorStream
 from ..live.replay import recording_frames
@@ -71,13 +72,18 @@ def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str]
                           calibration: Calibration,
                           stance: StanceThresholds | None = None,
                           bridged: BridgedSegments | None = None,
-                          flight: FlightThresholds | None = None) -> list[Frame]:
+                          flight: FlightThresholds | None = None,
+                          foot_points: Mapping[str, Mapping[str, np.ndarray]] | None = None,
+                          release_speed: float = np.inf) -> list[Frame]:
     """One frame per sample: calibrated segment orientations (measured or bridged).
 
     Without ``bridged`` only the valid samples are tracked. The feet's stance from their IMUs
     (gyroscopes when recorded, else orientations; invalid samples left out) and the rest of
     the knees and hands (their accelerometers, :mod:`ikfusion.imu.resting`) come along for
-    contact detection, and so do the flight phases from the pelvis and feet accelerometers
+    contact detection, and so does, for the ``foot_points`` (foot segment -> contact point ->
+    offset from its sensor in the segment frame [m], :func:`foot_point_offsets`) of feet
+    with accelerometers and gyroscopes, whether each point moves faster than ``release_speed``
+    [m/s] (:func:`points_moving`); the flight phases from the pelvis and feet accelerometers
     (:func:`flight_phases`) and the pelvis acceleration in the world frame.
     """
     streams = recording.segment_streams(sensor_map)
@@ -89,11 +95,18 @@ def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str]
         R_segment = bridged.R_world_segment
     tracked = {s: np.isfinite(R).all(axis=(1, 2)) for s, R in R_segment.items()}
     still = {}
+    moving: dict[str, np.ndarray] = {}
     for s, st in streams.items():
         if s in ("LeftFoot", "RightFoot"):
             R = np.where(st.valid[:, None, None], st.R_world_sensor, np.nan)
             gyr = None if st.gyr is None else np.where(st.valid[:, None], st.gyr, np.nan)
-            still[s] = foot_still(R, recording.rate, gyr, stance)
+            acc = None if st.acc is None else np.where(st.valid[:, None], st.acc, np.nan)
+            still[s] = foot_still(R, recording.rate, gyr, stance, acc)
+            if (foot_points and s in foot_points and gyr is not None and acc is not None
+                    and s in calibration.R_sensor_segment):
+                moving.update(points_moving(R, acc, gyr, still[s] == 1.0, recording.rate,
+                                            calibration.R_sensor_segment[s],
+                                            dict(foot_points[s]), release_speed))
         elif s in RESTING_SEGMENTS and st.acc is not None:
             a = world_acceleration(st.R_world_sensor, st.acc)
             a[~st.valid] = np.nan
@@ -109,11 +122,15 @@ def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str]
     tracked_rows = {s: v.tolist() for s, v in tracked.items()}
     known = {s: np.isfinite(v).tolist() for s, v in still.items()}
     still_rows = {s: (v != 0).tolist() for s, v in still.items()}
+    moving_known = {p: np.isfinite(v).tolist() for p, v in moving.items()}
+    moving_rows = {p: (v == 1.0).tolist() for p, v in moving.items()}
     frames = []
     for k, t in enumerate(recording.time.tolist()):
         frames.append(Frame(t, {s: R[k] for s, R in rows.items() if tracked_rows[s][k]},
                             feet_still={s: v[k] for s, v in still_rows.items()
                                         if known[s][k]},
+                            points_moving={p: v[k] for p, v in moving_rows.items()
+                                           if moving_known[p][k]},
                             airborne=airborne[k],
                             root_acceleration=_finite_or_none(a_pelvis, k)))
     return frames
@@ -207,8 +224,9 @@ def solve_recording(recording: ImuRecording, sensor_map: Mapping[str, str], mode
     st = solver.settings
     bridged = bridged_segments(recording, sensor_map, cal, segment_parents(model), causal)
     warnings += bridged.warnings
-    frames = frames_from_recording(recording, sensor_map, cal,
-                                   StanceThresholds(st.still_rate, st.still_duration), bridged)
+    frames = frames_from_recording(recording, sensor_map, cal, stance_thresholds(st), bridged,
+                                   foot_points=foot_point_offsets(model),
+                                   release_speed=st.release_speed)
     motion = solver.solve(correction.frames(frames) if correction else frames,
                           progress=progress, total=len(frames),
                           after_step=correction.after_frame if correction else None)

@@ -125,7 +125,7 @@ class ContactTracker:
                                       self._hints(frame), self._pitch, still,
                                       self._history[-1][1],
                                       self.support.placed_offsets(self.state.active),
-                                      layout=self.layout)
+                                      layout=self.layout, points_moving=self._points_moving(frame))
         # a planted heel whose foot already rolls toe-down may rise (it still cannot slip),
         # unless its IMU says the foot stands still
         rising = self.layout.on_foot & (pitch > np.radians(self.settings.heel_rise_deg))
@@ -196,13 +196,20 @@ class ContactTracker:
         t_old, p_old = self._history[0]
         self.state = touch_down(self.state, p_contacts, p_old, self._p_sensed,
                                 frame.time - t_old, self.thresholds, self._hints(frame),
-                                self._pitch, layout=self.layout)
+                                self._pitch, layout=self.layout,
+                                points_moving=self._points_moving(frame))
 
     def _hints(self, frame: Frame) -> Mapping[str, bool] | None:
         """The frame's contact hints; in flight (``frame.airborne``) every point is free."""
         if frame.contacts is None and frame.airborne:
             return dict.fromkeys(self.names, False)
         return frame.contacts
+
+    def _points_moving(self, frame: Frame) -> np.ndarray | None:
+        """True where a contact point moves by its foot's IMU (``frame.points_moving``)."""
+        if not frame.points_moving:
+            return None
+        return np.array([bool(frame.points_moving.get(n, False)) for n in self.names])
 
     def _feet_still(self, frame: Frame) -> np.ndarray | None:
         """1 where each point's foot stands still by its IMU, 0 moving, NaN unknown."""

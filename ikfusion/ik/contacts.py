@@ -92,7 +92,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
                      foot_still: np.ndarray | None = None,
                      p_solved: np.ndarray | None = None,
                      placed: np.ndarray | None = None, *,
-                     layout: FootLayout) -> ContactState:
+                     layout: FootLayout, points_moving: np.ndarray | None = None
+                     ) -> ContactState:
     """Let go of planted points the current frame's sensed pose lifts (run before solving).
 
     With ``foot_still``, also plant the points of still feet and hand the body over to them.
@@ -112,6 +113,10 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         placed: (k, 3) offsets [m] by which anchors were placed on purpose away from where the
             sensed legs put them (a swing foot led by the drift correction): not drift.
         layout: Which points share a foot (:meth:`BodyTopology.foot_layout`).
+        points_moving: (k,) True where a point's foot IMU says the point itself moves (a heel that
+            rises, a toe that pushes off while its foot turns): it lets go while a point of the
+            other foot that does not move stays planted (when every point moves, as on a
+            skating mocap clip, the kinematic rules decide alone).
 
     Returns:
         A new state: the same anchors for the points that stay, fewer active points, and
@@ -144,6 +149,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     # sensed pose may still lift it
     lifted = ((height_rel > th.leave_relative) | tilted) & ~(still & layout.stepping)
     leave = handed_over | (staying & (lifted | pulled))
+    if points_moving is not None:  # while a still point of the other foot holds the body
+        leave |= staying & points_moving & _other_foot(layout, staying & ~points_moving)
     for i, name in enumerate(state.names):
         if hints and name in hints:
             leave[i] = active[i] and not hints[name]
@@ -205,7 +212,8 @@ def _sensed_offset(p_sensed: np.ndarray, anchors: np.ndarray, reference: np.ndar
 def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.ndarray,
                p_sensed: np.ndarray, dt: float, thresholds: ContactThresholds,
                hints: Mapping[str, bool] | None = None,
-               foot_pitch: np.ndarray | None = None, *, layout: FootLayout) -> ContactState:
+               foot_pitch: np.ndarray | None = None, *, layout: FootLayout,
+               points_moving: np.ndarray | None = None) -> ContactState:
     """Plant the points that reached the floor this frame (run after solving).
 
     A point enters contact when it is near the floor, slow, among the lowest points of the
@@ -221,6 +229,8 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
         hints: Name -> in contact, overriding the detection for those points.
         foot_pitch: See :func:`release_contacts`.
         layout: See :func:`release_contacts`.
+        points_moving: See :func:`release_contacts`: a moving point does not touch down
+            while a point of the other foot that does not move is planted.
 
     Returns:
         A new state; anchors above the floor settle toward it at ``settle_speed``.
@@ -237,6 +247,8 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     enter = (~active & (p_solved[:, 2] < th.floor_z + th.enter_height)
              & (speed < th.enter_speed) & (height_rel < th.enter_relative) & ~tilted
              & (released >= th.reenter_delay))
+    if points_moving is not None:  # see release_contacts
+        enter &= ~(points_moving & _other_foot(layout, active & ~points_moving))
     for i, name in enumerate(state.names):
         if hints and name in hints:
             enter[i] = (not active[i]) and bool(hints[name])

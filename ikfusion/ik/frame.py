@@ -30,6 +30,9 @@ class Frame:
             (:func:`ikfusion.imu.stance.foot_still`), a shin or hand (knee, palm) by its
             accelerometer (:func:`ikfusion.imu.resting.segment_resting`); absent when unknown.
             Contact detection keeps a still foot planted and hands the body over to it.
+        points_moving: Contact point name -> its foot's IMU says the point moves (faster than
+            ``release_speed``, :func:`ikfusion.imu.point_speed.points_moving`); absent when
+            unknown. A planted point that moves lets go.
         airborne: The body is in the air (:func:`ikfusion.imu.flight.detect_flight`): no point
             is planted and none touches down; the pelvis flies on the ballistic path from its
             take-off velocity. Contact hints, when given, take precedence.
@@ -48,5 +51,6 @@ class Frame:
     root_position: np.ndarray | None = None
     root_position_weight: float = 1.0
     feet_still: Mapping[str, bool] = field(default_factory=dict)
+    points_moving: Mapping[str, bool] = field(default_factory=dict)
     airborne: bool = False
     root_acceleration: np.ndarray | None = None

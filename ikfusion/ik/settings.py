@@ -76,6 +76,8 @@ class SolverSettings(ShippedSettings):
     reenter_delay: float
     still_rate: float
     still_duration: float
+    still_acceleration: float
+    release_speed: float
     speed_window: int
     detection_smoothing: float
 

@@ -7,6 +7,13 @@ duration. The angular speed comes from the gyroscope when recorded (it is the sa
 frame, so no calibration is needed); otherwise from successive orientations, which is only as
 good as the orientation output is smooth.
 
+A foot can also stop turning while it still travels: a side step carries the foot sideways,
+level, and lowers it onto the floor with hardly any rotation, so the angular speed alone says
+*still* some 100 ms before the foot lands. When the accelerometer is recorded, a still foot must
+therefore also have a calm acceleration: the sensor's acceleration in the world with gravity
+removed (``R_world_sensor f + g``) stays small while the foot stands, and is large while a
+travelling foot is braked onto the floor (heel strike, the end of a side step).
+
 This is what pedestrian dead reckoning calls a zero-velocity detector; the solver uses it to keep
 a still foot planted and to hand the body over to it from a foot that moves (see
 :mod:`ikfusion.ik.contacts`).
@@ -15,10 +22,15 @@ a still foot planted and to hand the body over to it from a foot that moves (see
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..rotations import log_so3
+from .flight import world_acceleration
+
+if TYPE_CHECKING:
+    from ..ik.settings import SolverSettings
 
 
 @dataclass(frozen=True)
@@ -30,11 +42,35 @@ class StanceThresholds:
         min_duration: Shortest still stretch that counts [s] (a swinging foot passes through
             low rates only for an instant).
         window: Width of the running maximum taken over the angular speed [s].
+        max_acceleration: Acceleration without gravity (world frame) below which the foot may
+            be still, when the accelerometer is recorded [m/s^2] (a side step braked onto
+            the floor shows 5-10 m/s^2 until it lands; a foot standing on a jittery mocap
+            clip up to 3).
     """
 
     max_rate: float = 0.6
     min_duration: float = 0.1
     window: float = 0.05
+    max_acceleration: float = 3.0
+
+
+def stance_thresholds(settings: SolverSettings) -> StanceThresholds:
+    """The thresholds of a :class:`ikfusion.ik.SolverSettings` (its ``still_*`` keys)."""
+    return StanceThresholds(max_rate=settings.still_rate, min_duration=settings.still_duration,
+                            max_acceleration=settings.still_acceleration)
+
+
+def free_acceleration(R_world_sensor: np.ndarray, acc: np.ndarray) -> np.ndarray:
+    """|a| [m/s^2] per sample: the sensor's acceleration in the world without gravity.
+
+    Args:
+        R_world_sensor: (N, 3, 3) orientations (NaN where missing).
+        acc: (N, 3) specific force in the sensor frame [m/s^2] (NaN where missing).
+
+    Returns:
+        (N,) the magnitude of ``R_world_sensor acc + g``, NaN where unknown.
+    """
+    return np.linalg.norm(world_acceleration(R_world_sensor, acc), axis=1)
 
 
 def angular_speed(R_world_sensor: np.ndarray, rate: float, gyr: np.ndarray | None = None
@@ -84,7 +120,8 @@ def _drop_short_runs(mask: np.ndarray, min_length: int) -> np.ndarray:
 
 
 def foot_still(R_world_sensor: np.ndarray, rate: float, gyr: np.ndarray | None = None,
-               thresholds: StanceThresholds | None = None) -> np.ndarray:
+               thresholds: StanceThresholds | None = None,
+               acc: np.ndarray | None = None) -> np.ndarray:
     """Where a foot IMU says the foot stands still (offline: looks ahead ``min_duration``).
 
     Args:
@@ -92,6 +129,8 @@ def foot_still(R_world_sensor: np.ndarray, rate: float, gyr: np.ndarray | None =
         rate: Sample rate [Hz].
         gyr: (N, 3) its angular rate [rad/s] in the sensor frame, when recorded.
         thresholds: What still means.
+        acc: (N, 3) its specific force [m/s^2] in the sensor frame, when recorded: the
+            acceleration must be calm too (samples without it are judged by the rate alone).
 
     Returns:
         (N,) 1.0 still, 0.0 moving, NaN unknown (no valid sample there). A gap of up to
@@ -103,6 +142,11 @@ def foot_still(R_world_sensor: np.ndarray, rate: float, gyr: np.ndarray | None =
     speed = angular_speed(R_world_sensor, rate, gyr)
     width = max(1, int(round(th.window * rate)))
     calm = _running_max(_bridge_short_gaps(speed, min_length), width) < th.max_rate
+    if acc is not None:
+        accel = free_acceleration(R_world_sensor, acc)
+        if np.isfinite(accel).any():
+            accel = np.where(np.isfinite(accel), accel, 0.0)  # unknown: the rate decides
+            calm &= _running_max(accel, width) < th.max_acceleration
     still = _drop_short_runs(calm, min_length)
     out = still.astype(float)
     out[~np.isfinite(speed)] = np.nan

@@ -14,7 +14,9 @@ and ``live --replay`` of the same files give the same poses:
   BridgeStream`);
 * foot stance: from past samples (:class:`~ikfusion.imu.stance_stream.FootStillStream`, which
   recognises a stance ``still_duration`` after it starts), and the rest of the knees and hands
-  from their accelerometers (:class:`~ikfusion.imu.resting_stream.SegmentRestingStream`);
+  from their accelerometers (:class:`~ikfusion.imu.resting_stream.SegmentRestingStream`), and
+  whether each heel and toe moves (:class:`~ikfusion.imu.point_speed_stream.FootPointsStream`,
+  for ``horizon`` after a stance);
 * flight: from the pelvis and feet accelerometers sample by sample
   (:class:`~ikfusion.imu.flight_stream.FlightStream`, the twin of the offline detector). A
   frame is airborne when its sample is in a flight confirmed up to that sample (the detector's
@@ -49,9 +51,11 @@ from ..imu.bridging_stream import BridgeStream
 from ..imu.calibration import Calibration, calibrate
 from ..imu.flight import FlightThresholds, world_acceleration
 from ..imu.flight_stream import FlightStream
+from ..imu.point_speed import foot_point_offsets
+from ..imu.point_speed_stream import FootPointsStream
 from ..imu.resting import RESTING_SEGMENTS
 from ..imu.resting_stream import SegmentRestingStream
-from ..imu.stance import StanceThresholds
+from ..imu.stance import stance_thresholds
 from ..imu.stance_stream import FootStillStream
 from ..io.recording import normalize_sensor_id
 from ..model.human_model import HumanModel
@@ -141,7 +145,7 @@ class ActorStream:
         st = self.solver.settings
         self.settings = settings or LiveSettings.load()
         self._bridging = bridging
-        self._thresholds = StanceThresholds(st.still_rate, st.still_duration)
+        self._thresholds = stance_thresholds(st)
         self.window_s, self.pose, self.forward = window_s, pose, forward
         self.correction_for = correction_for
         self.tag_feed = correction_for if isinstance(correction_for, TagFeed) else None
@@ -158,6 +162,7 @@ class ActorStream:
         self._bridge: BridgeStream | None = None
         self._stance: dict[str, FootStillStream] = {}
         self._resting: dict[str, SegmentRestingStream] = {}
+        self._points: dict[str, FootPointsStream] = {}
         self._flight = FlightStream(self.rate, flight)
         if calibration is not None:
             self._start(calibration)
@@ -320,6 +325,11 @@ class ActorStream:
                         if f in self.sensor_ids}
         self._resting = {s: SegmentRestingStream(self.rate) for s in RESTING_SEGMENTS
                          if s in self.sensor_ids}
+        offsets = foot_point_offsets(self.model)
+        self._points = {f: FootPointsStream(calibration.R_sensor_segment[f], offsets[f],
+                                            self.solver.settings.release_speed)
+                        for f in self._stance if f in offsets
+                        and f in calibration.R_sensor_segment}
         self.correction = self.correction_for(calibration) if self.correction_for else None
 
     def _solve(self, time_s: float, readings: Mapping[str, Reading], solve: bool = True
@@ -331,12 +341,17 @@ class ActorStream:
                     for s, r in readings.items() if s in mounting}
         tracked = self._bridge.step(time_s, measured)
         still = {}
+        moving: dict[str, bool] = {}
         for foot, stream in self._stance.items():
             r = readings.get(foot)
             value = stream.update(time_s, None if r is None else r.R_world_sensor,
-                                  None if r is None else r.gyr)
+                                  None if r is None else r.gyr, _acc(r))
             if np.isfinite(value):
                 still[foot] = bool(value)
+            if foot in self._points:
+                moving.update(self._points[foot].update(
+                    time_s, None if r is None else r.R_world_sensor, _acc(r), _gyr(r),
+                    still.get(foot)))
         resting = {}  # knees and palms, for the contacts only (the tags' feet ignore them)
         for segment, rest in self._resting.items():
             r = readings.get(segment)
@@ -353,6 +368,7 @@ class ActorStream:
         if not solve:
             return None
         frame = Frame(float(time_s), tracked, feet_still={**still, **resting},
+                      points_moving=moving,
                       airborne=self._flight.flying,
                       root_acceleration=_root_acceleration(readings.get("Pelvis")))
         dt = 0.0 if self._previous is None else float(time_s - self._previous)

@@ -1,0 +1,138 @@
+"""How fast the heel and the ball of a foot move, from the foot's IMU (offline).
+
+A foot rolls over its ball before toe-off: the sensor turns fast while the ball stays put, so
+the foot's angular speed cannot say when the ball leaves the floor, and a contact point held
+until the sensed pose lifts it is held some 50 ms after it started to slide. The IMU knows more:
+integrating the sensor's acceleration without gravity from the last sample where the foot stood
+still (its velocity is zero there: pedestrian dead reckoning's zero-velocity update) gives the
+sensor's velocity ``v_world_sensor``, and a point rigidly on the foot at ``r`` from the sensor
+moves at ``v_world_sensor + omega_world x r``. Offline, the velocity integrated over a stretch
+between two still stances is corrected linearly so it ends at zero too (this removes a constant
+accelerometer or tilt error). An error that is not constant still grows with the time
+integrated, so a sample farther than ``horizon`` from both stances around it (a long stretch
+without stance, the end of a recording) has no velocity: the contact detection then decides
+without it.
+
+Points below the foot (the toes) are taken at the ball of the foot, where the toes hinge: the
+foot pivots about it at push-off.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..model.human_model import HumanModel
+from ..model.topology import BodyTopology
+from .flight import world_acceleration
+
+
+def sensor_velocity(a_world: np.ndarray, still: np.ndarray, rate: float,
+                    horizon: float = 0.5) -> np.ndarray:
+    """``v_world_sensor`` (N, 3) [m/s] by zero-velocity updates at the still samples.
+
+    Args:
+        a_world: (N, 3) the sensor's acceleration without gravity, world frame [m/s^2] (NaN
+            where unknown).
+        still: (N,) True where the foot stands still (velocity zero).
+        rate: Sample rate [Hz].
+        horizon: Longest time from a stance over which the integral is trusted [s].
+
+    Returns:
+        Zero at still samples; between them the integral of ``a_world`` from the last still
+        sample, less a linear ramp that brings it to zero at the next still sample. NaN over a
+        moving stretch with an unknown acceleration, and at samples farther than ``horizon``
+        from the stances on both sides (a side without a stance counts as infinitely far; on a
+        stretch with a stance on one side only, the plain integral from that side).
+    """
+    n = len(a_world)
+    v = np.full((n, 3), np.nan)
+    v[still] = 0.0
+    edges = np.diff(np.r_[1, still.astype(np.int8), 1])
+    dt = 1.0 / rate
+    reach = int(np.floor(horizon * rate))
+    for start, end in zip(np.flatnonzero(edges == -1), np.flatnonzero(edges == 1)):
+        before, after = start > 0, end < n  # a still sample on that side
+        a = a_world[max(start - 1, 0):min(end + 1, n)]
+        if not (before or after) or not np.isfinite(a).all():
+            continue
+        steps = np.cumsum(0.5 * (a[1:] + a[:-1]) * dt, axis=0)
+        if before and after:  # from zero at the still sample before to zero at the one after
+            ramp = np.linspace(0.0, 1.0, len(steps) + 1)[1:, None]
+            stretch = (steps - ramp * steps[-1])[:-1]
+        elif before:  # the plain integral forward from the last stance
+            stretch = steps
+        else:  # backward from the next stance (the stretch starts the recording)
+            stretch = (np.vstack([np.zeros((1, 3)), steps]) - steps[-1])[:-1]
+        k = np.arange(start, end)
+        known = ((k - start < reach) if before else False) | ((end - 1 - k < reach) if after
+                                                              else False)
+        stretch[~known] = np.nan
+        v[start:end] = stretch
+    return v
+
+
+def point_speeds(v_world_sensor: np.ndarray, omega_world: np.ndarray,
+                 r_world: np.ndarray) -> np.ndarray:
+    """Horizontal speeds (N, k) [m/s] of points rigidly on the foot.
+
+    Args:
+        v_world_sensor: (N, 3) the sensor's velocity [m/s].
+        omega_world: (N, 3) the foot's angular velocity in the world frame [rad/s].
+        r_world: (N, k, 3) each point's offset from the sensor, world frame [m].
+    """
+    v = v_world_sensor[:, None, :] + np.cross(omega_world[:, None, :], r_world)
+    return np.asarray(np.linalg.norm(v[..., :2], axis=-1))
+
+
+def foot_point_offsets(model: HumanModel) -> dict[str, dict[str, np.ndarray]]:
+    """Per foot segment carrying a sensor site, its contact points' offsets [m] from that site.
+
+    Offsets are in the foot segment frame at the model's neutral pose; a contact point below
+    the foot (on the toes) is taken at the origin of its segment, the ball of the foot.
+    """
+    topology = BodyTopology.of(model)
+    q = model.neutral()
+    sites = set(model.site_names)
+    out: dict[str, dict[str, np.ndarray]] = {}
+    for name in topology.contact_points:
+        foot = topology.foot_of(name)
+        if foot is None or foot not in sites:
+            continue
+        segment = topology.site_segment[name]
+        p = (model.site_position(q, name) if segment == foot
+             else model.segment_position(q, segment))
+        R_world_foot = model.segment_rotation(q, foot)
+        out.setdefault(foot, {})[name] = R_world_foot.T @ (p - model.site_position(q, foot))
+    # feet proper only (a heel and toes), not knees or palms
+    return {foot: points for foot, points in out.items()
+            if any(topology.site_segment[n] != foot for n in points)
+            and any(topology.site_segment[n] == foot for n in points)}
+
+
+def points_moving(R_world_sensor: np.ndarray, acc: np.ndarray, gyr: np.ndarray,
+                  still: np.ndarray, rate: float, R_sensor_segment: np.ndarray,
+                  offsets: dict[str, np.ndarray], max_speed: float) -> dict[str, np.ndarray]:
+    """Where each point of a foot moves faster than ``max_speed`` [m/s] by the foot's IMU.
+
+    Args:
+        R_world_sensor: (N, 3, 3) the foot sensor's orientations (NaN where missing).
+        acc: (N, 3) its specific force, sensor frame [m/s^2].
+        gyr: (N, 3) its angular rate, sensor frame [rad/s].
+        still: (N,) where the foot stands still (:func:`ikfusion.imu.stance.foot_still`).
+        rate: Sample rate [Hz].
+        R_sensor_segment: (3, 3) the sensor's mounting on the foot segment.
+        offsets: Point name -> offset (3,) from the sensor, foot segment frame [m]
+            (:func:`foot_point_offsets`).
+        max_speed: Horizontal speed above which a point moves [m/s].
+
+    Returns:
+        Point name -> (N,) 1.0 moving, 0.0 not, NaN unknown.
+    """
+    v = sensor_velocity(world_acceleration(R_world_sensor, acc), still, rate)
+    omega = np.einsum("nij,nj->ni", R_world_sensor, gyr)
+    names = list(offsets)
+    r_segment = np.stack([offsets[n] for n in names])  # (k, 3)
+    r_world = np.einsum("nij,kj->nki", R_world_sensor @ R_sensor_segment, r_segment)
+    speed = point_speeds(v, omega, r_world)
+    moving = np.where(np.isfinite(speed), (speed > max_speed).astype(float), np.nan)
+    return {n: moving[:, i] for i, n in enumerate(names)}
