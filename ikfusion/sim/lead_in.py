@@ -9,11 +9,13 @@ person makes, and the IMUs and the solver see nothing a real start would not sho
   (a heel rising onto the toes), so no planted point slides. The other foot steps: it is
   lifted while it moves.
 * A clip that does not start upright (lying, on all fours, mid-cartwheel) is entered by
-  getting down: the same anchored transition, longer, into the first pose held a few
-  centimetres above its place, points kept off the floor until then, and the body lowered
-  vertically onto it (so knees and palms land, never drag). Playing the clip backwards from
-  a standing moment was tried: it replays the clip's own skating and floor errors and doubles
-  its hardest motion.
+  getting down: the same poses, longer, but the body always rests on a contact point, held
+  where it is: the anchor foot carries it until another point (a knee, a palm) comes down to
+  the floor and takes it over (:func:`_rested_on_floor`), so points land, never drag, and the
+  body never floats (a pose held above its place, then lowered, left the actor in the air for
+  1.5 s: the solver cannot tell, and held points the truth had lifted). Playing the clip
+  backwards from a standing moment was tried: it replays the clip's own skating and floor
+  errors and doubles its hardest motion.
 
 Contact phases of the lead-in come from its kinematics (points near the floor and nearly still).
 """
@@ -37,11 +39,11 @@ SWING_ANGLES_DEG = {"Hip_flex": 30.0, "Knee_flex": 60.0, "Ankle_flex": 30.0}
 STEP_LIFT = 0.3
 #: Transition into a pose that is not upright (kneeling, on all fours) [s].
 GET_DOWN_SECONDS = 2.5
-#: A pose that is not upright is reached this high above its place [m] (above the height at
-#: which points count as on the floor), then the body lowers onto it vertically ...
-GET_DOWN_HOVER = 0.05
-#: ... in this time [s].
-GET_DOWN_LOWER_SECONDS = 0.4
+#: The last part of getting down [s] in which the body rises or sinks (vertically) the few
+#: centimetres by which its resting points differ from the first pose's height.
+GET_DOWN_SETTLE_SECONDS = 0.4
+#: A point counts as under the floor, and takes the body over, this far below it [m].
+FLOOR_TOLERANCE = 1e-3
 
 _FEET = {"Left": ("LeftHeel", "LeftToe"), "Right": ("RightHeel", "RightToe")}
 
@@ -69,6 +71,11 @@ def _anchor_side(model: HumanModel, q: np.ndarray) -> str:
     return min(low, key=lambda s: low[s])
 
 
+def _pivot(model: HumanModel, q: np.ndarray) -> str:
+    """The lower point (heel or toe) of the foot that carries ``q``."""
+    return min(_FEET[_anchor_side(model, q)], key=lambda n: model.site_position(q, n)[2])
+
+
 def _with_swing(model: HumanModel, q: np.ndarray, side: str, weight: float) -> np.ndarray:
     """``q`` with the ``side`` leg bent as in a step's swing, by ``weight`` in [0, 1]."""
     bend = model.configuration({f"j{side}{k}": weight * v for k, v in SWING_ANGLES_DEG.items()})
@@ -80,23 +87,20 @@ def _with_swing(model: HumanModel, q: np.ndarray, side: str, weight: float) -> n
     return out
 
 
-def anchored_transition(model: HumanModel, target: np.ndarray, n_still: int, n_move: int,
-                        clearance: float = 0.0) -> np.ndarray:
+def anchored_transition(model: HumanModel, target: np.ndarray, n_still: int, n_move: int
+                        ) -> np.ndarray:
     """The N-pose held still, then a step into ``target``: configurations (n_still + n_move, nq).
 
     The anchor foot (:func:`_anchor_side`) keeps its lowest point of ``target`` fixed on the
     floor (lifted vertically only if that point is above the floor in ``target``) and its
     heading; it pivots about that point from flat to its pose in ``target``. Joint angles blend
     from zero (the N-pose) to ``target``'s, the pelvis follows from the anchored foot, the other
-    leg swings (:data:`SWING_ANGLES_DEG`). Where a contact point would go under the floor, or
-    (with ``clearance`` [m], for a ``target`` that hovers so high) a point off the anchor foot
-    would come lower than ``clearance`` times the blend, the whole body is lifted: a point
-    nears the floor only to land on it, never to drag along it. The last configuration is
-    ``target``.
+    leg swings (:data:`SWING_ANGLES_DEG`). Where a contact point would go under the floor, the
+    whole body is lifted. The last configuration is ``target``.
     """
     side = _anchor_side(model, target)
     foot = f"{side}Foot"
-    pivot = min(_FEET[side], key=lambda n: model.site_position(target, n)[2])
+    pivot = _pivot(model, target)
     other = "Right" if side == "Left" else "Left"
     R_end = model.segment_rotation(target, foot)
     R_neutral = model.segment_rotation(model.neutral(), foot)
@@ -125,10 +129,6 @@ def anchored_transition(model: HumanModel, target: np.ndarray, n_still: int, n_m
         qk[:3] = p_world_pivot - R_world_root @ model.site_position(origin, pivot)
         out[k] = qk
     out = _above_floor(model, out)
-    if clearance > 0.0:
-        free = [n for n in model.sites_of_kind("contact") if n not in _FEET[side]]
-        low = site_positions(model, out, free)[..., 2].min(axis=1)
-        out[:, 2] += np.maximum(0.0, clearance * blend - low)
     out[-1] = target
     return out
 
@@ -141,14 +141,39 @@ def _above_floor(model: HumanModel, q: np.ndarray) -> np.ndarray:
     return out
 
 
-def _lowered_onto(target: np.ndarray, height: float, n: int) -> np.ndarray:
-    """``n`` configurations lowering ``target`` vertically from ``height`` [m] to its place.
+def _rested_on_floor(model: HumanModel, q: np.ndarray, support: str, n_settle: int
+                     ) -> np.ndarray:
+    """Configurations (N, nq) moved so that the body always rests on one point.
 
-    The last is just above it: ``target`` itself is the clip's first frame, which follows.
+    Each frame keeps the pose and orientation of ``q``; its translation holds the supporting
+    point (first the site ``support``) where it was. When another site (contact points, but
+    also the pelvis or back of a body lying down) would go more than
+    :data:`FLOOR_TOLERANCE` under the floor, the body rises onto it and that point carries it from
+    then on (a knee coming down takes the body over from the foot, which lifts): no point
+    drags, none goes under the floor, and the body is never in the air. The whole is then
+    shifted horizontally to end where the last of ``q`` is, and in the last ``n_settle``
+    frames it rises or sinks vertically towards it, kept above the floor (the clip's first
+    pose may have a point under it). Returns all but the last configuration: ``q[-1]`` is the
+    clip's first frame, which follows.
     """
-    out = np.repeat(target[None], n, axis=0)
-    out[:, 2] += height * (1.0 - _cosine_blend(n + 1)[:-1])
-    return out
+    names = list(model.site_names)  # a lying body rests on its back, not on a contact point
+    P = site_positions(model, q, names)
+    k = names.index(support)
+    held = P[0, k] * [1.0, 1.0, 0.0]
+    out = q.copy()
+    for i in range(len(q)):
+        shift = held - P[i, k]
+        z = P[i, :, 2] + shift[2]
+        j = int(np.argmin(z))
+        if z[j] < -FLOOR_TOLERANCE:
+            shift[2] -= z[j]
+            k, held = j, P[i, j] + shift
+        out[i, :3] += shift
+    end = q[-1, :3] - out[-1, :3]
+    out[:, :2] += end[:2]
+    n = max(1, min(n_settle, len(q)))
+    out[-n:, 2] += end[2] * _cosine_blend(n)
+    return _above_floor(model, out[:-1])
 
 
 def lead_in(truth: TruthMotion, npose_seconds: float = 2.0,
@@ -177,12 +202,10 @@ def lead_in(truth: TruthMotion, npose_seconds: float = 2.0,
                                      max(2, int(round(transition_seconds * rate))))]
     else:
         kind = "get-down"
-        raised = first.copy()
-        raised[2] += GET_DOWN_HOVER
-        parts = [anchored_transition(model, raised, n_still,
-                                     max(2, int(round(GET_DOWN_SECONDS * rate))), GET_DOWN_HOVER),
-                 _above_floor(model, _lowered_onto(
-                     first, GET_DOWN_HOVER, max(2, int(round(GET_DOWN_LOWER_SECONDS * rate)))))]
+        n_move = max(2, int(round(GET_DOWN_SECONDS * rate)))
+        parts = [_rested_on_floor(model, anchored_transition(model, first, n_still, n_move),
+                                  _pivot(model, first),
+                                  int(round(GET_DOWN_SETTLE_SECONDS * rate)))]
     lead = np.vstack(parts)
     q = np.vstack([lead, truth.q])
     time = np.arange(len(q)) / rate
