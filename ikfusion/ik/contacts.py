@@ -10,7 +10,8 @@ When the feet carry IMUs, their stance (:mod:`ikfusion.imu.stance`) is stronger 
 the kinematics: a still foot keeps its planted points, a still foot near the floor is planted at
 once where the sensed pose puts it relative to the points planted so far, and a moving foot lets
 go as soon as the other foot stands still (the body is handed over to the still foot, so a
-kinematic threshold missed by a few centimetres cannot hold a swinging foot on the floor).
+kinematic threshold missed by a few centimetres cannot hold a swinging foot on the floor), except
+its points that the foot IMU says do not move (:mod:`ikfusion.imu.point_speed`).
 Knees and palms may carry the same evidence from their accelerometers
 (:mod:`ikfusion.imu.resting`), weaker than a foot's: it plants and hands over, but does not
 stop the sensed pose from lifting them. When every planted point lets go, the lowest point of
