@@ -117,9 +117,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         points_moving: (k,) 1 where a point's foot IMU says the point itself moves (a heel that
             rises, a toe that pushes off while its foot turns), 0 where it says the point does
             not, NaN unknown (booleans: True and False). A moving point lets go while a point of
-            the other foot that does not move stays planted on a foot that stands still (when
-            every point moves, as on a skating mocap clip, or neither foot stands still yet, as
-            in a two-footed landing, the kinematic rules decide alone). A point known not to move
+            the other foot that does not move stays planted (when every point moves, as on a
+            skating mocap clip, the kinematic rules decide alone). A point known not to move
             is not handed over with its foot when that foot stops standing still: the foot of a
             two-footed take-off accelerates flat on the floor before it turns or slides, and
             one foot crossing the stance thresholds a sample before the other must not lift it
@@ -159,7 +158,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     lifted = ((height_rel > th.leave_relative) | tilted) & ~(still & layout.stepping)
     leave = handed_over | (staying & (lifted | pulled))
     if points_moving is not None:  # while a still point of the other foot holds the body
-        leave |= staying & moving_point & _other_foot(layout, staying & ~moving_point & still)
+        leave |= staying & moving_point & _other_foot(layout, staying & ~moving_point)
     for i, name in enumerate(state.names):
         if hints and name in hints:
             leave[i] = active[i] and not hints[name]

@@ -54,16 +54,3 @@ def test_a_moving_point_does_not_touch_down_while_the_other_foot_holds() -> None
         out = touch_down(state, P, P, P, 0.1, TH, foot_pitch=np.zeros(4), layout=LAYOUT,
                          points_moving=moving)
         assert out.active[:2].tolist() == [planted, planted]
-
-
-def test_a_moving_point_lets_go_only_while_the_other_foot_stands_still() -> None:
-    """A two-footed landing: neither foot stands still yet, and the velocity integrated over
-    the flight says one foot still moves (> release_speed) and the other not; the kinematics
-    decide, the faster foot is not lifted off for it. Once the other foot stands still, the
-    moving points let go (a toe that pushes off in a walk)."""
-    state = ContactState(NAMES, np.ones(4, dtype=bool), P.copy(), np.full(4, 0.05))
-    moving = np.array([1.0, 1.0, 0.0, 0.0])
-    for feet, kept in ((np.zeros(4), True), (np.array([np.nan, np.nan, 1.0, 1.0]), False)):
-        out = release_contacts(state, P, TH, foot_pitch=np.zeros(4), foot_still=feet,
-                               p_solved=P, layout=LAYOUT, points_moving=moving)
-        assert out.active.tolist() == [kept, kept, True, True]
