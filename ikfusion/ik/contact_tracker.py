@@ -206,10 +206,11 @@ class ContactTracker:
         return frame.contacts
 
     def _points_moving(self, frame: Frame) -> np.ndarray | None:
-        """True where a contact point moves by its foot's IMU (``frame.points_moving``)."""
+        """Per point: 1 moves by its foot's IMU (``frame.points_moving``), 0 not, NaN unknown."""
         if not frame.points_moving:
             return None
-        return np.array([bool(frame.points_moving.get(n, False)) for n in self.names])
+        known = frame.points_moving
+        return np.array([float(known[n]) if n in known else np.nan for n in self.names])
 
     def _feet_still(self, frame: Frame) -> np.ndarray | None:
         """1 where each point's foot stands still by its IMU, 0 moving, NaN unknown."""

@@ -10,7 +10,8 @@ When the feet carry IMUs, their stance (:mod:`ikfusion.imu.stance`) is stronger 
 the kinematics: a still foot keeps its planted points, a still foot near the floor is planted at
 once where the sensed pose puts it relative to the points planted so far, and a moving foot lets
 go as soon as the other foot stands still (the body is handed over to the still foot, so a
-kinematic threshold missed by a few centimetres cannot hold a swinging foot on the floor).
+kinematic threshold missed by a few centimetres cannot hold a swinging foot on the floor), except
+its points that the foot IMU says do not move (:mod:`ikfusion.imu.point_speed`).
 Knees and palms may carry the same evidence from their accelerometers
 (:mod:`ikfusion.imu.resting`), weaker than a foot's: it plants and hands over, but does not
 stop the sensed pose from lifting them. When every planted point lets go, the lowest point of
@@ -113,10 +114,15 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         placed: (k, 3) offsets [m] by which anchors were placed on purpose away from where the
             sensed legs put them (a swing foot led by the drift correction): not drift.
         layout: Which points share a foot (:meth:`BodyTopology.foot_layout`).
-        points_moving: (k,) True where a point's foot IMU says the point itself moves (a heel that
-            rises, a toe that pushes off while its foot turns): it lets go while a point of the
-            other foot that does not move stays planted (when every point moves, as on a
-            skating mocap clip, the kinematic rules decide alone).
+        points_moving: (k,) 1 where a point's foot IMU says the point itself moves (a heel that
+            rises, a toe that pushes off while its foot turns), 0 where it says the point does
+            not, NaN unknown (booleans: True and False). A moving point lets go while a point of
+            the other foot that does not move stays planted (when every point moves, as on a
+            skating mocap clip, the kinematic rules decide alone). A point known not to move
+            is not handed over with its foot when that foot stops standing still: the foot of a
+            two-footed take-off accelerates flat on the floor before it turns or slides, and
+            one foot crossing the stance thresholds a sample before the other must not lift it
+            (the ball of a foot that rolls over it stays too, until it moves itself).
 
     Returns:
         A new state: the same anchors for the points that stay, fewer active points, and
@@ -129,6 +135,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     still = np.zeros(len(active), dtype=bool)
     handed_over = np.zeros(len(active), dtype=bool)
     plant = np.zeros(len(active), dtype=bool)
+    moving_point, settled = _point_motion(points_moving, len(active))
     if foot_still is not None:
         still = np.asarray(foot_still, dtype=float) == 1.0
         moving = np.asarray(foot_still, dtype=float) == 0.0
@@ -139,6 +146,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         plant = (~active & still & (height_rel < th.still_relative) & ~tilted
                  & _other_foot(layout, active))
         handed_over |= active & moving & _other_foot(layout, plant)
+        handed_over &= ~settled
     staying = active & ~handed_over
     held = state.anchors if placed is None else state.anchors - placed
     drift, other_age = _drift_from_other_foot(layout, staying, held, p_sensed, state.age)
@@ -150,7 +158,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     lifted = ((height_rel > th.leave_relative) | tilted) & ~(still & layout.stepping)
     leave = handed_over | (staying & (lifted | pulled))
     if points_moving is not None:  # while a still point of the other foot holds the body
-        leave |= staying & points_moving & _other_foot(layout, staying & ~points_moving)
+        leave |= staying & moving_point & _other_foot(layout, staying & ~moving_point)
     for i, name in enumerate(state.names):
         if hints and name in hints:
             leave[i] = active[i] and not hints[name]
@@ -190,6 +198,14 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     released = state.released.copy()
     released[leave] = 0.0
     return ContactState(state.names, (active & ~leave) | plant, anchors, age, released)
+
+
+def _point_motion(points_moving: np.ndarray | None, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per point (k,): its IMU says it moves; its IMU says it does not (both False: unknown)."""
+    if points_moving is None:
+        return np.zeros(k, dtype=bool), np.zeros(k, dtype=bool)
+    value = np.asarray(points_moving, dtype=float)  # NaN compares False both ways
+    return value == 1.0, value == 0.0
 
 
 def _other_foot(layout: FootLayout, mask: np.ndarray) -> np.ndarray:
@@ -248,7 +264,8 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
              & (speed < th.enter_speed) & (height_rel < th.enter_relative) & ~tilted
              & (released >= th.reenter_delay))
     if points_moving is not None:  # see release_contacts
-        enter &= ~(points_moving & _other_foot(layout, active & ~points_moving))
+        moving_point, _ = _point_motion(points_moving, len(active))
+        enter &= ~(moving_point & _other_foot(layout, active & ~moving_point))
     for i, name in enumerate(state.names):
         if hints and name in hints:
             enter[i] = (not active[i]) and bool(hints[name])

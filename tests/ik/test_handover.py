@@ -1,0 +1,56 @@
+"""A foot that stops standing still hands the body over to the other foot, unless its points
+are known not to move (issue #19: gen-jumps, one foot of a two-footed take-off crossing the
+stance thresholds a sample before the other let go of both its points ~80 ms early)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ikfusion.ik.contacts import ContactState, ContactThresholds, release_contacts, touch_down
+from ikfusion.model import HumanModel
+from ikfusion.model.topology import BodyTopology
+
+NAMES = ["LeftHeel", "LeftToe", "RightHeel", "RightToe"]
+LAYOUT = BodyTopology.of(HumanModel.default()).foot_layout(NAMES)
+TH = ContactThresholds(floor_z=0.0, enter_height=0.03, enter_speed=0.5, enter_relative=0.05,
+                       leave_relative=0.05, leave_distance=0.08, settle_speed=0.02, tilt_deg=30.0,
+                       still_relative=0.06, reenter_delay=0.1)
+# both feet flat on the floor, side by side; the sensed pose puts them on their anchors
+P = np.array([[0.0, 0.1, 0.0], [0.2, 0.1, 0.0], [0.0, -0.1, 0.0], [0.2, -0.1, 0.0]])
+# the left foot's IMU no longer says still (its push-off acceleration), the right one's does
+FEET = np.array([0.0, 0.0, 1.0, 1.0])
+
+
+def _release(points_moving: np.ndarray | None) -> np.ndarray:
+    """Active points after one release step with both feet planted."""
+    state = ContactState(NAMES, np.ones(4, dtype=bool), P.copy(), np.full(4, 0.3))
+    out = release_contacts(state, P, TH, foot_pitch=np.zeros(4), foot_still=FEET,
+                           p_solved=P, layout=LAYOUT, points_moving=points_moving)
+    return out.active
+
+
+def test_points_known_not_to_move_are_not_handed_over() -> None:
+    np.testing.assert_array_equal(_release(np.zeros(4, dtype=bool)), [True, True, True, True])
+    np.testing.assert_array_equal(_release(np.zeros(4)), [True, True, True, True])
+
+
+def test_unknown_or_moving_points_are_still_handed_over() -> None:
+    """Without point speeds the foot's stance decides as before; a moving point lets go."""
+    np.testing.assert_array_equal(_release(None), [False, False, True, True])
+    np.testing.assert_array_equal(_release(np.full(4, np.nan)), [False, False, True, True])
+    np.testing.assert_array_equal(_release(np.array([1.0, np.nan, 0.0, 0.0])),
+                                  [False, False, True, True])
+    # the ball a foot rolls over stays while its heel, which moves, lets go
+    np.testing.assert_array_equal(_release(np.array([1.0, 0.0, 0.0, 0.0])),
+                                  [False, True, True, True])
+
+
+def test_a_moving_point_does_not_touch_down_while_the_other_foot_holds() -> None:
+    """Unknown speeds (NaN) neither block nor force a touch-down."""
+    state = ContactState(NAMES, np.array([False, False, True, True]), P.copy(), np.zeros(4))
+    state.released[:] = 1.0
+    for moving, planted in ((np.array([1.0, 1.0, 0.0, 0.0]), False),
+                            (np.array([np.nan, np.nan, 0.0, 0.0]), True)):
+        out = touch_down(state, P, P, P, 0.1, TH, foot_pitch=np.zeros(4), layout=LAYOUT,
+                         points_moving=moving)
+        assert out.active[:2].tolist() == [planted, planted]
