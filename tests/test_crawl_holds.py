@@ -1,8 +1,8 @@
 """Crawling on hands and knees, IMU only: a knee is held while it rests and let go when it moves.
 
 The DeepMimic crawl of the motion library, after the simulation's standing start (2 s N-pose
-for the calibration, then getting down onto the crawl's first pose), is simulated with the default sensor errors
-and solved without UWB. The knees carry the body; the knee and hand
+for the calibration, then getting down onto the crawl's first pose), is simulated with the
+default sensor errors and solved without UWB. The knees carry the body; the knee and hand
 sensors' accelerometers say when they rest (:mod:`ikfusion.imu.resting`).
 """
 
