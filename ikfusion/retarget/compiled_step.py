@@ -260,6 +260,8 @@ class CompiledConfiguration(Configuration):
         self._position_task = position_task
         self._covered = {f: i for i, f in enumerate(step.frames)}
         self._objective: tuple[np.ndarray, np.ndarray] | None = None
+        self._frames: tuple[np.ndarray, np.ndarray, np.ndarray] = (
+            np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros((0, 6, model.nv)))
         self._used_targets: tuple[np.ndarray, ...] = ()
         self._recheck_targets = False
         super().__init__(model, q)
@@ -289,12 +291,9 @@ class CompiledConfiguration(Configuration):
                 self._capsules, self._corners)
             self._witnesses = (d[:, 0].copy(), G.copy()) if self._step.has_capsules else None
             self._soles = (z[:, 0].copy(), Jz.copy())
-            R = R.reshape(-1, 3, 3).transpose(0, 2, 1)  # column-major per frame
-            p = p.reshape(-1, 3)
-            J = J.copy()
-            for f, i in self._covered.items():
-                self._placements[f] = pin.SE3(R[i], p[i])
-                self._jacobians[f] = J[6 * i:6 * i + 6]
+            # Placements are built when asked for (most steps only read a few of them).
+            self._frames = (R.reshape(-1, 3, 3).transpose(0, 2, 1).copy(),  # column-major
+                            p.reshape(-1, 3).copy(), J.reshape(-1, 6, J.shape[1]).copy())
             self._objective = H.copy(), c[:, 0].copy()
         return self._objective
 
@@ -337,12 +336,27 @@ class CompiledConfiguration(Configuration):
 
     def placement(self, frame_id: int) -> pin.SE3:
         """``T_world_frame`` of one frame."""
-        if frame_id in self._covered:
-            self._evaluate()
-        return super().placement(frame_id)
+        i = self._covered.get(frame_id)
+        if i is None:
+            return super().placement(frame_id)
+        self._evaluate()
+        T = self._placements.get(frame_id)
+        if T is None:
+            T = self._placements[frame_id] = pin.SE3(self._frames[0][i], self._frames[1][i])
+        return T
+
+    def frame_position(self, frame_id: int) -> np.ndarray:
+        """``p_world_frame`` [m] of one frame (3,), without building its placement."""
+        i = self._covered.get(frame_id)
+        if i is None:
+            return self.placement(frame_id).translation
+        self._evaluate()
+        return self._frames[1][i]
 
     def jacobian(self, frame_id: int) -> np.ndarray:
         """Frame Jacobian (6, nv), LOCAL_WORLD_ALIGNED (linear rows first)."""
-        if frame_id in self._covered:
-            self._evaluate()
-        return super().jacobian(frame_id)
+        i = self._covered.get(frame_id)
+        if i is None:
+            return super().jacobian(frame_id)
+        self._evaluate()
+        return self._frames[2][i]

@@ -20,6 +20,7 @@ constraints cannot all satisfy are solved with penalised slack and counted, neve
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import itertools
 from functools import lru_cache
 
 import numpy as np
@@ -84,6 +85,19 @@ class _Targets:
     positions: dict[str, np.ndarray]      # segment -> (N, 3) [m] of its link (feet: sole link)
     in_contact: np.ndarray                # (N, 2) the source's feet, left first
     scale: float
+
+    def stacked(self, segments: list[str], tracked: list[str]) -> tuple[np.ndarray, np.ndarray]:
+        """Orientation targets (N, k, 3, 3) of ``segments`` (NaN where a segment has none)
+        and position targets (N, m, 3) [m] of ``tracked``, every frame at once."""
+        N = len(self.in_contact)
+        R = np.full((N, len(segments), 3, 3), np.nan)
+        for i, segment in enumerate(segments):
+            if segment in self.orientations:
+                R[:, i] = self.orientations[segment]
+        p = np.zeros((N, len(tracked), 3))
+        for i, segment in enumerate(tracked):
+            p[:, i] = self.positions[segment]
+        return R, p
 
 
 @lru_cache(maxsize=1)
@@ -164,6 +178,13 @@ def _position_link(config: RetargetConfig, segment: str) -> str | None:
     return config.links.get(segment)
 
 
+def _frame_position(conf: Configuration, frame_id: int) -> np.ndarray:
+    """``p_world_frame`` [m] of one frame (without a placement when the step computed it)."""
+    if isinstance(conf, CompiledConfiguration):
+        return conf.frame_position(frame_id)
+    return conf.placement(frame_id).translation
+
+
 def _heading(R: np.ndarray) -> float:
     """Yaw of a world rotation [rad] (its x axis's direction on the floor)."""
     return float(np.arctan2(R[1, 0], R[0, 0]))
@@ -204,6 +225,11 @@ class RobotRetargeter:
         self._rest_feet = [T.rotation for T in rest_feet]
         self._rest_feet_z = [float(T.translation[2]) for T in rest_feet]
         self._configuration = Configuration(model, robot.rest)
+        self._ones = np.ones(len(self.segments)), np.ones(len(self.feet))
+        self._stacked = np.zeros((0, len(self.segments), 3, 3)), np.zeros((0, 0, 3))
+        # Sole corners (4 per foot) of the feet in the air, by which feet are planted.
+        self._air = {planted: np.repeat(np.logical_not(planted), 4)
+                     for planted in itertools.product((False, True), repeat=len(self.feet))}
 
     def solve(self, source: HumanMotion, progress: bool = False) -> RobotTrajectory:
         """Retarget every frame of ``source``."""
@@ -221,6 +247,7 @@ class RobotRetargeter:
         relaxed = np.zeros(N, dtype=bool)
         anchors: list[pin.SE3 | None] = [None, None]
         waited = np.zeros(2)
+        self._stacked = targets.stacked(self.segments, tracked)
         q = self._initial(targets)
         for k in tqdm(range(N), disable=not progress, desc="retarget", unit="frame"):
             self._set_targets(targets, k, anchors)
@@ -336,11 +363,10 @@ class RobotRetargeter:
 
     def _set_targets(self, targets: _Targets, k: int, anchors: list[pin.SE3 | None]) -> None:
         """This frame's targets; a foot coming down is pulled flat onto the floor."""
-        R = np.array([targets.orientations[s][k] if s in targets.orientations
-                      else np.full((3, 3), np.nan) for s in self.segments])
-        self.orientation_task.set_targets(R, np.ones(len(self.segments)))
+        R_all, p_all = self._stacked
+        self.orientation_task.set_targets(R_all[k], self._ones[0])
         tracked = self.position_task.names
-        p = np.array([targets.positions[s][k] for s in tracked]).reshape(-1, 3)
+        p = p_all[k].copy()
         flat = np.full((2, 3, 3), np.nan)
         for i, prefix in enumerate(SIDES.values()):
             segment = f"{prefix}Foot"
@@ -351,7 +377,7 @@ class RobotRetargeter:
                 flat[i] = axis_rotation("z", yaw) @ self._rest_feet[i]
             if segment in tracked:  # onto the floor: its rest height
                 p[tracked.index(segment), 2] = self._rest_feet_z[i]
-        self.flat_task.set_targets(flat, np.ones(2))
+        self.flat_task.set_targets(flat, self._ones[1])
         self.position_task.set_targets(p, self._position_weights)
 
     def _solve_frame(self, q: np.ndarray, q_previous: np.ndarray | None, dt: float,
@@ -425,9 +451,10 @@ class RobotRetargeter:
         worst = 0.0
         for fid, anchor in zip(self._foot_ids, anchors):
             if anchor is not None:
-                worst = max(worst, float(np.linalg.norm(conf.placement(fid).translation
+                worst = max(worst, float(np.linalg.norm(_frame_position(conf, fid)
                                                         - anchor.translation)))
-        floor = self._floor_rows(conf, anchors).h
+        floor = (conf.sole_corners()[0][self._air_corners(anchors)]
+                 if isinstance(conf, CompiledConfiguration) else self._floor_rows(conf, anchors).h)
         if len(floor):
             worst = max(worst, -float(floor.min()))
         gaps = self.capsules.distances(conf) if capsules else np.zeros(0)
@@ -467,7 +494,7 @@ class RobotRetargeter:
         """
         if isinstance(conf, CompiledConfiguration):
             z, Jz = conf.sole_corners()
-            air = np.repeat([anchor is None for anchor in anchors], 4)
+            air = self._air_corners(anchors)
             return Inequality(-Jz[air], z[air])
         G, h = [np.zeros((0, conf.model.nv))], [np.zeros(0)]
         for foot, fid, anchor in zip(self.feet, self._foot_ids, anchors):
@@ -479,6 +506,10 @@ class RobotRetargeter:
             G.append(-(J[2] + r[:, 1:2] * J[3] - r[:, 0:1] * J[4]))  # z rows of J_lin - [r]x J_ang
             h.append(T.translation[2] + r[:, 2])
         return Inequality(np.vstack(G), np.concatenate(h))
+
+    def _air_corners(self, anchors: list[pin.SE3 | None]) -> np.ndarray:
+        """Mask of the sole corners (4 per foot, feet in order) of the feet not planted."""
+        return self._air[tuple(anchor is not None for anchor in anchors)]
 
     def _plant_rows(self, conf: Configuration, anchors: list[pin.SE3 | None]) -> Equality:
         """Planted feet keep their anchor placement: 6 rows per foot."""
