@@ -396,17 +396,19 @@ class RobotRetargeter:
         factor = 1.0
         for step in range(steps):
             H, c = self._tracking_objective(conf)
-            for task in (self.smoothness, self.rest_pull):
-                task.add_objective(conf, H, c)
+            # Since the previous frame (the smoothness task's error too) [rad, m].
+            moved = None if q_previous is None else conf.difference(q_previous)
+            self.smoothness.add_objective(conf, H, c, error=moved)
+            self.rest_pull.add_objective(conf, H, c)
             near = self.capsules.inequality(conf)
             rows = ([self._floor_rows(conf, anchors), near], [self._plant_rows(conf, anchors)])
             moving = np.flatnonzero(np.any(near.G[:, 6:] != 0.0, axis=0)) + 6 \
                 if step < s.trusted_steps else np.zeros(0, dtype=int)
-            box = self._box(q, q_previous, dt, moving)
+            box = self._box(q, moved, dt, moving)
             solution = solve_qp(assemble_qp(H.copy(), c, *rows, box, s.levenberg_marquardt),
                                 self.backend, self._qp)
             if solution.relaxed and len(moving):  # the trust region was too tight
-                box = self._box(q, q_previous, dt)
+                box = self._box(q, moved, dt)
                 solution = solve_qp(assemble_qp(H, c, *rows, box, s.levenberg_marquardt),
                                     self.backend, self._qp)
             relaxed |= solution.relaxed
@@ -463,9 +465,11 @@ class RobotRetargeter:
             worst = max(worst, keep - float(gaps.min()))
         return worst
 
-    def _box(self, q: np.ndarray, q_previous: np.ndarray | None, dt: float,
+    def _box(self, q: np.ndarray, moved: np.ndarray | None, dt: float,
              trusted: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Joint limits and velocity limits as bounds on ``dq``.
+
+        ``moved`` is ``q ⊖ q_previous`` (None on a frame without a previous one).
 
         The ``trusted`` tangent coordinates (joints that move a capsule near another) also
         move at most ``trust_step`` in this step, so that the linearised distances stay
@@ -479,8 +483,7 @@ class RobotRetargeter:
             lb[trusted], ub[trusted] = -step, step
         lb[6:] = np.maximum(lb[6:], self.robot.lower - q[7:])
         ub[6:] = np.minimum(ub[6:], self.robot.upper - q[7:])
-        if q_previous is not None and dt > 0:
-            moved = pin.difference(model, q_previous, q)
+        if moved is not None and dt > 0:
             span = self._max_velocity * dt
             lb = np.maximum(lb, -span - moved)
             ub = np.minimum(ub, span - moved)
