@@ -225,6 +225,7 @@ class RobotRetargeter:
         self._rest_feet = [T.rotation for T in rest_feet]
         self._rest_feet_z = [float(T.translation[2]) for T in rest_feet]
         self._configuration = Configuration(model, robot.rest)
+        self._no_plants = Equality(np.zeros((0, model.nv)), np.zeros(0))
         self._ones = np.ones(len(self.segments)), np.ones(len(self.feet))
         self._stacked = np.zeros((0, len(self.segments), 3, 3)), np.zeros((0, 0, 3))
         # Sole corners (4 per foot) of the feet in the air, by which feet are planted.
@@ -521,14 +522,11 @@ class RobotRetargeter:
             if anchor is None:
                 continue
             T = conf.placement(fid)
-            J = conf.jacobian(fid)
-            rows.append(J)
-            b.append(np.concatenate([anchor.translation - T.translation,
-                                     log_so3(anchor.rotation @ T.rotation.T)]))
-        nv = self.robot.model.nv
+            rows.append(conf.jacobian(fid))
+            b += [anchor.translation - T.translation, log_so3(anchor.rotation @ T.rotation.T)]
         if not rows:
-            return Equality(np.zeros((0, nv)), np.zeros(0))
-        return Equality(np.vstack(rows), np.concatenate(b))
+            return self._no_plants
+        return Equality(rows[0] if len(rows) == 1 else np.vstack(rows), np.concatenate(b))
 
     def _update_plants(self, in_contact: np.ndarray, q: np.ndarray,
                        anchors: list[pin.SE3 | None], waited: np.ndarray, dt: float) -> None:
