@@ -19,8 +19,8 @@ constraints cannot all satisfy are solved with penalised slack and counted, neve
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 import itertools
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
@@ -87,8 +87,12 @@ class _Targets:
     scale: float
 
     def stacked(self, segments: list[str], tracked: list[str]) -> tuple[np.ndarray, np.ndarray]:
-        """Orientation targets (N, k, 3, 3) of ``segments`` (NaN where a segment has none)
-        and position targets (N, m, 3) [m] of ``tracked``, every frame at once."""
+        """Every frame's targets at once, in the tasks' orders.
+
+        Returns:
+            Orientation targets (N, k, 3, 3) of ``segments`` (NaN where a segment has none)
+            and position targets (N, m, 3) [m] of ``tracked``.
+        """
         N = len(self.in_contact)
         R = np.full((N, len(segments), 3, 3), np.nan)
         for i, segment in enumerate(segments):
