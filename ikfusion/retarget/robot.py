@@ -480,14 +480,15 @@ class RobotRetargeter:
         move at most ``trust_step`` in this step, so that the linearised distances stay
         close to the true ones.
         """
-        model = self.robot.model
-        lb = np.full(model.nv, -np.inf)
-        ub = np.full(model.nv, np.inf)
+        nv = self.robot.model.nv
+        lb, ub = np.empty(nv), np.empty(nv)
+        lb[:6], ub[:6] = -np.inf, np.inf
+        np.subtract(self.robot.lower, q[7:], out=lb[6:])
+        np.subtract(self.robot.upper, q[7:], out=ub[6:])
         if trusted is not None and len(trusted):
             step = self.settings.trust_step
-            lb[trusted], ub[trusted] = -step, step
-        lb[6:] = np.maximum(lb[6:], self.robot.lower - q[7:])
-        ub[6:] = np.minimum(ub[6:], self.robot.upper - q[7:])
+            lb[trusted] = np.maximum(lb[trusted], -step)
+            ub[trusted] = np.minimum(ub[trusted], step)
         if moved is not None and dt > 0:
             span = self._max_velocity * dt
             lb = np.maximum(lb, -span - moved)
