@@ -182,13 +182,6 @@ def _position_link(config: RetargetConfig, segment: str) -> str | None:
     return config.links.get(segment)
 
 
-def _frame_position(conf: Configuration, frame_id: int) -> np.ndarray:
-    """``p_world_frame`` [m] of one frame (without a placement when the step computed it)."""
-    if isinstance(conf, CompiledConfiguration):
-        return conf.frame_position(frame_id)
-    return conf.placement(frame_id).translation
-
-
 def _heading(R: np.ndarray) -> float:
     """Yaw of a world rotation [rad] (its x axis's direction on the floor)."""
     return float(np.arctan2(R[1, 0], R[0, 0]))
@@ -455,16 +448,22 @@ class RobotRetargeter:
         Planted feet off their anchors, soles below the floor, capsule pairs closer than
         ``margin`` (the rows' margin when None).
         """
+        if isinstance(conf, CompiledConfiguration):  # no Jacobians needed
+            p, witnesses, z = conf.constraint_values()
+            feet = [p[conf.frame_row(fid)] for fid in self._foot_ids]
+            floor = z[self._air_corners(anchors)]
+            gaps = witnesses.reshape(-1, 5).min(axis=1) if capsules and len(witnesses) \
+                else np.zeros(0)
+        else:
+            feet = [conf.placement(fid).translation for fid in self._foot_ids]
+            floor = self._floor_rows(conf, anchors).h
+            gaps = self.capsules.distances(conf) if capsules else np.zeros(0)
         worst = 0.0
-        for fid, anchor in zip(self._foot_ids, anchors):
+        for foot, anchor in zip(feet, anchors):
             if anchor is not None:
-                worst = max(worst, float(np.linalg.norm(_frame_position(conf, fid)
-                                                        - anchor.translation)))
-        floor = (conf.sole_corners()[0][self._air_corners(anchors)]
-                 if isinstance(conf, CompiledConfiguration) else self._floor_rows(conf, anchors).h)
+                worst = max(worst, float(np.linalg.norm(foot - anchor.translation)))
         if len(floor):
             worst = max(worst, -float(floor.min()))
-        gaps = self.capsules.distances(conf) if capsules else np.zeros(0)
         if len(gaps):
             keep = self.capsules.margin if margin is None else margin
             worst = max(worst, keep - float(gaps.min()))
