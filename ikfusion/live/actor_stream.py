@@ -330,20 +330,9 @@ class ActorStream:
         measured = {s: None if r.R_world_sensor is None else r.R_world_sensor @ mounting[s]
                     for s, r in readings.items() if s in mounting}
         tracked = self._bridge.step(time_s, measured)
-        still = {}
-        for foot, stream in self._stance.items():
-            r = readings.get(foot)
-            value = stream.update(time_s, None if r is None else r.R_world_sensor,
-                                  None if r is None else r.gyr)
-            if np.isfinite(value):
-                still[foot] = bool(value)
-        resting = {}  # knees and palms, for the contacts only (the tags' feet ignore them)
-        for segment, rest in self._resting.items():
-            r = readings.get(segment)
-            value = rest.update(time_s, None if r is None else r.R_world_sensor,
-                                None if r is None else r.acc)
-            if np.isfinite(value):
-                resting[segment] = bool(value)
+        still = _still_now(self._stance, readings, time_s, _gyr)  # feet, by their gyroscopes
+        # knees and palms by their accelerometers, for the contacts only (the tags ignore them)
+        resting = _still_now(self._resting, readings, time_s, _acc)
         self._flight.update(_acc(readings.get("Pelvis")),
                             {f: _acc(readings.get(f)) for f in FEET},
                             {f: _gyr(readings.get(f)) for f in FEET})
@@ -367,6 +356,26 @@ class ActorStream:
         self.frames += 1
         self.relaxed += int(pose.relaxed)
         return pose
+
+
+def _still_now(streams: Mapping[str, FootStillStream], readings: Mapping[str, Reading],
+               time_s: float, signal: Callable[[Reading | None], np.ndarray | None]
+               ) -> dict[str, bool]:
+    """Segment -> its stillness stream says it is still at ``time_s`` (unknown: left out).
+
+    Args:
+        streams: Segment -> its causal stillness detector.
+        readings: This frame's readings by segment.
+        time_s: Frame time [s].
+        signal: The reading's rate the detector judges (``_gyr`` or ``_acc``).
+    """
+    out = {}
+    for segment, stream in streams.items():
+        r = readings.get(segment)
+        value = stream.update(time_s, None if r is None else r.R_world_sensor, signal(r))
+        if np.isfinite(value):
+            out[segment] = bool(value)
+    return out
 
 
 def _acc(reading: Reading | None) -> np.ndarray | None:
