@@ -352,13 +352,8 @@ class ActorStream:
                 moving.update(self._points[foot].update(
                     time_s, None if r is None else r.R_world_sensor, _acc(r), _gyr(r),
                     still.get(foot)))
-        resting = {}  # knees and palms, for the contacts only (the tags' feet ignore them)
-        for segment, rest in self._resting.items():
-            r = readings.get(segment)
-            value = rest.update(time_s, None if r is None else r.R_world_sensor,
-                                None if r is None else r.acc)
-            if np.isfinite(value):
-                resting[segment] = bool(value)
+        # knees and palms by their accelerometers, for the contacts only (the tags ignore them)
+        resting = _still_now(self._resting, readings, time_s, _acc)
         self._flight.update(_acc(readings.get("Pelvis")),
                             {f: _acc(readings.get(f)) for f in FEET},
                             {f: _gyr(readings.get(f)) for f in FEET})
@@ -383,6 +378,26 @@ class ActorStream:
         self.frames += 1
         self.relaxed += int(pose.relaxed)
         return pose
+
+
+def _still_now(streams: Mapping[str, FootStillStream], readings: Mapping[str, Reading],
+               time_s: float, signal: Callable[[Reading | None], np.ndarray | None]
+               ) -> dict[str, bool]:
+    """Segment -> its stillness stream says it is still at ``time_s`` (unknown: left out).
+
+    Args:
+        streams: Segment -> its causal stillness detector.
+        readings: This frame's readings by segment.
+        time_s: Frame time [s].
+        signal: The reading's rate the detector judges (``_gyr`` or ``_acc``).
+    """
+    out = {}
+    for segment, stream in streams.items():
+        r = readings.get(segment)
+        value = stream.update(time_s, None if r is None else r.R_world_sensor, signal(r))
+        if np.isfinite(value):
+            out[segment] = bool(value)
+    return out
 
 
 def _acc(reading: Reading | None) -> np.ndarray | None:

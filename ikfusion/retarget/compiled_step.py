@@ -58,6 +58,10 @@ class RobotStep:
     frame [m]) and the outputs ``z_corners`` (4s) [m], the corners' heights, and
     ``Jz_corners`` (4s, nv), their height Jacobians.
 
+    :attr:`check_function` (``retarget_check``) gives only what tells whether a pose keeps the
+    constraints, without any Jacobian: from ``q``, ``geometry``, ``capsules`` and ``corners``,
+    the outputs ``p_frames``, ``d_witness`` and ``z_corners`` (the same expressions).
+
     Args:
         model: The robot (free-flyer and revolute joints).
         orientation_frames: Frame ids with orientation targets, in target order.
@@ -65,8 +69,8 @@ class RobotStep:
         frames: Frame ids whose placements and Jacobians are wanted.
         capsules: Capsule pairs whose witnesses are wanted.
         soles: Frame ids of the links carrying the sole corners (4 each).
-        function: The function already built for this structure (loaded from the cache);
-            built here when None.
+        functions: The step and check functions already built for this structure (loaded
+            from the cache); built here when None.
 
     Raises:
         NotImplementedError: For joint types the graph does not cover.
@@ -75,7 +79,7 @@ class RobotStep:
     def __init__(self, model: pin.Model, orientation_frames: Sequence[int],
                  position_frames: Sequence[int], frames: Sequence[int],
                  capsules: CapsulePairs | None = None, soles: Sequence[int] = (),
-                 function: ca.Function | None = None) -> None:
+                 functions: Sequence[ca.Function] | None = None) -> None:
         pairs = capsules.frame_pairs if capsules is not None else []
         self.soles = list(soles)
         self.has_capsules = bool(pairs)
@@ -86,10 +90,12 @@ class RobotStep:
                                       | set(self.position_frames) | set(self.soles)
                                       | {f for p in pairs for f in p})
         self.warnings: list[str] = []
-        self.function = function if function is not None else self._graph(model, pairs)
+        self.function, self.check_function = (
+            functions if functions is not None else self._graph(model, pairs))
 
-    def _graph(self, model: pin.Model, pairs: list[tuple[int, int]]) -> ca.Function:
-        """The step function as a CasADi graph (see the class docstring)."""
+    def _graph(self, model: pin.Model, pairs: list[tuple[int, int]]
+               ) -> tuple[ca.Function, ca.Function]:
+        """The step and check functions as CasADi graphs (see the class docstring)."""
         q = ca.SX.sym("q", model.nq)
         geometry = ca.SX.sym("geometry", 12 * (model.njoints - 1 + len(self.geometry_frames)))
         placements = symbolic_placements(geometry, model.njoints - 1, self.geometry_frames)
@@ -153,20 +159,27 @@ class RobotStep:
                 z_corners.append(point[2])
                 Jz_corners.append(jacobian(model, fid, axes, translations, point)[2, :])
 
+        p_frames = ca.vertcat(*p_out) if p_out else ca.SX(0, 1)
+        d_all = ca.vertcat(*d_witness) if d_witness else ca.SX(0, 1)
+        z_all = ca.vertcat(*z_corners) if z_corners else ca.SX(0, 1)
+        check = ca.Function("retarget_check", [q, geometry, capsule_geometry, corners],
+                            [p_frames, d_all, z_all],
+                            ["q", "geometry", "capsules", "corners"],
+                            ["p_frames", "d_witness", "z_corners"])
         return ca.Function(
             "retarget_step",
             [q, geometry, R_target, w_orient, p_target, w_position, capsule_geometry, corners],
             [H, c, ca.vertcat(*R_out) if R_out else ca.SX(0, 1),
-             ca.vertcat(*p_out) if p_out else ca.SX(0, 1),
+             p_frames,
              ca.vertcat(*J_out) if J_out else ca.SX(0, model.nv),
-             ca.vertcat(*d_witness) if d_witness else ca.SX(0, 1),
+             d_all,
              ca.vertcat(*G_witness) if G_witness else ca.SX(0, model.nv),
-             ca.vertcat(*z_corners) if z_corners else ca.SX(0, 1),
+             z_all,
              ca.vertcat(*Jz_corners) if Jz_corners else ca.SX(0, model.nv)],
             ["q", "geometry", "R_world_target", "w_orient", "p_world_target", "w_position",
              "capsules", "corners"],
             ["H", "c", "R_frames", "p_frames", "J_frames", "d_witness", "G_witness",
-             "z_corners", "Jz_corners"])
+             "z_corners", "Jz_corners"]), check
 
     def geometry(self, model: pin.Model) -> np.ndarray:
         """The geometry input of ``model`` (its joint and frame placements)."""
@@ -180,6 +193,13 @@ class RobotStep:
             self._call = BoundFunction(self.function)
         return self._call(q, geometry, column_major(R_world_target), w_orient,
                           p_world_target.reshape(-1), w_position, capsules, corners)
+
+    def check(self, q: np.ndarray, geometry: np.ndarray, capsules: np.ndarray,
+              corners: np.ndarray) -> list[np.ndarray]:
+        """``p_frames``, ``d_witness`` and ``z_corners`` as dense arrays (overwritten next call)."""
+        if not hasattr(self, "_check_call"):
+            self._check_call = BoundFunction(self.check_function)
+        return self._check_call(q, geometry, capsules, corners)
 
 
 _BUILT: dict[str, RobotStep] = {}
@@ -204,13 +224,14 @@ def robot_step(model: pin.Model, orientation_frames: Sequence[int],
     ]).encode()).hexdigest()[:20]
     built = _BUILT.get(key)
     if built is None:
-        cached = cached_functions(key, ["retarget_step"])  # no graph to build then
+        # no graph to build then
+        cached = cached_functions(key, ["retarget_step", "retarget_check"])
         built = RobotStep(model, orientation_frames, position_frames, frames, capsules, soles,
-                          cached[0] if cached else None)
+                          cached)
         if cached is None:
-            native, problem = native_functions([built.function], key)
+            native, problem = native_functions([built.function, built.check_function], key)
             if native is not None:
-                built.function = native[0]
+                built.function, built.check_function = native
             if problem is not None:
                 built.warnings.append(problem)
         _BUILT[key] = built
@@ -260,6 +281,9 @@ class CompiledConfiguration(Configuration):
         self._position_task = position_task
         self._covered = {f: i for i, f in enumerate(step.frames)}
         self._objective: tuple[np.ndarray, np.ndarray] | None = None
+        self._frames: tuple[np.ndarray, np.ndarray, np.ndarray] = (
+            np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros((0, 6, model.nv)))
+        self._checked: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._used_targets: tuple[np.ndarray, ...] = ()
         self._recheck_targets = False
         super().__init__(model, q)
@@ -275,6 +299,7 @@ class CompiledConfiguration(Configuration):
             return
         super().update(q)
         self._objective = None
+        self._checked = None
 
     def _evaluate(self) -> tuple[np.ndarray, np.ndarray]:
         if self._objective is not None and self._recheck_targets:
@@ -289,12 +314,9 @@ class CompiledConfiguration(Configuration):
                 self._capsules, self._corners)
             self._witnesses = (d[:, 0].copy(), G.copy()) if self._step.has_capsules else None
             self._soles = (z[:, 0].copy(), Jz.copy())
-            R = R.reshape(-1, 3, 3).transpose(0, 2, 1)  # column-major per frame
-            p = p.reshape(-1, 3)
-            J = J.copy()
-            for f, i in self._covered.items():
-                self._placements[f] = pin.SE3(R[i], p[i])
-                self._jacobians[f] = J[6 * i:6 * i + 6]
+            # Placements are built when asked for (most steps only read a few of them).
+            self._frames = (R.reshape(-1, 3, 3).transpose(0, 2, 1).copy(),  # column-major
+                            p.reshape(-1, 3).copy(), J.reshape(-1, 6, J.shape[1]).copy())
             self._objective = H.copy(), c[:, 0].copy()
         return self._objective
 
@@ -317,6 +339,32 @@ class CompiledConfiguration(Configuration):
             self._inputs = (arrays, inputs)
         return inputs
 
+    def constraint_values(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """What tells whether this pose keeps the constraints.
+
+        Returns the positions of the step's frames (F, 3) [m] (rows: :meth:`frame_row`), the
+        witness distances (5k,) [m] and the sole corners' heights (4s,) [m]. From the full
+        call when it ran at this pose, otherwise from the check function, which computes no
+        objective and no Jacobian (a pose that is only checked, e.g. the last step of a
+        frame, costs much less).
+        """
+        if self._objective is not None:
+            witnesses = self._witnesses
+            return (self._frames[1], np.zeros(0) if witnesses is None else witnesses[0],
+                    self._soles[0])
+        if self._checked is None:
+            p, d, z = self._step.check(self._q, self._geometry, self._capsules, self._corners)
+            self._checked = p.reshape(-1, 3).copy(), d[:, 0].copy(), z[:, 0].copy()
+        return self._checked
+
+    def frame_row(self, frame_id: int) -> int:
+        """The row of ``frame_id`` in :meth:`constraint_values`' positions.
+
+        Raises:
+            KeyError: For a frame the step does not output.
+        """
+        return self._covered[frame_id]
+
     def sole_corners(self) -> tuple[np.ndarray, np.ndarray]:
         """Heights (4s,) [m] of the sole corners and their Jacobians (4s, nv), sole-major."""
         self._evaluate()
@@ -337,12 +385,19 @@ class CompiledConfiguration(Configuration):
 
     def placement(self, frame_id: int) -> pin.SE3:
         """``T_world_frame`` of one frame."""
-        if frame_id in self._covered:
-            self._evaluate()
-        return super().placement(frame_id)
+        i = self._covered.get(frame_id)
+        if i is None:
+            return super().placement(frame_id)
+        self._evaluate()
+        T = self._placements.get(frame_id)
+        if T is None:
+            T = self._placements[frame_id] = pin.SE3(self._frames[0][i], self._frames[1][i])
+        return T
 
     def jacobian(self, frame_id: int) -> np.ndarray:
         """Frame Jacobian (6, nv), LOCAL_WORLD_ALIGNED (linear rows first)."""
-        if frame_id in self._covered:
-            self._evaluate()
-        return super().jacobian(frame_id)
+        i = self._covered.get(frame_id)
+        if i is None:
+            return super().jacobian(frame_id)
+        self._evaluate()
+        return self._frames[2][i]

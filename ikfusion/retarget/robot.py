@@ -19,6 +19,7 @@ constraints cannot all satisfy are solved with penalised slack and counted, neve
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 from functools import lru_cache
 
@@ -84,6 +85,23 @@ class _Targets:
     positions: dict[str, np.ndarray]      # segment -> (N, 3) [m] of its link (feet: sole link)
     in_contact: np.ndarray                # (N, 2) the source's feet, left first
     scale: float
+
+    def stacked(self, segments: list[str], tracked: list[str]) -> tuple[np.ndarray, np.ndarray]:
+        """Every frame's targets at once, in the tasks' orders.
+
+        Returns:
+            Orientation targets (N, k, 3, 3) of ``segments`` (NaN where a segment has none)
+            and position targets (N, m, 3) [m] of ``tracked``.
+        """
+        N = len(self.in_contact)
+        R = np.full((N, len(segments), 3, 3), np.nan)
+        for i, segment in enumerate(segments):
+            if segment in self.orientations:
+                R[:, i] = self.orientations[segment]
+        p = np.zeros((N, len(tracked), 3))
+        for i, segment in enumerate(tracked):
+            p[:, i] = self.positions[segment]
+        return R, p
 
 
 @lru_cache(maxsize=1)
@@ -204,6 +222,12 @@ class RobotRetargeter:
         self._rest_feet = [T.rotation for T in rest_feet]
         self._rest_feet_z = [float(T.translation[2]) for T in rest_feet]
         self._configuration = Configuration(model, robot.rest)
+        self._no_plants = Equality(np.zeros((0, model.nv)), np.zeros(0))
+        self._ones = np.ones(len(self.segments)), np.ones(len(self.feet))
+        self._stacked = np.zeros((0, len(self.segments), 3, 3)), np.zeros((0, 0, 3))
+        # Sole corners (4 per foot) of the feet in the air, by which feet are planted.
+        self._air = {planted: np.repeat(np.logical_not(planted), 4)
+                     for planted in itertools.product((False, True), repeat=len(self.feet))}
 
     def solve(self, source: HumanMotion, progress: bool = False) -> RobotTrajectory:
         """Retarget every frame of ``source``."""
@@ -221,6 +245,7 @@ class RobotRetargeter:
         relaxed = np.zeros(N, dtype=bool)
         anchors: list[pin.SE3 | None] = [None, None]
         waited = np.zeros(2)
+        self._stacked = targets.stacked(self.segments, tracked)
         q = self._initial(targets)
         for k in tqdm(range(N), disable=not progress, desc="retarget", unit="frame"):
             self._set_targets(targets, k, anchors)
@@ -336,11 +361,10 @@ class RobotRetargeter:
 
     def _set_targets(self, targets: _Targets, k: int, anchors: list[pin.SE3 | None]) -> None:
         """This frame's targets; a foot coming down is pulled flat onto the floor."""
-        R = np.array([targets.orientations[s][k] if s in targets.orientations
-                      else np.full((3, 3), np.nan) for s in self.segments])
-        self.orientation_task.set_targets(R, np.ones(len(self.segments)))
+        R_all, p_all = self._stacked
+        self.orientation_task.set_targets(R_all[k], self._ones[0])
         tracked = self.position_task.names
-        p = np.array([targets.positions[s][k] for s in tracked]).reshape(-1, 3)
+        p = p_all[k].copy()
         flat = np.full((2, 3, 3), np.nan)
         for i, prefix in enumerate(SIDES.values()):
             segment = f"{prefix}Foot"
@@ -351,7 +375,7 @@ class RobotRetargeter:
                 flat[i] = axis_rotation("z", yaw) @ self._rest_feet[i]
             if segment in tracked:  # onto the floor: its rest height
                 p[tracked.index(segment), 2] = self._rest_feet_z[i]
-        self.flat_task.set_targets(flat, np.ones(2))
+        self.flat_task.set_targets(flat, self._ones[1])
         self.position_task.set_targets(p, self._position_weights)
 
     def _solve_frame(self, q: np.ndarray, q_previous: np.ndarray | None, dt: float,
@@ -370,17 +394,19 @@ class RobotRetargeter:
         factor = 1.0
         for step in range(steps):
             H, c = self._tracking_objective(conf)
-            for task in (self.smoothness, self.rest_pull):
-                task.add_objective(conf, H, c)
+            # Since the previous frame (the smoothness task's error too) [rad, m].
+            moved = None if q_previous is None else conf.difference(q_previous)
+            self.smoothness.add_objective(conf, H, c, error=moved)
+            self.rest_pull.add_objective(conf, H, c)
             near = self.capsules.inequality(conf)
             rows = ([self._floor_rows(conf, anchors), near], [self._plant_rows(conf, anchors)])
             moving = np.flatnonzero(np.any(near.G[:, 6:] != 0.0, axis=0)) + 6 \
                 if step < s.trusted_steps else np.zeros(0, dtype=int)
-            box = self._box(q, q_previous, dt, moving)
+            box = self._box(q, moved, dt, moving)
             solution = solve_qp(assemble_qp(H.copy(), c, *rows, box, s.levenberg_marquardt),
                                 self.backend, self._qp)
             if solution.relaxed and len(moving):  # the trust region was too tight
-                box = self._box(q, q_previous, dt)
+                box = self._box(q, moved, dt)
                 solution = solve_qp(assemble_qp(H, c, *rows, box, s.levenberg_marquardt),
                                     self.backend, self._qp)
             relaxed |= solution.relaxed
@@ -422,38 +448,47 @@ class RobotRetargeter:
         Planted feet off their anchors, soles below the floor, capsule pairs closer than
         ``margin`` (the rows' margin when None).
         """
+        if isinstance(conf, CompiledConfiguration):  # no Jacobians needed
+            p, witnesses, z = conf.constraint_values()
+            feet = [p[conf.frame_row(fid)] for fid in self._foot_ids]
+            floor = z[self._air_corners(anchors)]
+            gaps = witnesses.reshape(-1, 5).min(axis=1) if capsules and len(witnesses) \
+                else np.zeros(0)
+        else:
+            feet = [conf.placement(fid).translation for fid in self._foot_ids]
+            floor = self._floor_rows(conf, anchors).h
+            gaps = self.capsules.distances(conf) if capsules else np.zeros(0)
         worst = 0.0
-        for fid, anchor in zip(self._foot_ids, anchors):
+        for foot, anchor in zip(feet, anchors):
             if anchor is not None:
-                worst = max(worst, float(np.linalg.norm(conf.placement(fid).translation
-                                                        - anchor.translation)))
-        floor = self._floor_rows(conf, anchors).h
+                worst = max(worst, float(np.linalg.norm(foot - anchor.translation)))
         if len(floor):
             worst = max(worst, -float(floor.min()))
-        gaps = self.capsules.distances(conf) if capsules else np.zeros(0)
         if len(gaps):
             keep = self.capsules.margin if margin is None else margin
             worst = max(worst, keep - float(gaps.min()))
         return worst
 
-    def _box(self, q: np.ndarray, q_previous: np.ndarray | None, dt: float,
+    def _box(self, q: np.ndarray, moved: np.ndarray | None, dt: float,
              trusted: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Joint limits and velocity limits as bounds on ``dq``.
+
+        ``moved`` is ``q ⊖ q_previous`` (None on a frame without a previous one).
 
         The ``trusted`` tangent coordinates (joints that move a capsule near another) also
         move at most ``trust_step`` in this step, so that the linearised distances stay
         close to the true ones.
         """
-        model = self.robot.model
-        lb = np.full(model.nv, -np.inf)
-        ub = np.full(model.nv, np.inf)
+        nv = self.robot.model.nv
+        lb, ub = np.empty(nv), np.empty(nv)
+        lb[:6], ub[:6] = -np.inf, np.inf
+        np.subtract(self.robot.lower, q[7:], out=lb[6:])
+        np.subtract(self.robot.upper, q[7:], out=ub[6:])
         if trusted is not None and len(trusted):
             step = self.settings.trust_step
-            lb[trusted], ub[trusted] = -step, step
-        lb[6:] = np.maximum(lb[6:], self.robot.lower - q[7:])
-        ub[6:] = np.minimum(ub[6:], self.robot.upper - q[7:])
-        if q_previous is not None and dt > 0:
-            moved = pin.difference(model, q_previous, q)
+            lb[trusted] = np.maximum(lb[trusted], -step)
+            ub[trusted] = np.minimum(ub[trusted], step)
+        if moved is not None and dt > 0:
             span = self._max_velocity * dt
             lb = np.maximum(lb, -span - moved)
             ub = np.minimum(ub, span - moved)
@@ -467,7 +502,7 @@ class RobotRetargeter:
         """
         if isinstance(conf, CompiledConfiguration):
             z, Jz = conf.sole_corners()
-            air = np.repeat([anchor is None for anchor in anchors], 4)
+            air = self._air_corners(anchors)
             return Inequality(-Jz[air], z[air])
         G, h = [np.zeros((0, conf.model.nv))], [np.zeros(0)]
         for foot, fid, anchor in zip(self.feet, self._foot_ids, anchors):
@@ -480,6 +515,10 @@ class RobotRetargeter:
             h.append(T.translation[2] + r[:, 2])
         return Inequality(np.vstack(G), np.concatenate(h))
 
+    def _air_corners(self, anchors: list[pin.SE3 | None]) -> np.ndarray:
+        """Mask of the sole corners (4 per foot, feet in order) of the feet not planted."""
+        return self._air[tuple(anchor is not None for anchor in anchors)]
+
     def _plant_rows(self, conf: Configuration, anchors: list[pin.SE3 | None]) -> Equality:
         """Planted feet keep their anchor placement: 6 rows per foot."""
         rows, b = [], []
@@ -487,14 +526,11 @@ class RobotRetargeter:
             if anchor is None:
                 continue
             T = conf.placement(fid)
-            J = conf.jacobian(fid)
-            rows.append(J)
-            b.append(np.concatenate([anchor.translation - T.translation,
-                                     log_so3(anchor.rotation @ T.rotation.T)]))
-        nv = self.robot.model.nv
+            rows.append(conf.jacobian(fid))
+            b += [anchor.translation - T.translation, log_so3(anchor.rotation @ T.rotation.T)]
         if not rows:
-            return Equality(np.zeros((0, nv)), np.zeros(0))
-        return Equality(np.vstack(rows), np.concatenate(b))
+            return self._no_plants
+        return Equality(rows[0] if len(rows) == 1 else np.vstack(rows), np.concatenate(b))
 
     def _update_plants(self, in_contact: np.ndarray, q: np.ndarray,
                        anchors: list[pin.SE3 | None], waited: np.ndarray, dt: float) -> None:

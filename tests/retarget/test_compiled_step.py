@@ -139,3 +139,59 @@ def test_a_failed_compile_is_a_summary_warning(human_as_robot: Path, shared_data
     trajectory = _retargeter(human_as_robot).solve(source)
     assert robot_metrics(trajectory, 1.0)["warnings"] == [
         "compiling the solver's step function failed (test)"]
+
+
+def test_placements_and_checks_follow_every_new_pose(human_as_robot: Path,
+                                                     no_compile: None) -> None:
+    """Placements, Jacobians and the constraint check are those of the pose last set.
+
+    The check (frame positions, witness distances, sole heights) comes from the light check
+    function on a pose only checked and from the full call otherwise: the same values.
+    """
+    rt = _retargeter(human_as_robot)
+    robot = rt.robot
+    rt.position_task = robot_module.PositionTask([robot.frame_ids["Pelvis"]], ["Pelvis"])
+    conf, _ = rt._step_configuration()
+    assert isinstance(conf, CompiledConfiguration)
+    plain = Configuration(robot.model, robot.rest)
+    reference = CapsulePairs(robot.config.capsules, robot.config.collision_pairs,
+                             robot.frame_ids, activation=np.inf)
+    rng = np.random.default_rng(8)
+    rt.position_task.set_targets(rng.normal(size=(1, 3)), [1.0])
+    for n in range(6):
+        q = pin.randomConfiguration(robot.model, -np.ones(robot.model.nq),
+                                    np.ones(robot.model.nq))
+        conf.update(q)
+        plain.update(q)
+        checked = [x.copy() for x in conf.constraint_values()]  # before any full call
+        if n % 2:  # new targets at this pose: evaluated again, the kinematics the same
+            conf.tracking_objective()
+            rt.position_task.set_targets(rng.normal(size=(1, 3)), [1.0])
+            conf.update(q)
+        conf.tracking_objective()
+        for p, d, z in (checked, conf.constraint_values()):
+            for fid in rt._foot_ids:
+                np.testing.assert_allclose(p[conf.frame_row(fid)],
+                                           plain.placement(fid).translation, atol=1e-12)
+            np.testing.assert_allclose(d, reference._witnesses(plain)[2], atol=1e-12)
+            corners = np.concatenate([f.corners @ plain.placement(fid).rotation.T
+                                      + plain.placement(fid).translation
+                                      for f, fid in zip(rt.feet, rt._foot_ids)])
+            np.testing.assert_allclose(z, corners[:, 2], atol=1e-12)
+        fid = rt._foot_ids[n % 2]
+        np.testing.assert_allclose(conf.placement(fid).homogeneous,
+                                   plain.placement(fid).homogeneous, atol=1e-12)
+        np.testing.assert_allclose(conf.jacobian(fid), plain.jacobian(fid), atol=1e-12)
+
+
+def test_stacked_targets_leave_missing_segments_untracked() -> None:
+    """Per-frame orientation targets of every mapped segment at once: NaN where none."""
+    N = 5
+    rng = np.random.default_rng(2)
+    R = np.array([pin.exp3(rng.normal(size=3)) for _ in range(N)])
+    p = rng.normal(size=(N, 3))
+    targets = robot_module._Targets({"Head": R}, {"Pelvis": p}, np.zeros((N, 2), bool), 1.0)
+    R_all, p_all = targets.stacked(["Pelvis", "Head"], ["Pelvis"])
+    assert R_all.shape == (N, 2, 3, 3) and np.isnan(R_all[:, 0]).all()
+    np.testing.assert_array_equal(R_all[:, 1], R)
+    np.testing.assert_array_equal(p_all[:, 0], p)

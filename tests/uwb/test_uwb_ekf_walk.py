@@ -194,20 +194,30 @@ def test_foot_units_stand_still_in_stance(walk: Walk, blocked: str) -> None:
     assert err.max() < (0.05 if blocked == "two readers" else 0.20), err.max()
 
 
+def _foot_unit(walk: Walk, side: str):  # type: ignore[no-untyped-def]
+    """Tag T3 on ``side`` ("Left"/"Right") foot: its tag info, UWB simulation and IMU unit."""
+    foot = {"T3": TagInfo("T3", "A", f"{side}FootTop")}
+    imus = simulate_imus(walk.truth.model, walk.truth.time, walk.truth.q, [f"{side}Foot"],
+                         np.random.default_rng(9))
+    sim = simulate_uwb(walk.truth, walk.constellation, np.random.default_rng(1),
+                       UwbCaptureOptions(nlos_fraction=0.1), foot)
+    return foot, sim, imu_units_from_simulation(walk.truth, imus, foot)["T3"]
+
+
+def _without(unit, lost):  # type: ignore[no-untyped-def]
+    """``unit`` with its IMU samples at ``lost`` (index or mask) missing (NaN)."""
+    R, acc, gyr = unit.R_world_sensor.copy(), unit.acc.copy(), unit.gyr.copy()
+    R[lost], acc[lost], gyr[lost] = np.nan, np.nan, np.nan
+    return replace(unit, R_world_sensor=R, acc=acc, gyr=gyr)
+
+
 def test_a_start_on_lost_packets_takes_the_first_orientation_received(walk: Walk) -> None:
     """The first IMU rows of a foot unit lost (its orientation is NaN before the sensor's first
     packet): the filter starts from the first orientation received, not from the identity
     (which put the foot 0.9 m off for seconds)."""
-    foot = {"T3": TagInfo("T3", "A", "RightFootTop")}
-    imus = simulate_imus(walk.truth.model, walk.truth.time, walk.truth.q, ["RightFoot"],
-                         np.random.default_rng(9))
-    sim = simulate_uwb(walk.truth, walk.constellation, np.random.default_rng(1),
-                       UwbCaptureOptions(nlos_fraction=0.1), foot)
-    unit = imu_units_from_simulation(walk.truth, imus, foot)["T3"]
+    foot, sim, unit = _foot_unit(walk, "Right")
     lost = slice(0, 10)  # the first 0.17 s
-    R, acc, gyr = unit.R_world_sensor.copy(), unit.acc.copy(), unit.gyr.copy()
-    R[lost], acc[lost], gyr[lost] = np.nan, np.nan, np.nan
-    units = {"T3": replace(unit, R_world_sensor=R, acc=acc, gyr=gyr)}
+    units = {"T3": _without(unit, lost)}
     track = track_tags(sim.log, walk.constellation, foot, units)["T3"]
     true = site_positions(walk.truth.model, walk.truth.q, ["RightFootTop"])[:, 0]
     err = np.linalg.norm(track.p_world_tag - true, axis=1)
@@ -218,19 +228,12 @@ def test_lost_imu_samples_barely_move_a_foot_track(walk: Walk) -> None:
     """20 % of a foot unit's IMU samples lost at random (as an Awinda station loses packets):
     the smoothed track stays within 1 cm RMS of the track with every sample (holding the last
     sample over a lost one biased it by several centimetres for seconds)."""
-    foot = {"T3": TagInfo("T3", "A", "RightFootTop")}
-    imus = simulate_imus(walk.truth.model, walk.truth.time, walk.truth.q, ["RightFoot"],
-                         np.random.default_rng(9))
-    sim = simulate_uwb(walk.truth, walk.constellation, np.random.default_rng(1),
-                       UwbCaptureOptions(nlos_fraction=0.1), foot)
-    unit = imu_units_from_simulation(walk.truth, imus, foot)["T3"]
+    foot, sim, unit = _foot_unit(walk, "Right")
     lost = np.random.default_rng(3).random(len(walk.truth.time)) < 0.2
     lost[:10] = False
-    R, acc, gyr = unit.R_world_sensor.copy(), unit.acc.copy(), unit.gyr.copy()
-    R[lost], acc[lost], gyr[lost] = np.nan, np.nan, np.nan
     true = site_positions(walk.truth.model, walk.truth.q, ["RightFootTop"])[:, 0]
     rms = []
-    for u in (unit, replace(unit, R_world_sensor=R, acc=acc, gyr=gyr)):
+    for u in (unit, _without(unit, lost)):
         track = track_tags(sim.log, walk.constellation, foot, {"T3": u})["T3"]
         err = np.linalg.norm(track.p_world_tag - true, axis=1)
         rms.append(float(np.sqrt(np.nanmean(err ** 2))))
@@ -245,17 +248,10 @@ def test_a_foot_unit_silent_for_2_s_stays_with_its_tag(walk: Walk, smooth: bool)
     while claiming 2 cm (every TOA gated out, the smoother spreading it over the second before
     the gap), and an attitude more than 30 deg off when the sensor returned was never
     corrected."""
-    foot = {"T3": TagInfo("T3", "A", "LeftFootTop")}
-    imus = simulate_imus(walk.truth.model, walk.truth.time, walk.truth.q, ["LeftFoot"],
-                         np.random.default_rng(9))
-    sim = simulate_uwb(walk.truth, walk.constellation, np.random.default_rng(1),
-                       UwbCaptureOptions(nlos_fraction=0.1), foot)
-    unit = imu_units_from_simulation(walk.truth, imus, foot)["T3"]
+    foot, sim, unit = _foot_unit(walk, "Left")
     t = walk.truth.time
     silent = (t >= 15.0) & (t < 17.0)
-    R, acc, gyr = unit.R_world_sensor.copy(), unit.acc.copy(), unit.gyr.copy()
-    R[silent], acc[silent], gyr[silent] = np.nan, np.nan, np.nan
-    units = {"T3": replace(unit, R_world_sensor=R, acc=acc, gyr=gyr)}
+    units = {"T3": _without(unit, silent)}
     track = track_tags(sim.log, walk.constellation, foot, units,
                        options=EkfOptions(smooth=smooth))["T3"]
     err = track.p_world_tag - site_positions(walk.truth.model, walk.truth.q,
