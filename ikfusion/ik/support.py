@@ -21,7 +21,11 @@ the sensed leg too: a heel free in height drifts up with the pelvis (nothing els
 there while the body stands on one toe), lands high and lifts the body at each heel strike.
 It lets the height go where the sensed leg puts the foot under the floor: the floor lifts that
 foot, and a heel held at its sensed height while the floor lifts the toe pitches the foot about
-the ankle, which springs back when the toe rises (a pop). Meanwhile the pelvis leans toward the
+the ankle, which springs back when the toe rises (a pop). It lets it go for the whole swing when
+the heel left the floor away from the sensed leg's height (by ``_UNDER_FLOOR_BAND`` or more): a
+sensed leg that disagreed with the floor in height would pull the body up after lift-off and
+down before landing (a run's legs, with feet the sensors put centimetres under the floor).
+Meanwhile the pelvis leans toward the
 correction by at most ``lean_max``; the lean passes into the lag when the body is handed to a
 foot that was placed leaning.
 """
@@ -38,6 +42,7 @@ from .fast_math import mean_rows
 _HORIZONTAL = np.diag([1.0, 1.0, 0.0])  # information of a lead on the x and y axes
 _VERTICAL = np.diag([0.0, 0.0, 1.0])  # ... and on the z axis
 _UNDER_FLOOR_BAND = 0.01  # [m] the lead lets a heel's height go as its foot sinks this far
+# under the floor, or as the heel lifts off this far from the sensed leg's height
 
 
 class SupportFollower:
@@ -85,6 +90,7 @@ class SupportFollower:
         self._max_step = 0.0
         n = len(self._feet)
         self._swinging = [False] * n
+        self._height_trust = np.ones(n)  # how far a swing heel is held at its sensed height
         self._goal = np.zeros((n, 3))
         self.swing = np.zeros((n, 3))
         self._landed_swing = np.zeros((n, 3))
@@ -249,6 +255,8 @@ class SupportFollower:
                 # the heel leaves the floor where it is, not where the sensed leg puts it (nor
                 # where it was led before a short touch-down: the body moved under it since)
                 self.swing[f] = mean_rows(self._deviation[points & self._led])
+                # a sensed leg that disagreed with the floor's height does not set the heel's
+                self._height_trust[f] = _band_share(-abs(float(self.swing[f][2])))
                 self._landed_swing[f] = 0.0
             self.swing[f] += _clip_norm(self._goal[f] - self.swing[f], self.swing_speed * dt)
             self.swing[f] -= moved
@@ -288,8 +296,9 @@ class SupportFollower:
 
         The information of a led heel is 1 on the horizontal axes; on the vertical axis it is 1
         while the foot's targets are on or above the floor and falls to 0 as the lowest of them
-        sinks ``_UNDER_FLOOR_BAND`` under it (the floor, not the lead, sets that foot's height).
-        Every other point has none.
+        sinks ``_UNDER_FLOOR_BAND`` under it (the floor, not the lead, sets that foot's height),
+        and as the heel left the floor up to ``_UNDER_FLOOR_BAND`` away from its sensed height
+        (the sensed leg's height is not to be trusted then). Every other point has none.
 
         Args:
             p_points: (k, 3) contact points of the warm start (the sensed pose on the support,
@@ -302,9 +311,14 @@ class SupportFollower:
             if self._swinging[f] and np.any(self._goal[f]):
                 targets[points] += self.swing[f]
                 sunk = self.floor_z - float(targets[points, 2].min())
-                height = min(max(1.0 - sunk / _UNDER_FLOOR_BAND, 0.0), 1.0)
+                height = min(_band_share(-sunk), self._height_trust[f])
                 info[points & self._led] = _HORIZONTAL + height * _VERTICAL
         return targets, info
+
+
+def _band_share(height: float) -> float:
+    """1 at or above 0, falling to 0 at ``-_UNDER_FLOOR_BAND`` [m] and below."""
+    return min(max(1.0 + height / _UNDER_FLOOR_BAND, 0.0), 1.0)
 
 
 def _shrink(v: np.ndarray, by: float) -> np.ndarray:

@@ -111,6 +111,26 @@ def test_a_swing_heel_is_held_at_its_sensed_height_unless_its_foot_sinks_under_t
     assert heights[:2] == [1.0, 1.0] and 0.0 < heights[2] < 1.0 and heights[3:] == [0.0, 0.0]
 
 
+def test_a_heel_that_left_the_floor_away_from_its_sensed_height_is_led_sideways_only(
+        ) -> None:
+    """A run's sensed legs put a planted heel 4 cm under the floor: the heel left the floor
+    4 cm above the sensed leg's height. Held at that height, it pulled the body up after
+    lift-off and down before landing (run head 3.2 -> 4.0 cm); its height is left free."""
+    sensed = _points(0.0, 0.5)
+    for deviation_z, held in ((0.0, 1.0), (0.005, 0.5), (0.04, 0.0)):
+        f = _follower()
+        f.set_step(np.array([0.3, 0.0, 0.0]), max_step=0.1)
+        f.follow(BOTH, _points(0.0, 0.5), sensed, DT)
+        f.swing_targets(sensed)
+        solved = sensed.copy()
+        solved[2:, 2] += deviation_z  # the right foot held that far above its sensed height
+        f.record(solved, np.zeros(3))
+        f.follow(LEFT, _points(0.0, 0.5), sensed + [0.0, 0.0, 0.05], DT)  # it lifts off
+        _, info = f.swing_targets(sensed + [0.0, 0.0, 0.05])
+        assert info[2][2, 2] == pytest.approx(held)
+        assert np.array_equal(info[2][:2], np.eye(3)[:2])
+
+
 def test_a_touch_down_let_go_at_once_resumes_its_swing_from_where_the_heel_is() -> None:
     """A heel strike the gyroscope did not confirm: the landing is not counted and the swing
     goes on toward the same goal, from where the heel is. Held on the floor while the body
