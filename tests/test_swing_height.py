@@ -54,7 +54,8 @@ def test_no_slide_does_not_lift_the_body_at_heel_strikes(walk_capture: Path, tmp
     sites = [str(s) for s in truth["site_names"]]
     t, names, solved = read_long_csv(out / "sites.csv", "site", ("x", "y", "z"))
     n = len(t)
-    error = solved[:, names.index("Pelvis"), 2] - truth["p_world_site"][:n, sites.index("Pelvis"), 2]  # [m]
+    true_z = truth["p_world_site"][:n, sites.index("Pelvis"), 2]
+    error = solved[:, names.index("Pelvis"), 2] - true_z  # [m]
     strikes = _heel_strikes(truth)
     assert len(strikes) >= 8
     near = np.unique(np.clip(strikes[:, None] + np.arange(-3, 4), 0, n - 1))  # +-50 ms
