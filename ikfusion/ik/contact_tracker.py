@@ -53,7 +53,8 @@ class ContactTracker:
                                for f, steps in zip(self._foot_names, self.layout.stepping)],
                               dtype=int)
         self.support = SupportFollower(self.layout, s.lag_speed, s.lag_max, s.swing_speed,
-                                       s.lean_max, s.lean_speed, s.touchdown_confirm)
+                                       s.lean_max, s.lean_speed, s.touchdown_confirm,
+                                       self.thresholds.floor_z)
         legs = [np.array([segments.index(g) for g in topology.limb(f)] if f else [], dtype=int)
                 for f in self._foot_names]
         self.easing = ReleaseEasing(legs, len(segments), np.radians(s.ease_speed_deg))
