@@ -74,8 +74,10 @@ class FootPointsStream:
 
 
 def _cross(w: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """(k, 3) ``w x r`` of a (3,) vector and (k, 3) vectors, the products of ``np.cross`` (which
-    costs ten times more for these few)."""
+    """(k, 3) ``w x r`` of a (3,) vector and (k, 3) vectors.
+
+    The products and differences of ``np.cross``, which costs ten times more for these few.
+    """
     out = np.empty_like(r)
     out[:, 0] = w[1] * r[:, 2] - w[2] * r[:, 1]
     out[:, 1] = w[2] * r[:, 0] - w[0] * r[:, 2]

@@ -179,11 +179,11 @@ class LiveLoop:
 
     def _arrived(self, inbox: queue.Queue[Any], item: Any
                  ) -> tuple[dict[str, list[AssembledFrame]], bool]:
-        """The frames released by ``item`` and (paced) the samples that arrived before it was
-        taken; whether the source ended.
+        """The frames released by ``item`` and the samples arrived before; the source ended.
 
-        A sample that arrives while these are assembled waits for the next round, so a source
-        delivering faster than they are assembled cannot hold the solves back.
+        Paced, the samples that arrived before this round began are taken after ``item``; one
+        that arrives while they are assembled waits for the next round, so a source delivering
+        faster than they are assembled cannot hold the solves back.
         """
         waiting: dict[str, list[AssembledFrame]] = {a.name: [] for a in self.actors}
         started = self.clock()
