@@ -95,7 +95,8 @@ class CorrectionSettings(ShippedSettings):
         tag_sigma: ... with this uncertainty [m] added to the fixes' ...
         tag_vertical: ... pulling heights too (else horizontally only).
         tag_time_constant: In flight the pelvis closes the gap to the tags with this lag [s] ...
-        tag_flight_speed: ... moving at most this fast toward them [m/s].
+        tag_flight_speed: ... moving at most this fast toward them [m/s] ...
+        tag_flight_vertical: ... in height too when the head's tag has a fix.
         tag_onset: A swing foot's task grows to full weight over this much of its swing [s],
             and fades out over as long before its predicted touch-down.
         release_distance: A planted foot whose tag moved farther than this [m]
@@ -120,6 +121,7 @@ class CorrectionSettings(ShippedSettings):
     tag_vertical: bool
     tag_time_constant: float
     tag_flight_speed: float
+    tag_flight_vertical: bool
     tag_onset: float
     release_distance: float
     release_speed: float
@@ -323,7 +325,8 @@ class DriftCorrection:
         """The ``no-slide`` tag tasks' part of the settings."""
         s = self.settings
         return TagTaskSettings(s.tag_speed, s.tag_weight, s.tag_sigma, s.tag_vertical,
-                               s.tag_time_constant, s.tag_onset, s.tag_flight_speed)
+                               s.tag_time_constant, s.tag_onset, s.tag_flight_speed,
+                               s.tag_flight_vertical)
 
     def _pull_flight(self, solver: Solver, k: int, dt: float) -> None:
         """In flight: move the solver's ballistic path toward frame ``k``'s tags.
