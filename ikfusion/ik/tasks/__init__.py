@@ -7,4 +7,5 @@ from .orientation import OrientationTask
 from .position import PositionTask
 from .posture import PostureTask
 
-__all__ = ["DampingTask", "EvenChainTask", "Objective", "OrientationTask", "PositionTask", "PostureTask", "Task"]
+__all__ = ["DampingTask", "EvenChainTask", "Objective", "OrientationTask", "PositionTask",
+           "PostureTask", "Task"]

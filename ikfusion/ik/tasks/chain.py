@@ -27,6 +27,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from ...errors import ConfigError
+from ...model.ball_joints import BallJoint
 from ...rotations import log_so3, quat_wxyz_to_matrix, right_jacobian_inverse, xyzw_to_wxyz
 from ..configuration import Configuration
 from .base import Task
@@ -46,10 +47,10 @@ class EvenChainTask(Task):
         ConfigError: An unknown joint, or a chain whose joints do not follow each other.
     """
 
-    def __init__(self, joints: Mapping[str, object], chains: Sequence[Sequence[str]],
+    def __init__(self, joints: Mapping[str, BallJoint], chains: Sequence[Sequence[str]],
                  weight: float, segments: Sequence[str]) -> None:
         index = {n: i for i, n in enumerate(segments)}
-        pairs: list[tuple[object, object]] = []
+        pairs: list[tuple[BallJoint, BallJoint]] = []
         for chain in chains:
             for name in chain:
                 if name not in joints:
@@ -57,18 +58,15 @@ class EvenChainTask(Task):
                                       f"{', '.join(joints)}", field="even_chains")
             for first, second in zip(chain[:-1], chain[1:]):
                 a, b = joints[first], joints[second]
-                if a.spec.child != b.spec.parent:  # type: ignore[attr-defined]
+                if a.spec.child != b.spec.parent:
                     raise ConfigError(f"even_chains: {second!r} does not follow {first!r} "
                                       "(its parent segment is not the other's child)",
                                       field="even_chains")
                 pairs.append((a, b))
         self.weight = float(weight)
-        self.pair_q = np.array([[j.idx_q for j in p] for p in pairs],  # type: ignore[attr-defined]
-                               dtype=int).reshape(-1, 2)
-        self.pair_v = np.array([[j.idx_v for j in p] for p in pairs],  # type: ignore[attr-defined]
-                               dtype=int).reshape(-1, 2)
-        self.shared = np.array([index[p[0].spec.child] for p in pairs],  # type: ignore[attr-defined]
-                               dtype=int)
+        self.pair_q = np.array([[a.idx_q, b.idx_q] for a, b in pairs], dtype=int).reshape(-1, 2)
+        self.pair_v = np.array([[a.idx_v, b.idx_v] for a, b in pairs], dtype=int).reshape(-1, 2)
+        self.shared = np.array([index[a.spec.child] for a, _ in pairs], dtype=int)
         self.active = np.ones(len(pairs), dtype=bool)
 
     def set_tracked(self, tracked: np.ndarray) -> None:
@@ -81,7 +79,7 @@ class EvenChainTask(Task):
 
     def _logs(self, q: np.ndarray) -> np.ndarray:
         """Rotation vectors (pairs, 2, 3) [rad] of both joints of each pair."""
-        cols = self.pair_q[..., None] + np.arange(4)
+        cols = self.pair_q[..., None] + np.arange(4, dtype=int)
         return log_so3(quat_wxyz_to_matrix(xyzw_to_wxyz(np.asarray(q)[cols])))
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:
