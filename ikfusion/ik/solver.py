@@ -221,7 +221,8 @@ class Solver:
     def _base_tasks(self, frame: Frame) -> list[Task]:
         """The tasks of every frame, with the pelvis at its aiding position when it has one."""
         t = self.tasks
-        active: list[Task] = [t.orientation, t.position, t.posture, t.damping, t.persistence]
+        active: list[Task] = [t.orientation, t.position, t.posture, t.even_chain, t.damping,
+                              t.persistence]
         if frame.root_position is not None:
             t.root.set_targets(np.asarray(frame.root_position, dtype=float)[None],
                                [frame.root_position_weight])
