@@ -64,6 +64,7 @@ from ..rotations_casadi import (
 )
 from .casadi_kinematics import forward, frame_pose, geometry_vector, jacobian, symbolic_placements
 from .compiled_ranges import range_rows
+from .fast_math import true_indices
 from .native import BoundFunction, cached_functions, column_major, native_functions
 
 
@@ -276,7 +277,7 @@ class CompiledKinematics:
             q, column_major(R_world_target), geometry, w_posture, column_major(R_reference),
             lower, upper)
         w = np.asarray(w_orient)
-        weighed = np.flatnonzero(w)  # the rows of untracked segments add exact zeros: skipped
+        weighed = true_indices(w)  # the rows of untracked segments add exact zeros: skipped
         J = J_orient[weighed]
         WJ = w[weighed, None] * J
         return [H_posture + J.T @ WJ, c_posture + WJ.T @ e_orient[weighed], e_orient, *rest]
