@@ -22,11 +22,7 @@ of :mod:`ikfusion.rotations` that the NumPy tasks use, with one epsilon policy. 
   orientation and posture tasks, ``H = sum J^T W J`` and ``c = sum J^T W e``, with
   ``e_orient = log(R_world_segment R_world_target^T)``, ``J_orient = Jl^-1(e) J_angular``,
   ``e_posture = log(R_reference^T R_parent_child)`` and ``J_posture`` = ``Jr^-1(e)`` on each
-  joint's columns (as :class:`ikfusion.ik.tasks.PostureTask`). The graph returns the
-  posture part and ``J_orient`` (3k, nv); :meth:`CompiledKinematics.__call__` adds the
-  orientation part ``J_orient^T W J_orient`` as one NumPy product (written out in the graph it
-  was four fifths of its instructions, and a compiled function that large runs out of the
-  processor's caches);
+  joint's columns (as :class:`ikfusion.ik.tasks.PostureTask`);
 * ``e_orient`` (3k) [rad];
 * ``angles`` (3j): anatomical angles [rad] in sequence order; ``E_inv`` (3j, 3): their rates
   per unit joint tangent step;
@@ -64,7 +60,6 @@ from ..rotations_casadi import (
 )
 from .casadi_kinematics import forward, frame_pose, geometry_vector, jacobian, symbolic_placements
 from .compiled_ranges import range_rows
-from .fast_math import true_indices
 from .native import BoundFunction, cached_functions, column_major, native_functions
 
 
@@ -175,21 +170,25 @@ class CompiledKinematics:
         upper = ca.SX.sym("upper", 3 * len(ball_joints))
         G_ranges, room_up, room_down = range_rows(
             angles, E_inv, [j.idx_v for j in ball_joints], lower, upper, model.nv)
+        w_orient = ca.SX.sym("w_orient", 3 * len(segment_frames))
         w_posture = ca.SX.sym("w_posture", 3 * len(ball_joints))
-        # The posture rows touch one joint each: their J^T W J is block diagonal and cheap in
-        # the graph. The orientation rows' product is dense (most of the graph's instructions
-        # when written out): it is one matrix product in NumPy instead (:meth:`__call__`).
-        J_posture = stack(J_post, model.nv)
-        WJ = ca.diag(w_posture) @ J_posture
+        H = ca.SX(model.nv, model.nv)
+        c = ca.SX(model.nv, 1)
+        for e_all, J_all, weights in ((stack(e_orient, 1), stack(J_orient, model.nv), w_orient),
+                                      (stack(e_post, 1), stack(J_post, model.nv), w_posture)):
+            WJ = ca.diag(weights) @ J_all
+            H += J_all.T @ WJ
+            c += WJ.T @ e_all
+
         self.function = ca.Function(
             self.FUNCTION_NAMES[0],
-            [q, targets, geometry, w_posture, references, lower, upper],
-            [J_posture.T @ WJ, WJ.T @ stack(e_post, 1), stack(e_orient, 1),
-             stack(J_orient, model.nv), stack(angles, 1), stack(E_inv, 3), stack(p_sites, 1),
+            [q, targets, geometry, w_orient, w_posture, references, lower, upper],
+            [H, c, stack(e_orient, 1), stack(angles, 1), stack(E_inv, 3), stack(p_sites, 1),
              stack(J_sites, model.nv), G_ranges, room_up, room_down],
-            ["q", "R_world_target", "geometry", "w_posture", "R_reference", "lower", "upper"],
-            ["H_posture", "c_posture", "e_orient", "J_orient", "angles", "E_inv", "p_sites",
-             "J_sites", "G_ranges", "room_up", "room_down"],
+            ["q", "R_world_target", "geometry", "w_orient", "w_posture", "R_reference",
+             "lower", "upper"],
+            ["H", "c", "e_orient", "angles", "E_inv", "p_sites", "J_sites", "G_ranges",
+             "room_up", "room_down"],
         )
 
     def _sensed(self, model: pin.Model, spec: SensedPoseSpec, q: ca.SX, targets: ca.SX,
@@ -265,22 +264,14 @@ class CompiledKinematics:
                 ranges when omitted).
 
         Returns:
-            ``H, c, e_orient, angles, E_inv, p_sites, J_sites, G_ranges, room_up, room_down``
-            as dense arrays: ``H`` and ``c`` (nv, 1) new ones, the others overwritten by the
-            next call (copy to keep them).
+            The outputs as dense arrays, overwritten by the next call (copy to keep them).
         """
         if not hasattr(self, "_step"):
             self._step = BoundFunction(self.function)
         none = np.zeros(len(w_posture))
         lower, upper = (none, none) if limits is None else (limits[0].ravel(), limits[1].ravel())
-        H_posture, c_posture, e_orient, J_orient, *rest = self._step(
-            q, column_major(R_world_target), geometry, w_posture, column_major(R_reference),
-            lower, upper)
-        w = np.asarray(w_orient)
-        weighed = true_indices(w)  # the rows of untracked segments add exact zeros: skipped
-        J = J_orient[weighed]
-        WJ = w[weighed, None] * J
-        return [H_posture + J.T @ WJ, c_posture + WJ.T @ e_orient[weighed], e_orient, *rest]
+        return self._step(q, column_major(R_world_target), geometry, w_orient, w_posture,
+                          column_major(R_reference), lower, upper)
 
     def sensed_pose(self, q: np.ndarray, R_world_target: np.ndarray, geometry: np.ndarray,
                     tracked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -304,7 +295,7 @@ def structure_key(model: pin.Model, segment_frames: Sequence[int],
                   sensed: SensedPoseSpec | None = None) -> str:
     """A string identifying the compiled structure (not the geometry) of a step function."""
     parts = [
-        "objective-v8",
+        "objective-v7",
         repr(sensed),
         ",".join(model.joints[j].shortname() for j in range(1, model.njoints)),
         ",".join(str(p) for p in model.parents),

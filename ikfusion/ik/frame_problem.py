@@ -157,7 +157,7 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     H, c, _, _, _, p_sites, J_sites, G_ranges, room_up, room_down = compiled.kinematics(
         conf.q, tasks.orientation.targets, compiled.geometry, *row_weights,
         tasks.posture.R_reference, (limits.lower, limits.upper))
-    c = c[:, 0]  # H and c are new arrays of this call
+    H, c = H.copy(), c[:, 0].copy()
     P = p_sites.reshape(-1, 3)
     J = J_sites.reshape(-1, 3, nv)
     tasks.position.add_rows(P[:-1], J[:-1], H, c)
