@@ -251,7 +251,7 @@ class Solver:
                 break
             relaxed = relaxed or solution.relaxed
             conf.update(conf.integrate(solution.dq))
-            if np.max(np.abs(solution.dq)) < s.step_tolerance:
+            if np.abs(solution.dq).max() < s.step_tolerance:
                 break  # planted points are then held exactly by the projection below
         t = self.tasks
         relaxed = project_on_contacts(conf, t.contact, t.floor, t.joint_range,

@@ -37,7 +37,7 @@ import math
 import numpy as np
 
 from ..model.topology import FootLayout
-from .fast_math import mean_rows
+from .fast_math import any_true, mean_rows, true_indices
 
 _HORIZONTAL = np.diag([1.0, 1.0, 0.0])  # information of a lead on the x and y axes
 _VERTICAL = np.diag([0.0, 0.0, 1.0])  # ... and on the z axis
@@ -167,10 +167,10 @@ class SupportFollower:
         moved = np.zeros(3)  # how far the pelvis target moves to where the pelvis was solved
         if self._support is not None:
             was, held = self._support
-            if was.any():
+            if any_true(was):
                 # what the last frame's support says now, minus what this frame's says
                 self.lag += mean_rows(held[was] - p_sensed[was]) - offset
-            if not (was & reference).any():
+            if not any_true(was & reference):
                 # the body is handed to a foot that was placed leaning: the lean is in it now;
                 # and the pelvis goes on from where it was solved, not from its soft target
                 self.lag += self.lean + self._off_target
@@ -190,7 +190,7 @@ class SupportFollower:
 
     def _foot_of(self, points: np.ndarray) -> int:
         """The foot (index in the layout's feet) of the first of ``points``."""
-        return next((f for f, g in enumerate(self._feet) if (points & g).any()), 0)
+        return next((f for f, g in enumerate(self._feet) if any_true(points & g)), 0)
 
     def _planted(self, points: np.ndarray) -> np.ndarray:
         """(groups,) does each group (foot, knee, palm) have one of ``points`` (k,)?"""
@@ -206,7 +206,7 @@ class SupportFollower:
         age = self._planted_for
         oldest = planted & (age == age[planted].max())
         reference = np.zeros(len(active), dtype=bool)
-        for f in np.flatnonzero(oldest):
+        for f in true_indices(oldest):
             reference |= self._feet[f]
         return reference & active
 
@@ -218,7 +218,7 @@ class SupportFollower:
     def _settle_landings(self, planted: np.ndarray, dt: float) -> None:
         """Groups ``planted`` (groups,) that touched down stay where they were led (``landed``)."""
         self.landed = np.zeros(3)
-        for f in np.flatnonzero(planted):
+        for f in true_indices(planted):
             if self._swinging[f]:
                 self._swinging[f] = False
                 self._landed_swing[f] = self.swing[f]
@@ -241,14 +241,14 @@ class SupportFollower:
         heel is (held while the body moved on, it is no longer where it was led: a swing
         resumed there jumped the heel by centimetres), and its landing is not counted.
         """
-        for f in np.flatnonzero(~planted):
+        for f in true_indices(~planted):
             points = self._feet[f]
             if not self._steps[f]:
                 self._swinging[f] = True  # lifted, never led: lands with no swing offset
                 continue
             if not self._swinging[f]:
                 self._swinging[f] = True
-                if self._planted_for[f] < self.confirm and np.any(self._landed_swing[f]):
+                if self._planted_for[f] < self.confirm and any_true(self._landed_swing[f]):
                     self.landed -= self._landed_swing[f]  # not counted; its goal is kept
                 else:
                     self._goal[f] = _clip_norm(self._step - self.pending, self._max_step)
@@ -308,7 +308,7 @@ class SupportFollower:
         targets = p_points.copy()
         info = np.zeros((len(p_points), 3, 3))
         for f, points in enumerate(self._feet):
-            if self._swinging[f] and np.any(self._goal[f]):
+            if self._swinging[f] and any_true(self._goal[f]):
                 targets[points] += self.swing[f]
                 sunk = self.floor_z - float(targets[points, 2].min())
                 height = min(_band_share(-sunk), self._height_trust[f])
