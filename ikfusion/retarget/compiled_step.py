@@ -394,6 +394,15 @@ class CompiledConfiguration(Configuration):
             T = self._placements[frame_id] = pin.SE3(self._frames[0][i], self._frames[1][i])
         return T
 
+    def frame_arrays(self, frame_id: int) -> tuple[np.ndarray, np.ndarray]:
+        """``R_world_frame`` (3, 3) and ``p_world_frame`` (3,) [m] of one frame, as arrays."""
+        i = self._covered.get(frame_id)
+        if i is None:
+            T = super().placement(frame_id)
+            return T.rotation, T.translation
+        self._evaluate()
+        return self._frames[0][i], self._frames[1][i]
+
     def jacobian(self, frame_id: int) -> np.ndarray:
         """Frame Jacobian (6, nv), LOCAL_WORLD_ALIGNED (linear rows first)."""
         i = self._covered.get(frame_id)
