@@ -159,6 +159,42 @@ class CapsulePairs:
         p, q = closest_points(*witness_segments(ends[:, :k], ends[:, k:]))
         return np.linalg.norm(p - q, axis=-1).min(axis=-1) - self._radius
 
+    def min_distance(self, R_links: np.ndarray, o_links: np.ndarray) -> float | None:
+        """The smallest distance of any pair along a motion [m], None without pairs.
+
+        The value of ``along(R_links, o_links).min()``, computed exactly only where a pair
+        may come that close: a pair's centre distance minus its reach bounds its distance from
+        below, so the (frame, pair) of the lowest bound gives an exact distance that any
+        closer one must undercut through its bound.
+
+        Args:
+            R_links: (N, L, 3, 3) world rotations of :attr:`links`.
+            o_links: (N, L, 3) world origins of :attr:`links` [m].
+        """
+        k = len(self.pairs)
+        if not k or not len(R_links):
+            return None
+        centres = ((R_links[:, self._slot] @ self._ab.mean(axis=1)[:, :, None])[..., 0]
+                   + o_links[:, self._slot])  # (N, 2k, 3)
+        bound = np.linalg.norm(centres[:, :k] - centres[:, k:], axis=-1) - self._reach
+        first = np.unravel_index(np.argmin(bound), bound.shape)
+        closest = float(self._entry_distances(R_links, o_links, *(np.array([i]) for i in first))
+                        .min())
+        # a micrometre of slack: the bound's own round-off must not drop an entry
+        frames, pairs = np.nonzero(bound <= closest + 1e-6)
+        return float(self._entry_distances(R_links, o_links, frames, pairs).min())
+
+    def _entry_distances(self, R_links: np.ndarray, o_links: np.ndarray, frames: np.ndarray,
+                         pairs: np.ndarray) -> np.ndarray:
+        """Exact distances (m,) [m] of the pairs ``pairs`` (m,) in the frames ``frames`` (m,)."""
+        ends = []
+        for capsule in (pairs, len(self.pairs) + pairs):  # first capsules, second ones
+            slot = self._slot[capsule]
+            ends.append(np.einsum("mij,mej->mei", R_links[frames, slot], self._ab[capsule])
+                        + o_links[frames, slot][:, None])
+        p, q = closest_points(*witness_segments(*ends))
+        return np.linalg.norm(p - q, axis=-1).min(axis=-1) - self._radius[pairs]
+
     def _witnesses(self, configuration: Configuration) -> tuple[np.ndarray, ...]:
         """Closest points of each pair's segments and of each end point to the other segment.
 
