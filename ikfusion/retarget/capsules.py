@@ -225,21 +225,17 @@ class CapsulePairs:
         self._cached_q, self._cached = configuration.q, (p, q, d)
         return p, q, d
 
-    def _distances_and_rows(self, configuration: Configuration
-                            ) -> tuple[np.ndarray, np.ndarray | None]:
-        """Witness distances (5k,) [m] and, when ``configuration`` computes them, their rows.
+    def _distances(self, configuration: Configuration) -> np.ndarray:
+        """Witness distances (5k,) [m] of ``configuration``.
 
-        A configuration with a ``capsule_witnesses()`` method (the compiled retargeting step)
-        gives exact distances and the rows ``-n^T (J_p - J_q)`` (5k, nv) of every witness in
-        one call; otherwise :meth:`_witnesses` gives the distances and rows are built here.
+        A configuration with a ``capsule_distances()`` method (the compiled retargeting step)
+        gives them exactly; otherwise :meth:`_witnesses` does.
         """
-        compiled = getattr(configuration, "capsule_witnesses", None)
-        witnesses = compiled() if compiled is not None else None
-        if witnesses is not None:
-            self._last_distances = witnesses[0]
-            return witnesses
-        self._last_distances = self._witnesses(configuration)[2]
-        return self._last_distances, None
+        compiled = getattr(configuration, "capsule_distances", None)
+        distances = compiled() if compiled is not None else None
+        self._last_distances = self._witnesses(configuration)[2] if distances is None \
+            else distances
+        return self._last_distances
 
     @property
     def last_min_distance(self) -> float:
@@ -255,17 +251,19 @@ class CapsulePairs:
         """
         if not self.pairs:
             return np.zeros(0)
-        return self._distances_and_rows(configuration)[0].reshape(-1, 5).min(axis=1)
+        return self._distances(configuration).reshape(-1, 5).min(axis=1)
 
     def inequality(self, configuration: Configuration) -> Inequality:
         """Rows ``-n^T (J_p - J_q) dq <= d - margin`` for witnesses closer than ``activation``."""
         nv = configuration.model.nv
         if not self.pairs:
             return Inequality(np.zeros((0, nv)), np.zeros(0))
-        d, rows = self._distances_and_rows(configuration)
+        d = self._distances(configuration)
         near = np.flatnonzero(d < self.activation)
         if not len(near):
             return Inequality(np.zeros((0, nv)), np.zeros(0))
+        compiled = getattr(configuration, "capsule_rows", None)  # (5k, nv) when it has them
+        rows = compiled() if compiled is not None else None
         if rows is not None:
             return Inequality(rows[near], d[near] - self.margin)
         p, q, _ = self._witnesses(configuration)

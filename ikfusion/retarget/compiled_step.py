@@ -52,15 +52,17 @@ class RobotStep:
     with linear Jacobians), and of each of ``frames``: ``R_world_frame`` (column-major),
     ``p_world_frame`` [m] and the LOCAL_WORLD_ALIGNED Jacobian (6, nv), linear rows first.
     With capsule pairs, also the input ``capsules`` (:meth:`CapsulePairs.geometry`) and the
-    outputs ``d_witness`` (5k) [m], the exact distances of each pair's five witnesses
-    (:meth:`CapsulePairs._witnesses`), and ``G_witness`` (5k, nv), their keep-apart rows
-    ``-n^T (J_p - J_q)``. With soles, also the input ``corners`` (4 per sole, in its link
-    frame [m]) and the outputs ``z_corners`` (4s) [m], the corners' heights, and
+    output ``d_witness`` (5k) [m], the exact distances of each pair's five witnesses
+    (:meth:`CapsulePairs._witnesses`). With soles, also the input ``corners`` (4 per sole, in
+    its link frame [m]) and the outputs ``z_corners`` (4s) [m], the corners' heights, and
     ``Jz_corners`` (4s, nv), their height Jacobians.
 
     :attr:`check_function` (``retarget_check``) gives only what tells whether a pose keeps the
     constraints, without any Jacobian: from ``q``, ``geometry``, ``capsules`` and ``corners``,
     the outputs ``p_frames``, ``d_witness`` and ``z_corners`` (the same expressions).
+    :attr:`rows_function` (``retarget_rows``) gives, from ``q``, ``geometry`` and
+    ``capsules``, the witnesses' keep-apart rows ``G_witness`` (5k, nv), ``-n^T (J_p - J_q)``:
+    nearly half of the step's arithmetic, needed only while some pair is near.
 
     Args:
         model: The robot (free-flyer and revolute joints).
@@ -69,8 +71,8 @@ class RobotStep:
         frames: Frame ids whose placements and Jacobians are wanted.
         capsules: Capsule pairs whose witnesses are wanted.
         soles: Frame ids of the links carrying the sole corners (4 each).
-        functions: The step and check functions already built for this structure (loaded
-            from the cache); built here when None.
+        functions: The step, check and rows functions already built for this structure
+            (loaded from the cache); built here when None.
 
     Raises:
         NotImplementedError: For joint types the graph does not cover.
@@ -90,12 +92,12 @@ class RobotStep:
                                       | set(self.position_frames) | set(self.soles)
                                       | {f for p in pairs for f in p})
         self.warnings: list[str] = []
-        self.function, self.check_function = (
+        self.function, self.check_function, self.rows_function = (
             functions if functions is not None else self._graph(model, pairs))
 
     def _graph(self, model: pin.Model, pairs: list[tuple[int, int]]
-               ) -> tuple[ca.Function, ca.Function]:
-        """The step and check functions as CasADi graphs (see the class docstring)."""
+               ) -> tuple[ca.Function, ca.Function, ca.Function]:
+        """The step, check and rows functions as CasADi graphs (see the class docstring)."""
         q = ca.SX.sym("q", model.nq)
         geometry = ca.SX.sym("geometry", 12 * (model.njoints - 1 + len(self.geometry_frames)))
         placements = symbolic_placements(geometry, model.njoints - 1, self.geometry_frames)
@@ -166,6 +168,9 @@ class RobotStep:
                             [p_frames, d_all, z_all],
                             ["q", "geometry", "capsules", "corners"],
                             ["p_frames", "d_witness", "z_corners"])
+        rows = ca.Function("retarget_rows", [q, geometry, capsule_geometry],
+                           [ca.vertcat(*G_witness) if G_witness else ca.SX(0, model.nv)],
+                           ["q", "geometry", "capsules"], ["G_witness"])
         return ca.Function(
             "retarget_step",
             [q, geometry, R_target, w_orient, p_target, w_position, capsule_geometry, corners],
@@ -173,13 +178,12 @@ class RobotStep:
              p_frames,
              ca.vertcat(*J_out) if J_out else ca.SX(0, model.nv),
              d_all,
-             ca.vertcat(*G_witness) if G_witness else ca.SX(0, model.nv),
              z_all,
              ca.vertcat(*Jz_corners) if Jz_corners else ca.SX(0, model.nv)],
             ["q", "geometry", "R_world_target", "w_orient", "p_world_target", "w_position",
              "capsules", "corners"],
-            ["H", "c", "R_frames", "p_frames", "J_frames", "d_witness", "G_witness",
-             "z_corners", "Jz_corners"]), check
+            ["H", "c", "R_frames", "p_frames", "J_frames", "d_witness", "z_corners",
+             "Jz_corners"]), check, rows
 
     def geometry(self, model: pin.Model) -> np.ndarray:
         """The geometry input of ``model`` (its joint and frame placements)."""
@@ -200,6 +204,12 @@ class RobotStep:
         if not hasattr(self, "_check_call"):
             self._check_call = BoundFunction(self.check_function)
         return self._check_call(q, geometry, capsules, corners)
+
+    def rows(self, q: np.ndarray, geometry: np.ndarray, capsules: np.ndarray) -> np.ndarray:
+        """``G_witness`` (5k, nv) as a dense array (overwritten by the next call)."""
+        if not hasattr(self, "_rows_call"):
+            self._rows_call = BoundFunction(self.rows_function)
+        return self._rows_call(q, geometry, capsules)[0]
 
 
 _BUILT: dict[str, RobotStep] = {}
@@ -225,13 +235,14 @@ def robot_step(model: pin.Model, orientation_frames: Sequence[int],
     built = _BUILT.get(key)
     if built is None:
         # no graph to build then
-        cached = cached_functions(key, ["retarget_step", "retarget_check"])
+        cached = cached_functions(key, ["retarget_step", "retarget_check", "retarget_rows"])
         built = RobotStep(model, orientation_frames, position_frames, frames, capsules, soles,
                           cached)
         if cached is None:
-            native, problem = native_functions([built.function, built.check_function], key)
+            native, problem = native_functions(
+                [built.function, built.check_function, built.rows_function], key)
             if native is not None:
-                built.function, built.check_function = native
+                built.function, built.check_function, built.rows_function = native
             if problem is not None:
                 built.warnings.append(problem)
         _BUILT[key] = built
@@ -271,7 +282,8 @@ class CompiledConfiguration(Configuration):
                  corners: np.ndarray | None = None) -> None:
         self._step = step
         self._capsules = capsules.geometry() if capsules is not None else np.zeros(0)
-        self._witnesses: tuple[np.ndarray, np.ndarray] | None = None
+        self._witnesses: np.ndarray | None = None
+        self._rows: np.ndarray | None = None
         self._corners = np.zeros(0) if corners is None else np.asarray(corners).reshape(-1)
         self._soles: tuple[np.ndarray, np.ndarray] = (np.zeros(0), np.zeros((0, model.nv)))
         self._inputs: tuple[list[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray,
@@ -300,6 +312,7 @@ class CompiledConfiguration(Configuration):
         super().update(q)
         self._objective = None
         self._checked = None
+        self._rows = None
 
     def _evaluate(self) -> tuple[np.ndarray, np.ndarray]:
         if self._objective is not None and self._recheck_targets:
@@ -309,10 +322,10 @@ class CompiledConfiguration(Configuration):
         if self._objective is None:
             self._used_targets = self._targets()
             orientations, w_orient, positions, w_position = self._used_targets
-            H, c, R, p, J, d, G, z, Jz = self._step(
+            H, c, R, p, J, d, z, Jz = self._step(
                 self._q, self._geometry, orientations, w_orient, positions, w_position,
                 self._capsules, self._corners)
-            self._witnesses = (d[:, 0].copy(), G.copy()) if self._step.has_capsules else None
+            self._witnesses = d[:, 0].copy() if self._step.has_capsules else None
             self._soles = (z[:, 0].copy(), Jz.copy())
             # Placements are built when asked for (most steps only read a few of them).
             self._frames = (R.reshape(-1, 3, 3).transpose(0, 2, 1).copy(),  # column-major
@@ -350,7 +363,7 @@ class CompiledConfiguration(Configuration):
         """
         if self._objective is not None:
             witnesses = self._witnesses
-            return (self._frames[1], np.zeros(0) if witnesses is None else witnesses[0],
+            return (self._frames[1], np.zeros(0) if witnesses is None else witnesses,
                     self._soles[0])
         if self._checked is None:
             p, d, z = self._step.check(self._q, self._geometry, self._capsules, self._corners)
@@ -375,13 +388,21 @@ class CompiledConfiguration(Configuration):
         H, c = self._evaluate()
         return H.copy(), c.copy()
 
-    def capsule_witnesses(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """Exact witness distances (5k,) [m] and keep-apart rows (5k, nv), None without pairs.
+    def capsule_distances(self) -> np.ndarray | None:
+        """Exact witness distances (5k,) [m], None without pairs.
 
         The five witnesses per pair of :class:`~ikfusion.retarget.capsules.CapsulePairs`.
         """
         self._evaluate()
         return self._witnesses
+
+    def capsule_rows(self) -> np.ndarray | None:
+        """The witnesses' keep-apart rows (5k, nv), None without pairs (computed when asked)."""
+        if not self._step.has_capsules:
+            return None
+        if self._rows is None:
+            self._rows = self._step.rows(self._q, self._geometry, self._capsules).copy()
+        return self._rows
 
     def placement(self, frame_id: int) -> pin.SE3:
         """``T_world_frame`` of one frame."""

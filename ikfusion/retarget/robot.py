@@ -452,8 +452,8 @@ class RobotRetargeter:
         the capsules' points), so full steps can overshoot back and forth between two poses;
         shrinking the steps once that starts makes them settle between the two.
         """
-        if previous is not None and float(dq @ previous) < -0.5 * float(
-                np.linalg.norm(dq) * np.linalg.norm(previous)):
+        if previous is not None and float(dq @ previous) < -0.5 * math.sqrt(
+                float(dq @ dq)) * math.sqrt(float(previous @ previous)):
             return 0.5 * factor
         return factor
 
