@@ -263,7 +263,7 @@ class CapsulePairs:
         if not len(near):
             return Inequality(np.zeros((0, nv)), np.zeros(0))
         compiled = getattr(configuration, "capsule_rows", None)  # (5k, nv) when it has them
-        rows = compiled() if compiled is not None else None
+        rows = compiled(np.unique(near // 5)) if compiled is not None else None
         if rows is not None:
             return Inequality(rows[near], d[near] - self.margin)
         p, q, _ = self._witnesses(configuration)
