@@ -22,10 +22,12 @@ the last ``heading_window`` seconds is compared with the direction the solved ta
 travelled; when both moved far enough, their angle is the heading error, and the solver's
 orientation targets are turned toward it at a bounded rate (``slide`` and ``no-slide``).
 
-The first fix places the body in the tag frame at once (there is nothing to slide yet); the
-frames solved before it are moved by the same offset afterwards (:meth:`DriftCorrection.
-place_start`), so the whole motion is in the tag frame. Heights come from the floor, so only
-the horizontal error is corrected.
+The first fix places the body in the tag frame at once (there is nothing to slide yet); in
+``no-slide``, until the body's first step (the same feet planted) it keeps following the fixes,
+which settle as the tag filters converge (a causal filter's first fix can be centimetres off,
+and nothing else moves a standing body). The frames solved before are moved by these offsets
+afterwards (:meth:`DriftCorrection.place_start`), so the whole motion is in the tag frame.
+Heights come from the floor, so only the horizontal error is corrected.
 
 In ``slide`` and ``no-slide``, stretches where a solved tag site stays more than ``far_distance``
 from its fix for longer than ``far_duration`` are reported (:mod:`.far_from_tags`).
