@@ -236,9 +236,10 @@ class DriftCorrection:
             {foot: np.array([pose.site_position(p)[2] - floor_z for p, of in
                              self._foot_of_point.items() if of == foot])
              for foot in self._anchors}, planted, dt)
-        for f, foot, release in zip(self.fixes, self._feet, self._release):
+        for f, foot, release, p_site in zip(self.fixes, self._feet, self._release,
+                                            self._last.p_sites):
             if release is not None:
-                release.update(foot in planted, f.p_world[k], f.cov[k], dt)
+                release.update(foot in planted, f.p_world[k], f.cov[k], p_site, dt)
         held = any(self._last.contacts.values())
         for f, body_release, p_site in zip(self.fixes, self._body_release, self._last.p_sites):
             if body_release is not None:
