@@ -277,8 +277,12 @@ class SupportFollower:
             landing = planted & self._swinging
             young = int(np.argmin(np.where(planted, np.where(landing, -1.0, self._planted_for),
                                            np.inf)))
-            # it was led from the pelvis (lag and lean on the foot the body stands on) plus
-            # its swing: the same placement :meth:`_settle_landings` records
+            if not np.any(self._goal[young]):  # not led: only its swing (a resumed one)
+                out[self._feet[young]] = (self.swing[young] if landing[young]
+                                          else self._landed_swing[young])
+                return out
+            # led from the pelvis (lag and lean on the foot the body stands on) plus its
+            # swing: the same placement :meth:`_settle_landings` records
             placed = (self.displacement + self.swing[young] if landing[young]
                       else self._placed_by[young])
             out[self._feet[young]] = placed - self._placed_by[self._reference_feet].mean(axis=0)
