@@ -179,8 +179,9 @@ def test_a_planted_foot_whose_tag_runs_away_is_let_go() -> None:
     release = FootRelease(distance=0.10, speed=1.0, jump_speed=20.0)
     cov = np.eye(3) * 0.01**2
     dt = 1 / 60
+    site = np.array([0.0, 0.0, 0.1])  # the solved foot stands where it was planted
     for k in range(30):  # planted, its tag moving at 4 m/s (a running foot planted wrongly)
-        release.update(True, np.array([4.0 * k * dt, 0.0, 0.1]), cov, dt)
+        release.update(True, np.array([4.0 * k * dt, 0.0, 0.1]), cov, site, dt)
         if release.released:
             break
     assert release.released and 4.0 * k * dt == pytest.approx(0.10, abs=0.07)
@@ -189,9 +190,32 @@ def test_a_planted_foot_whose_tag_runs_away_is_let_go() -> None:
 def test_a_standing_foot_with_noisy_fixes_stays_planted(rng: np.random.Generator) -> None:
     release = FootRelease(distance=0.10, speed=1.0, jump_speed=20.0)
     cov = np.eye(3) * 0.02**2
+    site = np.array([0.95, 2.03, 0.1])  # the solved foot, a few cm off its tag (drift)
     for _ in range(600):  # 10 s planted, fixes with 2 cm noise
-        release.update(True, np.array([1.0, 2.0, 0.1]) + rng.normal(0, 0.02, 3), cov, 1 / 60)
+        release.update(True, np.array([1.0, 2.0, 0.1]) + rng.normal(0, 0.02, 3), cov, site,
+                       1 / 60)
         assert not release.released
+
+
+def test_a_foot_rising_onto_its_toe_stays_planted() -> None:
+    """Issue #19 (the lead-in's step into a run): the heel rises over 0.5 s onto the planted
+    toe and carries the tag on the instep 14 cm forward and 8 cm up. The solved foot turns the
+    same way about its planted toe, so the tag did not run away: the foot stays planted (it
+    was let go and the body jumped 28 mm). Once the toe itself slides 10 cm, it is let go."""
+    release = FootRelease(distance=0.10, speed=1.0, jump_speed=20.0)
+    cov, dt = np.eye(3) * 0.01**2, 1 / 60
+    toe = np.array([1.0, 2.0, 0.0])
+    for k in range(60):
+        pitch = np.radians(60.0) * min(k / 30, 1.0)  # heel up to 60 deg, then held
+        c, s = np.cos(pitch), np.sin(pitch)  # the instep tag 16 cm behind the toe, 6 cm up
+        tag = toe + np.array([-0.16 * c + 0.06 * s, 0.0, 0.16 * s + 0.06 * c])
+        release.update(True, tag, cov, tag, dt)  # the solved site turns as the foot does
+        assert not release.released
+    for k in range(30):  # the toe slides on at 1.5 m/s while the solved toe is held
+        release.update(True, tag + [1.5 * (k + 1) * dt, 0.0, 0.0], cov, tag, dt)
+        if release.released:
+            break
+    assert release.released and 1.5 * (k + 1) * dt == pytest.approx(0.10, abs=0.03)
 
 
 def test_a_jump_of_the_positioning_does_not_let_a_standing_foot_go() -> None:
@@ -199,9 +223,10 @@ def test_a_jump_of_the_positioning_does_not_let_a_standing_foot_go() -> None:
     is not a foot running away: the standing foot stays planted (it was let go before)."""
     release = FootRelease(distance=0.10, speed=1.0, jump_speed=20.0)
     cov = np.eye(3) * 0.01**2
+    site = np.array([1.0, 2.0, 0.1])
     for k in range(120):
         shift = 1.0 if k >= 60 else 0.0
-        release.update(True, np.array([1.0 + shift, 2.0, 0.1]), cov, 1 / 60)
+        release.update(True, np.array([1.0 + shift, 2.0, 0.1]), cov, site, 1 / 60)
         assert not release.released
 
 

@@ -104,7 +104,8 @@ class CorrectionSettings(ShippedSettings):
         release_distance: A planted foot whose tag moved farther than this [m]
             is let go (:mod:`.tag_release`) ...
         release_speed: ... until its tag moves slower than this [m/s]; a step of a fix faster
-            than ``release_jump_speed`` [m/s] is a jump of the positioning, not a foot moving.
+            than ``release_jump_speed`` [m/s] is a jump of the positioning, not a foot moving
+            (nor a heading drift: such a window is not compared).
         far_distance: A tag site farther than this from its fix [m] ...
         far_duration: ... for longer than this [s] is reported.
     """
@@ -248,9 +249,10 @@ class DriftCorrection:
             {foot: np.array([pose.site_position(p)[2] - floor_z for p, of in
                              self._foot_of_point.items() if of == foot])
              for foot in self._anchors}, planted, dt)
-        for f, foot, release in zip(self.fixes, self._feet, self._release):
+        for f, foot, release, p_site in zip(self.fixes, self._feet, self._release,
+                                            self._last.p_sites):
             if release is not None:
-                release.update(foot in planted, f.p_world[k], f.cov[k], dt)
+                release.update(foot in planted, f.p_world[k], f.cov[k], p_site, dt)
         held = any(self._last.contacts.values())
         for f, body_release, p_site in zip(self.fixes, self._body_release, self._last.p_sites):
             if body_release is not None:
@@ -390,7 +392,9 @@ class DriftCorrection:
         """Angle from the solved sites' inertial travel to the tags' travel over the window [rad].
 
         The median over the sites whose fix and solved position both moved at least
-        ``heading_travel`` by lengths within ``heading_length_ratio`` of each other, the head's
+        ``heading_travel`` by lengths within ``heading_length_ratio`` of each other, and whose
+        fix did not step faster than ``release_jump_speed`` within the window (the positioning
+        jumped: a jump across the travel turns it with hardly a change of length), the head's
         (body sites') only when it has one (swing feet are led by the no-slide correction);
         None when none did (standing, turning on the spot, a jump of the fixes, no fixes).
         """
@@ -409,6 +413,9 @@ class DriftCorrection:
                 continue
             if max(lengths) > s.heading_length_ratio * min(lengths):
                 continue  # a jump of the fixes, not a turn: heading drift keeps the length
+            steps = np.linalg.norm(np.diff(f.p_world[back:k + 1, :2], axis=0), axis=1)
+            if (steps > s.release_jump_speed * dt).any():
+                continue  # the positioning jumped within the window (across its travel too)
             angles.append(np.arctan2(solved[0] * measured[1] - solved[1] * measured[0],
                                      solved @ measured))
             body.append(self._body[i])  # set by after_frame from the model's topology
