@@ -161,6 +161,7 @@ class DriftCorrection:
     _placed: bool = False
     _placement: tuple[int, np.ndarray] | None = None
     _placed_total: np.ndarray = field(default_factory=lambda: np.zeros(2))  # placing moves [m]
+    _slid: np.ndarray = field(default_factory=lambda: np.zeros(2))  # slide mode's moves [m]
     _body: list[bool] = field(default_factory=list)  # per fix: on the body, not on a foot
     _feet: list[str | None] = field(default_factory=list)  # per fix: the foot carrying it
     _foot_of_point: dict[str, str | None] = field(default_factory=dict)
@@ -249,12 +250,14 @@ class DriftCorrection:
             {foot: np.array([pose.site_position(p)[2] - floor_z for p, of in
                              self._foot_of_point.items() if of == foot])
              for foot in self._anchors}, planted, dt)
-        for f, foot, release, p_site in zip(self.fixes, self._feet, self._release,
-                                            self._last.p_sites):
+        # The releases judge the sites without the slides of planted points (slide mode): a foot
+        # slid after its running-away tag is still a false hold.
+        p_own = self._last.p_sites - np.array([self._slid[0], self._slid[1], 0.0])
+        for f, foot, release, p_site in zip(self.fixes, self._feet, self._release, p_own):
             if release is not None:
                 release.update(foot in planted, f.p_world[k], f.cov[k], p_site, dt)
         held = any(self._last.contacts.values())
-        for f, body_release, p_site in zip(self.fixes, self._body_release, self._last.p_sites):
+        for f, body_release, p_site in zip(self.fixes, self._body_release, p_own):
             if body_release is not None:
                 body_release.update(held, f.p_world[k], f.cov[k], p_site, dt)
         self.time[k] = pose.time
@@ -290,7 +293,9 @@ class DriftCorrection:
             self._placed_total = self._placed_total + delta[:2]
         elif self.mode == "slide":
             if not flight:  # in flight the tags move the ballistic path (above)
-                world.slide(delta * min(1.0, dt / self.settings.time_constant))
+                slid = delta * min(1.0, dt / self.settings.time_constant)
+                world.slide(slid)
+                self._slid = self._slid + slid[:2]
         else:
             world.lead_steps(delta, self.settings.max_step)
 
