@@ -260,19 +260,15 @@ def _call_daqp(max_iterations: int, H: np.ndarray, c: np.ndarray, G: np.ndarray 
 _EXACT_BACKENDS = ("daqp", "proxqp")
 
 
-def solve_qp(problem: QpProblem, backend: str, settings: QpSettings) -> QpSolution:
-    """Solve the step; fall back to the penalised-slack relaxation when it is infeasible.
+def solve_unrelaxed(problem: QpProblem, backend: str, settings: QpSettings
+                    ) -> QpSolution | None:
+    """The step with every constraint held, or None when no exact backend finds one.
 
-    Args:
-        problem: The step's QP.
-        backend: The QP backend (qpsolvers name) tried first.
-        settings: Iteration limits, tolerances and the slack penalties.
+    :func:`solve_qp` without its relaxation: for a caller that, when the constraints cannot
+    all hold, changes the problem rather than relaxing this one.
 
     Raises:
-        SolverError: A problem holding NaN or infinite numbers (a target or the pose is not
-            finite: no backend is tried), or when even the relaxed problem fails with every
-            backend (never silently; the solver then keeps the previous pose for that frame
-            and says so).
+        SolverError: A problem holding NaN or infinite numbers (no backend is tried).
     """
     p = problem
     _check_finite(p)
@@ -290,6 +286,27 @@ def solve_qp(problem: QpProblem, backend: str, settings: QpSettings) -> QpSoluti
             x = _call(other, settings, p.H, p.c, G, h, A, b, p.lb, p.ub)
             if x is not None:
                 return QpSolution(x)
+    return None
+
+
+def solve_qp(problem: QpProblem, backend: str, settings: QpSettings) -> QpSolution:
+    """Solve the step; fall back to the penalised-slack relaxation when it is infeasible.
+
+    Args:
+        problem: The step's QP.
+        backend: The QP backend (qpsolvers name) tried first.
+        settings: Iteration limits, tolerances and the slack penalties.
+
+    Raises:
+        SolverError: A problem holding NaN or infinite numbers (a target or the pose is not
+            finite: no backend is tried), or when even the relaxed problem fails with every
+            backend (never silently; the solver then keeps the previous pose for that frame
+            and says so).
+    """
+    p = problem
+    solution = solve_unrelaxed(p, backend, settings)
+    if solution is not None:
+        return solution
     # Infeasible (or a numerical failure): relax, with a milder penalty and another backend
     # before giving up, since a heavy penalty makes the relaxed problem ill-conditioned.
     heavy = settings.slack_weight

@@ -31,7 +31,7 @@ from tqdm import tqdm
 
 from ..ik.configuration import Configuration
 from ..ik.limits.base import Equality, Inequality
-from ..ik.qp import QpBuffer, QpSettings, solve_qp
+from ..ik.qp import QpBuffer, QpSettings, solve_qp, solve_unrelaxed
 from ..ik.tasks import DampingTask, OrientationTask, PositionTask
 from ..model import layout
 from ..model.human_model import HumanModel
@@ -430,12 +430,17 @@ class RobotRetargeter:
                 if step < s.trusted_steps and len(near.h) else self._none
             box = self._box(q, moved, dt, moving)
             assemble = self._qp_buffer.assemble
-            solution = solve_qp(assemble(H, c, *rows, box, s.levenberg_marquardt),
-                                self.backend, self._qp)
-            if solution.relaxed and len(moving):  # the trust region was too tight
-                box = self._box(q, moved, dt)
-                solution = solve_qp(assemble(H, c, *rows, box, s.levenberg_marquardt),
-                                    self.backend, self._qp)
+            problem = assemble(H, c, *rows, box, s.levenberg_marquardt)
+            # within the trust region, the constraints held or nothing (its relaxation would
+            # be thrown away): when they cannot all hold, the region was too tight
+            trusted = solve_unrelaxed(problem, self.backend, self._qp) if len(moving) else None
+            if trusted is not None:
+                solution = trusted
+            else:
+                if len(moving):
+                    box = self._box(q, moved, dt)
+                    problem = assemble(H, c, *rows, box, s.levenberg_marquardt)
+                solution = solve_qp(problem, self.backend, self._qp)
             relaxed |= solution.relaxed
             factor = self._damped(solution.dq, previous, factor)
             # The box holds to the QP's tolerance; clipped, limits hold exactly.
