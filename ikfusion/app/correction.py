@@ -250,14 +250,15 @@ class DriftCorrection:
             {foot: np.array([pose.site_position(p)[2] - floor_z for p, of in
                              self._foot_of_point.items() if of == foot])
              for foot in self._anchors}, planted, dt)
-        # The releases judge the sites without the slides of planted points (slide mode): a foot
-        # slid after its running-away tag is still a false hold.
+        # A foot's release judges its site without the slides of planted points (slide mode): a
+        # foot slid after its running-away tag is still a false hold. The body's release keeps
+        # the solved site: its hold spans a whole walk, which the slides rightly close.
         p_own = self._last.p_sites - np.array([self._slid[0], self._slid[1], 0.0])
         for f, foot, release, p_site in zip(self.fixes, self._feet, self._release, p_own):
             if release is not None:
                 release.update(foot in planted, f.p_world[k], f.cov[k], p_site, dt)
         held = any(self._last.contacts.values())
-        for f, body_release, p_site in zip(self.fixes, self._body_release, p_own):
+        for f, body_release, p_site in zip(self.fixes, self._body_release, self._last.p_sites):
             if body_release is not None:
                 body_release.update(held, f.p_world[k], f.cov[k], p_site, dt)
         self.time[k] = pose.time
