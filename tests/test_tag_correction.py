@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from room_captures import room_walk
 
 from ikfusion.app.evaluate import evaluate, joint_angle_jump
 from ikfusion.app.far_from_tags import far_intervals
@@ -407,12 +408,7 @@ def test_a_clean_walk_raises_no_alarm(walk, causal: bool) -> None:  # type: igno
 @pytest.fixture(scope="module")
 def walk_capture(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A generated walk of 8 s with the default sensor errors in the middle of the UWB room."""
-    room = load_constellation(shipped_config("constellations", "room_6x8.yaml"))
-    truth = truth_motion("gait", 8.0, 60.0)
-    truth.q[:, :2] += [3.0, 2.5]
-    folder = tmp_path_factory.mktemp("walk_pops") / "capture"
-    write_capture(folder, truth, ImuNoise(), 3, constellation=room)
-    return folder
+    return room_walk(tmp_path_factory.mktemp("walk_pops") / "capture", 8.0, 3)
 
 
 def test_no_slide_adds_no_pops_to_a_walk(walk_capture: Path, tmp_path: Path) -> None:
