@@ -280,11 +280,10 @@ class DriftCorrection:
         delta = np.array([error[0], error[1], 0.0])
         if self.mode == "off":
             return
-        if not self._placed:
-            self._stance = planted
-        elif planted != self._stance:
+        if self._placed and planted != self._stance:
             self._stance = set()  # a foot lifted or landed: the body has moved since
         if not self._placed:
+            self._stance = planted
             world.translate(delta)
             self._placed = True
             self._placement = (k, delta)
