@@ -203,3 +203,26 @@ def test_acceptance_judges_the_default_sensor_errors_only() -> None:
     with pytest.raises(SystemExit) as info:
         _bench().main(["--acceptance", "--noise", "none", "--clips", "amp-run"])
     assert info.value.code == 2
+
+
+def test_acceptance_run_prints_the_reference_and_the_verdicts(capsys) -> None:
+    """One short clip, IMU only: its perfect-sensor reference row comes first, the IMU-only row's
+    ``jump-ref`` is measured against it, the criteria of modes not run have nothing to judge,
+    and the exit code says whether one failed."""
+    bench = _bench()
+    code = bench.main(["--acceptance", "--clips", "amp-run", "--modes", "imu-only"])
+    out = capsys.readouterr().out.splitlines()
+    header = out.index(bench.HEADER)
+    reference, imu_only = out[header + 1].split(), out[header + 2].split()
+    assert reference[:3] == ["amp-run", "imu-only", "perfect"]
+    assert imu_only[:2] == ["amp-run", "imu-only"] and len(imu_only) == 2 + 15
+    # the 15 figures end a row; jump deg is the 10th, jump-ref the 13th ('-' for the reference)
+    assert reference[-15:][12] == "-"
+    jump, reference_jump = float(imu_only[-15:][9]), float(reference[-15:][9])
+    assert float(imu_only[-15:][12]) == pytest.approx(jump - reference_jump, abs=0.011)
+    verdicts = out[out.index(bench.VERDICT_HEADER) + 1:]
+    assert len(verdicts) == 9
+    statuses = [line.split()[-1] for line in verdicts]
+    assert statuses[2:6] == ["n/a"] * 4  # no UWB mode was run
+    assert statuses[0] == "n/a"  # amp-run is not a walking clip
+    assert code == (1 if "FAIL" in statuses else 0)
