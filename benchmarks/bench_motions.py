@@ -68,7 +68,7 @@ when a criterion fails. With the default sensor errors (``--noise none`` is refu
    ``beyond mm`` of the reference rows (clips whose truth has no contact phase are not judged).
    Not ``held`` (the solver holds its points by construction: 0.0 mm everywhere), nor ``held
    tru`` or ``slide``, which measure the truth's loose phases (a point below 3 cm moving at up
-   to 0.3 m/s counts as planted; the truths' points slide 2 to 22 mm there) as much as the
+   to 0.3 m/s counts as planted; the truths' points slide up to 22 mm there) as much as the
    solve: the excess counts the skating the solve adds in the truth's stance phases, detection
    misses included (a released point that moves while the true one stands).
 
