@@ -2,7 +2,7 @@
 
 Run: ``PYTHONPATH=. .venv/bin/python benchmarks/bench_motions.py [--seconds S] [--clips PATTERN...]
 [--modes imu-only slide no-slide no-slide-causal] [--seed N] [--noise default|none] [--shared]
-[--out DIR]``
+[--acceptance] [--out DIR]``
 
 The library is ``benchmarks/motions/library.yaml`` (clips and their origins in
 ``benchmarks/motions/ATTRIBUTION.md``): CMU motion capture, DeepMimic clips and walks of the
@@ -27,8 +27,50 @@ one moves shifts the body); ``agree``: the solver's contact states equal to the 
 joint-angle RMS [deg]; the largest error of a frame-to-frame joint-angle change against the
 truth's [deg] (``joint_angle_jump_max_deg``, toes left out); frames solved per second of wall
 time (tag tracking included); ``drift %``: the pelvis's horizontal error at the end as a
-percentage of the distance travelled (``evaluate``'s ``drift_percent``; '-' below 2 m travelled).
-The last row holds the worst of each column over all rows.
+percentage of the distance travelled (``evaluate``'s ``drift_percent``; '-' below 2 m travelled);
+``jump-ref``: ``jump deg`` minus the same clip's reference row's (``--acceptance``; '-' without);
+``step deg``: the largest turn of a joint of the solve in one frame, the solve alone
+(``joint_angle_step_max_deg``, toes left out) [deg]; ``beyond mm``: per contact phase of the
+truth, how much further the solved point slid than the true one, mean (``foot_slide_excess_mm``:
+the skating the solve adds, free of the truth's loose phases) [mm].
+The last row holds the worst of each column over the rows of the chosen ``--noise`` (reference
+rows left out).
+
+``--acceptance`` (issue #19) judges the selected clips on the issue's acceptance list. Each clip
+is also simulated with perfect sensors (same truth, same seed) and solved IMU-only: the
+reference row ``imu-only perfect``, printed before the clip's rows. After the table comes one
+row per criterion: its limit, how many rows it judged, the worst clip (and mode) with its
+value, and PASS, FAIL or n/a (nothing to judge, e.g. its mode was not run); the exit code is 1
+when a criterion fails. With the default sensor errors (``--noise none`` is refused):
+
+1. IMU only, walking drifts at most 1 %: ``drift %`` of the ``imu-only`` rows of the clips whose
+   ``categories`` in library.yaml include ``walking`` (the library's data, not clip names; the
+   shared clips have none). The distance walked is ``evaluate``'s: the true pelvis's horizontal
+   track sampled once a second, over the whole capture; the drift is the pelvis's horizontal
+   error averaged over the last second, after the start alignment. A walking clip that travels
+   less than 2 m has no figure and is not judged (the count says how many were).
+2. IMU only, head RMS at most 50 cm, every clip.
+3. no-slide, head RMS at most 5 cm.
+4. no-slide, planted points slide at most 1 mm: ``held max``, the largest slide of a point over
+   a contact phase of the solver (the points the solver holds planted; ``slide`` also counts
+   detection misses and the truth's own motion in its loose phases, which no solve can bring
+   to 1 mm).
+5. slide, head RMS at most 4 cm. 6. no-slide-causal, head RMS at most 8 cm.
+7. No pops: ``jump-ref`` at most 1 deg on every row (all modes run): the correction and the
+   sensor errors add no pop to what the same clip solved from perfect orientations without UWB
+   has. One-sided: a solve smoother than the reference passes.
+8. No flips: ``step deg`` at most 60 deg on every row, the references included. 60 deg in a
+   60 Hz frame is 3600 deg/s, beyond any human joint (the library's truths turn a joint by at
+   most about 35 deg in a frame: dm-crawl's ankle; most clips 10 to 25), while a joint that
+   flips to another solution (twists the other way round, bends backwards) turns by 90 deg or
+   more at once. The solve alone is measured, so a flip counts whatever the truth does.
+9. Perfect sensors, no UWB: planted points slide at most 5 mm on every clip with stance:
+   ``beyond mm`` of the reference rows (clips whose truth has no contact phase are not judged).
+   Not ``held`` (the solver holds its points by construction: 0.0 mm everywhere), nor ``held
+   tru`` or ``slide``, which measure the truth's loose phases (a point below 3 cm moving at up
+   to 0.3 m/s counts as planted; the truths' points slide up to 22 mm there) as much as the
+   solve: the excess counts the skating the solve adds in the truth's stance phases, detection
+   misses included (a released point that moves while the true one stands).
 
 Nothing is written outside a temporary folder unless ``--out DIR`` keeps the captures and
 results there.
@@ -44,8 +86,8 @@ import math
 import sys
 import tempfile
 import time
-from collections.abc import Sequence
-from dataclasses import dataclass, field
+from collections.abc import Collection, Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import yaml
@@ -63,7 +105,10 @@ from ikfusion.uwb.dop import capture_area
 LIBRARY = Path(__file__).resolve().parent / "motions" / "library.yaml"
 SHARED_MOCAP = Path(__file__).resolve().parents[2] / "shared" / "data" / "mocap"
 MODES = ("imu-only", "slide", "no-slide", "no-slide-causal")
+REFERENCE = "imu-only perfect"  # the mode column of ``--acceptance``'s reference rows
 RATE = 60.0  # [Hz]
+WALKING = "walking"  # the library category whose clips the drift criterion judges
+FLIP_DEG = 60.0  # [deg] a joint turning further in one 60 Hz frame has flipped
 
 
 @dataclass(frozen=True)
@@ -174,6 +219,9 @@ class Row:
     jump_deg: float
     fps: float
     drift_pct: float | None = None
+    step_deg: float = 0.0
+    beyond_mm: float | None = None
+    jump_vs_ref_deg: float | None = None
 
     def text(self) -> str:
         """The row as printed."""
@@ -181,17 +229,24 @@ class Row:
                 f"{self.slide_max_mm:8.1f} {self.truth_mm:8.1f} {self.held_mm:8.1f} "
                 f"{self.held_max_mm:8.1f} {self.held_truth_mm:8.1f} {self.agree_pct:7.1f} "
                 f"{self.angle_rms_deg:8.2f} {self.jump_deg:8.2f} {self.fps:7.0f} "
-                + (f"{self.drift_pct:7.2f}" if self.drift_pct is not None else f"{'-':>7s}"))
+                f"{_cell(self.drift_pct, 7, 2)} {_cell(self.jump_vs_ref_deg, 8, 2)} "
+                f"{self.step_deg:8.2f} {_cell(self.beyond_mm, 9, 1)}")
+
+
+def _cell(value: float | None, width: int, decimals: int) -> str:
+    """A number right-aligned in ``width`` characters, '-' for None."""
+    return f"{'-':>{width}s}" if value is None else f"{value:{width}.{decimals}f}"
 
 
 HEADER = (f"{'clip':<24s} {'mode':<16s} {'head cm':>8s} {'slide mm':>8s} {'max mm':>8s} "
           f"{'truth mm':>8s} {'held mm':>8s} {'held max':>8s} {'held tru':>8s} "
-          f"{'agree %':>7s} {'ang deg':>8s} {'jump deg':>8s} {'frame/s':>7s} {'drift %':>7s}")
+          f"{'agree %':>7s} {'ang deg':>8s} {'jump deg':>8s} {'frame/s':>7s} {'drift %':>7s} "
+          f"{'jump-ref':>8s} {'step deg':>8s} {'beyond mm':>9s}")
 
 
 def run_clip(clip: Clip, root: Path, modes: Sequence[str], seconds: float | None, seed: int,
-             noise: str) -> list[Row]:
-    """Simulate one clip and score every mode."""
+             noise: str, ref_jump_deg: float | None = None) -> list[Row]:
+    """Simulate one clip and score every mode (``ref_jump_deg``: the reference's jump [deg])."""
     capture = simulate_clip(clip, root / clip.name / "capture", seconds, seed, noise)
     rows = []
     for mode in modes:
@@ -202,8 +257,18 @@ def run_clip(clip: Clip, root: Path, modes: Sequence[str], seconds: float | None
                         ev.foot_slide_max_mm, ev.truth_slide_mm, ev.held_slide_mm,
                         ev.held_slide_max_mm, ev.held_truth_slide_mm,
                         ev.contact_agreement_pct, ev.joint_angle_rms_deg,
-                        ev.joint_angle_jump_max_deg, ev.frames / wall, ev.drift_percent))
+                        ev.joint_angle_jump_max_deg, ev.frames / wall, ev.drift_percent,
+                        ev.joint_angle_step_max_deg, ev.foot_slide_excess_mm,
+                        None if ref_jump_deg is None
+                        else ev.joint_angle_jump_max_deg - ref_jump_deg))
     return rows
+
+
+def run_reference(clip: Clip, root: Path, seconds: float | None, seed: int) -> Row:
+    """The clip with perfect sensors (same truth, same seed), solved IMU-only: ``--acceptance``'s
+    reference row (its files under ``root/perfect``)."""
+    row = run_clip(clip, root / "perfect", ["imu-only"], seconds, seed, "none")[0]
+    return replace(row, mode=REFERENCE)
 
 
 def worst(rows: Sequence[Row]) -> Row:
@@ -215,12 +280,98 @@ def worst(rows: Sequence[Row]) -> Row:
                min(r.agree_pct for r in rows),
                max(r.angle_rms_deg for r in rows),
                max(r.jump_deg for r in rows), min(r.fps for r in rows),
-               max((r.drift_pct for r in rows if r.drift_pct is not None), default=None))
+               max((r.drift_pct for r in rows if r.drift_pct is not None), default=None),
+               max(r.step_deg for r in rows),
+               max((r.beyond_mm for r in rows if r.beyond_mm is not None), default=None),
+               max((r.jump_vs_ref_deg for r in rows if r.jump_vs_ref_deg is not None),
+                   default=None))
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """One criterion of ``--acceptance`` judged on the rows.
+
+    Attributes:
+        criterion: What is judged, for people.
+        limit: The largest value that passes, in ``unit``.
+        unit: ``cm``, ``mm``, ``deg`` or ``%``.
+        judged: How many rows were judged.
+        worst: ``"<clip> <mode>"`` of the largest value ('-' when nothing was judged).
+        value: The largest value (None when nothing was judged; NaN fails).
+    """
+
+    criterion: str
+    limit: float
+    unit: str
+    judged: int
+    worst: str
+    value: float | None
+
+    @property
+    def status(self) -> str:
+        """``PASS`` (the worst value within the limit), ``FAIL`` or ``n/a`` (nothing judged)."""
+        if self.value is None:
+            return "n/a"
+        return "PASS" if self.value <= self.limit else "FAIL"
+
+    def text(self) -> str:
+        """The verdict as printed."""
+        value = "-" if self.value is None else f"{self.value:.2f}"
+        return (f"{self.criterion:<46s} {f'<= {self.limit:g} {self.unit}':>10s} "
+                f"{self.judged:5d}  {self.worst:<38s} {value:>8s}  {self.status}")
+
+
+VERDICT_HEADER = (f"{'criterion':<46s} {'limit':>10s} {'rows':>5s}  {'worst':<38s} "
+                  f"{'value':>8s}  verdict")
+
+
+def judge(criterion: str, limit: float, unit: str,
+          values: Sequence[tuple[Row, float]]) -> Verdict:
+    """The verdict of one criterion on ``(row, value)`` pairs: the largest value (a NaN first)."""
+    if not values:
+        return Verdict(criterion, limit, unit, 0, "-", None)
+    row, value = max(values, key=lambda rv: (math.isnan(rv[1]), rv[1]))
+    return Verdict(criterion, limit, unit, len(values), f"{row.clip} {row.mode}", value)
+
+
+def acceptance(rows: Sequence[Row], references: Mapping[str, Row],
+               walking: Collection[str]) -> list[Verdict]:
+    """Issue #19's acceptance list judged on a run (the criteria: the module docstring).
+
+    Args:
+        rows: The rows of the four modes with the default sensor errors.
+        references: Per clip name, its ``imu-only perfect`` row (perfect sensors, no UWB).
+        walking: The names of the clips that count as walking (library category ``walking``).
+
+    Returns:
+        One verdict per criterion, in the docstring's order.
+    """
+    def of(mode: str, figure: str) -> list[tuple[Row, float]]:
+        return [(r, float(getattr(r, figure))) for r in rows if r.mode == mode]
+
+    drifts = [(r, r.drift_pct) for r in rows
+              if r.mode == "imu-only" and r.clip in walking and r.drift_pct is not None]
+    jumps = [(r, r.jump_deg - references[r.clip].jump_deg) for r in rows if r.clip in references]
+    steps = [(r, r.step_deg) for r in [*rows, *references.values()]]
+    beyond = [(r, r.beyond_mm) for r in references.values() if r.beyond_mm is not None]
+    return [
+        judge("IMU only: drift of walking clips", 1.0, "%", drifts),
+        judge("IMU only: head RMS", 50.0, "cm", of("imu-only", "head_cm")),
+        judge("no-slide: head RMS", 5.0, "cm", of("no-slide", "head_cm")),
+        judge("no-slide: held points' slide (held max)", 1.0, "mm",
+              of("no-slide", "held_max_mm")),
+        judge("slide: head RMS", 4.0, "cm", of("slide", "head_cm")),
+        judge("no-slide-causal: head RMS", 8.0, "cm", of("no-slide-causal", "head_cm")),
+        judge("no pops: jump - perfect IMU-only jump", 1.0, "deg", jumps),
+        judge("no flips: joint turn in one frame (step)", FLIP_DEG, "deg", steps),
+        judge("perfect, no UWB: slide beyond the truth's", 5.0, "mm", beyond),
+    ]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the benchmark; returns the exit code."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=None, metavar="S",
                         help="simulate only the first S s of each clip (standing start "
                         "included; default: whole clips, at most 30 s)")
@@ -233,6 +384,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="sensor errors (none: perfect sensors)")
     parser.add_argument("--shared", action="store_true",
                         help="also run the shared BVH clips of ../shared/data/mocap by path")
+    parser.add_argument("--acceptance", action="store_true",
+                        help="also solve each clip IMU-only with perfect sensors (the "
+                        "reference) and judge issue #19's acceptance list after the table "
+                        "(the criteria above); exit code 1 when one fails")
     parser.add_argument("--out", type=Path, default=None, metavar="DIR",
                         help="keep captures and results in DIR (default: a temporary folder)")
     args = parser.parse_args(argv)
@@ -242,6 +397,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     clips = [c for c in clips if any(fnmatch.fnmatch(c.name, p) for p in args.clips)]
     if not clips:
         parser.error(f"no clip matches {' '.join(args.clips)!r}")
+    if args.acceptance and args.noise != "default":
+        parser.error("--acceptance judges the default sensor errors (drop --noise none)")
     span = "whole clips" if args.seconds is None else f"first {args.seconds:g} s"
     print(f"{len(clips)} clips ({span}), room_6x8 UWB, "
           f"{'default sensor errors' if args.noise == 'default' else 'perfect sensors'}, "
@@ -249,17 +406,29 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(HEADER, flush=True)
     start = time.perf_counter()
     rows: list[Row] = []
+    references: dict[str, Row] = {}
     with contextlib.ExitStack() as stack:
         root = args.out or Path(stack.enter_context(tempfile.TemporaryDirectory(
             prefix="bench_motions_")))
         for clip in clips:
+            if args.acceptance:
+                references[clip.name] = run_reference(clip, Path(root), args.seconds, args.seed)
+                print(references[clip.name].text(), flush=True)
+            reference = references.get(clip.name)
             for row in run_clip(clip, Path(root), args.modes, args.seconds, args.seed,
-                                args.noise):
+                                args.noise, None if reference is None else reference.jump_deg):
                 rows.append(row)
                 print(row.text(), flush=True)
     print(worst(rows).text())
     print(f"total {time.perf_counter() - start:.0f} s", flush=True)
-    return 0
+    if not args.acceptance:
+        return 0
+    verdicts = acceptance(rows, references, {c.name for c in clips if WALKING in c.categories})
+    print(f"\nacceptance (issue #19; {len(clips)} clips, default sensor errors, seed {args.seed})")
+    print(VERDICT_HEADER)
+    for verdict in verdicts:
+        print(verdict.text())
+    return 1 if any(v.status == "FAIL" for v in verdicts) else 0
 
 
 if __name__ == "__main__":

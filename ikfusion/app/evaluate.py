@@ -25,6 +25,10 @@ Metrics (all over the common time span):
   planted point of the truth the solver released (a detection miss); and the truth's phases
   (a point below 3 cm slower than 0.3 m/s) let the true point itself move:
   ``truth_slide_mm`` is the same measure of the truth's own points (its floor) [mm];
+* ``foot_slide_excess_mm``: per contact phase of the truth, how much further the estimated point
+  slid than the true one did (``max(0, slide_estimated - slide_true)``), mean over phases [mm]
+  (None when the truth has no contact phase): the skating a solve adds, free of the truth's
+  loose phases (a point the solver holds still while the true one rolls counts 0);
 * ``held_slide_mm`` and ``held_slide_max_mm``: the same per contact phase of the *solver*
   (``contacts.csv``): how far a point the solver holds planted moves, mean and maximum [mm];
   ``held_truth_slide_mm`` the same of the *true* point over those phases, mean [mm]: a point the
@@ -40,6 +44,9 @@ Metrics (all over the common time span):
   that angle's change. The toe joints, which no sensor of a suit observes, are left out.
   ``joint_angle_jump_at`` says which angle (of the joint, the one whose error changed most),
   when;
+* ``joint_angle_step_max_deg``: the largest frame-to-frame turn of a joint in the estimate itself
+  (the geodesic angle between its rotations in two consecutive frames, toes left out) [deg]: a
+  flip (a joint turning over to another solution) shows here whatever the truth does;
 * ``drift_percent``: the pelvis's horizontal error over the last second, as a percentage of the
   horizontal distance the true pelvis travelled (its track sampled once a second, so sway does
   not count as distance); None when it travelled less than 2 m (standing, turning on the spot).
@@ -88,6 +95,8 @@ class Evaluation:
     contact_missed_pct: float = 0.0
     truth_slide_mm: float = 0.0
     held_truth_slide_mm: float = 0.0
+    foot_slide_excess_mm: float | None = None
+    joint_angle_step_max_deg: float = 0.0
 
     def as_dict(self) -> dict[str, object]:
         """Plain dictionary (for JSON)."""
@@ -324,7 +333,11 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
     slides = phase_slides(P, true_contacts)
     own = [n for n in contact_names if n in true_sites]
     P_true = truth["p_world_site"][span][:, [true_sites.index(n) for n in own]]
-    own_slides = phase_slides(P_true, true_contacts[:, [contact_names.index(n) for n in own]])
+    own_cols = [contact_names.index(n) for n in own]
+    own_slides = phase_slides(P_true, true_contacts[:, own_cols])
+    excess = [max(0.0, est - tru) for est, tru in
+              zip(phase_slides(P[:, own_cols], true_contacts[:, own_cols]), own_slides,
+                  strict=True)]
     held_names, held = _solver_contacts(folder / "contacts.csv", t, contact_names)
     held_true = [i for i, n in enumerate(held_names) if n in own]
     held_truth_slides = phase_slides(P_true[:, [own.index(held_names[i]) for i in held_true]],
@@ -336,6 +349,8 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
     planted = int(truth_held.sum())
     missed = 100.0 * float(np.sum(truth_held & ~held)) / planted if planted else 0.0
     jump, jump_at = joint_angle_jump(t, est_angles, true_angles, common)
+    # against a zero truth the "error" is the estimate's own rotation: its turn per frame
+    step, _ = joint_angle_jump(t, est_angles, np.zeros_like(est_angles), common)
     drift = (drift_percent(t, _interp(t, t_seg, segments["Pelvis"][:, :3]) + shift,
                            truth["p_world_segment"][span][:, true_seg.index("Pelvis")])
              if "Pelvis" in segments else None)
@@ -360,4 +375,6 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
         truth_slide_mm=1e3 * float(np.mean(own_slides)) if own_slides else 0.0,
         held_truth_slide_mm=(1e3 * float(np.mean(held_truth_slides)) if held_truth_slides
                              else 0.0),
+        foot_slide_excess_mm=1e3 * float(np.mean(excess)) if excess else None,
+        joint_angle_step_max_deg=step,
     )

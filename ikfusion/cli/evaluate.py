@@ -57,7 +57,9 @@ def run(args: argparse.Namespace) -> int:
         ("head position RMS (horizontal)", f"{100 * result.head_position_rms_xy_m:.1f} cm"),
         ("foot slide per contact (mean / max)",
          f"{result.foot_slide_mm:.1f} / {result.foot_slide_max_mm:.1f} mm (the truth's own "
-         f"{result.truth_slide_mm:.1f} mean)"),
+         f"{result.truth_slide_mm:.1f} mean; beyond the truth's "
+         + ("-" if result.foot_slide_excess_mm is None
+            else f"{result.foot_slide_excess_mm:.1f}") + " mean)"),
         ("slide of held contacts (mean / max)",
          f"{result.held_slide_mm:.1f} / {result.held_slide_max_mm:.1f} mm (the true points "
          f"{result.held_truth_slide_mm:.1f} mean)"),
@@ -66,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
          "samples missed)"),
         ("largest joint-angle jump vs truth",
          f"{result.joint_angle_jump_max_deg:.2f} deg/frame ({result.joint_angle_jump_at})"),
+        ("largest joint turn in one frame", f"{result.joint_angle_step_max_deg:.2f} deg"),
         ("drift (pelvis, % of distance)", "-" if result.drift_percent is None
          else f"{result.drift_percent:.2f} %"),
         ("start aligned to truth", "yes" if result.aligned_start else "no"),

@@ -117,3 +117,112 @@ def test_a_pattern_that_matches_no_clip_is_a_usage_error(pattern: str) -> None:
     with pytest.raises(SystemExit) as info:
         _bench().main(["--clips", pattern])
     assert info.value.code == 2
+
+
+# --- issue #19's acceptance list (--acceptance), judged on synthetic rows ----------------------
+
+#: The verdicts in acceptance()'s order: drift, IMU-only head, no-slide head, held, slide head,
+#: causal head, pops, flips, perfect-sensor slide.
+DRIFT, HEAD_IMU, HEAD_NO_SLIDE, HELD, HEAD_SLIDE, HEAD_CAUSAL, POPS, FLIPS, PERFECT_SLIDE = range(9)
+
+
+def _row(clip: str, mode: str, **figures):
+    """A row within every limit unless ``figures`` says otherwise."""
+    values = dict(head_cm=1.0, slide_mm=10.0, slide_max_mm=30.0, truth_mm=8.0, held_mm=0.0,
+                  held_max_mm=0.0, held_truth_mm=5.0, agree_pct=90.0, angle_rms_deg=2.0,
+                  jump_deg=2.0, fps=300.0, drift_pct=0.5, step_deg=10.0, beyond_mm=1.0)
+    values.update(figures)
+    return _bench().Row(clip, mode, **values)
+
+
+def _run(**changes):
+    """Rows of a walking clip and a jumping clip in the four modes, and their references;
+    ``changes`` maps ``"<clip> <mode>"`` to the figures that differ."""
+    bench = _bench()
+    rows = [_row(clip, mode, **changes.get(f"{clip} {mode}", {}))
+            for clip in ("walk", "jumps") for mode in bench.MODES]
+    references = {clip: _row(clip, bench.REFERENCE,
+                             **changes.get(f"{clip} {bench.REFERENCE}", {}))
+                  for clip in ("walk", "jumps")}
+    return bench.acceptance(rows, references, walking={"walk"})
+
+
+def test_acceptance_passes_every_criterion_at_its_limit() -> None:
+    verdicts = _run(**{"walk imu-only": dict(drift_pct=1.0, head_cm=50.0),
+                       "jumps no-slide": dict(head_cm=5.0, held_max_mm=1.0),
+                       "jumps slide": dict(head_cm=4.0, jump_deg=3.0),
+                       "walk no-slide-causal": dict(head_cm=8.0, step_deg=60.0),
+                       "jumps imu-only perfect": dict(beyond_mm=5.0)})
+    assert [v.status for v in verdicts] == ["PASS"] * 9
+    assert [v.judged for v in verdicts] == [1, 2, 2, 2, 2, 2, 8, 10, 2]
+    assert verdicts[POPS].value == pytest.approx(1.0) and verdicts[POPS].worst == "jumps slide"
+
+
+@pytest.mark.parametrize(("index", "where", "figures", "value"), [
+    (DRIFT, "walk imu-only", dict(drift_pct=1.01), 1.01),
+    (HEAD_IMU, "jumps imu-only", dict(head_cm=50.1), 50.1),
+    (HEAD_IMU, "jumps imu-only", dict(head_cm=float("nan")), float("nan")),
+    (HEAD_NO_SLIDE, "walk no-slide", dict(head_cm=5.1), 5.1),
+    (HELD, "jumps no-slide", dict(held_max_mm=1.1), 1.1),
+    (HEAD_SLIDE, "walk slide", dict(head_cm=4.1), 4.1),
+    (HEAD_CAUSAL, "jumps no-slide-causal", dict(head_cm=8.1), 8.1),
+    (POPS, "walk no-slide", dict(jump_deg=3.1), 1.1),  # the reference jumps 2.0 deg
+    (POPS, "jumps imu-only", dict(jump_deg=3.1), 1.1),  # sensor errors may not pop either
+    (FLIPS, "walk no-slide-causal", dict(step_deg=61.0), 61.0),
+    (FLIPS, "jumps imu-only perfect", dict(step_deg=61.0), 61.0),  # the reference flips
+    (PERFECT_SLIDE, "walk imu-only perfect", dict(beyond_mm=5.1), 5.1),
+])
+def test_each_criterion_fails_on_its_own_figure_alone(index: int, where: str, figures: dict,
+                                                      value: float) -> None:
+    verdicts = _run(**{where: figures})
+    assert [v.status for v in verdicts] == ["FAIL" if k == index else "PASS" for k in range(9)]
+    assert verdicts[index].worst == where
+    assert verdicts[index].value == pytest.approx(value, nan_ok=True)
+
+
+def test_what_a_criterion_does_not_judge() -> None:
+    verdicts = _run(**{
+        "jumps imu-only": dict(drift_pct=5.0),  # not a walking clip
+        "walk no-slide": dict(drift_pct=5.0),  # the drift criterion is about IMU only
+        "walk slide": dict(held_max_mm=30.0),  # slide mode moves its held points on purpose
+        "walk imu-only": dict(head_cm=30.0),  # within IMU only's 50 cm
+        "jumps no-slide": dict(jump_deg=0.5),  # smoother than the reference: no pop
+        "walk imu-only perfect": dict(beyond_mm=None),  # no stance in the truth
+    })
+    assert all(v.status == "PASS" for v in verdicts)
+    assert verdicts[PERFECT_SLIDE].judged == 1
+    # a walking clip too short for a drift figure, and modes not run: nothing to judge
+    bench = _bench()
+    rows = [_row("walk", "imu-only", drift_pct=None)]
+    verdicts = bench.acceptance(rows, {}, walking={"walk"})
+    assert [v.status for v in verdicts] == ["n/a", "PASS", "n/a", "n/a", "n/a", "n/a", "n/a",
+                                            "PASS", "n/a"]
+
+
+def test_acceptance_judges_the_default_sensor_errors_only() -> None:
+    with pytest.raises(SystemExit) as info:
+        _bench().main(["--acceptance", "--noise", "none", "--clips", "amp-run"])
+    assert info.value.code == 2
+
+
+def test_acceptance_run_prints_the_reference_and_the_verdicts(capsys) -> None:
+    """One short clip, IMU only: its perfect-sensor reference row comes first, the IMU-only row's
+    ``jump-ref`` is measured against it, the criteria of modes not run have nothing to judge,
+    and the exit code says whether one failed."""
+    bench = _bench()
+    code = bench.main(["--acceptance", "--clips", "amp-run", "--modes", "imu-only"])
+    out = capsys.readouterr().out.splitlines()
+    header = out.index(bench.HEADER)
+    reference, imu_only = out[header + 1].split(), out[header + 2].split()
+    assert reference[:3] == ["amp-run", "imu-only", "perfect"]
+    assert imu_only[:2] == ["amp-run", "imu-only"] and len(imu_only) == 2 + 15
+    # the 15 figures end a row; jump deg is the 10th, jump-ref the 13th ('-' for the reference)
+    assert reference[-15:][12] == "-"
+    jump, reference_jump = float(imu_only[-15:][9]), float(reference[-15:][9])
+    assert float(imu_only[-15:][12]) == pytest.approx(jump - reference_jump, abs=0.011)
+    verdicts = out[out.index(bench.VERDICT_HEADER) + 1:]
+    assert len(verdicts) == 9
+    statuses = [line.split()[-1] for line in verdicts]
+    assert statuses[2:6] == ["n/a"] * 4  # no UWB mode was run
+    assert statuses[0] == "n/a"  # amp-run is not a walking clip
+    assert code == (1 if "FAIL" in statuses else 0)

@@ -234,3 +234,45 @@ def test_held_slide_and_detection_misses_are_told_apart(walk, tmp_path: Path) ->
     moved = np.max(np.linalg.norm(P[start:stop] - P[start], axis=1))
     assert e.held_truth_slide_mm == pytest.approx(1e3 * moved, abs=0.01)
     assert e.held_truth_slide_mm > 1.0
+
+
+def test_slide_beyond_the_truths_is_the_skating_a_solve_adds(walk, tmp_path: Path) -> None:
+    """Issue #19: a solve that holds its points still while the true points slide in the truth's
+    loose phases adds no skating; a solve that slides where the truth stands adds all of it."""
+    speed = 0.1  # [m/s] along x
+    drifting = walk.q.copy()
+    drifting[:, 0] += speed * (walk.time - walk.time[0])
+    # the truth slides in its phases, the estimate holds its points still
+    truth_file = write_truth(tmp_path / "sliding_truth.npz", replace(walk, q=drifting))
+    e = evaluate(result_of(walk, walk.q, tmp_path / "still"), truth_file)
+    assert e.truth_slide_mm > 10.0 and e.foot_slide_mm < 0.1
+    assert e.foot_slide_excess_mm is not None and e.foot_slide_excess_mm < 0.01
+    # the truth stands in its phases, the estimate slides: every millimetre is the solve's
+    truth_file = write_truth(tmp_path / "truth.npz", walk)
+    e = evaluate(result_of(walk, drifting, tmp_path / "sliding"), truth_file)
+    assert e.truth_slide_mm < 0.1 and e.foot_slide_mm > 10.0
+    assert e.foot_slide_excess_mm == pytest.approx(e.foot_slide_mm, abs=0.1)
+
+
+def test_a_flip_is_the_largest_turn_of_a_joint_in_one_frame(walk, tmp_path: Path) -> None:
+    """The estimate's own fastest joint, whatever the truth does: the exact walk's is the walk's
+    (its joints' quaternions, frame to frame); a still pose whose knee turns by 30 deg from one
+    frame to the next (a flip the truth does not have) turns 30 deg."""
+    truth_file = write_truth(tmp_path / "truth.npz", walk)
+    exact = evaluate(result_of(walk, walk.q, tmp_path / "exact"), truth_file)
+    turns = [np.degrees(2.0 * np.arccos(np.clip(np.abs(np.sum(
+        walk.q[1:, j.idx_q:j.idx_q + 4] * walk.q[:-1, j.idx_q:j.idx_q + 4], axis=1)), 0.0, 1.0)))
+        for name, j in walk.model.ball_joints.items() if "BallFoot" not in name]
+    assert exact.joint_angle_step_max_deg == pytest.approx(np.max(turns), abs=0.05)
+    joint = walk.model.ball_joints["jRightKnee"]
+    flex = joint.spec.angles[0]
+    axis = np.eye(3)["xyz".index(flex.axis)] * flex.sign
+    half = np.radians(15.0)
+    turned = pin.Quaternion(np.cos(half), *(np.sin(half) * axis))
+    q = np.repeat(walk.q[:1], len(walk.q), axis=0)
+    k = len(q) // 2
+    x, y, z, w = q[0, joint.idx_q:joint.idx_q + 4]
+    flipped = pin.Quaternion(w, x, y, z) * turned
+    q[k:, joint.idx_q:joint.idx_q + 4] = [flipped.x, flipped.y, flipped.z, flipped.w]
+    e = evaluate(result_of(walk, q, tmp_path / "flip"), truth_file)
+    assert e.joint_angle_step_max_deg == pytest.approx(30.0, abs=0.05)
