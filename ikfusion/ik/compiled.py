@@ -169,7 +169,8 @@ class CompiledKinematics:
         lower = ca.SX.sym("lower", 3 * len(ball_joints))
         upper = ca.SX.sym("upper", 3 * len(ball_joints))
         G_ranges, room_up, room_down = range_rows(
-            angles, E_inv, [j.idx_v for j in ball_joints], lower, upper, model.nv)
+            angles, E_inv, [j.idx_v for j in ball_joints],
+            [j.spec.axis_coupling for j in ball_joints], lower, upper, model.nv)
         w_orient = ca.SX.sym("w_orient", 3 * len(segment_frames))
         w_posture = ca.SX.sym("w_posture", 3 * len(ball_joints))
         H = ca.SX(model.nv, model.nv)

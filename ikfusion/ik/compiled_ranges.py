@@ -3,8 +3,9 @@
 The twin of :meth:`.limits.JointRangeLimit.linearise`. Each joint's anatomical angles are
 measured on the Euler triple closest to its range (as
 :func:`ikfusion.model.angle_continuity.nearest_to_ranges`: the first and third angles wrapped
-within half a turn of the middle of their range, the branch with the smaller squared distance
-outside the range kept; on the other branch the middle angle's rate changes sign). Outputs, for
+within half a turn of the middle of their range, the branch that the smaller turn of the joint
+brings into its range kept (:func:`~ikfusion.model.angle_continuity.turn_into_range`); on the
+other branch the middle angle's rate changes sign). Outputs, for
 ``j`` ball joints: the rows ``G`` (3j, nv) of the angles' rates per unit tangent step and the
 room to the limits ``upper - a`` and ``a - lower`` (3j) [rad], so that the linearised limits
 read ``G dq <= upper - a`` and ``-G dq <= a - lower``.
@@ -25,20 +26,35 @@ def _wrap_near(a: ca.SX, centre: ca.SX) -> ca.SX:
     return a + _TURN * ca.floor((centre - a) / _TURN + 0.5)
 
 
-def _outside(a: ca.SX, lower: ca.SX, upper: ca.SX) -> ca.SX:
-    """Squared distance [rad^2] of the triple ``a`` outside its range."""
-    beyond = ca.fmax(ca.fmax(lower - a, a - upper), 0.0)
-    return ca.sumsqr(beyond)
+def _turn_into_range(low: ca.SX, high: ca.SX, kappa: ca.SX) -> ca.SX:
+    """Squared turn [rad^2] that brings a triple into its range.
+
+    The twin of :func:`ikfusion.model.angle_continuity.turn_into_range`, ``low`` and ``high``
+    (3,) for one joint.
+    """
+    middle = ca.fmin(ca.fmax(0.0, low[1]), high[1])
+    l1, h1, l3, h3 = low[0], high[0], low[2], high[2]
+
+    def form(d1: ca.SX, d3: ca.SX) -> ca.SX:
+        return d1 * d1 + d3 * d3 + 2.0 * kappa * d1 * d3
+
+    edges = [form(d1, ca.fmin(ca.fmax(-kappa * d1, l3), h3)) for d1 in (l1, h1)]
+    edges += [form(ca.fmin(ca.fmax(-kappa * d3, l1), h1), d3) for d3 in (l3, h3)]
+    best = ca.fmin(ca.fmin(edges[0], edges[1]), ca.fmin(edges[2], edges[3]))
+    inside = ca.logic_and(ca.logic_and(l1 <= 0.0, h1 >= 0.0), ca.logic_and(l3 <= 0.0, h3 >= 0.0))
+    return middle * middle + ca.if_else(inside, 0.0, best)
 
 
 def range_rows(angles: Sequence[ca.SX], rates: Sequence[ca.SX], idx_v: Sequence[int],
-               lower: ca.SX, upper: ca.SX, nv: int) -> tuple[ca.SX, ca.SX, ca.SX]:
+               couplings: Sequence[float], lower: ca.SX, upper: ca.SX, nv: int
+               ) -> tuple[ca.SX, ca.SX, ca.SX]:
     """``(G (3j, nv), room_up (3j), room_down (3j))`` of the linearised ranges of motion.
 
     Args:
         angles: Per joint, its principal anatomical angles (3) [rad].
         rates: Per joint, ``E^-1`` (3, 3): angle rates per unit tangent step of the joint.
         idx_v: Per joint, its first tangent column.
+        couplings: Per joint, its :attr:`~ikfusion.model.joints.JointSpec.axis_coupling`.
         lower: Lower limits (3j) [rad], joint by joint.
         upper: Upper limits (3j) [rad].
         nv: Tangent size.
@@ -46,12 +62,14 @@ def range_rows(angles: Sequence[ca.SX], rates: Sequence[ca.SX], idx_v: Sequence[
     G = ca.SX(3 * len(angles), nv)
     up, down = [], []
     other_signs = ca.DM([1.0, -1.0, 1.0])
-    for n, (a, E_inv, col) in enumerate(zip(angles, rates, idx_v)):
+    for n, (a, E_inv, col, coupling) in enumerate(zip(angles, rates, idx_v, couplings)):
         lo, hi = lower[3 * n:3 * n + 3], upper[3 * n:3 * n + 3]
         centre = 0.5 * (lo + hi)
         same = _wrap_near(a, centre)
         other = _wrap_near(a * other_signs + np.pi, centre)
-        flipped = _outside(other, lo, hi) < _outside(same, lo, hi)
+        kappa = coupling * ca.sin(a[1])
+        flipped = (_turn_into_range(lo - other, hi - other, kappa)
+                   < _turn_into_range(lo - same, hi - same, kappa))
         chosen = ca.if_else(flipped, other, same)
         middle_sign = ca.if_else(flipped, -1.0, 1.0)
         G[3 * n, col:col + 3] = E_inv[0, :]

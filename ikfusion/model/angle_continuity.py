@@ -220,20 +220,26 @@ def nearest_columns_deg(values_deg: npt.ArrayLike, reference_deg: npt.ArrayLike,
     return out
 
 
-def nearest_to_ranges(angles: npt.ArrayLike, lower: npt.ArrayLike,
-                      upper: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+def nearest_to_ranges(angles: npt.ArrayLike, lower: npt.ArrayLike, upper: npt.ArrayLike,
+                      coupling: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """The triple of each rotation that lies closest to its range of motion.
 
     The first and third angles are taken within half a turn of the middle of their range (the
     cut sits in the middle of the excluded arc, not at +-180 deg), and of the two Euler branches
-    the one with the smaller squared distance outside the ranges is kept. A pose beyond a limit
-    is so measured from the limit it crossed, not from the opposite one across the wrap: a hip
-    flexed to 185 deg is 55 deg beyond its 130 deg limit, not 140 deg below -35 deg.
+    the one that the smaller turn of the joint brings into its range is kept
+    (:func:`turn_into_range`). A pose beyond a limit is so measured from the limit it crossed,
+    not from the opposite one across the wrap: a hip flexed to 185 deg is 55 deg beyond its
+    130 deg limit, not 140 deg below -35 deg. Near gimbal lock the turn is not the angles'
+    distance: a shoulder at 74 deg rotation, 21 deg past its extension limit with its abduction
+    21 deg up, is 6 deg of turn from its range, while its other branch (rotation 106 deg) is 21
+    deg away; measured angle by angle, that other branch looked nearer, and the solve was thrown
+    through the lock to a pose 20 deg off the arm.
 
     Args:
         angles: (..., 3) any triple per joint [rad] in sequence order.
         lower: (..., 3) lower limits [rad].
         upper: (..., 3) upper limits [rad].
+        coupling: (...) each joint's :attr:`~ikfusion.model.joints.JointSpec.axis_coupling`.
 
     Returns:
         The chosen triples (..., 3) [rad] and the mask (...) of those on the other branch
@@ -244,10 +250,41 @@ def nearest_to_ranges(angles: npt.ArrayLike, lower: npt.ArrayLike,
     a = np.asarray(angles, dtype=float)
     # Both branches at once (few NumPy calls: this runs on every step of every frame): the
     # triple itself and its equivalent (a1 + pi, pi - a2, a3 + pi), each wrapped near the
-    # centre of the range; at most one of ``lo - x`` and ``x - hi`` is positive (lo <= hi).
+    # centre of the range (sin(pi - a2) = sin(a2): both share the coupling of their axes).
     both = np.concatenate([a[None], (a * _OTHER_SIGNS + np.pi)[None]])
     both += _TURN * np.rint((0.5 * (lo + hi) - both) / _TURN)  # rint: np.round's halves
-    beyond = np.maximum(np.maximum(lo - both, both - hi), 0.0)
-    outside = np.add.reduce(beyond * beyond, axis=-1)
+    kappa = np.asarray(coupling, dtype=float) * np.sin(a[..., 1])
+    outside = turn_into_range(lo - both, hi - both, kappa)
     flipped = outside[1] < outside[0]
     return np.where(flipped[..., None], both[1], both[0]), flipped
+
+
+def turn_into_range(low: np.ndarray, high: np.ndarray, kappa: np.ndarray) -> np.ndarray:
+    """Squared turn [rad^2] of the smallest change of a triple that brings it into its range.
+
+    The change ``d`` of the angles must lie in the box ``low <= d <= high`` (``lower - a``,
+    ``upper - a``); it turns the joint by ``d1^2 + d2^2 + d3^2 + 2 kappa d1 d3`` to first order
+    (see :attr:`~ikfusion.model.joints.JointSpec.axis_coupling`, ``kappa = c sin(a2)``). The
+    middle angle is apart: its own distance. For the first and third, the least of that convex
+    form over the box is 0 when the box holds d = 0, otherwise on one of its four edges, each
+    the form's least along the edge clamped to it.
+
+    Args:
+        low: (..., 3) the least change of each angle [rad].
+        high: (..., 3) the largest, ``high >= low``.
+        kappa: (...) the coupling of the first and third angles, in [-1, 1].
+
+    Returns:
+        (...) [rad^2].
+    """
+    middle = np.clip(0.0, low[..., 1], high[..., 1])
+    l1, h1, l3, h3 = low[..., 0], high[..., 0], low[..., 2], high[..., 2]
+    best = np.full(np.shape(l1), np.inf)
+    for d1 in (l1, h1):  # the edges d1 = const, d3 at its best along them
+        d3 = np.clip(-kappa * d1, l3, h3)
+        best = np.minimum(best, d1 * d1 + d3 * d3 + 2.0 * kappa * d1 * d3)
+    for d3 in (l3, h3):
+        d1 = np.clip(-kappa * d3, l1, h1)
+        best = np.minimum(best, d1 * d1 + d3 * d3 + 2.0 * kappa * d1 * d3)
+    inside = (l1 <= 0.0) & (h1 >= 0.0) & (l3 <= 0.0) & (h3 >= 0.0)
+    return middle * middle + np.where(inside, 0.0, best)

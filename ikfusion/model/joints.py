@@ -83,6 +83,21 @@ class JointSpec:
         """Signs of the three angles, shape (3,)."""
         return np.array([a.sign for a in self.angles], dtype=float)
 
+    @property
+    def axis_coupling(self) -> float:
+        """``c`` (+-1) such that the first and third angles' axes have the cosine ``c sin(a2)``.
+
+        Both axes seen in the child frame, ``a2`` the middle anatomical angle; ``c`` is the
+        product of the three signs and the sequence's parity (+1 for x-y-z, y-z-x, z-x-y). A
+        change ``da = (d1, d2, d3)`` of the angles turns the joint by about
+        ``sqrt(d1^2 + d2^2 + d3^2 + 2 c sin(a2) d1 d3)`` [rad]: near ``|a2| = 90`` deg
+        (gimbal lock) the first and third angles can change a lot together while the joint
+        barely turns.
+        """
+        i, j = ("xyz".index(a.axis) for a in self.angles[:2])
+        parity = 1.0 if (j - i) % 3 == 1 else -1.0
+        return parity * float(np.prod(self.signs))
+
     def column(self, angle: str) -> str:
         """Column name of one angle, e.g. ``jRightKnee_flex``."""
         return f"{self.name}_{angle}"

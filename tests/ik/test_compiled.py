@@ -105,7 +105,8 @@ def test_compiled_ranges_measure_on_the_triple_nearest_the_range(human: HumanMod
                       np.ones(3 * len(frames)), np.ones(3 * len(joints)),
                       random_rotations(len(joints), rng), (limits.lower, limits.upper))
         a = limits.angles(q)
-        flipped += int(nearest_to_ranges(a, limits.lower, limits.upper)[1].sum())
+        flipped += int(nearest_to_ranges(a, limits.lower, limits.upper,
+                                             limits.coupling)[1].sum())
         ranges = limits.linearise(a, None, human.model.nv)
         np.testing.assert_allclose(outputs[7], ranges.G, atol=1e-8)
         np.testing.assert_allclose(outputs[8][:, 0], ranges.room_up, atol=1e-10)

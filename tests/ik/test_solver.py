@@ -165,3 +165,35 @@ def test_a_pose_beyond_a_limit_is_held_at_that_limit_not_thrown_to_the_other(
     assert np.all(solved[beyond, 0] > 165.0)  # held near the limit it crossed
     inside = flex < 160.0  # well inside: the solve follows the truth again
     np.testing.assert_allclose(solved[inside, 0], flex[inside], atol=1.0)
+
+
+def test_a_shoulder_near_gimbal_lock_past_its_limit_is_held_there_not_thrown_through_it(
+        human: HumanModel) -> None:
+    """Issue #19 (cmu-02-10-wash: a 20 deg pop of the right shoulder, every mode): the upper arm
+    sensed at 74 deg axial rotation moves past the -65 deg extension limit by up to 25 deg with
+    the abduction rising as much (a few degrees of turn near gimbal lock). The solve must stay
+    on the in-range pose nearest the arm (brute force), without a pop between frames; it was
+    thrown through the lock to a pose 21 deg off the arm."""
+    from scipy.optimize import minimize
+
+    spec = human.ball_joint("jRightShoulder").spec
+    flex = -55.0 - 35.0 * np.sin(np.linspace(0.0, np.pi, 90))  # -55 -> -90 -> -55 deg
+    qs = np.array([human.configuration({"jRightShoulder_flex": f, "jRightShoulder_rot": 74.0,
+                                        "jRightShoulder_abd": 108.0 - (f + 65.0)})
+                   for f in flex])
+    _, q_est = solve_exact(human, qs)
+
+    def joint(q: np.ndarray) -> np.ndarray:
+        return (human.segment_rotation(q, "RightShoulder").T
+                @ human.segment_rotation(q, "RightUpperArm"))
+
+    target = np.array([joint(q) for q in qs])
+    solved = np.array([joint(q) for q in q_est])
+    error = np.degrees(angle_between(target, solved))
+    bounds = [(np.radians(a.lower_deg), np.radians(a.upper_deg)) for a in spec.angles]
+    for k in np.flatnonzero(flex < -80.0)[::6]:  # the farthest past the limit
+        fit = minimize(lambda x, R=target[k]: float(angle_between(spec.rotation(x), R)),
+                       np.clip(spec.angles_from_rotation(target[k]), *np.array(bounds).T),
+                       method="Powell", bounds=bounds)
+        assert error[k] <= np.degrees(fit.fun) + 1.5
+    assert np.max(np.degrees(angle_between(solved[:-1], solved[1:]))) < 2.0

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.optimize import lsq_linear, minimize
 
 from ikfusion.model import HumanModel
 from ikfusion.model.angle_continuity import (
@@ -12,8 +13,10 @@ from ikfusion.model.angle_continuity import (
     equivalent_triple,
     nearest_equivalent,
     nearest_to_ranges,
+    turn_into_range,
     wrap_near,
 )
+from ikfusion.rotations import angle_between
 
 
 @pytest.fixture(scope="module")
@@ -99,9 +102,57 @@ def test_a_pose_beyond_a_limit_is_measured_from_that_limit(human: HumanModel) ->
     upper = np.radians([a.upper_deg for a in joint.angles])
     raw = principal(human, "jRightHip", np.array([185.0, 10.0, 5.0]))
     assert np.degrees(raw[0]) < 0.0  # the principal triple reads -175 deg
-    chosen, flipped = nearest_to_ranges(raw, lower, upper)
+    chosen, flipped = nearest_to_ranges(raw, lower, upper, joint.axis_coupling)
     assert not flipped
     np.testing.assert_allclose(np.degrees(chosen), [185.0, 10.0, 5.0], atol=1e-9)
+
+
+def nearest_in_range_deg(spec, R: np.ndarray) -> float:
+    """Brute force: the least turn [deg] from ``R`` to a rotation whose angles are in range."""
+    bounds = [(np.radians(a.lower_deg), np.radians(a.upper_deg)) for a in spec.angles]
+    starts = [np.clip(x, *np.array(bounds).T) for x in (
+        spec.angles_from_rotation(R), equivalent_triple(spec.angles_from_rotation(R)))]
+    best = np.inf
+    for x0 in starts:
+        fit = minimize(lambda x: float(angle_between(spec.rotation(x), R)), x0,
+                       method="Powell", bounds=bounds, options={"xtol": 1e-6, "ftol": 1e-10})
+        best = min(best, float(fit.fun))
+    return float(np.degrees(best))
+
+
+def test_a_pose_near_gimbal_lock_is_measured_on_the_branch_a_small_turn_brings_in(
+        human: HumanModel) -> None:
+    """Issue #19 (cmu-02-10-wash, a 20 deg pop): a right shoulder at 74 deg axial rotation,
+    sensed 21 deg past its -65 deg extension limit with its abduction 21 deg up (5.8 deg of
+    sensor error near gimbal lock). It is 6 deg of turn from its range on its own branch; the
+    other branch (rotation 106 deg, 21 deg past 85) looked nearer angle by angle, and the solve
+    was thrown through the lock."""
+    spec = human.ball_joints["jRightShoulder"].spec
+    lower = np.radians([a.lower_deg for a in spec.angles])
+    upper = np.radians([a.upper_deg for a in spec.angles])
+    sensed = np.radians([-86.45, 74.13, 129.92])  # flex, rot, abd
+    chosen, flipped = nearest_to_ranges(sensed, lower, upper, spec.axis_coupling)
+    assert not flipped
+    np.testing.assert_allclose(chosen, sensed, atol=1e-12)
+    turn = np.degrees(np.sqrt(turn_into_range(lower - chosen, upper - chosen,
+                                              spec.axis_coupling * np.sin(chosen[1]))))
+    truth = nearest_in_range_deg(spec, spec.rotation(sensed))  # 5.7 deg
+    assert truth < 7.0
+    assert abs(turn - truth) < 1.0  # first order, 21 deg of angles from the range
+
+
+def test_the_turn_into_range_is_the_least_of_its_form_over_the_box(rng) -> None:
+    """The closed form (interior or one of four clamped edges) against bounded least squares:
+    the form is ``|A d|^2`` with ``A^T A = [[1, 0, k], [0, 1, 0], [k, 0, 1]]``."""
+    for _ in range(300):
+        low = rng.uniform(-1.0, 0.6, 3)
+        high = low + rng.uniform(0.0, 1.5, 3)
+        kappa = rng.uniform(-0.999, 0.999)
+        A = np.linalg.cholesky(np.array([[1.0, 0.0, kappa], [0.0, 1.0, 0.0],
+                                         [kappa, 0.0, 1.0]])).T
+        fit = lsq_linear(A, np.zeros(3), bounds=(low, high), method="bvls", tol=1e-14)
+        least = float(np.sum((A @ fit.x) ** 2))
+        assert turn_into_range(low, high, np.array(kappa)) == pytest.approx(least, abs=1e-10)
 
 
 def frame_by_frame(angles: np.ndarray) -> np.ndarray:

@@ -10,10 +10,11 @@ vector Pinocchio uses for spherical joints) through ``w = E(a) da``, with
 so the linearised limits are ``lower - a <= E^-1 w <= upper - a``. ``E`` is invertible while the
 middle angle stays away from +-90 deg, which the ranges guarantee.
 
-A pose beyond its range (the warm start at the sensed pose of an athlete) is measured on the
-Euler triple closest to the range (:func:`~ikfusion.model.angle_continuity.nearest_to_ranges`),
-so it is pulled back to the limit it crossed and not thrown to the opposite corner across the
-+-180 deg wrap of the principal decomposition.
+A pose beyond its range (the warm start at the sensed pose of an athlete, or of noisy sensors
+near a limit) is measured on the Euler triple that the smallest turn of the joint brings into
+the range (:func:`~ikfusion.model.angle_continuity.nearest_to_ranges`), so it is pulled back to
+the limit it crossed: not thrown to the opposite corner across the +-180 deg wrap of the
+principal decomposition, nor through gimbal lock onto the other Euler branch.
 """
 
 from __future__ import annotations
@@ -54,6 +55,7 @@ class JointRangeLimit:
         self.upper = np.radians([[a.upper_deg for a in s.angles] for s in specs])
         i, j = self.axes[:, 0], self.axes[:, 1]
         self.parity = np.where((j - i) % 3 == 1, 1.0, -1.0)
+        self.coupling = np.array([s.axis_coupling for s in specs])
         self.margin = np.radians(margin_deg)
         self._q_cols = self.idx_q[:, None] + np.arange(4)
         n = len(self.idx_v)  # where each E^-1 entry goes in the rows of all angles
@@ -85,7 +87,7 @@ class JointRangeLimit:
 
     def violation_deg(self, q: np.ndarray) -> np.ndarray:
         """How far each angle lies outside its range (joints, 3) [deg], 0 inside."""
-        a, _ = nearest_to_ranges(self.angles(q), self.lower, self.upper)
+        a, _ = nearest_to_ranges(self.angles(q), self.lower, self.upper, self.coupling)
         return np.degrees(np.maximum(self.lower - a, 0.0) + np.maximum(a - self.upper, 0.0))
 
     def inequality(self, configuration: Configuration) -> Inequality:
@@ -109,7 +111,7 @@ class JointRangeLimit:
         on its triple closest to the range, whose middle rate row changes sign on the other
         branch.
         """
-        a, flipped = nearest_to_ranges(angles, self.lower, self.upper)
+        a, flipped = nearest_to_ranges(angles, self.lower, self.upper, self.coupling)
         Einv = self.rate_matrices(angles) if rate_matrices is None else rate_matrices
         if any_true(flipped):
             Einv = Einv.copy()
