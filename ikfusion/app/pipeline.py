@@ -25,7 +25,7 @@ from ..imu.calibration import Calibration, calibrate_recording
 from ..imu.flight import FlightPhases, FlightThresholds, detect_flight, world_acceleration
 from ..imu.point_speed import foot_point_offsets, points_moving
 from ..imu.resting import RESTING_SEGMENTS, segment_resting
-from ..imu.stance import StanceThresholds, foot_still, stance_thresholds
+from ..imu.stance import StanceThresholds, foot_still, stance_thresholds, velocity_anchors
 from ..io.recording import ImuRecording, SensorStream
 from ..live.actor_stream import ActorStream
 from ..live.replay import recording_frames
@@ -104,7 +104,8 @@ def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str]
             still[s] = foot_still(R, recording.rate, gyr, stance, acc)
             if (foot_points and s in foot_points and gyr is not None and acc is not None
                     and s in calibration.R_sensor_segment):
-                moving.update(points_moving(R, acc, gyr, still[s] == 1.0, recording.rate,
+                anchors = velocity_anchors(R, still[s] == 1.0, recording.rate, gyr, stance, acc)
+                moving.update(points_moving(R, acc, gyr, anchors, recording.rate,
                                             calibration.R_sensor_segment[s],
                                             dict(foot_points[s]), release_speed))
         elif s in RESTING_SEGMENTS and st.acc is not None:

@@ -261,10 +261,13 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     released = np.where(active, state.released, state.released + max(dt, 0.0))
     moving_point, settled = _point_motion(points_moving, len(active))
     # a point that just let go (toe-off) does not come back down at once while it is low,
-    # unless its foot IMU says it no longer moves (a landing heel let go while it skidded)
+    # unless its foot IMU says it no longer moves (a landing heel let go while it skidded).
+    # A point its foot IMU says does not move is slow whatever its solved speed: that speed
+    # is relative to the planted points, and a planted point that truly slides (a toe dragged
+    # at push-off) moves the whole solved body, the landing foot with it.
     enter = (~active & (p_solved[:, 2] < th.floor_z + th.enter_height)
-             & (speed < th.enter_speed) & (height_rel < th.enter_relative) & ~tilted
-             & ((released >= th.reenter_delay) | settled))
+             & ((speed < th.enter_speed) | settled) & (height_rel < th.enter_relative)
+             & ~tilted & ((released >= th.reenter_delay) | settled))
     if points_moving is not None:  # see release_contacts
         enter &= ~(moving_point & _other_foot(layout, active & ~moving_point))
     for i, name in enumerate(state.names):

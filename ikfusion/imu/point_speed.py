@@ -8,10 +8,12 @@ still (its velocity is zero there: pedestrian dead reckoning's zero-velocity upd
 sensor's velocity ``v_world_sensor``, and a point rigidly on the foot at ``r`` from the sensor
 moves at ``v_world_sensor + omega_world x r``. Offline, the velocity integrated over a stretch
 between two still stances is corrected linearly so it ends at zero too (this removes a constant
-accelerometer or tilt error). An error that is not constant still grows with the time
-integrated, so a sample farther than ``horizon`` from both stances around it (a long stretch
-without stance, the end of a recording) has no velocity: the contact detection then decides
-without it.
+accelerometer or tilt error). A foot that rolls from heel to ball all through its stance (a brisk
+walk) never stands still; its velocity is taken as zero where it turns slowest instead
+(:func:`ikfusion.imu.stance.velocity_anchors`). An error that is not constant still grows with
+the time integrated, so a sample farther than ``horizon`` from both stances around it (a long
+stretch without stance, the end of a recording) has no velocity: the contact detection then
+decides without it.
 
 Points below the foot (the toes) are taken at the ball of the foot, where the toes hinge: the
 foot pivots about it at push-off.
@@ -118,7 +120,9 @@ def points_moving(R_world_sensor: np.ndarray, acc: np.ndarray, gyr: np.ndarray,
         R_world_sensor: (N, 3, 3) the foot sensor's orientations (NaN where missing).
         acc: (N, 3) its specific force, sensor frame [m/s^2].
         gyr: (N, 3) its angular rate, sensor frame [rad/s].
-        still: (N,) where the foot stands still (:func:`ikfusion.imu.stance.foot_still`).
+        still: (N,) where the foot's velocity is zero: where it stands still
+            (:func:`ikfusion.imu.stance.foot_still`) and, for a foot that rolls through its
+            stances, where it turns slowest (:func:`ikfusion.imu.stance.velocity_anchors`).
         rate: Sample rate [Hz].
         R_sensor_segment: (3, 3) the sensor's mounting on the foot segment.
         offsets: Point name -> offset (3,) from the sensor, foot segment frame [m]

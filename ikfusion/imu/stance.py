@@ -46,12 +46,18 @@ class StanceThresholds:
             be still, when the accelerometer is recorded [m/s^2] (a side step braked onto
             the floor shows 5-10 m/s^2 until it lands; a foot standing on a jittery mocap
             clip up to 3).
+        rolling_rate: Angular speed below which a foot that never stands still in a stance
+            (it rolls from heel to ball all along, as in a brisk walk) is taken as at rest at its
+            slowest sample, for the velocity of :mod:`ikfusion.imu.point_speed` only [rad/s]:
+            turning at 1 rad/s about its ball, 6 cm away, the sensor moves at 0.06 m/s, under
+            the speed that says a point moves (``release_speed``, 0.1 m/s).
     """
 
     max_rate: float = 0.6
     min_duration: float = 0.1
     window: float = 0.05
     max_acceleration: float = 3.0
+    rolling_rate: float = 1.0
 
 
 def stance_thresholds(settings: SolverSettings) -> StanceThresholds:
@@ -151,6 +157,43 @@ def foot_still(R_world_sensor: np.ndarray, rate: float, gyr: np.ndarray | None =
     out = still.astype(float)
     out[~np.isfinite(speed)] = np.nan
     return out
+
+
+def velocity_anchors(R_world_sensor: np.ndarray, still: np.ndarray, rate: float,
+                     gyr: np.ndarray | None = None, thresholds: StanceThresholds | None = None,
+                     acc: np.ndarray | None = None) -> np.ndarray:
+    """Samples where a foot's sensor velocity may be taken as zero (zero-velocity updates).
+
+    The still samples (:func:`foot_still`), and in each stance where the foot never stands
+    still (it turns slower than ``rolling_rate`` with a calm acceleration for ``min_duration``
+    but not slower than ``max_rate``) the single sample where it turns slowest: a foot rolling
+    over its stance in a brisk walk is never still by the stance thresholds, and without an
+    anchor its points' speeds would stay unknown from stride to stride.
+
+    Args:
+        R_world_sensor: (N, 3, 3) the foot sensor's orientations (NaN where missing).
+        still: (N,) where the foot stands still.
+        rate: Sample rate [Hz].
+        gyr: (N, 3) its angular rate [rad/s], sensor frame, when recorded.
+        thresholds: What still means (``rolling_rate``, ``max_acceleration``, ``min_duration``).
+        acc: (N, 3) its specific force [m/s^2], sensor frame, when recorded.
+
+    Returns:
+        (N,) True at the anchors.
+    """
+    th = thresholds or StanceThresholds()
+    anchors = np.asarray(still, dtype=bool).copy()
+    speed = angular_speed(R_world_sensor, rate, gyr)
+    calm = np.where(np.isfinite(speed), speed, np.inf) < th.rolling_rate
+    if acc is not None:
+        accel = free_acceleration(R_world_sensor, acc)
+        calm &= np.where(np.isfinite(accel), accel, np.inf) < th.max_acceleration
+    calm = _drop_short_runs(calm, max(1, int(round(th.min_duration * rate))))
+    edges = np.diff(np.r_[0, calm.astype(np.int8), 0])
+    for start, end in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+        if not anchors[start:end].any():
+            anchors[start + int(np.argmin(speed[start:end]))] = True
+    return anchors
 
 
 def _bridge_short_gaps(speed: np.ndarray, max_length: int) -> np.ndarray:

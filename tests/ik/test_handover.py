@@ -68,3 +68,21 @@ def test_a_heel_let_go_while_it_skidded_lands_again_once_it_stops() -> None:
         out = touch_down(state, P, P, P, 1.0 / 60.0, TH, foot_pitch=np.zeros(4), layout=LAYOUT,
                          points_moving=moving)
         assert bool(out.active[0]) is planted
+
+
+def test_a_landing_heel_its_imu_says_is_still_touches_down_though_the_body_slides() -> None:
+    """The heel lands while the rear toe, still held, truly drags forward (a mocap walk's
+    push-off): the body solved on that toe carries the landing heel along at over 1 m/s, but
+    its foot IMU says the heel does not move, so it touches down (issue #19: cmu-02-02-walk
+    planted its heel 100 ms late, and the toe held meanwhile slid 15 cm in the truth)."""
+    state = ContactState(NAMES, np.array([False, False, False, True]), P.copy(), np.full(4, 0.5))
+    state.released[:] = [1.0, 1.0, np.inf, np.inf]
+    dt = 1.0 / 60.0
+    previous = P - np.array([1.5 * dt, 0.0, 0.0])  # solved 1.5 m/s forward in one frame
+    for moving, planted in ((np.array([0.0, 1.0, np.nan, np.nan]), True),  # the heel still
+                            (np.array([np.nan, np.nan, np.nan, np.nan]), False),  # unknown
+                            (np.array([1.0, 1.0, np.nan, np.nan]), False)):  # it moves
+        out = touch_down(state, P, previous, P, dt, TH, foot_pitch=np.zeros(4), layout=LAYOUT,
+                         points_moving=moving)
+        assert bool(out.active[0]) is planted
+        assert not out.active[1]
