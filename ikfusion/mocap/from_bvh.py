@@ -233,11 +233,11 @@ def _bvh_motion(path: str | Path, rate: float, progress: bool, lock_contacts: bo
         q = _solved_configurations(model, mapped, time, progress)
     contacts = model.sites_of_kind("contact")
     q = level_on_floor(q, site_positions(model, q, contacts), time)
+    offset = np.zeros((len(time), 2))
+    if lock_contacts:  # before the lift: the clip's standing points, not those it lifted
+        q, offset = lock_planted_points(model, q, time, contacts)
     lift = floor_lift(site_positions(model, q, contacts), time)
     q[:, 2] += lift
-    offset = np.zeros((len(time), 2))
-    if lock_contacts:
-        q, offset = lock_planted_points(model, q, time, contacts)
     segment_ids = [model.segment_frame_id(s) for s in model.segment_names] if segments else []
     p, R = frame_poses(model.model, q, [*(model.site_frame_id(n) for n in contacts),
                                         *segment_ids])
