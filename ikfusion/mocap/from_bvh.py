@@ -185,8 +185,8 @@ def motion_from_bvh(path: str | Path, rate: float = 60.0, progress: bool = False
     Returns:
         The truth, on the floor (lowest contact point at z = 0) and never deeper under it than
         the floor fit's scatter (lifted where a point of our body went under the floor,
-        :func:`floor_lift`), with contact
-        phases; ``info["warnings"]`` lists the bad samples the reader bridged,
+        :func:`floor_lift`), with contact phases; ``info["warnings"]`` lists the bad samples
+        the reader bridged,
         ``info["lock_offset_max_m"]`` the largest root shift of the lock [m],
         ``info["floor_lift_max_m"]`` the largest lift out of the floor [m].
 
