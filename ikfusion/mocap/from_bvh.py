@@ -6,7 +6,8 @@ solver from the mapped segment orientations and the pelvis position. Mocap clips
 cm per step on CMU's; the BVH skeleton's own ankles slide as much as ours), which a real body
 does not: the root is then shifted horizontally so that planted contact points hold still
 (:mod:`ikfusion.mocap.foot_lock`), and contact phases come from the result's kinematics (points
-near the floor and nearly still).
+near the floor and nearly still). Our hands and feet are not the clip's either: where one would go
+under the floor the body is lifted out of it (:func:`floor_lift`).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+from scipy.ndimage import maximum_filter1d, uniform_filter1d
 from tqdm import tqdm
 
 from ..errors import ConfigError
@@ -111,6 +113,41 @@ def level_on_floor(q: np.ndarray, points: np.ndarray, time: np.ndarray) -> np.nd
     return moved_configurations(q, R, np.array([0.0, 0.0, -height]))
 
 
+#: A lift out of the floor is blended in and out over about this time [s] (the lowest point's
+#: depth changes slope where another point becomes the lowest: lifting by it exactly would put
+#: acceleration spikes into the simulated IMUs).
+FLOOR_LIFT_BLEND_S = 0.2
+
+
+def floor_lift(points: np.ndarray, time: np.ndarray, blend_s: float = FLOOR_LIFT_BLEND_S,
+               tolerance: float = FLOOR_OUTLIER) -> np.ndarray:
+    """The smooth vertical lift (N,) [m] that keeps every point at most ``tolerance`` under z = 0.
+
+    A clip read onto a body of other proportions (longer hands, another foot) puts points
+    under the floor that the captured person had on it: a cartwheel's palms went 19 cm deep,
+    which no solver holding them on the floor can follow (the whole body 15 cm too high in the
+    truth's terms). Within ``tolerance`` [m] a point is left as it is: the floor is fitted
+    through the standing points (:func:`floor_plane`), so their scatter puts some of them a
+    little under it. The lift is the least one that covers each frame's depth beyond that:
+    the excess's running maximum over ``blend_s`` [s], averaged over ``blend_s`` (so it never
+    falls below the excess, and its velocity is continuous); zero where nothing is deeper.
+
+    Args:
+        points: Contact points' world positions (N, k, 3) [m], floor at z = 0.
+        time: (N,) [s].
+        blend_s: Time over which the lift rises and falls [s].
+        tolerance: Depth left alone [m].
+    """
+    if points.size == 0:
+        return np.zeros(len(time))
+    excess = np.maximum(0.0, -points[..., 2].min(axis=1) - tolerance)
+    if not excess.any() or len(time) < 2:
+        return excess
+    width = max(1, int(round(blend_s / float(np.mean(np.diff(time)))))) | 1  # odd: centred
+    envelope = maximum_filter1d(excess, width, mode="nearest")
+    return np.maximum(uniform_filter1d(envelope, width, mode="nearest"), excess)
+
+
 #: A first frame whose segments turn more than this before the next one [deg] is a reference
 #: pose (CMU's clips start with one), not motion: it is dropped.
 REFERENCE_FRAME_JUMP_DEG = 90.0
@@ -146,9 +183,12 @@ def motion_from_bvh(path: str | Path, rate: float = 60.0, progress: bool = False
             frame; tens of times faster, the same pose wherever no range binds.
 
     Returns:
-        The truth, on the floor (lowest contact point at z = 0), with contact phases;
-        ``info["warnings"]`` lists the bad samples the reader bridged,
-        ``info["lock_offset_max_m"]`` the largest root shift of the lock [m].
+        The truth, on the floor (lowest contact point at z = 0) and never deeper under it than
+        the floor fit's scatter (lifted where a point of our body went under the floor,
+        :func:`floor_lift`), with contact phases; ``info["warnings"]`` lists the bad samples
+        the reader bridged,
+        ``info["lock_offset_max_m"]`` the largest root shift of the lock [m],
+        ``info["floor_lift_max_m"]`` the largest lift out of the floor [m].
 
     Raises:
         InputError: A malformed file, or bad samples that cannot be bridged (file, line,
@@ -194,8 +234,10 @@ def _bvh_motion(path: str | Path, rate: float, progress: bool, lock_contacts: bo
     contacts = model.sites_of_kind("contact")
     q = level_on_floor(q, site_positions(model, q, contacts), time)
     offset = np.zeros((len(time), 2))
-    if lock_contacts:
+    if lock_contacts:  # before the lift: the clip's standing points, not those it lifted
         q, offset = lock_planted_points(model, q, time, contacts)
+    lift = floor_lift(site_positions(model, q, contacts), time)
+    q[:, 2] += lift
     segment_ids = [model.segment_frame_id(s) for s in model.segment_names] if segments else []
     p, R = frame_poses(model.model, q, [*(model.site_frame_id(n) for n in contacts),
                                         *segment_ids])
@@ -204,7 +246,8 @@ def _bvh_motion(path: str | Path, rate: float, progress: bool, lock_contacts: bo
         "bvh_rate": bvh.frame_rate, "step": step, "missing_segments": list(mapped.missing),
         "body": body.to_dict(), "dropped_dimensions": dropped,
         "warnings": list(bvh.warnings),
-        "lock_offset_max_m": float(np.linalg.norm(offset, axis=1).max(initial=0.0))})
+        "lock_offset_max_m": float(np.linalg.norm(offset, axis=1).max(initial=0.0)),
+        "floor_lift_max_m": float(lift.max(initial=0.0))})
     return truth, (p[:, len(contacts):], R[:, len(contacts):])
 
 
