@@ -66,6 +66,7 @@ class EvenChainTask(Task):
                                       field="even_chains")
                 pairs.append((a, b))
         self.weight = float(weight)
+        self.pairs = pairs  # the compiled step sums them too (ikfusion.ik.compiled)
         self.pair_q = np.array([[a.idx_q, b.idx_q] for a, b in pairs], dtype=int).reshape(-1, 2)
         self.pair_v = np.array([[a.idx_v, b.idx_v] for a, b in pairs], dtype=int).reshape(-1, 2)
         self.shared = np.array([index[a.spec.child] for a, _ in pairs], dtype=int)
