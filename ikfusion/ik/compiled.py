@@ -25,7 +25,9 @@ sites), all in the world frame:
   ``e_posture = log(R_reference^T R_parent_child)`` and ``J_posture`` = ``Jr^-1(e)`` on each
   joint's columns (as :class:`ikfusion.ik.tasks.PostureTask`), ``e_chain = log(R_i) - log(R_j)``
   per pair of neighbouring joints with ``[Jr^-1(e_i), -Jr^-1(e_j)]`` on their columns (as
-  :class:`ikfusion.ik.tasks.EvenChainTask`);
+  :class:`ikfusion.ik.tasks.EvenChainTask`); the orientation part is summed along the
+  kinematic tree (:func:`.casadi_kinematics.angular_objective`), and the upper triangle of
+  ``H`` mirrors the lower one (the same numbers, to rounding, for far fewer operations);
 * ``e_orient`` (3k) [rad];
 * ``angles`` (3j): anatomical angles [rad] in sequence order; ``E_inv`` (3j, 3): their rates
   per unit joint tangent step;
@@ -58,7 +60,14 @@ from ..rotations_casadi import (
     right_jacobian_inverse,
     skew,
 )
-from .casadi_kinematics import forward, frame_pose, geometry_vector, jacobian, symbolic_placements
+from .casadi_kinematics import (
+    angular_objective,
+    forward,
+    frame_pose,
+    geometry_vector,
+    jacobian,
+    symbolic_placements,
+)
 from .compiled_ranges import range_rows
 from .compiled_sensed import SensedPoseSpec, sensed_pose_function
 from .native import BoundFunction, cached_functions, column_major, native_functions
@@ -112,14 +121,19 @@ class CompiledKinematics:
                                 sensed_pose_function(model, sensed, self.FUNCTION_NAMES[1], q,
                                                      targets, geometry, placements))
 
-        e_orient, J_orient = [], []
-        for n, fid in enumerate(segment_frames):
+        w_orient = ca.SX.sym("w_orient", 3 * len(segment_frames))
+        e_orient, K_orient, g_orient, dofs = [], [], [], []
+        for n, fid in enumerate(segment_frames):  # J_orient = Jl^-1(e) J_angular
             R, _ = frame_pose(model, fid, rotations, translations, placements)
             T = ca.reshape(targets[9 * n:9 * n + 9], 3, 3)
             e, theta = log_so3(R @ T.T)
-            J_angular = jacobian(model, fid, axes, translations, None)[3:, :]
             e_orient.append(e)
-            J_orient.append(left_jacobian_inverse(e, theta) @ J_angular)
+            M, w = left_jacobian_inverse(e, theta), w_orient[3 * n:3 * n + 3]
+            K_orient.append(M.T @ ca.diag(w) @ M)
+            g_orient.append(M.T @ (w * e))
+            dofs.append([iv for j in model.supports[model.frames[fid].parentJoint] if j
+                         for iv in range(model.idx_vs[j], model.idx_vs[j] + model.nvs[j])
+                         if axes[iv][0] == "angular"])
 
         references = ca.SX.sym("R_reference", 9 * len(ball_joints))
         e_post, J_post, angles, E_inv = [], [], [], []
@@ -159,17 +173,17 @@ class CompiledKinematics:
         upper = ca.SX.sym("upper", 3 * len(ball_joints))
         G_ranges, room_up, room_down = range_rows(
             angles, E_inv, [j.idx_v for j in ball_joints], lower, upper, model.nv)
-        w_orient = ca.SX.sym("w_orient", 3 * len(segment_frames))
         w_posture = ca.SX.sym("w_posture", 3 * len(ball_joints))
         w_chain = ca.SX.sym("w_chain", 3 * len(chain_pairs))
-        H = ca.SX(model.nv, model.nv)
-        c = ca.SX(model.nv, 1)
-        for e_all, J_all, weights in ((stack(e_orient, 1), stack(J_orient, model.nv), w_orient),
-                                      (stack(e_post, 1), stack(J_post, model.nv), w_posture),
+        H, c = angular_objective(K_orient, g_orient, dofs, axes, model.nv)
+        for e_all, J_all, weights in ((stack(e_post, 1), stack(J_post, model.nv), w_posture),
                                       (stack(e_chain, 1), stack(J_chain, model.nv), w_chain)):
             WJ = ca.diag(weights) @ J_all
             H += J_all.T @ WJ
             c += WJ.T @ e_all
+        # H is symmetric: its upper triangle mirrors the lower one (the graph of a product
+        # holds both, each its own sums)
+        H = ca.tril(H) + ca.tril(H, False).T
 
         self.function = ca.Function(
             self.FUNCTION_NAMES[0],

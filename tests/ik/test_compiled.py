@@ -80,6 +80,7 @@ def test_compiled_residuals_equal_reference(rng, height: float, case: str) -> No
         orientation.add_objective(conf, H_ref, c_ref)
         posture.add_objective(conf, H_ref, c_ref)
         chain.add_objective(conf, H_ref, c_ref)
+        assert np.array_equal(H, H.T)  # one number per pair of columns (the lower triangle)
         np.testing.assert_allclose(H, H_ref, atol=1e-8 * np.abs(H_ref).max())
         np.testing.assert_allclose(c[:, 0], c_ref, atol=1e-8 * np.abs(c_ref).max())
         a = limits.angles(q)
