@@ -2,7 +2,8 @@
 
 The graph follows the Pinocchio model exactly (same joint placements and joint types: free-flyer,
 spherical, revolute); joint and frame placements are symbolic inputs (the *geometry*), so bodies
-of every size share one graph. Used by :mod:`.compiled` to build the step function.
+of every size share one graph. Used by :mod:`.compiled` to build the step function, with
+:func:`angular_objective`, which sums rows on angular Jacobians along the kinematic tree.
 
 Tangent steps follow Pinocchio: a free-flyer moves by ``M exp(v)`` in its local frame, a
 spherical joint by ``R exp(w)``, a revolute joint by adding to its angle.
@@ -115,3 +116,46 @@ def frame_pose(model: pin.Model, fid: int, rotations: list, translations: list,
     j = model.frames[fid].parentJoint
     R_M, p_M = placements[("frame", fid)]
     return rotations[j] @ R_M, translations[j] + rotations[j] @ p_M
+
+
+def angular_objective(K: list[ca.SX], g: list[ca.SX], dofs: list[list[int]], axes: dict,
+                      nv: int) -> tuple[ca.SX, ca.SX]:
+    """``sum_s A_s^T K_s A_s`` (lower triangle) and ``sum_s A_s^T g_s`` over segments ``s``.
+
+    ``A_s`` (3, nv) is segment ``s``'s angular Jacobian: the world ``axes`` of its supporting
+    joints' rotation steps ``dofs[s]``, zero elsewhere. A joint's axis is the same column for
+    every segment it carries, so entry ``(i, j)`` is ``a_i^T (sum of K_s over the segments
+    carrying both) a_j``: the 3x3 matrices ``K_s`` (3, 3) are summed once per set of segments
+    instead of forming every segment's product (a few times fewer operations). ``g_s`` (3,).
+    """
+    carried: dict[int, set[int]] = {}
+    for s, columns in enumerate(dofs):
+        for iv in columns:
+            carried.setdefault(iv, set()).add(s)
+    groups = {iv: frozenset(segments) for iv, segments in sorted(carried.items())}
+    sums: dict[frozenset[int], tuple[ca.SX, ca.SX]] = {}
+
+    def summed(group: frozenset[int]) -> tuple[ca.SX, ca.SX]:
+        if group not in sums:
+            members = sorted(group)
+            sums[group] = (sum((K[s] for s in members[1:]), K[members[0]]),
+                           sum((g[s] for s in members[1:]), g[members[0]]))
+        return sums[group]
+
+    H, c = ca.SX(nv, nv), ca.SX(nv, 1)
+    u = {}  # (sum of K over the segments of i) a_i
+    for iv, group in groups.items():
+        S, total = summed(group)
+        c[iv] = ca.dot(axes[iv][1], total)
+        u[iv] = S @ axes[iv][1]
+    order = list(groups)
+    for n, iv in enumerate(order):
+        for iu in order[:n + 1]:  # iu <= iv: the lower triangle
+            both = groups[iv] & groups[iu]
+            if both == groups[iv]:
+                H[iv, iu] = ca.dot(axes[iu][1], u[iv])
+            elif both == groups[iu]:
+                H[iv, iu] = ca.dot(axes[iv][1], u[iu])
+            elif both:
+                H[iv, iu] = ca.dot(axes[iv][1], summed(both)[0] @ axes[iu][1])
+    return H, c

@@ -15,7 +15,8 @@ import numpy as np
 
 from ..model.human_model import HumanModel
 from .active_set import LimitRows
-from .compiled import CompiledKinematics, SensedPoseSpec, compiled_kinematics
+from .compiled import CompiledKinematics, compiled_kinematics
+from .compiled_sensed import SensedPoseSpec
 from .configuration import Configuration
 from .limits import ContactConstraint, FloorLimit, JointRangeLimit, VelocityLimit
 from .limits.joint_range import LinearisedRanges
@@ -131,7 +132,7 @@ def compiled_step(model: HumanModel, tasks: FrameTasks,
     try:
         kinematics = compiled_kinematics(model.model, tasks.orientation.frame_ids,
                                          list(model.ball_joints.values()), tasks.site_frames(),
-                                         sensed)
+                                         sensed, tasks.even_chain.pairs)
         return CompiledStep(kinematics, kinematics.geometry(model.model))
     except NotImplementedError:
         return None
@@ -164,9 +165,10 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
         qp = build_qp(conf, active, [ranges.inequality(up, down), floor],
                       [tasks.contact.equality(conf)], None, levenberg_marquardt)
         return FrameProblem(qp, LimitRows(ranges, up, down, floor, bounds))
+    chain = tasks.even_chain.row_weights() if tasks.even_chain in active else None
     H, c, _, _, _, p_sites, J_sites, G_ranges, room_up, room_down = compiled.kinematics(
         conf.q, tasks.orientation.targets, compiled.geometry, *row_weights,
-        tasks.posture.R_reference, (limits.lower, limits.upper))
+        tasks.posture.R_reference, (limits.lower, limits.upper), chain)
     H, c = H.copy(), c[:, 0].copy()
     P = p_sites.reshape(-1, 3)
     J = J_sites.reshape(-1, 3, nv)
@@ -176,8 +178,6 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     same = tasks.damping.q_reference is previous
     tasks.damping.add_objective(conf, H, c, moved if same else None)
     tasks.persistence.add_objective(conf, H, c)
-    if tasks.even_chain in active:
-        tasks.even_chain.add_objective(conf, H, c)
     Pc, Jc = P[tasks.contact_rows], J[tasks.contact_rows]
     if tasks.swing in active:
         tasks.swing.add_rows(Pc, Jc, H, c)

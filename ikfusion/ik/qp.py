@@ -15,8 +15,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import cache
-from typing import Any
 
 import numpy as np
 
@@ -24,6 +22,7 @@ from ..errors import SolverError
 from .configuration import Configuration
 from .equality_qp import equality_optimum, satisfies
 from .limits.base import Equality, Inequality
+from .qp_backends import installed, qpsolvers_module, solver_options
 from .tasks.base import Task
 
 
@@ -166,52 +165,24 @@ def _stacked_rows(packed: np.ndarray, start: int, m: int, nv: int,
     return M, v, start + m * (nv + 1)
 
 
-def _solver_options(backend: str, settings: QpSettings) -> dict[str, Any]:
-    if backend == "osqp":
-        return {"eps_abs": settings.osqp_tolerance, "eps_rel": settings.osqp_tolerance,
-                "polish": True, "max_iter": settings.osqp_max_iterations, "verbose": False}
-    if backend == "proxqp":
-        return {"max_iter": settings.max_iterations, "max_iter_in": settings.max_iterations}
-    return {}
-
-
-@cache
-def _installed(backend: str) -> bool:
-    """Whether ``backend`` can be called (DAQP checked without importing qpsolvers)."""
-    if backend == "daqp":
-        try:
-            import daqp  # noqa: F401 - imported to see that it is there
-        except ImportError:
-            return False
-        return True
-    return backend in _qpsolvers().available_solvers
-
-
-def _qpsolvers() -> Any:
-    """The qpsolvers module, imported on first use (about 0.3 s; DAQP is called directly)."""
-    import qpsolvers
-
-    return qpsolvers
-
-
 def _call(backend: str, settings: QpSettings, H: np.ndarray, c: np.ndarray,
           G: np.ndarray | None, h: np.ndarray | None, A: np.ndarray | None,
           b: np.ndarray | None, lb: np.ndarray | None,
           ub: np.ndarray | None) -> np.ndarray | None:
-    if not _installed(backend):
+    if not installed(backend):
         raise SolverError(
             f"QP backend {backend!r} is not installed; available: "
-            f"{', '.join(_qpsolvers().available_solvers)}")
+            f"{', '.join(qpsolvers_module().available_solvers)}")
     if backend == "daqp":
         # most steps touch no limit: their optimum in closed form, DAQP when one binds
         x = equality_optimum(H, c, A, b)
         if x is not None and satisfies(x, G, h, lb, ub):
             return x
         return _call_daqp(settings.max_iterations, H, c, G, h, A, b, lb, ub)
-    qpsolvers = _qpsolvers()
+    qpsolvers = qpsolvers_module()
     try:
         x = qpsolvers.solve_qp(H, c, G, h, A, b, lb, ub, solver=backend,
-                               **_solver_options(backend, settings))
+                               **solver_options(backend, settings))
     except (ValueError, qpsolvers.QPError):
         return None
     if x is None or not np.all(np.isfinite(x)):
@@ -282,7 +253,7 @@ def solve_unrelaxed(problem: QpProblem, backend: str, settings: QpSettings
     # A numerical failure on a degenerate but feasible step (a limit active exactly where a
     # planted point holds) is not infeasibility: another exact backend first.
     for other in _EXACT_BACKENDS:
-        if other != backend and _installed(other):
+        if other != backend and installed(other):
             x = _call(other, settings, p.H, p.c, G, h, A, b, p.lb, p.ub)
             if x is not None:
                 return QpSolution(x)
@@ -313,7 +284,7 @@ def solve_qp(problem: QpProblem, backend: str, settings: QpSettings) -> QpSoluti
     mild = heavy * settings.relaxed_slack_scale
     attempts = [(backend, heavy), (backend, mild)]
     attempts += [(other, mild) for other in ("proxqp", "daqp")
-                 if other != backend and _installed(other)]
+                 if other != backend and installed(other)]
     for name, weight in attempts:
         solution = _solve_relaxed(p, name, weight, settings)
         if solution is not None:

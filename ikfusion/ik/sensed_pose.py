@@ -18,7 +18,8 @@ import pinocchio as pin
 from ..model.human_model import HumanModel
 from ..model.topology import BodyTopology
 from ..rotations import log_so3, matrix_to_quat_wxyz, wxyz_to_xyzw
-from .compiled import CompiledKinematics, SensedPoseSpec
+from .compiled import CompiledKinematics
+from .compiled_sensed import SensedPoseSpec
 from .fast_math import any_true
 from .tasks import DampingTask
 

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 from motions import smooth_motion
 
-from ikfusion.ik import Configuration, Frame, Solver, compiled, native
+from ikfusion.ik import Configuration, Frame, Solver, SolverSettings, compiled, native
 from ikfusion.ik.compiled import CompiledKinematics
 from ikfusion.ik.limits import JointRangeLimit
-from ikfusion.ik.tasks import OrientationTask, PostureTask
+from ikfusion.ik.tasks import EvenChainTask, OrientationTask, PostureTask
 from ikfusion.model import SENSOR_SEGMENTS, Body, HumanModel
 from ikfusion.model.angle_continuity import nearest_to_ranges
 from ikfusion.rotations import exp_so3, random_rotations
@@ -34,13 +34,17 @@ def test_compiled_residuals_equal_reference(rng, height: float, case: str) -> No
     """The compiled outputs equal the NumPy tasks, limits and Pinocchio's kinematics.
 
     The posture references are random (not the identity); in the "near pi" case every
-    orientation error and every posture error is a rotation by pi - 1e-6 or more.
+    orientation error and every posture error is a rotation by pi - 1e-6 or more. The even-chain
+    pairs are summed into the objective too, a random subset of them active.
     """
     model = HumanModel.from_body(Body.from_height(height))
     segments = list(SENSOR_SEGMENTS)
     frames = [model.segment_frame_id(s) for s in segments]
     sites = [model.site_frame_id(s) for s in model.site_names]
-    kin = CompiledKinematics(model.model, frames, list(model.ball_joints.values()), sites)
+    chain = EvenChainTask(model.ball_joints, SolverSettings.load().even_chains, 1.5,
+                          model.segment_names)
+    kin = CompiledKinematics(model.model, frames, list(model.ball_joints.values()), sites,
+                             chain_pairs=chain.pairs)
     geometry = kin.geometry(model.model)
     orientation = OrientationTask(frames, segments)
     posture = PostureTask.from_joints(model.ball_joints, {}, 1.0)
@@ -61,8 +65,10 @@ def test_compiled_residuals_equal_reference(rng, height: float, case: str) -> No
         posture.R_reference = R_ref
         posture.axis_weights = rng.uniform(0.0, 2.0, (n_joints, 3))  # per-row weights
         w_or, w_post = orientation.row_weights(), posture.row_weights()
+        chain.active = rng.random(len(chain.pairs)) < 0.7
         H, c, e_or, angles, E_inv, p, J, G_ranges, room_up, room_down = kin(
-            q, T, geometry, w_or, w_post, R_ref, (limits.lower, limits.upper))
+            q, T, geometry, w_or, w_post, R_ref, (limits.lower, limits.upper),
+            chain.row_weights())
         e_or_ref = orientation.compute_error(conf)
         if case == "near pi":
             e_post = posture.compute_error(conf).reshape(-1, 3)
@@ -73,6 +79,8 @@ def test_compiled_residuals_equal_reference(rng, height: float, case: str) -> No
         H_ref, c_ref = np.zeros_like(H), np.zeros(len(c))
         orientation.add_objective(conf, H_ref, c_ref)
         posture.add_objective(conf, H_ref, c_ref)
+        chain.add_objective(conf, H_ref, c_ref)
+        assert np.array_equal(H, H.T)  # one number per pair of columns (the lower triangle)
         np.testing.assert_allclose(H, H_ref, atol=1e-8 * np.abs(H_ref).max())
         np.testing.assert_allclose(c[:, 0], c_ref, atol=1e-8 * np.abs(c_ref).max())
         a = limits.angles(q)

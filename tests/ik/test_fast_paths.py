@@ -201,3 +201,27 @@ def test_frame_targets_follow_the_segments_each_frame_holds(human: HumanModel) -
         assert solver.tasks.orientation.weights[index[names[1]]] == (names[1] in held)
     with pytest.raises(NameNotFound, match="Pelvis"):  # the message lists the valid names
         solver.targets.load(Frame(0.0, {"Pelvis": R["Pelvis"], "Tail": R["Head"]}), None)
+
+
+def test_even_chain_objective_is_the_dense_sum_of_its_rows(human: HumanModel) -> None:
+    """The even-chain task sums only its active pairs' rows, each joint rotation taken once:
+    the numbers of the plain ``J^T W J`` and ``J^T W e`` of its error and Jacobian."""
+    from ikfusion.ik.tasks import EvenChainTask
+
+    settings = SolverSettings.load()
+    task = EvenChainTask(human.ball_joints, settings.even_chains, 2.5, human.segment_names)
+    rng = np.random.default_rng(17)
+    nv = human.model.nv
+    for active in ([True] * 4, [True, False, True, True], [False, False, False, True]):
+        task.active = np.array(active)
+        conf = Configuration(human.model, random_configuration(human, rng))
+        H0, c0 = rng.normal(size=(nv, nv)), rng.normal(size=nv)
+        H, c = H0.copy(), c0.copy()
+        task.add_objective(conf, H, c)
+        J, e, w = task.compute_jacobian(conf), task.compute_error(conf), task.row_weights()
+        np.testing.assert_allclose(H, H0 + J.T @ (w[:, None] * J), rtol=1e-13, atol=1e-12)
+        np.testing.assert_allclose(c, c0 + (w[:, None] * J).T @ e, rtol=1e-13, atol=1e-12)
+    task.active[:] = False
+    H, c = np.zeros((nv, nv)), np.zeros(nv)
+    task.add_objective(Configuration(human.model, human.neutral()), H, c)
+    assert not H.any() and not c.any()

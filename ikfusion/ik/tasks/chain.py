@@ -30,7 +30,9 @@ from ...errors import ConfigError
 from ...model.ball_joints import BallJoint
 from ...rotations import log_so3, quat_wxyz_to_matrix, right_jacobian_inverse, xyzw_to_wxyz
 from ..configuration import Configuration
+from ..fast_math import any_true, true_indices
 from .base import Task
+from .position import add_products
 
 
 class EvenChainTask(Task):
@@ -64,6 +66,7 @@ class EvenChainTask(Task):
                                       field="even_chains")
                 pairs.append((a, b))
         self.weight = float(weight)
+        self.pairs = pairs  # the compiled step sums them too (ikfusion.ik.compiled)
         self.pair_q = np.array([[a.idx_q, b.idx_q] for a, b in pairs], dtype=int).reshape(-1, 2)
         self.pair_v = np.array([[a.idx_v, b.idx_v] for a, b in pairs], dtype=int).reshape(-1, 2)
         self.shared = np.array([index[a.spec.child] for a, _ in pairs], dtype=int)
@@ -77,9 +80,9 @@ class EvenChainTask(Task):
         """Three rows per pair: ``weight`` where the pair is active, 0 elsewhere."""
         return np.repeat(np.where(self.active, self.weight, 0.0), 3)
 
-    def _logs(self, q: np.ndarray) -> np.ndarray:
-        """Rotation vectors (pairs, 2, 3) [rad] of both joints of each pair."""
-        cols = self.pair_q[..., None] + np.arange(4, dtype=int)
+    def _logs(self, q: np.ndarray, pairs: np.ndarray | slice = slice(None)) -> np.ndarray:
+        """Rotation vectors (pairs, 2, 3) [rad] of both joints of each (selected) pair."""
+        cols = self.pair_q[pairs, :, None] + np.arange(4, dtype=int)
         return log_so3(quat_wxyz_to_matrix(xyzw_to_wxyz(np.asarray(q)[cols])))
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:
@@ -89,15 +92,31 @@ class EvenChainTask(Task):
 
     def compute_jacobian(self, configuration: Configuration) -> np.ndarray:
         """(3 pairs, nv): ``Jr^-1`` of the first joint, minus that of the second."""
-        blocks = right_jacobian_inverse(self._logs(configuration.q))
-        J = np.zeros((3 * len(self.pair_v), configuration.model.nv))
-        for k, (vi, vj) in enumerate(self.pair_v):
-            J[3 * k:3 * k + 3, vi:vi + 3] = blocks[k, 0]
-            J[3 * k:3 * k + 3, vj:vj + 3] -= blocks[k, 1]
+        return self._jacobian(self._logs(configuration.q), self.pair_v,
+                              configuration.model.nv).reshape(-1, configuration.model.nv)
+
+    @staticmethod
+    def _jacobian(logs: np.ndarray, pair_v: np.ndarray, nv: int) -> np.ndarray:
+        """(pairs, 3, nv) rows of the pairs whose rotation vectors are ``logs`` (pairs, 2, 3)."""
+        blocks = right_jacobian_inverse(logs)
+        J = np.zeros((len(pair_v), 3, nv))
+        pair, row = np.arange(len(pair_v))[:, None, None], np.arange(3)[:, None]
+        columns = pair_v[:, :, None, None] + np.arange(3)  # (pairs, 2, 1, 3)
+        J[pair, row, columns[:, 0]] = blocks[:, 0]
+        J[pair, row, columns[:, 1]] = -blocks[:, 1]
         return J
 
     def add_objective(self, configuration: Configuration, H: np.ndarray, c: np.ndarray) -> None:
-        """Accumulate the active pairs' objective (none when the weight is 0)."""
-        if self.weight <= 0 or not self.active.any():
+        """Accumulate the active pairs' objective (none when the weight is 0).
+
+        The joint rotations are taken once, of the active pairs only, and their rows summed
+        with :func:`.position.add_products`: the numbers of the base class's ``J^T W J``,
+        whose inactive rows have weight 0.
+        """
+        if self.weight <= 0 or not any_true(self.active):
             return
-        super().add_objective(configuration, H, c)
+        pairs = true_indices(self.active)
+        logs = self._logs(configuration.q, pairs)
+        nv = configuration.model.nv
+        J = self._jacobian(logs, self.pair_v[pairs], nv).reshape(-1, nv)
+        add_products(J, self.weight * J, (logs[:, 0] - logs[:, 1]).reshape(-1), H, c)
