@@ -320,10 +320,11 @@ class RobotRetargeter:
 
     def _first_pose(self, q_rest: np.ndarray, dt: float,
                     anchors: list[_Anchor | None]) -> np.ndarray:
-        """The first frame, solved from several starts; the best one.
+        """The start of the first frame's solve: the best of several screened starts.
 
         The starts: the rest pose, and ``first_frame_starts`` - 1 poses with random arms
-        within their ranges (seeded).
+        within their ranges (seeded). Each is solved ``first_frame_screen_steps`` steps (by
+        then the basin with the lowest cost leads); the caller solves the best one on.
 
         Orientation targets alone have local minima far from the answer (an arm raised with
         its elbow bent 140 deg is met from the hanging rest pose with the elbow straight);
@@ -332,11 +333,12 @@ class RobotRetargeter:
         rng = np.random.default_rng(0)
         arms = self._arm_dofs()
         best, best_cost = q_rest, np.inf
+        steps = min(self.settings.first_frame_screen_steps, self.settings.first_frame_steps)
         for start in range(self.settings.first_frame_starts):
             q = q_rest.copy()
             if start:
                 q[7 + arms] = rng.uniform(self.robot.lower[arms], self.robot.upper[arms])
-            q, _ = self._solve_frame(q, None, dt, anchors, self.settings.first_frame_steps)
+            q, _ = self._solve_frame(q, None, dt, anchors, steps)
             cost = self._cost(q)
             if cost < best_cost:
                 best, best_cost = q, cost
