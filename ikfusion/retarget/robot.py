@@ -323,8 +323,10 @@ class RobotRetargeter:
         """The start of the first frame's solve: the best of several screened starts.
 
         The starts: the rest pose, and ``first_frame_starts`` - 1 poses with random arms
-        within their ranges (seeded). Each is solved ``first_frame_screen_steps`` steps (by
-        then the basin with the lowest cost leads); the caller solves the best one on.
+        within their ranges (seeded). Rounds of ``first_frame_screen_steps`` steps each keep
+        the better half (the lowest tracking cost) until two are left, whose better one the
+        caller solves on: the start that ends in the lowest basin leads within a few steps,
+        while the others, mostly stuck, need no more.
 
         Orientation targets alone have local minima far from the answer (an arm raised with
         its elbow bent 140 deg is met from the hanging rest pose with the elbow straight);
@@ -332,17 +334,20 @@ class RobotRetargeter:
         """
         rng = np.random.default_rng(0)
         arms = self._arm_dofs()
-        best, best_cost = q_rest, np.inf
-        steps = min(self.settings.first_frame_screen_steps, self.settings.first_frame_steps)
+        pool = []
         for start in range(self.settings.first_frame_starts):
             q = q_rest.copy()
             if start:
                 q[7 + arms] = rng.uniform(self.robot.lower[arms], self.robot.upper[arms])
-            q, _ = self._solve_frame(q, None, dt, anchors, steps)
-            cost = self._cost(q)
-            if cost < best_cost:
-                best, best_cost = q, cost
-        return best
+            pool.append(q)
+        steps = min(self.settings.first_frame_screen_steps, self.settings.first_frame_steps)
+        while True:
+            solved = [self._solve_frame(q, None, dt, anchors, steps)[0] for q in pool]
+            costs = [self._cost(q) for q in solved]
+            order = sorted(range(len(solved)), key=costs.__getitem__)
+            if len(order) <= 2:
+                return solved[order[0]]
+            pool = [solved[i] for i in order[:(len(order) + 1) // 2]]
 
     def _arm_dofs(self) -> np.ndarray:
         """Indices into ``q[7:]`` of the joints between the trunk link and the hand links."""

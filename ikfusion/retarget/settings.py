@@ -32,7 +32,8 @@ class RetargetSettings:
         first_frame_steps: ... on the first frame.
         first_frame_starts: The first frame is solved from the rest pose and from this many
             minus one random arm poses ...
-        first_frame_screen_steps: ... each this many steps; the best one is solved on.
+        first_frame_screen_steps: ... in rounds of this many steps, each keeping the better
+            half, until the best is solved on.
         step_tolerance: A frame is done after a step whose largest component is below this
             [rad or m] ...
         hold_tolerance: ... with planted feet held this well [m, rad].

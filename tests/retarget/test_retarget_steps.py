@@ -51,9 +51,9 @@ def test_a_trust_region_too_tight_is_not_relaxed_before_it_is_widened(
 def test_the_first_frame_screens_its_starts_and_finds_the_exhaustive_searchs_basin(
         shared_data: Path, monkeypatch: pytest.MonkeyPatch, clip: str) -> None:
     # The first frame's 8 starts were each solved to the end (up to 30 steps: 30-40 ms, a
-    # fifth of a short clip's retarget, issue #20). Each is now solved a few steps, and only
-    # the lowest goes on; its answer is the exhaustive search's (every start solved to the
-    # end): same basin, same tracking cost. hop_turn's winning start is a random one.
+    # fifth of a short clip's retarget, issue #20). They are now screened in rounds of a few
+    # steps, each keeping the better half; its answer is the exhaustive search's (every start
+    # solved to the end): same basin, same tracking cost. hop_turn's winner is a random start.
     steps: list[int] = []
     damped = robot_module.RobotRetargeter._damped
 
@@ -76,7 +76,9 @@ def test_the_first_frame_screens_its_starts_and_finds_the_exhaustive_searchs_bas
                                      SolverSettings.load().qp)
         trajectory = retargeter.solve(source)
         record += [len(steps), retargeter._cost(trajectory.q[0]), trajectory.q[0]]
-    assert screened[0] <= s.first_frame_starts * s.first_frame_screen_steps + s.first_frame_steps
-    assert screened[0] < 0.75 * exhaustive[0]
+    # rounds of 8, 4, 2 starts, then the best solved on
+    assert screened[0] <= 2 * s.first_frame_starts * s.first_frame_screen_steps \
+        + s.first_frame_steps
+    assert screened[0] < 0.6 * exhaustive[0]
     assert screened[1] == pytest.approx(exhaustive[1], rel=1e-3)
-    np.testing.assert_allclose(screened[2], exhaustive[2], atol=1e-3)
+    np.testing.assert_allclose(screened[2], exhaustive[2], atol=0.01)  # [rad, m]: one basin
