@@ -378,7 +378,7 @@ class RobotRetargeter:
         """``q_last`` moved on by the last frame's motion, joints kept in their limits."""
         model = self.robot.model
         q = pin.integrate(model, q_last, pin.difference(model, q_before, q_last))
-        q[7:] = np.clip(q[7:], self.robot.lower, self.robot.upper)
+        q[7:] = np.minimum(np.maximum(q[7:], self.robot.lower), self.robot.upper)  # np.clip
         return q
 
     def _initial(self, targets: _Targets) -> np.ndarray:
@@ -433,7 +433,7 @@ class RobotRetargeter:
             self.rest_pull.add_objective(conf, H, c)
             near = self.capsules.inequality(conf)
             rows = ([self._floor_rows(conf, anchors), near], [self._plant_rows(conf, anchors)])
-            moving = np.flatnonzero(np.any(near.G[:, 6:] != 0.0, axis=0)) + 6 \
+            moving = (near.G[:, 6:] != 0.0).any(axis=0).nonzero()[0] + 6 \
                 if step < s.trusted_steps and len(near.h) else self._none
             box = self._box(q, moved, dt, moving)
             assemble = self._qp_buffer.assemble
@@ -451,11 +451,11 @@ class RobotRetargeter:
             relaxed |= solution.relaxed
             factor = self._damped(solution.dq, previous, factor)
             # The box holds to the QP's tolerance; clipped, limits hold exactly.
-            dq = previous = factor * np.clip(solution.dq, *box)
+            dq = previous = factor * np.minimum(np.maximum(solution.dq, box[0]), box[1])
             q = conf.integrate(dq)
             conf.update(q)
             far = self.capsules.last_min_distance > s.capsules_far  # at the pose stepped from
-            if np.max(np.abs(dq)) < s.step_tolerance and self._settled(conf, anchors, not far):
+            if np.abs(dq).max() < s.step_tolerance and self._settled(conf, anchors, not far):
                 break
         return q, relaxed
 
