@@ -115,9 +115,14 @@ def _by_parent(items: list[tuple[int, object]]) -> dict[int, list]:
     return out
 
 
-def _triplet_spec(model: pin.Model, frames: list[pin.Frame], ids: tuple[int, int, int],
+def _triplet_spec(model: pin.Model, frames: list[pin.Frame],
+                  carried: dict[int, list[pin.Frame]], ids: tuple[int, int, int],
                   axes: list[tuple[str, int]]) -> JointSpec:
-    """The joint spec of a triplet; ``frames`` is ``list(model.frames)`` (read once)."""
+    """The joint spec of a triplet.
+
+    ``frames`` is ``list(model.frames)`` and ``carried`` the same frames by parent joint, in
+    model order (both read once: Pinocchio's frames are slow to read from Python).
+    """
     names = [model.names[j] for j in ids]
     stems = {n.rsplit("_", 1)[0] for n in names}
     suffixes = [n.rsplit("_", 1)[-1] for n in names]
@@ -131,11 +136,9 @@ def _triplet_spec(model: pin.Model, frames: list[pin.Frame], ids: tuple[int, int
         lo = float(np.degrees(model.lowerPositionLimit[iq]))
         hi = float(np.degrees(model.upperPositionLimit[iq]))
         angles.append(AngleSpec(angle, axis, sign, lo, hi))
-    joint_frame = next(f for f in frames
-                       if f.type == pin.FrameType.JOINT and f.parentJoint == ids[0])
+    joint_frame = next(f for f in carried.get(ids[0], []) if f.type == pin.FrameType.JOINT)
     parent = frames[joint_frame.parentFrame].name
-    child_bodies = [f.name for f in frames
-                    if f.parentJoint == ids[2] and f.type == pin.FrameType.BODY]
+    child_bodies = [f.name for f in carried.get(ids[2], []) if f.type == pin.FrameType.BODY]
     child = child_bodies[0] if child_bodies else name
     return JointSpec(name, parent, child, (angles[0], angles[1], angles[2]))
 
@@ -185,13 +188,14 @@ def merge_revolute_triplets(model: pin.Model) -> ConvertedModel:
     joint_frames: dict[int, int] = {}
     members = {j for ids, _ in triplets for j in ids}
     frames = list(model.frames)
+    carried = _by_parent([(f.parentJoint, f) for f in frames])
     for j in range(1, model.njoints):
         if j in members and j not in first_of:
             continue
         parent = joint_map[model.parents[j]]
         if j in first_of:
             ids, axes = first_of[j]
-            spec = _triplet_spec(model, frames, ids, axes)
+            spec = _triplet_spec(model, frames, carried, ids, axes)
             jid = new.addJoint(parent, pin.JointModelSpherical(), model.jointPlacements[j],
                                spec.name)
             new.inertias[jid] = model.inertias[ids[2]]

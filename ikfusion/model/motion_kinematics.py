@@ -114,15 +114,34 @@ def frame_placements(model: pin.Model, q: np.ndarray,
     for j in sorted(needed - {0}):  # Pinocchio numbers a parent before its children
         placement = model.jointPlacements[j]
         R_motion, p_motion = _joint_motion(model.joints[j], Q)
-        R_local = _rot_rot(placement.rotation, R_motion)  # liMi = jointPlacement * joint(q)
+        turned = not _is_identity(placement.rotation)
+        # liMi = jointPlacement * joint(q)
+        R_local = _rot_rot(placement.rotation, R_motion) if turned else R_motion
         p_local = np.broadcast_to(placement.translation, (n, 3)) if p_motion is None else \
-            placement.translation + _rot_vec(placement.rotation, p_motion)
+            placement.translation + (_rot_vec(placement.rotation, p_motion) if turned
+                                     else p_motion)
         parent = model.parents[j]
+        if parent == 0:  # the world frame: oMi = liMi
+            R_joint[j], p_joint[j] = R_local, np.array(p_local)
+            continue
         R_joint[j] = _rot_rot(R_joint[parent], R_local)  # oMi = oMparent * liMi
         p_joint[j] = p_joint[parent] + _rot_vec(R_joint[parent], p_local)
     for i, f in enumerate(ids):
         frame = model.frames[f]
         R_i, p_i = R_joint[frame.parentJoint], p_joint[frame.parentJoint]
-        R_out[:, i] = _rot_rot(R_i, frame.placement.rotation)
+        rotation = frame.placement.rotation
+        R_out[:, i] = R_i if _is_identity(rotation) else _rot_rot(R_i, rotation)
         p_out[:, i] = p_i + _rot_vec(R_i, frame.placement.translation)
     return p_out, R_out
+
+
+def _is_identity(R: np.ndarray) -> bool:
+    """Whether a placement's rotation is exactly the identity (its product is then skipped).
+
+    Multiplying by an exact identity changes no value (only the sign of an exact zero), and
+    every joint and site placement of the human model is one: half of the products of a
+    motion's kinematics.
+    """
+    return bool(R[0, 0] == 1.0 and R[1, 1] == 1.0 and R[2, 2] == 1.0
+                and not R[0, 1] and not R[0, 2] and not R[1, 0] and not R[1, 2]
+                and not R[2, 0] and not R[2, 1])

@@ -259,11 +259,12 @@ class CapsulePairs:
         if not self.pairs:
             return Inequality(np.zeros((0, nv)), np.zeros(0))
         d = self._distances(configuration)
-        near = np.flatnonzero(d < self.activation)
+        near = (d < self.activation).nonzero()[0]
         if not len(near):
             return Inequality(np.zeros((0, nv)), np.zeros(0))
         compiled = getattr(configuration, "capsule_rows", None)  # (5k, nv) when it has them
-        rows = compiled(np.unique(near // 5)) if compiled is not None else None
+        # the pairs of the near witnesses, once each, in order (``near`` is sorted)
+        rows = compiled(dict.fromkeys((near // 5).tolist())) if compiled is not None else None
         if rows is not None:
             return Inequality(rows[near], d[near] - self.margin)
         p, q, _ = self._witnesses(configuration)

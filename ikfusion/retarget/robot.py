@@ -320,10 +320,13 @@ class RobotRetargeter:
 
     def _first_pose(self, q_rest: np.ndarray, dt: float,
                     anchors: list[_Anchor | None]) -> np.ndarray:
-        """The first frame, solved from several starts; the best one.
+        """The start of the first frame's solve: the best of several screened starts.
 
         The starts: the rest pose, and ``first_frame_starts`` - 1 poses with random arms
-        within their ranges (seeded).
+        within their ranges (seeded). Rounds of ``first_frame_screen_steps`` steps each keep
+        the better half (the lowest tracking cost) until two are left, whose better one the
+        caller solves on: the start that ends in the lowest basin leads within a few steps,
+        while the others, mostly stuck, need no more.
 
         Orientation targets alone have local minima far from the answer (an arm raised with
         its elbow bent 140 deg is met from the hanging rest pose with the elbow straight);
@@ -331,16 +334,20 @@ class RobotRetargeter:
         """
         rng = np.random.default_rng(0)
         arms = self._arm_dofs()
-        best, best_cost = q_rest, np.inf
+        pool = []
         for start in range(self.settings.first_frame_starts):
             q = q_rest.copy()
             if start:
                 q[7 + arms] = rng.uniform(self.robot.lower[arms], self.robot.upper[arms])
-            q, _ = self._solve_frame(q, None, dt, anchors, self.settings.first_frame_steps)
-            cost = self._cost(q)
-            if cost < best_cost:
-                best, best_cost = q, cost
-        return best
+            pool.append(q)
+        steps = min(self.settings.first_frame_screen_steps, self.settings.first_frame_steps)
+        while True:
+            solved = [self._solve_frame(q, None, dt, anchors, steps)[0] for q in pool]
+            costs = [self._cost(q) for q in solved]
+            order = sorted(range(len(solved)), key=costs.__getitem__)
+            if len(order) <= 2:
+                return solved[order[0]]
+            pool = [solved[i] for i in order[:(len(order) + 1) // 2]]
 
     def _arm_dofs(self) -> np.ndarray:
         """Indices into ``q[7:]`` of the joints between the trunk link and the hand links."""
@@ -371,7 +378,7 @@ class RobotRetargeter:
         """``q_last`` moved on by the last frame's motion, joints kept in their limits."""
         model = self.robot.model
         q = pin.integrate(model, q_last, pin.difference(model, q_before, q_last))
-        q[7:] = np.clip(q[7:], self.robot.lower, self.robot.upper)
+        q[7:] = np.minimum(np.maximum(q[7:], self.robot.lower), self.robot.upper)  # np.clip
         return q
 
     def _initial(self, targets: _Targets) -> np.ndarray:
@@ -426,7 +433,7 @@ class RobotRetargeter:
             self.rest_pull.add_objective(conf, H, c)
             near = self.capsules.inequality(conf)
             rows = ([self._floor_rows(conf, anchors), near], [self._plant_rows(conf, anchors)])
-            moving = np.flatnonzero(np.any(near.G[:, 6:] != 0.0, axis=0)) + 6 \
+            moving = (near.G[:, 6:] != 0.0).any(axis=0).nonzero()[0] + 6 \
                 if step < s.trusted_steps and len(near.h) else self._none
             box = self._box(q, moved, dt, moving)
             assemble = self._qp_buffer.assemble
@@ -444,11 +451,11 @@ class RobotRetargeter:
             relaxed |= solution.relaxed
             factor = self._damped(solution.dq, previous, factor)
             # The box holds to the QP's tolerance; clipped, limits hold exactly.
-            dq = previous = factor * np.clip(solution.dq, *box)
+            dq = previous = factor * np.minimum(np.maximum(solution.dq, box[0]), box[1])
             q = conf.integrate(dq)
             conf.update(q)
             far = self.capsules.last_min_distance > s.capsules_far  # at the pose stepped from
-            if np.max(np.abs(dq)) < s.step_tolerance and self._settled(conf, anchors, not far):
+            if np.abs(dq).max() < s.step_tolerance and self._settled(conf, anchors, not far):
                 break
         return q, relaxed
 

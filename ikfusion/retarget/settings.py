@@ -31,7 +31,9 @@ class RetargetSettings:
         max_steps: Gauss-Newton steps per frame at most ...
         first_frame_steps: ... on the first frame.
         first_frame_starts: The first frame is solved from the rest pose and from this many
-            minus one random arm poses.
+            minus one random arm poses ...
+        first_frame_screen_steps: ... in rounds of this many steps, each keeping the better
+            half, until the best is solved on.
         step_tolerance: A frame is done after a step whose largest component is below this
             [rad or m] ...
         hold_tolerance: ... with planted feet held this well [m, rad].
@@ -54,6 +56,7 @@ class RetargetSettings:
     max_steps: int
     first_frame_steps: int
     first_frame_starts: int
+    first_frame_screen_steps: int
     step_tolerance: float
     hold_tolerance: float
     trust_step: float

@@ -17,6 +17,7 @@ from ikfusion.model import (
     Body,
     HumanModel,
 )
+from ikfusion.model.human_model import _model_of_body
 
 
 @pytest.fixture(scope="module")
@@ -219,3 +220,32 @@ def test_a_body_is_parsed_once_and_equals_its_urdf_file(tmp_path) -> None:
     other = HumanModel.from_body(Body.from_height(1.80))
     assert other.model is not first.model
     assert not _same_model(other.model, first.model)
+
+
+def test_a_new_body_allocates_no_kinematics_buffer_and_stands_on_the_floor() -> None:
+    # A pinocchio.Data of the human model took 5-8 ms of every BVH retarget (issue #20) only
+    # to place the N-pose on the floor: the model is now built without one, and the N-pose
+    # still has its lowest contact point exactly on z = 0 (checked with Pinocchio's own FK).
+    body = Body.from_height(1.57)
+    human = HumanModel.from_body(body)
+    assert _model_of_body(body)._data is None  # the parsed model allocated none
+    q = human.neutral()
+    data = human.model.createData()
+    pin.framesForwardKinematics(human.model, data, q)
+    heights = [data.oMf[human.site_frame_id(s)].translation[2] for s in CONTACT_SITES]
+    assert min(heights) == pytest.approx(0.0, abs=1e-12)
+    assert np.array_equal(q[3:7], [0.0, 0.0, 0.0, 1.0]) and np.array_equal(q[:2], [0.0, 0.0])
+
+
+def test_merged_ball_joints_carry_the_parent_and_child_of_configs_joints(human: HumanModel) -> None:
+    # The triplet merge reads each frame's parent joint once (it scanned every frame of the
+    # model per triplet: 4 ms of every body built, issue #20); the parent and child segment
+    # of every joint are still those of configs/joints.yaml.
+    from ikfusion.model.joints import load_joint_specs
+
+    specs = load_joint_specs()
+    for model in (human, HumanModel.from_body(Body.from_height(1.66))):
+        assert list(model.ball_joints) == list(JOINTS)
+        for name, joint in model.ball_joints.items():
+            assert (joint.spec.parent, joint.spec.child) == (specs[name].parent,
+                                                             specs[name].child), name

@@ -76,3 +76,28 @@ def test_quaternion_matrix_as_eigen(rng) -> None:
     quat /= np.linalg.norm(quat, axis=1, keepdims=True)
     expected = [pin.Quaternion(w, x, y, z).matrix() for x, y, z, w in quat]
     np.testing.assert_array_equal(quat_xyzw_matrix(quat), expected)
+
+
+def test_identity_placements_cost_no_rotation_product(human: HumanModel, rng,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    # Every joint and site placement of the human model is a pure translation: its rotation
+    # product was half of a BVH clip's kinematics (run three times per retarget, issue #20).
+    # Only the parent-child products remain (one per joint below the root), and the result
+    # is still Pinocchio's.
+    import ikfusion.model.motion_kinematics as kinematics
+
+    products = []
+    rot_rot = kinematics._rot_rot
+
+    def counted(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+        products.append(1)
+        return rot_rot(A, B)
+
+    monkeypatch.setattr(kinematics, "_rot_rot", counted)
+    q = np.array([human.random_configuration(rng) for _ in range(5)])
+    ids = list(range(human.model.nframes))
+    p, R = frame_placements(human.model, q, ids)
+    assert len(products) == human.model.njoints - 2  # neither the universe nor the root
+    p_ref, R_ref = pinocchio_frames(human.model, q, ids)
+    np.testing.assert_allclose(p, p_ref, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(R, R_ref, rtol=0, atol=1e-12)

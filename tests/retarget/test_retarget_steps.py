@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -9,7 +10,11 @@ import pytest
 
 import ikfusion.retarget.robot as robot_module
 from ikfusion.ik.qp import QpSolution
+from ikfusion.ik.settings import SolverSettings
 from ikfusion.retarget import load_source, retarget
+from ikfusion.retarget.robot import RobotRetargeter
+from ikfusion.retarget.robot_config import load_retarget_config
+from ikfusion.retarget.robot_model import RobotModel
 
 
 def test_a_trust_region_too_tight_is_not_relaxed_before_it_is_widened(
@@ -40,3 +45,40 @@ def test_a_trust_region_too_tight_is_not_relaxed_before_it_is_widened(
     used_ids = {id(dq) for dq in used}
     thrown_away = [s for s in relaxed if id(s.dq) not in used_ids]
     assert not thrown_away, f"{len(thrown_away)} relaxed solves were computed and discarded"
+
+
+@pytest.mark.parametrize("clip", ["mocap/cmu_01_01_hop_turn.bvh", "mvnx/test_mocap.mvnx"])
+def test_the_first_frame_screens_its_starts_and_finds_the_exhaustive_searchs_basin(
+        shared_data: Path, monkeypatch: pytest.MonkeyPatch, clip: str) -> None:
+    # The first frame's 8 starts were each solved to the end (up to 30 steps: 30-40 ms, a
+    # fifth of a short clip's retarget, issue #20). They are now screened in rounds of a few
+    # steps, each keeping the better half; its answer is the exhaustive search's (every start
+    # solved to the end): same basin, same tracking cost. hop_turn's winner is a random start.
+    steps: list[int] = []
+    damped = robot_module.RobotRetargeter._damped
+
+    def counting_damped(self: robot_module.RobotRetargeter, *args: object) -> float:
+        steps.append(1)
+        return damped(self, *args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(robot_module.RobotRetargeter, "_damped", counting_damped)
+    source = load_source(shared_data / clip)
+    source = dataclasses.replace(source, time=source.time[:1], contacts=source.contacts[:1],
+                                 p_world_segment=source.p_world_segment[:1],
+                                 R_world_segment=source.R_world_segment[:1])
+    config = load_retarget_config("g1")
+    s = config.solver
+    screened, exhaustive = [], []
+    for solver, record in ((s, screened), (dataclasses.replace(
+            s, first_frame_screen_steps=s.first_frame_steps), exhaustive)):
+        steps.clear()
+        retargeter = RobotRetargeter(RobotModel(dataclasses.replace(config, solver=solver)),
+                                     SolverSettings.load().qp)
+        trajectory = retargeter.solve(source)
+        record += [len(steps), retargeter._cost(trajectory.q[0]), trajectory.q[0]]
+    # rounds of 8, 4, 2 starts, then the best solved on
+    assert screened[0] <= 2 * s.first_frame_starts * s.first_frame_screen_steps \
+        + s.first_frame_steps
+    assert screened[0] < 0.6 * exhaustive[0]
+    assert screened[1] == pytest.approx(exhaustive[1], rel=1e-3)
+    np.testing.assert_allclose(screened[2], exhaustive[2], atol=0.01)  # [rad, m]: one basin
