@@ -19,8 +19,11 @@ their fixes
   lands where the sensed legs meet the floor; a second parabola of the tags' own landed
   elsewhere and the hips popped at the landing.
 
-A tag on the body (the head) acts in flight only; while a foot stands it could only bend the
-trunk away from its sensors, and the pelvis leans toward the correction there
+A tag on the body (the head), while a point is planted, pulls the head in the body's sagittal
+plane with a small weight (:func:`body_targets`, faded in and out by :class:`BodyPull`): the
+sensed pelvis, chest and head keep their orientations and the unsensed spine and neck share
+the bend as the fix says (their even share put a bent-over head centimetres high); the
+horizontal drift is the feet's business, and the pelvis leans toward the correction there
 (:mod:`ikfusion.ik.support`). A hold the head's tag runs away from is false: all its points are
 let go (:class:`ikfusion.app.tag_release.BodyRelease`) and the body flies to its tags.
 Each foot task is weighted by its fix's information (inverse covariance, with ``tag_sigma``
