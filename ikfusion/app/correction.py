@@ -349,7 +349,9 @@ class DriftCorrection:
             self._feet, p_fix, cov, last, planted_feet(last.contacts, self._foot_of_point),
             self._anchors, tag_settings, self._swing.swung, self._swing.landing)
         p_body, cov_body = self._body_pull.held(p_fix, cov)
-        has_fix = any(np.isfinite(p).all() for p, b in zip(p_fix, self._body) if b)
+        # not while the body still stands where it was placed: its fixes are still settling
+        has_fix = not self._stance and any(
+            np.isfinite(p).all() for p, b in zip(p_fix, self._body) if b)
         body, body_weights = body_targets(
             [f.site for f in self.fixes], self._feet, p_body, cov_body, last.forward,
             self._body_pull.update(has_fix, dt), tag_settings)
