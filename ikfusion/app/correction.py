@@ -55,7 +55,9 @@ from .tag_tasks import (
     SolvedTags,
     SwingClock,
     TagTaskSettings,
+    bend_scale,
     body_targets,
+    column_bend,
     flight_pull,
     horizontal_forward,
     planted_feet,
@@ -131,6 +133,7 @@ class CorrectionSettings(ShippedSettings):
     tag_onset: float
     tag_body_weight: float
     tag_body_onset: float
+    tag_body_bend_deg: float
     release_distance: float
     release_speed: float
     release_jump_speed: float
@@ -245,12 +248,16 @@ class DriftCorrection:
                              for foot in self._feet]
             self._body_release = [BodyRelease(s.release_distance, s.release_jump_speed)
                                   if foot is None else None for foot in self._feet]
+        R_pelvis = pose.segment_rotation(solver.model.segment_names[0])
+        heads = [solver.topology.site_segment[f.site] for f, b in zip(self.fixes, self._body)
+                 if b]
+        R_head = pose.segment_rotation(heads[0]) if heads else None
         self._last = SolvedTags(dict(pose.contacts),
                                 np.array([pose.site_position(f.site) for f in self.fixes]),
                                 {p: pose.site_position(p) for points in
                                  self._anchors.values() for p in points},
-                                horizontal_forward(pose.segment_rotation(
-                                    solver.model.segment_names[0])))
+                                horizontal_forward(R_pelvis),
+                                column_bend(R_pelvis, R_head) if R_head is not None else 0.0)
         planted = planted_feet(self._last.contacts, self._foot_of_point)
         self._swing.update(self._feet, planted, dt)
         floor_z = solver.settings.floor_z
@@ -354,7 +361,8 @@ class DriftCorrection:
             np.isfinite(p).all() for p, b in zip(p_fix, self._body) if b)
         body, body_weights = body_targets(
             [f.site for f in self.fixes], self._feet, p_body, cov_body, last.forward,
-            self._body_pull.update(has_fix, dt), tag_settings)
+            self._body_pull.update(has_fix, dt)
+            * bend_scale(last.bend, np.radians(s.tag_body_bend_deg)), tag_settings)
         positions, weights = {**positions, **body}, {**weights, **body_weights}
         if not positions:
             return replace(frame, contacts=hints)

@@ -82,12 +82,14 @@ class SolvedTags:
         p_sites: (n, 3) the tag sites [m].
         p_points: Site -> its position (3,) [m]: the feet's anchors (:func:`tag_targets`).
         forward: (3,) the body's horizontal forward direction (unit; :func:`body_targets`).
+        bend: Angle between the pelvis's and the head's up axes [rad] (:func:`bend_scale`).
     """
 
     contacts: Mapping[str, bool]
     p_sites: np.ndarray
     p_points: Mapping[str, np.ndarray] = field(default_factory=dict)
     forward: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
+    bend: float = 0.0
 
     @property
     def flight(self) -> bool:
@@ -241,6 +243,25 @@ def horizontal_forward(R_world_pelvis: np.ndarray) -> np.ndarray:
     x = np.array([R_world_pelvis[0, 0], R_world_pelvis[1, 0], 0.0])
     length = float(np.linalg.norm(x))
     return x / length if length > 1e-6 else np.array([1.0, 0.0, 0.0])
+
+
+def column_bend(R_world_pelvis: np.ndarray, R_world_head: np.ndarray) -> float:
+    """Angle between the pelvis's and the head's z (up) axes [rad]: how bent the column is."""
+    cos = float(np.clip(R_world_pelvis[:, 2] @ R_world_head[:, 2], -1.0, 1.0))
+    return float(np.arccos(cos))
+
+
+def bend_scale(bend: float, full: float) -> float:
+    """Weight factor in [0, 1] of the head's pull with the column ``bend`` [rad] bent.
+
+    How the unsensed joints share a bend moves the head in proportion to the bend, so its
+    information grows with the bend squared: ``(bend / full)^2``, 1 from ``full`` [rad] on.
+    An upright column has no share to get wrong; there the pull would only pass the fixes'
+    noise and a causal filter's lag into the spine (a walk's head 1.3 -> 1.9 cm).
+    """
+    if full <= 0.0:
+        return 1.0
+    return min(1.0, (bend / full) ** 2)
 
 
 class BodyPull:
