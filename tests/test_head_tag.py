@@ -26,7 +26,7 @@ from ikfusion.uwb.dop import capture_area
 
 MOTIONS = Path(__file__).resolve().parents[1] / "benchmarks" / "motions"
 SETTINGS = TagTaskSettings(speed=1.0, weight=0.1, sigma=0.05, vertical=False,
-                           time_constant=0.02, body_weight=0.15)
+                           time_constant=0.02, body_weight=0.2)
 
 
 def test_the_head_is_pulled_forward_and_vertically_only() -> None:
