@@ -51,10 +51,15 @@ from ..settings_files import ShippedSettings
 from .far_from_tags import FarInterval, far_intervals
 from .tag_release import BodyRelease, FootRelease
 from .tag_tasks import (
+    BodyPull,
     SolvedTags,
     SwingClock,
     TagTaskSettings,
+    bend_scale,
+    body_targets,
+    column_bend,
     flight_pull,
+    horizontal_forward,
     planted_feet,
     tag_targets,
 )
@@ -126,6 +131,9 @@ class CorrectionSettings(ShippedSettings):
     tag_flight_speed: float
     tag_flight_vertical: bool
     tag_onset: float
+    tag_body_weight: float
+    tag_body_onset: float
+    tag_body_bend_deg: float
     release_distance: float
     release_speed: float
     release_jump_speed: float
@@ -170,6 +178,7 @@ class DriftCorrection:
     _release: list[FootRelease | None] = field(default_factory=list)  # per fix on a foot
     _body_release: list[BodyRelease | None] = field(default_factory=list)  # per fix on the body
     _swing: SwingClock = field(default_factory=SwingClock)  # each foot's time off the floor
+    _body_pull: BodyPull | None = None  # the head's task faded in and out on the floor
     _stance: set[str] = field(default_factory=set)  # feet planted since the placement
 
     def __post_init__(self) -> None:
@@ -239,10 +248,16 @@ class DriftCorrection:
                              for foot in self._feet]
             self._body_release = [BodyRelease(s.release_distance, s.release_jump_speed)
                                   if foot is None else None for foot in self._feet]
+        R_pelvis = pose.segment_rotation(solver.model.segment_names[0])
+        heads = [solver.topology.site_segment[f.site] for f, b in zip(self.fixes, self._body)
+                 if b]
+        R_head = pose.segment_rotation(heads[0]) if heads else None
         self._last = SolvedTags(dict(pose.contacts),
                                 np.array([pose.site_position(f.site) for f in self.fixes]),
                                 {p: pose.site_position(p) for points in
-                                 self._anchors.values() for p in points})
+                                 self._anchors.values() for p in points},
+                                horizontal_forward(R_pelvis),
+                                column_bend(R_pelvis, R_head) if R_head is not None else 0.0)
         planted = planted_feet(self._last.contacts, self._foot_of_point)
         self._swing.update(self._feet, planted, dt)
         floor_z = solver.settings.floor_z
@@ -332,11 +347,23 @@ class DriftCorrection:
         p_fix = np.array([f.p_world[k] for f in self.fixes])
         cov = np.array([f.cov[k] for f in self.fixes])
         hints = self._hints(frame)
+        if self._body_pull is None:
+            self._body_pull = BodyPull(s.tag_body_onset)
         if last.flight:  # the legs are left to their sensors; the tags move the body's path
+            self._body_pull.drop()
             return replace(frame, contacts=hints)
         positions, weights = tag_targets(
             self._feet, p_fix, cov, last, planted_feet(last.contacts, self._foot_of_point),
             self._anchors, tag_settings, self._swing.swung, self._swing.landing)
+        p_body, cov_body = self._body_pull.held(p_fix, cov)
+        # not while the body still stands where it was placed: its fixes are still settling
+        has_fix = not self._stance and any(
+            np.isfinite(p).all() for p, b in zip(p_fix, self._body) if b)
+        body, body_weights = body_targets(
+            [f.site for f in self.fixes], self._feet, p_body, cov_body, last.forward,
+            self._body_pull.update(has_fix, dt)
+            * bend_scale(last.bend, np.radians(s.tag_body_bend_deg)), tag_settings)
+        positions, weights = {**positions, **body}, {**weights, **body_weights}
         if not positions:
             return replace(frame, contacts=hints)
         return replace(frame, positions={**frame.positions, **positions},
@@ -348,7 +375,7 @@ class DriftCorrection:
         s = self.settings
         return TagTaskSettings(s.tag_speed, s.tag_weight, s.tag_sigma, s.tag_vertical,
                                s.tag_time_constant, s.tag_onset, s.tag_flight_speed,
-                               s.tag_flight_vertical)
+                               s.tag_flight_vertical, s.tag_body_weight)
 
     def _pull_flight(self, solver: Solver, k: int, dt: float) -> None:
         """In flight: move the solver's ballistic path toward frame ``k``'s tags.

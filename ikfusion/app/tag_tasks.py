@@ -19,8 +19,11 @@ their fixes
   lands where the sensed legs meet the floor; a second parabola of the tags' own landed
   elsewhere and the hips popped at the landing.
 
-A tag on the body (the head) acts in flight only; while a foot stands it could only bend the
-trunk away from its sensors, and the pelvis leans toward the correction there
+A tag on the body (the head), while a point is planted, pulls the head in the body's sagittal
+plane with a small weight (:func:`body_targets`, faded in and out by :class:`BodyPull`): the
+sensed pelvis, chest and head keep their orientations and the unsensed spine and neck share
+the bend as the fix says (their even share put a bent-over head centimetres high); the
+horizontal drift is the feet's business, and the pelvis leans toward the correction there
 (:mod:`ikfusion.ik.support`). A hold the head's tag runs away from is false: all its points are
 let go (:class:`ikfusion.app.tag_release.BodyRelease`) and the body flies to its tags.
 Each foot task is weighted by its fix's information (inverse covariance, with ``tag_sigma``
@@ -55,6 +58,8 @@ class TagTaskSettings:
             (None: ``speed``).
         flight_vertical: In flight a body tag (the head) moves the path's height too, even
             without ``vertical``.
+        body_weight: Scale of a body tag's (the head's) 3-D information while a point is
+            planted (0: no body task; :func:`body_targets`).
     """
 
     speed: float
@@ -65,6 +70,7 @@ class TagTaskSettings:
     onset: float = 0.0
     flight_speed: float | None = None
     flight_vertical: bool = False
+    body_weight: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -75,11 +81,15 @@ class SolvedTags:
         contacts: Contact point -> planted.
         p_sites: (n, 3) the tag sites [m].
         p_points: Site -> its position (3,) [m]: the feet's anchors (:func:`tag_targets`).
+        forward: (3,) the body's horizontal forward direction (unit; :func:`body_targets`).
+        bend: Angle between the pelvis's and the head's up axes [rad] (:func:`bend_scale`).
     """
 
     contacts: Mapping[str, bool]
     p_sites: np.ndarray
     p_points: Mapping[str, np.ndarray] = field(default_factory=dict)
+    forward: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
+    bend: float = 0.0
 
     @property
     def flight(self) -> bool:
@@ -157,6 +167,48 @@ def tag_targets(feet: Sequence[str | None], p_fix: np.ndarray, cov: np.ndarray,
     return positions, weights
 
 
+def body_targets(sites: Sequence[str], feet: Sequence[str | None], p_fix: np.ndarray,
+                 cov: np.ndarray, forward: np.ndarray, scale: float, settings: TagTaskSettings
+                 ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """The body tags' (the head's) targets and information matrices of a frame on the floor.
+
+    While a point is planted the pelvis stands where the sensed legs put it and the sensed
+    segments (pelvis, chest, head) keep their IMU orientations; what the sensors leave open
+    between them is how the unsensed spine and neck share the bend. The even share of the
+    bend (:class:`ikfusion.ik.tasks.EvenChainTask`) put a crouching head centimetres high and
+    behind; the head's fix says where it is. Its task pulls in the body's sagittal plane only
+    (along ``forward`` and vertically), where the column bends: sideways a pull only shears
+    the column into an S. Its information is the fix's (with ``sigma`` added) scaled by
+    ``body_weight * scale``, far below a sensed segment's weight: it bends the unsensed
+    joints toward the fix and hardly turns a sensed segment; planted points are hard
+    constraints, so it never moves them.
+
+    Args:
+        sites: Per tag, its site.
+        feet: Per tag, the foot carrying it (None: on the body).
+        p_fix: (n, 3) the tags' fixes [m] (NaN: none).
+        cov: (n, 3, 3) their covariances [m^2].
+        forward: (3,) the body's horizontal forward direction (unit; the pelvis's x axis).
+        scale: Factor in [0, 1] of the weight (:class:`BodyPull` fades it in and out).
+        settings: ``body_weight`` and ``sigma``.
+
+    Returns:
+        ``positions`` site -> target (3,) [m] and ``weights`` site -> information (3, 3).
+    """
+    positions: dict[str, np.ndarray] = {}
+    weights: dict[str, np.ndarray] = {}
+    if settings.body_weight <= 0.0 or scale <= 0.0:
+        return positions, weights
+    axes = np.array([forward, [0.0, 0.0, 1.0]])  # (2, 3) the sagittal plane's axes
+    for site, foot, p, C in zip(sites, feet, p_fix, cov):
+        if foot is not BODY or not (np.isfinite(p).all() and np.isfinite(C).all()):
+            continue
+        C_plane = axes @ C @ axes.T + (settings.sigma**2 + 1e-9) * np.eye(2)
+        positions[site] = np.asarray(p, dtype=float)
+        weights[site] = settings.body_weight * scale * axes.T @ np.linalg.inv(C_plane) @ axes
+    return positions, weights
+
+
 def onset_scale(swung: float, onset: float) -> float:
     """Weight factor in [0, 1] of a foot's task ``swung`` [s] into its swing (or before landing).
 
@@ -184,6 +236,75 @@ def time_to_touchdown(height: np.ndarray, v_z: np.ndarray) -> float:
     v = np.asarray(v_z, dtype=float)
     down = np.isfinite(h) & np.isfinite(v) & (v < 0.0)
     return float(np.min(h[down] / -v[down])) if down.any() else float("inf")
+
+
+def horizontal_forward(R_world_pelvis: np.ndarray) -> np.ndarray:
+    """The pelvis's x axis (forward) on the floor (3,), unit; world x when it points up."""
+    x = np.array([R_world_pelvis[0, 0], R_world_pelvis[1, 0], 0.0])
+    length = float(np.linalg.norm(x))
+    return x / length if length > 1e-6 else np.array([1.0, 0.0, 0.0])
+
+
+def column_bend(R_world_pelvis: np.ndarray, R_world_head: np.ndarray) -> float:
+    """Angle between the pelvis's and the head's z (up) axes [rad]: how bent the column is."""
+    cos = float(np.clip(R_world_pelvis[:, 2] @ R_world_head[:, 2], -1.0, 1.0))
+    return float(np.arccos(cos))
+
+
+def bend_scale(bend: float, full: float) -> float:
+    """Weight factor in [0, 1] of the head's pull with the column ``bend`` [rad] bent.
+
+    How the unsensed joints share a bend moves the head in proportion to the bend, so its
+    information grows with the bend squared: ``(bend / full)^2``, 1 from ``full`` [rad] on.
+    An upright column has no share to get wrong; there the pull would only pass the fixes'
+    noise and a causal filter's lag into the spine (a walk's head 1.3 -> 1.9 cm).
+    """
+    if full <= 0.0:
+        return 1.0
+    return min(1.0, (bend / full) ** 2)
+
+
+class BodyPull:
+    """How much of its weight the body tags' task has, faded in and out [0, 1].
+
+    It grows while the body stands (a point planted) with a fix of a body tag and shrinks
+    when the fix is lost, each time over ``onset`` [s] along a smooth step, with the last fix
+    held while it fades: the bend the task gives the unsensed column comes and goes
+    gradually. A take-off drops it (:meth:`drop`: in flight the tags move the whole body's
+    path, and a head pulled there bent the column against the path's own pull); after the
+    landing it grows again from nothing.
+
+    Args:
+        onset: Time to grow from nothing to full weight, and back [s] (0: at once).
+    """
+
+    def __init__(self, onset: float) -> None:
+        self.onset = onset
+        self._ramp = 0.0  # linear in time, 0..1
+        self._held: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # tag -> last fix, covariance
+
+    def update(self, on: bool, dt: float) -> float:
+        """The weight factor of the next frame after ``dt`` [s] with the pull ``on`` or off."""
+        if self.onset <= 0.0:
+            self._ramp = 1.0 if on else 0.0
+        else:
+            self._ramp = min(1.0, max(0.0, self._ramp + (dt if on else -dt) / self.onset))
+        x = self._ramp
+        return x * x * (3.0 - 2.0 * x)
+
+    def drop(self) -> None:
+        """No weight now (the body flies); it grows from nothing when the pull is on again."""
+        self._ramp = 0.0
+
+    def held(self, p_fix: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The fixes (n, 3) [m] and covariances (n, 3, 3) with each missing one the last held."""
+        p_out, cov_out = np.array(p_fix, dtype=float), np.array(cov, dtype=float)
+        for i, (p, C) in enumerate(zip(p_out, cov_out)):
+            if np.isfinite(p).all() and np.isfinite(C).all():
+                self._held[i] = (p.copy(), C.copy())
+            elif i in self._held:
+                p_out[i], cov_out[i] = self._held[i]
+        return p_out, cov_out
 
 
 class SwingClock:
