@@ -19,6 +19,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..model.human_model import HumanModel
+from ..model.layout import TRUNK_CONTACT_SITES
 from ..model.topology import BodyTopology
 from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
 from .frame import Frame
@@ -49,6 +50,8 @@ class ContactTracker:
         segments = model.segment_names
         self._foot_names = [topology.foot_of(n) for n in self.names]
         # the pitch of a foot proper rules its heel or toe out; knees and palms have none
+        # where a lying or sitting body rests (trunk, elbows): planted only with its IMU's rest
+        self._needs_rest = np.array([n in TRUNK_CONTACT_SITES for n in self.names], dtype=bool)
         self._feet = np.array([segments.index(f) if f is not None and steps else -1
                                for f, steps in zip(self._foot_names, self.layout.stepping)],
                               dtype=int)
@@ -125,7 +128,8 @@ class ContactTracker:
                                       self._hints(frame), self._pitch, still,
                                       self._history[-1][1],
                                       self.support.placed_offsets(self.state.active),
-                                      layout=self.layout, points_moving=self._points_moving(frame))
+                                      layout=self.layout, points_moving=self._points_moving(frame),
+                                      needs_rest=self._needs_rest)
         # a planted heel whose foot already rolls toe-down may rise (it still cannot slip),
         # unless its IMU says the foot stands still
         rising = self.layout.on_foot & (pitch > np.radians(self.settings.heel_rise_deg))
@@ -197,7 +201,8 @@ class ContactTracker:
         self.state = touch_down(self.state, p_contacts, p_old, self._p_sensed,
                                 frame.time - t_old, self.thresholds, self._hints(frame),
                                 self._pitch, layout=self.layout,
-                                points_moving=self._points_moving(frame))
+                                points_moving=self._points_moving(frame),
+                                foot_still=self._feet_still(frame), needs_rest=self._needs_rest)
 
     def _hints(self, frame: Frame) -> Mapping[str, bool] | None:
         """The frame's contact hints; in flight (``frame.airborne``) every point is free."""
