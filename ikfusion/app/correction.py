@@ -5,7 +5,10 @@ feet are. The correction compares, after each frame, the solved tag sites with t
 positions (horizontal error, weighted by the measurements' covariances) and acts on the feet:
 
 * ``slide``: every planted point is moved toward the correction at once (a first-order lag of
-  ``time_constant``); the body follows at once, planted feet slide.
+  ``time_constant``); the body follows at once, planted feet slide. What the contacts leave
+  free is coupled to the tags as in ``no-slide`` (swing feet pulled, the ballistic path pulled
+  in flight, feet and holds whose tags run away let go): sliding alone left a foot held in the
+  air while its tag ran away, and a body in flight trailing its tags.
 * ``no-slide``: planted points never move; the tag fixes are soft position tasks of each frame's
   QP on what the contacts leave free (swing feet; in flight they move the solver's ballistic
   path of the whole body) at a bounded rate (:mod:`.tag_tasks`); each swing foot is also led
@@ -87,15 +90,16 @@ class CorrectionSettings(ShippedSettings):
         heading_length_ratio: Travels whose lengths differ by more than this factor are not
             compared (the fixes jumped or the body slid: no heading information).
         heading_time_constant: The turn closes the error with this lag [s].
-        tag_speed: ``no-slide``: the tag tasks move a site at most this fast [m/s].
+        tag_speed: The tag tasks move a site at most this fast [m/s].
         tag_weight: ... with the fixes' information scaled by this.
         tag_sigma: ... with this uncertainty [m] added to the fixes' ...
         tag_vertical: ... pulling heights too (else horizontally only).
         tag_time_constant: In flight the pelvis closes the gap to the tags with this lag [s] ...
-        tag_flight_speed: ... moving at most this fast toward them [m/s].
+        tag_flight_speed: ... moving at most this fast toward them [m/s] ...
+        tag_flight_vertical: ... in height too when the head's tag has a fix.
         tag_onset: A swing foot's task grows to full weight over this much of its swing [s],
             and fades out over as long before its predicted touch-down.
-        release_distance: ``no-slide``: a planted foot whose tag moved farther than this [m]
+        release_distance: A planted foot whose tag moved farther than this [m]
             is let go (:mod:`.tag_release`) ...
         release_speed: ... until its tag moves slower than this [m/s]; a step of a fix faster
             than ``release_jump_speed`` [m/s] is a jump of the positioning, not a foot moving.
@@ -117,6 +121,7 @@ class CorrectionSettings(ShippedSettings):
     tag_vertical: bool
     tag_time_constant: float
     tag_flight_speed: float
+    tag_flight_vertical: bool
     tag_onset: float
     release_distance: float
     release_speed: float
@@ -251,7 +256,8 @@ class DriftCorrection:
             self.distance[i, k] = float(np.linalg.norm(f.p_world[k, :2] - p_site[:2]))
         if self.mode != "off" and self._placed:
             self._correct_heading(world, k, dt)
-        if self.mode == "no-slide" and self._placed and self._last.flight:
+        flight = self._last.flight
+        if self.mode != "off" and self._placed and flight:
             self._pull_flight(solver, k, dt)
         self.heading[k] = world.heading
         error = self.horizontal_error(pose, k)
@@ -266,7 +272,8 @@ class DriftCorrection:
             self._placed = True
             self._placement = (k, delta)
         elif self.mode == "slide":
-            world.slide(delta * min(1.0, dt / self.settings.time_constant))
+            if not flight:  # in flight the tags move the ballistic path (above)
+                world.slide(delta * min(1.0, dt / self.settings.time_constant))
         else:
             world.lead_steps(delta, self.settings.max_step)
 
@@ -284,20 +291,20 @@ class DriftCorrection:
             yield self.shape(frame, k, dt)
 
     def shape(self, frame: Frame, k: int, dt: float) -> Frame:
-        """Frame ``k`` with the tag tasks of ``no-slide`` (:mod:`.tag_tasks`).
+        """Frame ``k`` with the tag tasks of ``slide`` and ``no-slide`` (:mod:`.tag_tasks`).
 
         Called just before the frame's solve, after :meth:`after_frame` of the frame before
         (``dt`` [s] after it): which feet are planted and whether the body flies come from
         there. Outside flight the frame gets soft position tasks on the tag sites the contacts
         leave free (in flight the tags move the solver's ballistic path instead:
         :meth:`after_frame`, :func:`~.tag_tasks.flight_pull`); the points of feet let go
-        (:mod:`.tag_release`) are hinted off the floor. Other modes return the frame unchanged,
-        and so does ``no-slide`` until the first fix placed the body (or with ``dt`` <= 0). Offline
+        (:mod:`.tag_release`) are hinted off the floor. ``off`` returns the frame unchanged,
+        and so do the others until the first fix placed the body (or with ``dt`` <= 0). Offline
         (:meth:`frames`) and the causal stream (:class:`ikfusion.live.actor_stream.
         ActorStream`) both shape their frames here.
         """
         last = self._last
-        if self.mode != "no-slide" or not self._placed or last is None or dt <= 0:
+        if self.mode == "off" or not self._placed or last is None or dt <= 0:
             return frame
         s, tag_settings = self.settings, self._tag_settings()
         p_fix = np.array([f.p_world[k] for f in self.fixes])
@@ -318,7 +325,8 @@ class DriftCorrection:
         """The ``no-slide`` tag tasks' part of the settings."""
         s = self.settings
         return TagTaskSettings(s.tag_speed, s.tag_weight, s.tag_sigma, s.tag_vertical,
-                               s.tag_time_constant, s.tag_onset, s.tag_flight_speed)
+                               s.tag_time_constant, s.tag_onset, s.tag_flight_speed,
+                               s.tag_flight_vertical)
 
     def _pull_flight(self, solver: Solver, k: int, dt: float) -> None:
         """In flight: move the solver's ballistic path toward frame ``k``'s tags.

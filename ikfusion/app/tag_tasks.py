@@ -13,7 +13,9 @@ their fixes
 * in flight (no point planted) the root translation is free and the legs and trunk are best
   left to their sensors: the tags move the solver's ballistic path of the pelvis instead
   (:func:`flight_pull`) toward where they put it, by at most ``tag_flight_speed * dt`` per frame,
-  closing the gap with a lag of ``tag_time_constant``. It is the solver's one path, which
+  closing the gap with a lag of ``tag_time_constant``; horizontally, and in height too when
+  the head's tag has a fix (``tag_flight_vertical``: its height is as good as its horizontal,
+  and the sensed take-off alone put a jump's apex 16 cm off). It is the solver's one path, which
   lands where the sensed legs meet the floor; a second parabola of the tags' own landed
   elsewhere and the hips popped at the landing.
 
@@ -51,6 +53,8 @@ class TagTaskSettings:
             [s] (0: at once), and fades out over as long before it lands.
         flight_speed: In flight the tags move the pelvis's path at most this fast [m/s]
             (None: ``speed``).
+        flight_vertical: In flight a body tag (the head) moves the path's height too, even
+            without ``vertical``.
     """
 
     speed: float
@@ -60,6 +64,7 @@ class TagTaskSettings:
     time_constant: float
     onset: float = 0.0
     flight_speed: float | None = None
+    flight_vertical: bool = False
 
 
 @dataclass(frozen=True)
@@ -227,7 +232,9 @@ def flight_pull(p_sites: np.ndarray, body: Sequence[bool], p_fix: np.ndarray, co
     The gap from a solved frame to where its tags put the pelvis (the information-weighted
     mean of fix minus solved site; body tags only when one has a fix, as the head moves with
     the pelvis more than a foot does), closed by ``dt / time_constant`` of it per frame and by
-    at most ``flight_speed * dt``; horizontal unless ``vertical``. In flight this moves the
+    at most ``flight_speed * dt``; horizontal unless ``vertical``, or ``flight_vertical`` and a
+    body tag gives the gap (a foot's height in flight is its leg's, not the pelvis's; the
+    landing height still bounds the path). In flight this moves the
     whole body and bends no joint, so its bound is the body's visible change of speed, higher
     than a swing foot's ``speed``. The solver's own path
     (:meth:`ikfusion.ik.ballistic.BallisticRoot.shift`) is moved by it, so the body flies and
@@ -256,7 +263,8 @@ def flight_pull(p_sites: np.ndarray, body: Sequence[bool], p_fix: np.ndarray, co
         info_sum += info
         weighted += info @ (p_fix[i] - p_sites[i])
     gap = np.linalg.solve(info_sum, weighted)
-    if not settings.vertical:
+    by_body = bool(np.asarray(body, dtype=bool)[use].any())
+    if not (settings.vertical or (settings.flight_vertical and by_body)):
         gap[2] = 0.0
     gap *= min(1.0, dt / settings.time_constant) if settings.time_constant > 0 else 1.0
     step = (settings.speed if settings.flight_speed is None else settings.flight_speed) * dt

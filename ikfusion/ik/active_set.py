@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .fast_math import any_true
 from .limits import Inequality
 from .limits.joint_range import LinearisedRanges
 from .qp import QpProblem, QpSettings, QpSolution, solve_qp
@@ -61,8 +62,8 @@ def solve_with_active_set(problem: QpProblem, rows: LimitRows, backend: str,
         crossed_up &= ~rows.up
         crossed_down &= ~rows.down
         outside = lb is not None and ub is not None and problem.lb is None and bool(
-            np.any(solution.dq < lb - tolerance) or np.any(solution.dq > ub + tolerance))
-        if not (solution.relaxed or outside or crossed_up.any() or crossed_down.any()):
+            any_true(solution.dq < lb - tolerance) or any_true(solution.dq > ub + tolerance))
+        if not (solution.relaxed or outside or any_true(crossed_up) or any_true(crossed_down)):
             return solution
         rows.up |= crossed_up
         rows.down |= crossed_down

@@ -22,6 +22,7 @@ from ..model.human_model import HumanModel
 from ..model.layout import TRUNK_CONTACT_SITES
 from ..model.topology import BodyTopology
 from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
+from .fast_math import any_true, true_indices
 from .frame import Frame
 from .release import ReleaseEasing
 from .settings import SolverSettings
@@ -55,8 +56,11 @@ class ContactTracker:
         self._feet = np.array([segments.index(f) if f is not None and steps else -1
                                for f, steps in zip(self._foot_names, self.layout.stepping)],
                               dtype=int)
+        self._has_foot = self._feet >= 0
+        self._foot_rows = self._feet[self._has_foot]  # the segment of each point with a foot
         self.support = SupportFollower(self.layout, s.lag_speed, s.lag_max, s.swing_speed,
-                                       s.lean_max, s.lean_speed, s.touchdown_confirm)
+                                       s.lean_max, s.lean_speed, s.touchdown_confirm,
+                                       self.thresholds.floor_z)
         legs = [np.array([segments.index(g) for g in topology.limb(f)] if f else [], dtype=int)
                 for f in self._foot_names]
         self.easing = ReleaseEasing(legs, len(segments), np.radians(s.ease_speed_deg))
@@ -94,9 +98,8 @@ class ContactTracker:
         if not len(self._feet):  # no contact points
             return np.zeros(0)
         forward = np.full((len(self._feet), 3), np.nan)
-        feet = self._feet >= 0
-        forward[feet] = R_world_sensed[self._feet[feet], :, 0]
-        for i in np.flatnonzero(feet & ~tracked[self._feet]):  # a foot without its sensor
+        forward[self._has_foot] = R_world_sensed[self._foot_rows, :, 0]
+        for i in true_indices(self._has_foot & ~tracked[self._feet]):  # a foot without sensor
             name = self.model.segment_names[self._feet[i]]
             forward[i] = self.model.segment_rotation(q, name)[:, 0]
         return np.arctan2(-forward[:, 2], np.hypot(forward[:, 0], forward[:, 1]))
@@ -156,7 +159,7 @@ class ContactTracker:
 
     def follow(self, p_sensed: np.ndarray, dt: float) -> np.ndarray | None:
         """The support offset (3,) [m] putting the sensed pose on its anchors; None in flight."""
-        if self.state.active.any():
+        if any_true(self.state.active):
             return self.support.follow(self.state.active, self.state.anchors, p_sensed, dt)
         self.support.lose_support()
         return None
@@ -176,11 +179,11 @@ class ContactTracker:
         share = support.placed_share
         weight = (1.0 - share) * s.continuity + share * s.continuity_placed
         target = support.pelvis_target(q[:3])
-        if weight > 0 and (support.lag.any() or support.lean.any()):
+        if weight > 0 and (any_true(support.lag) or any_true(support.lean)):
             root.set_targets(target[None], [weight])
             tasks.append(root)
         targets, weights = support.swing_targets(p_warm + support.lag + support.lean)
-        if weights.any():
+        if any_true(weights):
             swing.set_targets(targets, weights)
             tasks.append(swing)
         return tasks

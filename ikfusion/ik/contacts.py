@@ -30,7 +30,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from ..model.topology import FootLayout
-from .fast_math import mean_rows, row_norms
+from .fast_math import any_true, mean_rows, row_norms, true_indices
 
 
 @dataclass
@@ -172,7 +172,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
             leave[i] = active[i] and not hints[name]
             plant[i] = not active[i] and bool(hints[name]) and plant[i]
     handover = False
-    if active.any() and not (active & ~leave).any() and not plant.any() and not hints:
+    if any_true(active) and not any_true(active & ~leave) and not any_true(plant) and not hints:
         # Without a flight hint the lowest point of the sensed pose keeps the body down: the
         # lowest planted one, unless the body rests on another point (hands in a cartwheel)
         # or the planted points are all well above the lowest (a foot swung overhead).
@@ -186,7 +186,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         else:
             leave[kept] = False
     anchors, age = state.anchors.copy(), state.age.copy()
-    if plant.any():
+    if any_true(plant):
         if handover:
             # where the sensed pose puts it, aligned on the points that let go this frame
             anchors[plant] = p_sensed[plant] + _sensed_offset(p_sensed, anchors, active)
@@ -194,12 +194,12 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
             anchors[plant] = _landing_anchors(layout, active & ~leave, anchors, p_solved,
                                               plant)
         else:
-            reference = active & ~leave if (active & ~leave).any() else active
+            reference = active & ~leave if any_true(active & ~leave) else active
             same = layout.same_foot
-            for j in np.flatnonzero(plant):
+            for j in true_indices(plant):
                 # the point's own foot, when planted, keeps that foot's anchors in shape
                 own = reference & same[j]
-                ref = own if own.any() else reference & ~same[j]
+                ref = own if any_true(own) else reference & ~same[j]
                 anchors[j] = p_sensed[j] + _sensed_offset(p_sensed, anchors, ref)
         anchors[plant, 2] = np.maximum(anchors[plant, 2], th.floor_z)
         age[plant] = 0.0
@@ -235,7 +235,7 @@ def _sensed_offset(p_sensed: np.ndarray, anchors: np.ndarray, reference: np.ndar
 
     Zero without a reference point.
     """
-    if not reference.any():
+    if not any_true(reference):
         return np.zeros(3)
     return mean_rows(anchors[reference] - p_sensed[reference])
 
@@ -292,9 +292,9 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     for i, name in enumerate(state.names):
         if hints and name in hints:
             enter[i] = (not active[i]) and bool(hints[name])
-    if not active.any() and not enter.any() and not hints:
+    if not any_true(active) and not any_true(enter) and not hints:
         enter[int(np.argmin(p_sensed[:, 2]))] = True
-    landing = enter.any()
+    landing = any_true(enter)
     if landing:
         anchors[enter] = _landing_anchors(layout, active, anchors, p_solved, enter)
         active |= enter
@@ -317,9 +317,9 @@ def _landing_anchors(layout: FootLayout, active: np.ndarray, anchors: np.ndarray
     """
     same = layout.same_foot
     out = p_solved[enter].copy()
-    for row, i in enumerate(np.flatnonzero(enter)):
+    for row, i in enumerate(true_indices(enter)):
         planted = same[i] & active
-        if planted.any():
+        if any_true(planted):
             out[row] += mean_rows(anchors[planted] - p_solved[planted])
     return out
 
@@ -344,6 +344,8 @@ def _drift_from_other_foot(layout: FootLayout, active: np.ndarray, anchors: np.n
     """
     same = layout.same_foot
     others = active[:, None] & active[None, :] & ~same  # row i: the other foot's planted points
+    if not any_true(others):  # the usual case: at most one foot planted
+        return np.zeros(len(active)), np.full(len(active), np.inf)
     count = others.sum(axis=1)
     has = count > 0
     offset = (others @ (anchors - p_sensed)) / np.maximum(count, 1)[:, None]

@@ -18,3 +18,13 @@ def row_norms(v: np.ndarray) -> np.ndarray:
 def mean_rows(v: np.ndarray) -> np.ndarray:
     """The mean of the rows of ``v`` (n, d), n >= 1: ``np.mean(v, axis=0)``."""
     return np.add.reduce(v, axis=0) / len(v)
+
+
+def any_true(values: np.ndarray) -> bool:
+    """Whether any entry of ``values`` is non-zero (True, NaN): ``bool(np.any(values))``."""
+    return bool(np.count_nonzero(values))
+
+
+def true_indices(mask: np.ndarray) -> np.ndarray:
+    """The indices of the non-zero entries of a 1-D ``mask``: ``np.flatnonzero(mask)``."""
+    return mask.nonzero()[0]

@@ -21,7 +21,14 @@ from .limits import ContactConstraint, FloorLimit, JointRangeLimit, VelocityLimi
 from .limits.joint_range import LinearisedRanges
 from .qp import QpProblem, build_qp
 from .settings import SolverSettings
-from .tasks import DampingTask, OrientationTask, PositionTask, PostureTask, Task
+from .tasks import (
+    DampingTask,
+    EvenChainTask,
+    OrientationTask,
+    PositionTask,
+    PostureTask,
+    Task,
+)
 
 
 @dataclass
@@ -48,6 +55,7 @@ class FrameTasks:
         orientation: Segment orientations (IMU).
         position: Site positions (UWB, markers).
         posture: The prior on joints the sensors leave open.
+        even_chain: Unsensed columns (spine, neck) bend evenly.
         damping: Smoothness toward the previous frame.
         persistence: The bend of sensed joints kept (:class:`.sensed_pose.Persistence`).
         root: The pelvis position (aiding, flight, support).
@@ -62,6 +70,7 @@ class FrameTasks:
     orientation: OrientationTask
     position: PositionTask
     posture: PostureTask
+    even_chain: EvenChainTask
     damping: DampingTask
     persistence: DampingTask
     root: PositionTask
@@ -86,6 +95,7 @@ class FrameTasks:
             position=PositionTask([model.site_frame_id(n) for n in sites], sites, s.position),
             posture=PostureTask.from_joints(model.ball_joints, s.posture_joints, s.posture,
                                             s.posture_axes),
+            even_chain=EvenChainTask(model.ball_joints, s.even_chains, s.even_chain, segments),
             damping=DampingTask(tangent_vector(nv, s.smoothness_root_translation,
                                                s.smoothness_root_rotation, s.smoothness_joints)),
             persistence=persistence,
@@ -136,8 +146,8 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     Args:
         conf: The configuration linearised at.
         tasks: The solver's tasks and limits, targets set.
-        active: The tasks of this frame (the orientation, position, posture, damping and
-            persistence tasks, with the root or swing task when they are set).
+        active: The tasks of this frame (the orientation, position, posture, even-chain,
+            damping and persistence tasks, with the root or swing task when they are set).
         row_weights: Per-row weights of the orientation and the posture task.
         compiled: The compiled step, or None for the NumPy tasks.
         levenberg_marquardt: Damping of the step [1/rad^2].
@@ -166,6 +176,8 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     same = tasks.damping.q_reference is previous
     tasks.damping.add_objective(conf, H, c, moved if same else None)
     tasks.persistence.add_objective(conf, H, c)
+    if tasks.even_chain in active:
+        tasks.even_chain.add_objective(conf, H, c)
     Pc, Jc = P[tasks.contact_rows], J[tasks.contact_rows]
     if tasks.swing in active:
         tasks.swing.add_rows(Pc, Jc, H, c)

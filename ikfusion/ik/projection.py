@@ -14,6 +14,7 @@ import numpy as np
 from ..errors import SolverError
 from .configuration import Configuration
 from .equality_qp import independent_solve
+from .fast_math import any_true
 from .limits import ContactConstraint, FloorLimit, JointRangeLimit
 from .qp import QpSettings, build_qp, solve_qp
 
@@ -48,7 +49,7 @@ def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: 
     q_start = conf.q.copy()
     for _ in range(max_steps):  # the residual is second order: minimum-norm steps suffice
         P = conf.positions(contact_frames)
-        if not (contact.planted_slide_m(P) > tolerance).any():
+        if not any_true(contact.planted_slide_m(P) > tolerance):
             if above_floor(P, floor.floor_z, tolerance):
                 return False
             break
@@ -57,7 +58,7 @@ def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: 
     conf.update(q_start)
     relaxed = False
     for _ in range(max_steps):  # ... unless they fail: the QP with the limits
-        if not (contact.planted_slide_m(conf.positions(contact_frames)) > tolerance).any():
+        if not any_true(contact.planted_slide_m(conf.positions(contact_frames)) > tolerance):
             break
         problem = build_qp(conf, [], [ranges.inequality(conf), floor.inequality(conf)],
                            [contact.equality(conf)], None, 0.0)

@@ -19,6 +19,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..rotations import exp_so3
+from .fast_math import any_true, true_indices
 
 
 class ReleaseEasing:
@@ -50,15 +51,15 @@ class ReleaseEasing:
             bend: Given segment indices (m,), their last solved orientations' deviation from
                 their sensed ones, ``Log(R_world_sensed^T R_world_solved)`` (m, 3) [rad].
         """
-        if self.speed <= 0 or not released.any():
+        if self.speed <= 0 or not any_true(released):
             return
-        legs = np.unique(np.concatenate([self._legs[k] for k in np.flatnonzero(released)]))
+        legs = np.unique(np.concatenate([self._legs[k] for k in true_indices(released)]))
         if len(legs):
             self.offsets[legs] = bend(legs)
 
     def apply(self, R_world_sensed: np.ndarray, dt: float) -> np.ndarray | None:
         """Shrink the offsets by ``speed * dt``; the offset targets (n, 3, 3), None if none."""
-        if not self.offsets.any():  # the usual case: no leg eases
+        if not any_true(self.offsets):  # the usual case: no leg eases
             return None
         norm = np.linalg.norm(self.offsets, axis=1)
         keep = np.maximum(0.0, 1.0 - self.speed * dt / np.where(norm > 0, norm, 1.0))

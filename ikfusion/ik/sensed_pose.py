@@ -19,6 +19,7 @@ from ..model.human_model import HumanModel
 from ..model.topology import BodyTopology
 from ..rotations import log_so3, matrix_to_quat_wxyz, wxyz_to_xyzw
 from .compiled import CompiledKinematics, SensedPoseSpec
+from .fast_math import any_true
 from .tasks import DampingTask
 
 
@@ -110,7 +111,7 @@ class SensedPose:
         both = self.both_tracked(tracked)
         if tracked[0]:
             qs[3:7] = wxyz_to_xyzw(matrix_to_quat_wxyz(T[0]))
-        if both.any():
+        if any_true(both):
             R = np.swapaxes(T[self.joint_parent[both]], 1, 2) @ T[self.joint_child[both]]
             qs[self.joint_q_cols[both]] = wxyz_to_xyzw(matrix_to_quat_wxyz(R))
         for joint, foot in self.toe_joints if level_toes else ():

@@ -42,6 +42,8 @@ class SolverSettings(ShippedSettings):
     posture_axes: dict[str, list[float]]
     assumed: float
     hinge_joints: list[str]
+    even_chain: float
+    even_chains: list[list[str]]
     smoothness_root_translation: float
     smoothness_root_rotation: float
     smoothness_joints: float

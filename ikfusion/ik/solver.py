@@ -221,7 +221,8 @@ class Solver:
     def _base_tasks(self, frame: Frame) -> list[Task]:
         """The tasks of every frame, with the pelvis at its aiding position when it has one."""
         t = self.tasks
-        active: list[Task] = [t.orientation, t.position, t.posture, t.damping, t.persistence]
+        active: list[Task] = [t.orientation, t.position, t.posture, t.even_chain, t.damping,
+                              t.persistence]
         if frame.root_position is not None:
             t.root.set_targets(np.asarray(frame.root_position, dtype=float)[None],
                                [frame.root_position_weight])
@@ -250,7 +251,7 @@ class Solver:
                 break
             relaxed = relaxed or solution.relaxed
             conf.update(conf.integrate(solution.dq))
-            if np.max(np.abs(solution.dq)) < s.step_tolerance:
+            if np.abs(solution.dq).max() < s.step_tolerance:
                 break  # planted points are then held exactly by the projection below
         t = self.tasks
         relaxed = project_on_contacts(conf, t.contact, t.floor, t.joint_range,

@@ -16,10 +16,16 @@ For the ``no-slide`` correction it also leads swing feet and leans the pelvis: w
 off, the correction still to make (less what the lag will still bring) is latched for it, at
 most ``max_step``, and the foot is led toward it during the swing (a soft position task on its
 heels, relative to the pelvis), starting from where its heel left the floor; it lands where the
-corrected body wants it, with no jump at touch-down. The lead is horizontal, as the correction
-is: how high the heel is stays with the sensed leg and the floor (a heel held at its sensed
-height while the floor lifts a toe the sensed leg puts under it pitches the foot about the
-ankle, and the pitch springs back when the toe rises: a pop). Meanwhile the pelvis leans toward the
+corrected body wants it, with no jump at touch-down. The lead holds the heel at the height of
+the sensed leg too: a heel free in height drifts up with the pelvis (nothing else holds it
+there while the body stands on one toe), lands high and lifts the body at each heel strike.
+It lets the height go where the sensed leg puts the foot under the floor: the floor lifts that
+foot, and a heel held at its sensed height while the floor lifts the toe pitches the foot about
+the ankle, which springs back when the toe rises (a pop). It lets it go for the whole swing when
+the heel left the floor away from the sensed leg's height (by ``_UNDER_FLOOR_BAND`` or more): a
+sensed leg that disagreed with the floor in height would pull the body up after lift-off and
+down before landing (a run's legs, with feet the sensors put centimetres under the floor).
+Meanwhile the pelvis leans toward the
 correction by at most ``lean_max``; the lean passes into the lag when the body is handed to a
 foot that was placed leaning.
 """
@@ -31,9 +37,12 @@ import math
 import numpy as np
 
 from ..model.topology import FootLayout
-from .fast_math import mean_rows
+from .fast_math import any_true, mean_rows, true_indices
 
-_HORIZONTAL = np.diag([1.0, 1.0, 0.0])  # information of a lead: the x and y axes only
+_HORIZONTAL = np.diag([1.0, 1.0, 0.0])  # information of a lead on the x and y axes
+_VERTICAL = np.diag([0.0, 0.0, 1.0])  # ... and on the z axis
+_UNDER_FLOOR_BAND = 0.01  # [m] the lead lets a heel's height go as its foot sinks this far
+# under the floor, or as the heel lifts off this far from the sensed leg's height
 
 
 class SupportFollower:
@@ -47,11 +56,14 @@ class SupportFollower:
         lean_max: The pelvis leans toward the correction at most this far [m] ...
         lean_speed: ... at this speed [m/s].
         confirm: A touch-down counts once the foot stayed planted this long [s].
+        floor_z: Height of the floor [m] (world z): a swing foot whose sensed points sink under
+            it is led horizontally only.
     """
 
     def __init__(self, layout: FootLayout, lag_speed: float, lag_max: float,
                  swing_speed: float, lean_max: float, lean_speed: float,
-                 confirm: float) -> None:
+                 confirm: float, floor_z: float = 0.0) -> None:
+        self.floor_z = floor_z
         self.lag_speed = lag_speed
         self.lag_max = lag_max
         self.swing_speed = swing_speed
@@ -78,6 +90,7 @@ class SupportFollower:
         self._max_step = 0.0
         n = len(self._feet)
         self._swinging = [False] * n
+        self._height_trust = np.ones(n)  # how far a swing heel is held at its sensed height
         self._goal = np.zeros((n, 3))
         self.swing = np.zeros((n, 3))
         self._landed_swing = np.zeros((n, 3))
@@ -154,10 +167,10 @@ class SupportFollower:
         moved = np.zeros(3)  # how far the pelvis target moves to where the pelvis was solved
         if self._support is not None:
             was, held = self._support
-            if was.any():
+            if any_true(was):
                 # what the last frame's support says now, minus what this frame's says
                 self.lag += mean_rows(held[was] - p_sensed[was]) - offset
-            if not (was & reference).any():
+            if not any_true(was & reference):
                 # the body is handed to a foot that was placed leaning: the lean is in it now;
                 # and the pelvis goes on from where it was solved, not from its soft target
                 self.lag += self.lean + self._off_target
@@ -177,7 +190,7 @@ class SupportFollower:
 
     def _foot_of(self, points: np.ndarray) -> int:
         """The foot (index in the layout's feet) of the first of ``points``."""
-        return next((f for f, g in enumerate(self._feet) if (points & g).any()), 0)
+        return next((f for f, g in enumerate(self._feet) if any_true(points & g)), 0)
 
     def _planted(self, points: np.ndarray) -> np.ndarray:
         """(groups,) does each group (foot, knee, palm) have one of ``points`` (k,)?"""
@@ -193,7 +206,7 @@ class SupportFollower:
         age = self._planted_for
         oldest = planted & (age == age[planted].max())
         reference = np.zeros(len(active), dtype=bool)
-        for f in np.flatnonzero(oldest):
+        for f in true_indices(oldest):
             reference |= self._feet[f]
         return reference & active
 
@@ -205,7 +218,7 @@ class SupportFollower:
     def _settle_landings(self, planted: np.ndarray, dt: float) -> None:
         """Groups ``planted`` (groups,) that touched down stay where they were led (``landed``)."""
         self.landed = np.zeros(3)
-        for f in np.flatnonzero(planted):
+        for f in true_indices(planted):
             if self._swinging[f]:
                 self._swinging[f] = False
                 self._landed_swing[f] = self.swing[f]
@@ -228,20 +241,22 @@ class SupportFollower:
         heel is (held while the body moved on, it is no longer where it was led: a swing
         resumed there jumped the heel by centimetres), and its landing is not counted.
         """
-        for f in np.flatnonzero(~planted):
+        for f in true_indices(~planted):
             points = self._feet[f]
             if not self._steps[f]:
                 self._swinging[f] = True  # lifted, never led: lands with no swing offset
                 continue
             if not self._swinging[f]:
                 self._swinging[f] = True
-                if self._planted_for[f] < self.confirm and np.any(self._landed_swing[f]):
+                if self._planted_for[f] < self.confirm and any_true(self._landed_swing[f]):
                     self.landed -= self._landed_swing[f]  # not counted; its goal is kept
                 else:
                     self._goal[f] = _clip_norm(self._step - self.pending, self._max_step)
                 # the heel leaves the floor where it is, not where the sensed leg puts it (nor
                 # where it was led before a short touch-down: the body moved under it since)
                 self.swing[f] = mean_rows(self._deviation[points & self._led])
+                # a sensed leg that disagreed with the floor's height does not set the heel's
+                self._height_trust[f] = _band_share(-abs(float(self.swing[f][2])))
                 self._landed_swing[f] = 0.0
             self.swing[f] += _clip_norm(self._goal[f] - self.swing[f], self.swing_speed * dt)
             self.swing[f] -= moved
@@ -279,8 +294,11 @@ class SupportFollower:
     def swing_targets(self, p_points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Targets (k, 3) [m] and information (k, 3, 3) for the heels of swing feet.
 
-        The information is 1 on the horizontal axes of a led heel, 0 elsewhere: the lead moves
-        the heel sideways only, its height is left to the sensed leg and the floor.
+        The information of a led heel is 1 on the horizontal axes; on the vertical axis it is 1
+        while the foot's targets are on or above the floor and falls to 0 as the lowest of them
+        sinks ``_UNDER_FLOOR_BAND`` under it (the floor, not the lead, sets that foot's height),
+        and as the heel left the floor up to ``_UNDER_FLOOR_BAND`` away from its sensed height
+        (the sensed leg's height is not to be trusted then). Every other point has none.
 
         Args:
             p_points: (k, 3) contact points of the warm start (the sensed pose on the support,
@@ -288,12 +306,19 @@ class SupportFollower:
         """
         self._base = p_points.copy()
         targets = p_points.copy()
-        led = np.zeros(len(p_points), dtype=bool)
+        info = np.zeros((len(p_points), 3, 3))
         for f, points in enumerate(self._feet):
-            if self._swinging[f] and np.any(self._goal[f]):
+            if self._swinging[f] and any_true(self._goal[f]):
                 targets[points] += self.swing[f]
-                led |= points & self._led
-        return targets, led[:, None, None] * _HORIZONTAL
+                sunk = self.floor_z - float(targets[points, 2].min())
+                height = min(_band_share(-sunk), self._height_trust[f])
+                info[points & self._led] = _HORIZONTAL + height * _VERTICAL
+        return targets, info
+
+
+def _band_share(height: float) -> float:
+    """1 at or above 0, falling to 0 at ``-_UNDER_FLOOR_BAND`` [m] and below."""
+    return min(max(1.0 + height / _UNDER_FLOOR_BAND, 0.0), 1.0)
 
 
 def _shrink(v: np.ndarray, by: float) -> np.ndarray:

@@ -21,6 +21,9 @@ import numpy as np
 from ..rotations import exp_so3, log_so3
 from .bridging import BridgedSegments, BridgingSettings, bridging_report
 
+_EYE = np.eye(3)
+_EYE.flags.writeable = False
+
 
 class _SegmentBridge:
     """The causal bridge of one segment (see the module docstring)."""
@@ -28,7 +31,9 @@ class _SegmentBridge:
     def __init__(self, settings: BridgingSettings) -> None:
         self.settings = settings
         self.out: np.ndarray | None = None      # last output R_world_segment
-        self.history: list[tuple[float, np.ndarray]] = []  # last two (time, rel to ref)
+        # last two (time, R_world_reference, output): the relative orientation is worked out
+        # only when a gap needs it, not on every frame
+        self.history: list[tuple[float, np.ndarray, np.ndarray]] = []
         self.gap: tuple[float, np.ndarray, np.ndarray] | None = None  # t_last, rel_last, omega
         self.blend: tuple[float, np.ndarray, float] | None = None  # t_back, offset, angle
 
@@ -42,7 +47,7 @@ class _SegmentBridge:
     def step(self, time_s: float, R: np.ndarray | None, ref: np.ndarray | None
              ) -> tuple[np.ndarray | None, bool]:
         """(R_world_segment or None when untracked, whether it was bridged) at one frame."""
-        R_ref = np.eye(3) if ref is None else ref
+        R_ref = _EYE if ref is None else ref
         if R is None:
             if self.out is None:
                 return None, False
@@ -51,8 +56,8 @@ class _SegmentBridge:
             out = R_ref @ self._held(time_s)
             self._keep(time_s, out, R_ref)
             return out, True
-        rel = R_ref.T @ R
         if self.gap is not None:  # the sensor is back: blend the offset out
+            rel = R_ref.T @ R
             offset = log_so3(rel.T @ self._held(time_s))
             angle = float(np.linalg.norm(offset))
             self.blend = (time_s, offset, angle) if angle >= 1e-9 else None
@@ -62,7 +67,7 @@ class _SegmentBridge:
             t_back, offset, angle = self.blend
             left = 1.0 - self.settings.blend_rate * (time_s - t_back) / angle
             if left > 0.0:
-                out = R_ref @ rel @ exp_so3(min(left, 1.0) * offset)
+                out = R_ref @ (R_ref.T @ R) @ exp_so3(min(left, 1.0) * offset)
             else:
                 self.blend = None
         self._keep(time_s, out, R_ref)
@@ -70,17 +75,19 @@ class _SegmentBridge:
 
     def _start_gap(self) -> None:
         """Freeze the last relative orientation and its rate at the start of a gap."""
-        t1, rel1 = self.history[-1]
+        t1, ref1, out1 = self.history[-1]
+        rel1 = ref1.T @ out1
         omega = np.zeros(3)
         if len(self.history) == 2:
-            t0, rel0 = self.history[0]
+            t0, ref0, out0 = self.history[0]
+            rel0 = ref0.T @ out0
             if t1 > t0:
                 omega = log_so3(rel0.T @ rel1) / (t1 - t0)
         self.gap = (t1, rel1, omega)
 
     def _keep(self, time_s: float, out: np.ndarray, R_ref: np.ndarray) -> None:
         self.out = out
-        self.history = [*self.history[-1:], (time_s, R_ref.T @ out)]
+        self.history = [*self.history[-1:], (time_s, R_ref, out)]
 
 
 class BridgeStream:

@@ -68,6 +68,18 @@ class FootPointsStream:
             return {}
         omega = R_world_sensor @ np.asarray(gyr, dtype=float)
         r_world = (R_world_sensor @ self.R_sensor_segment @ self.r_segment.T).T  # (k, 3)
-        v = self._v[None, :] + np.cross(omega[None, :], r_world)
+        v = self._v[None, :] + _cross(omega, r_world)
         speed = np.linalg.norm(v[:, :2], axis=1)
         return {n: bool(s > self.max_speed) for n, s in zip(self.names, speed)}
+
+
+def _cross(w: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """(k, 3) ``w x r`` of a (3,) vector and (k, 3) vectors.
+
+    The products and differences of ``np.cross``, which costs ten times more for these few.
+    """
+    out = np.empty_like(r)
+    out[:, 0] = w[1] * r[:, 2] - w[2] * r[:, 1]
+    out[:, 1] = w[2] * r[:, 0] - w[0] * r[:, 2]
+    out[:, 2] = w[0] * r[:, 1] - w[1] * r[:, 0]
+    return out

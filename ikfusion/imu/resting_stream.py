@@ -13,7 +13,7 @@ import numpy as np
 from .flight import GRAVITY
 from .resting import RestThresholds
 from .stance import StanceThresholds
-from .stance_stream import FootStillStream
+from .stance_stream import FootStillStream, vector_norm
 
 
 class SegmentRestingStream(FootStillStream):
@@ -35,4 +35,4 @@ class SegmentRestingStream(FootStillStream):
             return float("nan")
         a = R @ np.asarray(acc, dtype=float)
         a[2] -= GRAVITY
-        return float(np.linalg.norm(a))
+        return vector_norm(a)

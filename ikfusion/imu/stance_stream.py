@@ -12,6 +12,7 @@ packet or two must not release a planted foot); a longer gap starts counting afr
 
 from __future__ import annotations
 
+import math
 from collections import deque
 
 import numpy as np
@@ -62,13 +63,15 @@ class FootStillStream:
         speed = self._speed(time_s, R_world_sensor, gyr)
         self._last = (time_s, R_world_sensor)
         self._missing = 0
-        if not np.isfinite(speed):
+        if not math.isfinite(speed):
             return float("nan")
         self._speeds.append(speed)
         calm = max(self._speeds) < self.max_rate
-        if acc is not None and np.isfinite(acc).all():
-            self._accelerations.append(float(np.linalg.norm(
-                world_acceleration(R_world_sensor[None], np.asarray(acc, dtype=float)[None]))))
+        if acc is not None:
+            size = vector_norm(world_acceleration(R_world_sensor[None],
+                                            np.asarray(acc, dtype=float)[None])[0])
+            if math.isfinite(size):  # NaN or inf wherever the sample's is
+                self._accelerations.append(size)
         if self._accelerations:
             calm &= max(self._accelerations) < self.max_acceleration
         self._calm_run = self._calm_run + 1 if calm else 0
@@ -77,8 +80,13 @@ class FootStillStream:
     def _speed(self, time_s: float, R: np.ndarray, gyr: np.ndarray | None) -> float:
         """|omega| [rad/s] of this sample (gyroscope, else the turn since the last sample)."""
         if gyr is not None:
-            return float(np.linalg.norm(gyr))
+            return vector_norm(np.asarray(gyr, dtype=float))
         if self._last is None or time_s <= self._last[0]:
             return float("nan")
         t0, R0 = self._last
-        return float(np.linalg.norm(log_so3(R0.T @ R))) / (time_s - t0)
+        return vector_norm(log_so3(R0.T @ R)) / (time_s - t0)
+
+
+def vector_norm(v: np.ndarray) -> float:
+    """|v| of a (3,) float vector, as ``np.linalg.norm`` computes it (without its checks)."""
+    return math.sqrt(float(v.dot(v)))

@@ -779,6 +779,12 @@ def _parse_motion(
             f"{frames_line}); the first extra one is here", path, line=data[n_frames][0],
             field="Frames",
         )
+    frame_lines = np.array([number for number, _ in data], dtype=int)
+    if n_channels and data and len(data) == n_frames:
+        values = _all_numbers(data, n_channels)
+        if values is not None:
+            return frame_time, values, frame_lines
+    # a line to blame: count and read every line
     rows: list[list[str]] = []
     for k, (number, text) in enumerate(data):
         words = text.split()
@@ -799,7 +805,6 @@ def _parse_motion(
             f"'Frames: {n_frames}' but the file holds {len(rows)} frame lines (truncated?)",
             path, line=frames_line, field="Frames",
         )
-    frame_lines = np.array([number for number, _ in data], dtype=int)
     if n_channels == 0:
         return frame_time, np.zeros((n_frames, 0)), frame_lines
     try:
@@ -816,6 +821,20 @@ def _parse_motion(
                     ) from None
         raise  # pragma: no cover - numpy and float() disagree on a token
     return frame_time, values.reshape(n_frames, n_channels), frame_lines
+
+
+def _all_numbers(data: list[tuple[int, str]], n_channels: int) -> np.ndarray | None:
+    """The frame lines' values (F, C) read at once, or None when a line is malformed.
+
+    NumPy's text reader parses every number as ``float()`` does; any line with another count
+    of values or a word that is not a number makes it fail, and the caller then reads line by
+    line to name the line and the field.
+    """
+    try:
+        values = np.loadtxt([text for _, text in data], dtype=float, comments=None, ndmin=2)
+    except ValueError:
+        return None
+    return values if values.shape == (len(data), n_channels) else None
 
 
 # --------------------------------------------------------------------------- writer

@@ -9,7 +9,9 @@ solved) and to the actor's recorder. Nothing waits for a missing sample: frames 
 their deadline, also when the source goes quiet.
 
 When the solver falls behind a paced source, the loop skips to the newest frame: every sample
-that arrived meanwhile is taken first, and of the frames then waiting only those whose pose can
+that arrived meanwhile is taken first (one that arrives while they are taken waits for the next
+round, so a source faster than the assembly cannot hold the solves back), and of the frames
+then waiting only those whose pose can
 still leave within ``latency_budget_s`` of ``configs/live.yaml`` (counted from their first
 sample's arrival, with the recent solve time as the cost of each frame still to solve) are
 solved; the others are dropped (not solved, counted; their samples still feed the bridging, the
@@ -21,10 +23,15 @@ latency is not in the percentiles. An unpaced replay (``--speed 0``) drops nothi
 so it gives the poses of ``solve --causal`` exactly. A paced stream does not solve the frames of
 its start-up buffer (only the last one: the stream starts at once instead of catching up;
 ``ActorStream(solve_startup=False)``), so its ``--record`` starts at the end of the calibration.
+
+During :meth:`LiveLoop.run` the objects made before the stream and by each calibration (models,
+solvers: most of the heap) are frozen out of Python's garbage collector (``gc.freeze``), whose
+full passes over them took tens of milliseconds in the middle of a frame.
 """
 
 from __future__ import annotations
 
+import gc
 import queue
 import sys
 import threading
@@ -124,6 +131,7 @@ class LiveLoop:
     _route: dict[str, LiveActor] = field(default_factory=dict)
     _route_sent: dict[str, LiveActor | None] = field(default_factory=dict)
     _status_at: float = 0.0
+    _frozen: bool = False
 
     def __post_init__(self) -> None:
         for actor in reversed(self.actors):  # the first actor naming a sensor gets it
@@ -144,39 +152,56 @@ class LiveLoop:
             inbox.put(_END)
 
         reader = threading.Thread(target=read, name="ikfusion-live-source", daemon=True)
-        reader.start()
+        gc.freeze()  # what exists now (models, solvers) is left out of every collection
+        self._frozen = True
         try:
-            ended = False
-            while not ended:
-                try:
-                    item = inbox.get(timeout=poll_s)
-                except queue.Empty:
-                    item = None
-                waiting: dict[str, list[AssembledFrame]] = {a.name: [] for a in self.actors}
-                while item is not None:  # paced: every sample that arrived, then the solves
-                    if item is _END:
-                        ended = True
-                        break
-                    if isinstance(item, BaseException):
-                        raise item
-                    actor, frames = self._assemble(*item)
-                    if actor is not None:
-                        waiting[actor.name] += frames
-                    if not self.paced:
-                        break
+            reader.start()
+            try:
+                ended = False
+                while not ended:
                     try:
-                        item = inbox.get_nowait()
+                        item = inbox.get(timeout=poll_s)
                     except queue.Empty:
                         item = None
-                now = self.clock()
-                for actor in self.actors:
-                    if inbox.empty():  # wall deadlines once every sample that arrived is in
-                        waiting[actor.name] += actor.assembler.poll(now)
-                    self._solve(actor, waiting[actor.name])
-                self._show_status(self.clock())
+                    waiting, ended = self._arrived(inbox, item)
+                    now = self.clock()
+                    for actor in self.actors:
+                        if inbox.empty():  # wall deadlines once every sample that arrived is in
+                            waiting[actor.name] += actor.assembler.poll(now)
+                        self._solve(actor, waiting[actor.name])
+                    self._show_status(self.clock())
+            finally:
+                source.close()
+            self.finish()
         finally:
-            source.close()
-        self.finish()
+            self._frozen = False
+            gc.unfreeze()
+
+    def _arrived(self, inbox: queue.Queue[Any], item: Any
+                 ) -> tuple[dict[str, list[AssembledFrame]], bool]:
+        """The frames released by ``item`` and the samples arrived before; the source ended.
+
+        Paced, the samples that arrived before this round began are taken after ``item``; one
+        that arrives while they are assembled waits for the next round, so a source delivering
+        faster than they are assembled cannot hold the solves back.
+        """
+        waiting: dict[str, list[AssembledFrame]] = {a.name: [] for a in self.actors}
+        started = self.clock()
+        while item is not None:
+            if item is _END:
+                return waiting, True
+            if isinstance(item, BaseException):
+                raise item
+            actor, frames = self._assemble(*item)
+            if actor is not None:
+                waiting[actor.name] += frames
+            if not self.paced or item[1] > started:
+                break
+            try:
+                item = inbox.get_nowait()
+            except queue.Empty:
+                item = None
+        return waiting, False
 
     def take(self, sample: Sample, arrived: float) -> None:
         """One sample arrived at wall time ``arrived`` [s]: the frames it releases solved."""
@@ -234,6 +259,8 @@ class LiveLoop:
                 actor.solve_s = spent if not actor.solve_s else 0.9 * actor.solve_s + 0.1 * spent
             elif actor.stream.calibration is not None:
                 actor.calibrated_at = done
+                if self._frozen:  # the calibration's objects too
+                    gc.freeze()
             if steady:
                 actor.cpu_s.append(time.thread_time() - cpu)
             if actor.live_since is None and actor.calibrated_at is not None and poses and (

@@ -27,7 +27,13 @@ from ..model.human_model import HumanModel
 from ..rotations import angle_between
 from .direct_pose import configurations_from_orientations
 from .foot_lock import lock_planted_points
-from .model_motion import TruthMotion, contact_phases, moved_configurations, site_positions
+from .model_motion import (
+    TruthMotion,
+    contact_phases_from_points,
+    frame_poses,
+    moved_configurations,
+    site_positions,
+)
 from .skeleton_map import MappedMotion, map_motion
 
 
@@ -148,6 +154,28 @@ def motion_from_bvh(path: str | Path, rate: float = 60.0, progress: bool = False
         InputError: A malformed file, or bad samples that cannot be bridged (file, line,
             channel).
     """
+    return _bvh_motion(path, rate, progress, lock_contacts, direct, segments=False)[0]
+
+
+def segment_motion_from_bvh(path: str | Path) -> tuple[TruthMotion, np.ndarray, np.ndarray]:
+    """:func:`motion_from_bvh` (``direct=True``) and every segment's world pose along it.
+
+    Returns:
+        The truth, and the origins (N, S, 3) [m] and rotations ``R_world_segment``
+        (N, S, 3, 3) of the segments in ``model.segment_names`` order, from the kinematics
+        pass that also gives the contact phases.
+
+    Raises:
+        InputError: As :func:`motion_from_bvh`.
+    """
+    truth, poses = _bvh_motion(path, 60.0, False, True, True, segments=True)
+    return truth, *poses
+
+
+def _bvh_motion(path: str | Path, rate: float, progress: bool, lock_contacts: bool,
+                direct: bool, segments: bool
+                ) -> tuple[TruthMotion, tuple[np.ndarray, np.ndarray]]:
+    """:func:`motion_from_bvh`, and with ``segments`` the segments' origins and rotations."""
     bvh = read_bvh(path)
     step = max(1, int(round(bvh.frame_rate / rate)))
     frames = np.arange(0, bvh.num_frames, step)
@@ -168,12 +196,16 @@ def motion_from_bvh(path: str | Path, rate: float = 60.0, progress: bool = False
     offset = np.zeros((len(time), 2))
     if lock_contacts:
         q, offset = lock_planted_points(model, q, time, contacts)
-    phases = contact_phases(model, q, time, contacts)
-    return TruthMotion(model, time, q, contacts, phases, str(path), {
+    segment_ids = [model.segment_frame_id(s) for s in model.segment_names] if segments else []
+    p, R = frame_poses(model.model, q, [*(model.site_frame_id(n) for n in contacts),
+                                        *segment_ids])
+    phases = contact_phases_from_points(p[:, :len(contacts)], time)
+    truth = TruthMotion(model, time, q, contacts, phases, str(path), {
         "bvh_rate": bvh.frame_rate, "step": step, "missing_segments": list(mapped.missing),
         "body": body.to_dict(), "dropped_dimensions": dropped,
         "warnings": list(bvh.warnings),
         "lock_offset_max_m": float(np.linalg.norm(offset, axis=1).max(initial=0.0))})
+    return truth, (p[:, len(contacts):], R[:, len(contacts):])
 
 
 def _solved_configurations(model: HumanModel, mapped: MappedMotion, time: np.ndarray,

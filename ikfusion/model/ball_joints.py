@@ -89,22 +89,35 @@ def _principal(axis: np.ndarray) -> tuple[str, int] | None:
     return "xyz"[k], 1 if axis[k] > 0 else -1
 
 
-def _only_child(model: pin.Model, joint_id: int) -> int | None:
-    children = [j for j in range(1, model.njoints) if model.parents[j] == joint_id]
-    return children[0] if len(children) == 1 else None
+def _only_child(children: dict[int, list[int]], joint_id: int) -> int | None:
+    """The one child joint of ``joint_id`` (None for none or several); ``children`` by parent."""
+    kids = children.get(joint_id, [])
+    return kids[0] if len(kids) == 1 else None
 
 
-def _bare_link(model: pin.Model, joint_id: int) -> bool:
-    """True when a joint's body has no mass and carries no frame but its own link and joint."""
+def _bare_link(model: pin.Model, carried: dict[int, list[pin.Frame]], joint_id: int) -> bool:
+    """True when a joint's body has no mass and carries no frame but its own link and joint.
+
+    ``carried`` lists each joint's frames.
+    """
     if model.inertias[joint_id].mass > 0.0:
         return False
-    carried = [f for f in model.frames if f.parentJoint == joint_id]
-    return all(f.type in (pin.FrameType.JOINT, pin.FrameType.BODY) for f in carried) and len(
-        carried) <= 2
+    frames = carried.get(joint_id, [])
+    return all(f.type in (pin.FrameType.JOINT, pin.FrameType.BODY) for f in frames) and len(
+        frames) <= 2
 
 
-def _triplet_spec(model: pin.Model, ids: tuple[int, int, int],
+def _by_parent(items: list[tuple[int, object]]) -> dict[int, list]:
+    """``(parent, item)`` pairs grouped by parent, each group in the given order."""
+    out: dict[int, list] = {}
+    for parent, item in items:
+        out.setdefault(parent, []).append(item)
+    return out
+
+
+def _triplet_spec(model: pin.Model, frames: list[pin.Frame], ids: tuple[int, int, int],
                   axes: list[tuple[str, int]]) -> JointSpec:
+    """The joint spec of a triplet; ``frames`` is ``list(model.frames)`` (read once)."""
     names = [model.names[j] for j in ids]
     stems = {n.rsplit("_", 1)[0] for n in names}
     suffixes = [n.rsplit("_", 1)[-1] for n in names]
@@ -118,10 +131,10 @@ def _triplet_spec(model: pin.Model, ids: tuple[int, int, int],
         lo = float(np.degrees(model.lowerPositionLimit[iq]))
         hi = float(np.degrees(model.upperPositionLimit[iq]))
         angles.append(AngleSpec(angle, axis, sign, lo, hi))
-    joint_frame = next(f for f in model.frames
+    joint_frame = next(f for f in frames
                        if f.type == pin.FrameType.JOINT and f.parentJoint == ids[0])
-    parent = model.frames[joint_frame.parentFrame].name
-    child_bodies = [f.name for f in model.frames
+    parent = frames[joint_frame.parentFrame].name
+    child_bodies = [f.name for f in frames
                     if f.parentJoint == ids[2] and f.type == pin.FrameType.BODY]
     child = child_bodies[0] if child_bodies else name
     return JointSpec(name, parent, child, (angles[0], angles[1], angles[2]))
@@ -131,9 +144,12 @@ def find_triplets(model: pin.Model) -> list[tuple[tuple[int, int, int], list[tup
     """Revolute triplets of ``model`` that form exact ball joints, with their axes and signs."""
     found = []
     all_axes = revolute_axes(model)
+    parents = list(model.parents)  # Pinocchio's containers are slow to index from Python
+    children = _by_parent([(parents[j], j) for j in range(1, model.njoints)])
+    carried = _by_parent([(f.parentJoint, f) for f in model.frames])
     for j1 in range(1, model.njoints):
-        j2 = _only_child(model, j1)
-        j3 = _only_child(model, j2) if j2 is not None else None
+        j2 = _only_child(children, j1)
+        j3 = _only_child(children, j2) if j2 is not None else None
         if j2 is None or j3 is None:
             continue
         ids = (j1, j2, j3)
@@ -144,7 +160,7 @@ def find_triplets(model: pin.Model) -> list[tuple[tuple[int, int, int], list[tup
         if len(principal) != 3 or len({p[0] for p in principal}) != 3:
             continue
         identity = all(model.jointPlacements[j].isIdentity(1e-12) for j in (j2, j3))
-        if identity and _bare_link(model, j1) and _bare_link(model, j2):
+        if identity and _bare_link(model, carried, j1) and _bare_link(model, carried, j2):
             found.append((ids, principal))
     return found
 
@@ -168,13 +184,14 @@ def merge_revolute_triplets(model: pin.Model) -> ConvertedModel:
     ball_joints: dict[str, BallJoint] = {}
     joint_frames: dict[int, int] = {}
     members = {j for ids, _ in triplets for j in ids}
+    frames = list(model.frames)
     for j in range(1, model.njoints):
         if j in members and j not in first_of:
             continue
         parent = joint_map[model.parents[j]]
         if j in first_of:
             ids, axes = first_of[j]
-            spec = _triplet_spec(model, ids, axes)
+            spec = _triplet_spec(model, frames, ids, axes)
             jid = new.addJoint(parent, pin.JointModelSpherical(), model.jointPlacements[j],
                                spec.name)
             new.inertias[jid] = model.inertias[ids[2]]

@@ -109,6 +109,27 @@ def load_joint_specs(path: str | Path | None = None) -> dict[str, JointSpec]:
         ConfigError: A missing joint, an unknown segment, a bad axis, sign or range.
     """
     file = Path(path) if path is not None else shipped_config("joints.yaml")
+    try:  # a file read before and unchanged since: its (immutable) specs again
+        stat = file.stat()
+        key: tuple[str, int, int] | None = (str(file.absolute()), stat.st_mtime_ns,
+                                            stat.st_size)
+    except OSError:
+        key = None  # read_yaml names the problem
+    if key is not None and key in _READ:
+        return dict(_READ[key])
+    specs = _read_joint_specs(file)
+    if key is not None:
+        _READ.clear()  # keep one: the shipped file, read for every model built
+        _READ[key] = specs
+    return dict(specs)
+
+
+#: The specs of the last joints file read, by path, modification time and size.
+_READ: dict[tuple[str, int, int], dict[str, JointSpec]] = {}
+
+
+def _read_joint_specs(file: Path) -> dict[str, JointSpec]:
+    """:func:`load_joint_specs` of ``file``, read and validated."""
     doc = read_yaml(file, "joints file")
     if not isinstance(doc, dict) or not isinstance(doc.get("joints"), dict):
         raise ConfigError("expected a mapping with key 'joints'", path=file, field="joints")

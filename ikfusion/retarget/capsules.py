@@ -159,6 +159,42 @@ class CapsulePairs:
         p, q = closest_points(*witness_segments(ends[:, :k], ends[:, k:]))
         return np.linalg.norm(p - q, axis=-1).min(axis=-1) - self._radius
 
+    def min_distance(self, R_links: np.ndarray, o_links: np.ndarray) -> float | None:
+        """The smallest distance of any pair along a motion [m], None without pairs.
+
+        The value of ``along(R_links, o_links).min()``, computed exactly only where a pair
+        may come that close: a pair's centre distance minus its reach bounds its distance from
+        below, so the (frame, pair) of the lowest bound gives an exact distance that any
+        closer one must undercut through its bound.
+
+        Args:
+            R_links: (N, L, 3, 3) world rotations of :attr:`links`.
+            o_links: (N, L, 3) world origins of :attr:`links` [m].
+        """
+        k = len(self.pairs)
+        if not k or not len(R_links):
+            return None
+        centres = ((R_links[:, self._slot] @ self._ab.mean(axis=1)[:, :, None])[..., 0]
+                   + o_links[:, self._slot])  # (N, 2k, 3)
+        bound = np.linalg.norm(centres[:, :k] - centres[:, k:], axis=-1) - self._reach
+        first = np.unravel_index(np.argmin(bound), bound.shape)
+        closest = float(self._entry_distances(R_links, o_links, *(np.array([i]) for i in first))
+                        .min())
+        # a micrometre of slack: the bound's own round-off must not drop an entry
+        frames, pairs = np.nonzero(bound <= closest + 1e-6)
+        return float(self._entry_distances(R_links, o_links, frames, pairs).min())
+
+    def _entry_distances(self, R_links: np.ndarray, o_links: np.ndarray, frames: np.ndarray,
+                         pairs: np.ndarray) -> np.ndarray:
+        """Exact distances (m,) [m] of the pairs ``pairs`` (m,) in the frames ``frames`` (m,)."""
+        ends = []
+        for capsule in (pairs, len(self.pairs) + pairs):  # first capsules, second ones
+            slot = self._slot[capsule]
+            ends.append(np.einsum("mij,mej->mei", R_links[frames, slot], self._ab[capsule])
+                        + o_links[frames, slot][:, None])
+        p, q = closest_points(*witness_segments(*ends))
+        return np.linalg.norm(p - q, axis=-1).min(axis=-1) - self._radius[pairs]
+
     def _witnesses(self, configuration: Configuration) -> tuple[np.ndarray, ...]:
         """Closest points of each pair's segments and of each end point to the other segment.
 
@@ -189,21 +225,17 @@ class CapsulePairs:
         self._cached_q, self._cached = configuration.q, (p, q, d)
         return p, q, d
 
-    def _distances_and_rows(self, configuration: Configuration
-                            ) -> tuple[np.ndarray, np.ndarray | None]:
-        """Witness distances (5k,) [m] and, when ``configuration`` computes them, their rows.
+    def _distances(self, configuration: Configuration) -> np.ndarray:
+        """Witness distances (5k,) [m] of ``configuration``.
 
-        A configuration with a ``capsule_witnesses()`` method (the compiled retargeting step)
-        gives exact distances and the rows ``-n^T (J_p - J_q)`` (5k, nv) of every witness in
-        one call; otherwise :meth:`_witnesses` gives the distances and rows are built here.
+        A configuration with a ``capsule_distances()`` method (the compiled retargeting step)
+        gives them exactly; otherwise :meth:`_witnesses` does.
         """
-        compiled = getattr(configuration, "capsule_witnesses", None)
-        witnesses = compiled() if compiled is not None else None
-        if witnesses is not None:
-            self._last_distances = witnesses[0]
-            return witnesses
-        self._last_distances = self._witnesses(configuration)[2]
-        return self._last_distances, None
+        compiled = getattr(configuration, "capsule_distances", None)
+        distances = compiled() if compiled is not None else None
+        self._last_distances = self._witnesses(configuration)[2] if distances is None \
+            else distances
+        return self._last_distances
 
     @property
     def last_min_distance(self) -> float:
@@ -219,17 +251,19 @@ class CapsulePairs:
         """
         if not self.pairs:
             return np.zeros(0)
-        return self._distances_and_rows(configuration)[0].reshape(-1, 5).min(axis=1)
+        return self._distances(configuration).reshape(-1, 5).min(axis=1)
 
     def inequality(self, configuration: Configuration) -> Inequality:
         """Rows ``-n^T (J_p - J_q) dq <= d - margin`` for witnesses closer than ``activation``."""
         nv = configuration.model.nv
         if not self.pairs:
             return Inequality(np.zeros((0, nv)), np.zeros(0))
-        d, rows = self._distances_and_rows(configuration)
+        d = self._distances(configuration)
         near = np.flatnonzero(d < self.activation)
         if not len(near):
             return Inequality(np.zeros((0, nv)), np.zeros(0))
+        compiled = getattr(configuration, "capsule_rows", None)  # (5k, nv) when it has them
+        rows = compiled(np.unique(near // 5)) if compiled is not None else None
         if rows is not None:
             return Inequality(rows[near], d[near] - self.margin)
         p, q, _ = self._witnesses(configuration)

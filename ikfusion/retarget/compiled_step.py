@@ -16,7 +16,7 @@ weights) up to round-off.
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from functools import lru_cache
 from pathlib import Path
 
@@ -52,15 +52,18 @@ class RobotStep:
     with linear Jacobians), and of each of ``frames``: ``R_world_frame`` (column-major),
     ``p_world_frame`` [m] and the LOCAL_WORLD_ALIGNED Jacobian (6, nv), linear rows first.
     With capsule pairs, also the input ``capsules`` (:meth:`CapsulePairs.geometry`) and the
-    outputs ``d_witness`` (5k) [m], the exact distances of each pair's five witnesses
-    (:meth:`CapsulePairs._witnesses`), and ``G_witness`` (5k, nv), their keep-apart rows
-    ``-n^T (J_p - J_q)``. With soles, also the input ``corners`` (4 per sole, in its link
-    frame [m]) and the outputs ``z_corners`` (4s) [m], the corners' heights, and
+    output ``d_witness`` (5k) [m], the exact distances of each pair's five witnesses
+    (:meth:`CapsulePairs._witnesses`). With soles, also the input ``corners`` (4 per sole, in
+    its link frame [m]) and the outputs ``z_corners`` (4s) [m], the corners' heights, and
     ``Jz_corners`` (4s, nv), their height Jacobians.
 
     :attr:`check_function` (``retarget_check``) gives only what tells whether a pose keeps the
     constraints, without any Jacobian: from ``q``, ``geometry``, ``capsules`` and ``corners``,
     the outputs ``p_frames``, ``d_witness`` and ``z_corners`` (the same expressions).
+    :attr:`rows_functions` (``retarget_rows_<i>``, one per pair) give, from ``q``,
+    ``geometry`` and ``capsules``, the keep-apart rows ``G_witness`` (5, nv),
+    ``-n^T (J_p - J_q)``, of pair ``i``'s five witnesses: for all pairs, nearly half of the
+    step's arithmetic, and only the pairs that come near need them.
 
     Args:
         model: The robot (free-flyer and revolute joints).
@@ -69,8 +72,8 @@ class RobotStep:
         frames: Frame ids whose placements and Jacobians are wanted.
         capsules: Capsule pairs whose witnesses are wanted.
         soles: Frame ids of the links carrying the sole corners (4 each).
-        functions: The step and check functions already built for this structure (loaded
-            from the cache); built here when None.
+        functions: The step, check and rows functions already built for this structure
+            (loaded from the cache); built here when None.
 
     Raises:
         NotImplementedError: For joint types the graph does not cover.
@@ -90,12 +93,17 @@ class RobotStep:
                                       | set(self.position_frames) | set(self.soles)
                                       | {f for p in pairs for f in p})
         self.warnings: list[str] = []
-        self.function, self.check_function = (
+        self.function, self.check_function, *self.rows_functions = (
             functions if functions is not None else self._graph(model, pairs))
+        self._rows_calls: dict[int, BoundFunction] = {}
 
-    def _graph(self, model: pin.Model, pairs: list[tuple[int, int]]
-               ) -> tuple[ca.Function, ca.Function]:
-        """The step and check functions as CasADi graphs (see the class docstring)."""
+    @staticmethod
+    def function_names(pairs: int) -> list[str]:
+        """Names of the step, check and rows functions with ``pairs`` capsule pairs."""
+        return ["retarget_step", "retarget_check", *(f"retarget_rows_{i}" for i in range(pairs))]
+
+    def _graph(self, model: pin.Model, pairs: list[tuple[int, int]]) -> list[ca.Function]:
+        """The step, check and rows functions as CasADi graphs (see the class docstring)."""
         q = ca.SX.sym("q", model.nq)
         geometry = ca.SX.sym("geometry", 12 * (model.njoints - 1 + len(self.geometry_frames)))
         placements = symbolic_placements(geometry, model.njoints - 1, self.geometry_frames)
@@ -129,7 +137,8 @@ class RobotStep:
             p_out.append(p)
             J_out.append(jacobian(model, fid, axes, translations, p))
         capsule_geometry = ca.SX.sym("capsules", 13 * len(pairs))
-        d_witness, G_witness = [], []
+        d_witness: list[ca.SX] = []
+        G_witness: list[list[ca.SX]] = []  # five rows per pair
         k = len(pairs)
         for i, frame_pair in enumerate(pairs):
             ends = []
@@ -140,6 +149,7 @@ class RobotStep:
                              R @ capsule_geometry[j + 3:j + 6] + o])
             radius = capsule_geometry[12 * k + i]
             first_a, first_b, second_a, second_b = WITNESS_ENDS
+            G_witness.append([])
             for n in range(5):
                 p, q_ = closest_points_sx(ends[0][first_a[n]], ends[0][first_b[n]],
                                           ends[1][second_a[n]], ends[1][second_b[n]])
@@ -148,7 +158,7 @@ class RobotStep:
                 d_witness.append(distance - radius)
                 J_gap = (jacobian(model, frame_pair[0], axes, translations, p)[:3, :]
                          - jacobian(model, frame_pair[1], axes, translations, q_)[:3, :])
-                G_witness.append(-(gap / ca.fmax(distance, 1e-9)).T @ J_gap)
+                G_witness[-1].append(-(gap / ca.fmax(distance, 1e-9)).T @ J_gap)
 
         corners = ca.SX.sym("corners", 12 * len(self.soles))
         z_corners, Jz_corners = [], []
@@ -166,20 +176,22 @@ class RobotStep:
                             [p_frames, d_all, z_all],
                             ["q", "geometry", "capsules", "corners"],
                             ["p_frames", "d_witness", "z_corners"])
-        return ca.Function(
+        rows = [ca.Function(name, [q, geometry, capsule_geometry], [ca.vertcat(*G)],
+                            ["q", "geometry", "capsules"], ["G_witness"])
+                for name, G in zip(self.function_names(len(pairs))[2:], G_witness)]
+        return [ca.Function(
             "retarget_step",
             [q, geometry, R_target, w_orient, p_target, w_position, capsule_geometry, corners],
             [H, c, ca.vertcat(*R_out) if R_out else ca.SX(0, 1),
              p_frames,
              ca.vertcat(*J_out) if J_out else ca.SX(0, model.nv),
              d_all,
-             ca.vertcat(*G_witness) if G_witness else ca.SX(0, model.nv),
              z_all,
              ca.vertcat(*Jz_corners) if Jz_corners else ca.SX(0, model.nv)],
             ["q", "geometry", "R_world_target", "w_orient", "p_world_target", "w_position",
              "capsules", "corners"],
-            ["H", "c", "R_frames", "p_frames", "J_frames", "d_witness", "G_witness",
-             "z_corners", "Jz_corners"]), check
+            ["H", "c", "R_frames", "p_frames", "J_frames", "d_witness", "z_corners",
+             "Jz_corners"]), check, *rows]
 
     def geometry(self, model: pin.Model) -> np.ndarray:
         """The geometry input of ``model`` (its joint and frame placements)."""
@@ -200,6 +212,14 @@ class RobotStep:
         if not hasattr(self, "_check_call"):
             self._check_call = BoundFunction(self.check_function)
         return self._check_call(q, geometry, capsules, corners)
+
+    def rows(self, pair: int, q: np.ndarray, geometry: np.ndarray,
+             capsules: np.ndarray) -> np.ndarray:
+        """Pair ``pair``'s ``G_witness`` (5, nv), dense (overwritten by the next call)."""
+        call = self._rows_calls.get(pair)
+        if call is None:
+            call = self._rows_calls[pair] = BoundFunction(self.rows_functions[pair])
+        return call(q, geometry, capsules)[0]
 
 
 _BUILT: dict[str, RobotStep] = {}
@@ -225,13 +245,14 @@ def robot_step(model: pin.Model, orientation_frames: Sequence[int],
     built = _BUILT.get(key)
     if built is None:
         # no graph to build then
-        cached = cached_functions(key, ["retarget_step", "retarget_check"])
+        cached = cached_functions(key, RobotStep.function_names(len(pairs)))
         built = RobotStep(model, orientation_frames, position_frames, frames, capsules, soles,
                           cached)
         if cached is None:
-            native, problem = native_functions([built.function, built.check_function], key)
+            native, problem = native_functions(
+                [built.function, built.check_function, *built.rows_functions], key)
             if native is not None:
-                built.function, built.check_function = native
+                built.function, built.check_function, *built.rows_functions = native
             if problem is not None:
                 built.warnings.append(problem)
         _BUILT[key] = built
@@ -271,7 +292,9 @@ class CompiledConfiguration(Configuration):
                  corners: np.ndarray | None = None) -> None:
         self._step = step
         self._capsules = capsules.geometry() if capsules is not None else np.zeros(0)
-        self._witnesses: tuple[np.ndarray, np.ndarray] | None = None
+        self._witnesses: np.ndarray | None = None
+        self._rows: np.ndarray | None = None  # (5k, nv), filled pair by pair when asked
+        self._rows_done: set[int] = set()
         self._corners = np.zeros(0) if corners is None else np.asarray(corners).reshape(-1)
         self._soles: tuple[np.ndarray, np.ndarray] = (np.zeros(0), np.zeros((0, model.nv)))
         self._inputs: tuple[list[np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray,
@@ -300,6 +323,7 @@ class CompiledConfiguration(Configuration):
         super().update(q)
         self._objective = None
         self._checked = None
+        self._rows_done.clear()
 
     def _evaluate(self) -> tuple[np.ndarray, np.ndarray]:
         if self._objective is not None and self._recheck_targets:
@@ -309,10 +333,10 @@ class CompiledConfiguration(Configuration):
         if self._objective is None:
             self._used_targets = self._targets()
             orientations, w_orient, positions, w_position = self._used_targets
-            H, c, R, p, J, d, G, z, Jz = self._step(
+            H, c, R, p, J, d, z, Jz = self._step(
                 self._q, self._geometry, orientations, w_orient, positions, w_position,
                 self._capsules, self._corners)
-            self._witnesses = (d[:, 0].copy(), G.copy()) if self._step.has_capsules else None
+            self._witnesses = d[:, 0].copy() if self._step.has_capsules else None
             self._soles = (z[:, 0].copy(), Jz.copy())
             # Placements are built when asked for (most steps only read a few of them).
             self._frames = (R.reshape(-1, 3, 3).transpose(0, 2, 1).copy(),  # column-major
@@ -350,7 +374,7 @@ class CompiledConfiguration(Configuration):
         """
         if self._objective is not None:
             witnesses = self._witnesses
-            return (self._frames[1], np.zeros(0) if witnesses is None else witnesses[0],
+            return (self._frames[1], np.zeros(0) if witnesses is None else witnesses,
                     self._soles[0])
         if self._checked is None:
             p, d, z = self._step.check(self._q, self._geometry, self._capsules, self._corners)
@@ -375,13 +399,30 @@ class CompiledConfiguration(Configuration):
         H, c = self._evaluate()
         return H.copy(), c.copy()
 
-    def capsule_witnesses(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """Exact witness distances (5k,) [m] and keep-apart rows (5k, nv), None without pairs.
+    def capsule_distances(self) -> np.ndarray | None:
+        """Exact witness distances (5k,) [m], None without pairs.
 
         The five witnesses per pair of :class:`~ikfusion.retarget.capsules.CapsulePairs`.
         """
         self._evaluate()
         return self._witnesses
+
+    def capsule_rows(self, pairs: Iterable[int]) -> np.ndarray | None:
+        """The witnesses' keep-apart rows (5k, nv), None without pairs.
+
+        Only the rows of ``pairs`` (pair indices) are computed (once per configuration);
+        the other pairs' rows hold whatever an earlier configuration left there.
+        """
+        if not self._step.has_capsules:
+            return None
+        if self._rows is None:
+            self._rows = np.zeros((5 * len(self._step.rows_functions), self.model.nv))
+        for pair in pairs:
+            if pair not in self._rows_done:
+                self._rows[5 * pair:5 * pair + 5] = self._step.rows(
+                    pair, self._q, self._geometry, self._capsules)
+                self._rows_done.add(pair)
+        return self._rows
 
     def placement(self, frame_id: int) -> pin.SE3:
         """``T_world_frame`` of one frame."""
@@ -393,6 +434,15 @@ class CompiledConfiguration(Configuration):
         if T is None:
             T = self._placements[frame_id] = pin.SE3(self._frames[0][i], self._frames[1][i])
         return T
+
+    def frame_arrays(self, frame_id: int) -> tuple[np.ndarray, np.ndarray]:
+        """``R_world_frame`` (3, 3) and ``p_world_frame`` (3,) [m] of one frame, as arrays."""
+        i = self._covered.get(frame_id)
+        if i is None:
+            T = super().placement(frame_id)
+            return T.rotation, T.translation
+        self._evaluate()
+        return self._frames[0][i], self._frames[1][i]
 
     def jacobian(self, frame_id: int) -> np.ndarray:
         """Frame Jacobian (6, nv), LOCAL_WORLD_ALIGNED (linear rows first)."""

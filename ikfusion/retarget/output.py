@@ -141,7 +141,7 @@ def robot_metrics(trajectory: RobotTrajectory, seconds: float) -> dict[str, Any]
         np.einsum("nij,cj->nci", R_world[:, column[robot.frame_ids[foot.link]]], foot.corners)
         + p_world[:, column[robot.frame_ids[foot.link]], None] for foot in feet], axis=1)
     capsule_links = [column[f] for f in pairs.links]
-    gaps = pairs.along(R_world[:, capsule_links], p_world[:, capsule_links])
+    closest = pairs.min_distance(R_world[:, capsule_links], p_world[:, capsule_links])
     orientation_err = {n: angle_between(R_world[:, column[links[n]]], R)
                        for n, R in trajectory.link_targets.items()}
     position_err = {n: np.linalg.norm(p_world[:, column[links[n]]] - p, axis=1)
@@ -158,7 +158,7 @@ def robot_metrics(trajectory: RobotTrajectory, seconds: float) -> dict[str, Any]
         "velocity_worst_rad_s": float(rates.max()) if rates.size else 0.0,
         "foot_slide_mm_mean": float(slides.mean()), "foot_slide_mm_max": float(slides.max()),
         "floor_penetration_mm_max": float(max(0.0, -1e3 * points[..., 2].min())),
-        "self_collision_min_distance_m": float(gaps.min()) if gaps.size else None,
+        "self_collision_min_distance_m": closest,
         "tracking_orientation_rms_deg": {n: float(np.degrees(np.sqrt(np.mean(np.square(e)))))
                                          for n, e in orientation_err.items()},
         "tracking_position_rms_cm": {n: float(100 * np.sqrt(np.mean(np.square(e))))

@@ -20,8 +20,10 @@ constraints cannot all satisfy are solved with penalised slack and counted, neve
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -43,6 +45,21 @@ from .source import HumanMotion
 
 #: Sides: robot foot key -> source segment prefix.
 SIDES = {"left": "Left", "right": "Right"}
+
+
+class _Anchor(NamedTuple):
+    """Where a planted foot's link is held: ``R_world_link`` and ``p_world_link`` [m]."""
+
+    rotation: np.ndarray
+    translation: np.ndarray
+
+
+def _frame_pose(conf: Configuration, frame_id: int) -> tuple[np.ndarray, np.ndarray]:
+    """``R_world_frame`` and ``p_world_frame`` [m] of one frame (arrays, no ``pin.SE3``)."""
+    if isinstance(conf, CompiledConfiguration):
+        return conf.frame_arrays(frame_id)
+    T = conf.placement(frame_id)
+    return T.rotation, T.translation
 
 
 @dataclass
@@ -225,6 +242,9 @@ class RobotRetargeter:
         self._no_plants = Equality(np.zeros((0, model.nv)), np.zeros(0))
         self._ones = np.ones(len(self.segments)), np.ones(len(self.feet))
         self._stacked = np.zeros((0, len(self.segments), 3, 3)), np.zeros((0, 0, 3))
+        self._none = np.zeros(0, dtype=int)
+        self._no_flat = np.full((len(self.feet), 3, 3), np.nan)
+        self._flat_off = False  # whether the flat-foot task is set to no foot
         # Sole corners (4 per foot) of the feet in the air, by which feet are planted.
         self._air = {planted: np.repeat(np.logical_not(planted), 4)
                      for planted in itertools.product((False, True), repeat=len(self.feet))}
@@ -243,9 +263,10 @@ class RobotRetargeter:
         q_all = np.zeros((N, self.robot.model.nq))
         planted = np.zeros((N, 2), dtype=bool)
         relaxed = np.zeros(N, dtype=bool)
-        anchors: list[pin.SE3 | None] = [None, None]
+        anchors: list[_Anchor | None] = [None, None]
         waited = np.zeros(2)
         self._stacked = targets.stacked(self.segments, tracked)
+        self._flat_off = False
         q = self._initial(targets)
         for k in tqdm(range(N), disable=not progress, desc="retarget", unit="frame"):
             self._set_targets(targets, k, anchors)
@@ -297,7 +318,7 @@ class RobotRetargeter:
         return H, c
 
     def _first_pose(self, q_rest: np.ndarray, dt: float,
-                    anchors: list[pin.SE3 | None]) -> np.ndarray:
+                    anchors: list[_Anchor | None]) -> np.ndarray:
         """The first frame, solved from several starts; the best one.
 
         The starts: the rest pose, and ``first_frame_starts`` - 1 poses with random arms
@@ -359,27 +380,31 @@ class RobotRetargeter:
             q[:2] = targets.positions["Pelvis"][0, :2]
         return q
 
-    def _set_targets(self, targets: _Targets, k: int, anchors: list[pin.SE3 | None]) -> None:
+    def _set_targets(self, targets: _Targets, k: int, anchors: list[_Anchor | None]) -> None:
         """This frame's targets; a foot coming down is pulled flat onto the floor."""
         R_all, p_all = self._stacked
         self.orientation_task.set_targets(R_all[k], self._ones[0])
         tracked = self.position_task.names
         p = p_all[k].copy()
-        flat = np.full((2, 3, 3), np.nan)
+        flat = None
         for i, prefix in enumerate(SIDES.values()):
             segment = f"{prefix}Foot"
             if not targets.in_contact[k, i] or anchors[i] is not None:
                 continue
+            if flat is None:
+                flat = self._no_flat.copy()
             if segment in targets.orientations:
                 yaw = _heading(targets.orientations[segment][k] @ self._rest_feet[i].T)
                 flat[i] = axis_rotation("z", yaw) @ self._rest_feet[i]
             if segment in tracked:  # onto the floor: its rest height
                 p[tracked.index(segment), 2] = self._rest_feet_z[i]
-        self.flat_task.set_targets(flat, self._ones[1])
+        if flat is not None or not self._flat_off:  # no foot stays no foot: nothing to set
+            self.flat_task.set_targets(self._no_flat if flat is None else flat, self._ones[1])
+            self._flat_off = flat is None
         self.position_task.set_targets(p, self._position_weights)
 
     def _solve_frame(self, q: np.ndarray, q_previous: np.ndarray | None, dt: float,
-                     anchors: list[pin.SE3 | None], steps: int) -> tuple[np.ndarray, bool]:
+                     anchors: list[_Anchor | None], steps: int) -> tuple[np.ndarray, bool]:
         """Gauss-Newton steps from ``q``; returns the configuration and whether it relaxed.
 
         It stops after a small step that leaves planted feet held, capsules apart and soles
@@ -401,7 +426,7 @@ class RobotRetargeter:
             near = self.capsules.inequality(conf)
             rows = ([self._floor_rows(conf, anchors), near], [self._plant_rows(conf, anchors)])
             moving = np.flatnonzero(np.any(near.G[:, 6:] != 0.0, axis=0)) + 6 \
-                if step < s.trusted_steps else np.zeros(0, dtype=int)
+                if step < s.trusted_steps and len(near.h) else self._none
             box = self._box(q, moved, dt, moving)
             solution = solve_qp(assemble_qp(H.copy(), c, *rows, box, s.levenberg_marquardt),
                                 self.backend, self._qp)
@@ -427,12 +452,12 @@ class RobotRetargeter:
         the capsules' points), so full steps can overshoot back and forth between two poses;
         shrinking the steps once that starts makes them settle between the two.
         """
-        if previous is not None and float(dq @ previous) < -0.5 * float(
-                np.linalg.norm(dq) * np.linalg.norm(previous)):
+        if previous is not None and float(dq @ previous) < -0.5 * math.sqrt(
+                float(dq @ dq)) * math.sqrt(float(previous @ previous)):
             return 0.5 * factor
         return factor
 
-    def _settled(self, conf: Configuration, anchors: list[pin.SE3 | None],
+    def _settled(self, conf: Configuration, anchors: list[_Anchor | None],
                  capsules: bool = True) -> bool:
         """Planted feet held, soles above the floor and capsule pairs apart at ``conf``.
 
@@ -441,7 +466,7 @@ class RobotRetargeter:
         """
         return self._violation(conf, anchors, 0.0, capsules) <= self.settings.hold_tolerance
 
-    def _violation(self, conf: Configuration, anchors: list[pin.SE3 | None],
+    def _violation(self, conf: Configuration, anchors: list[_Anchor | None],
                    margin: float | None = None, capsules: bool = True) -> float:
         """How far ``conf`` breaks the constraints [m] (0 when it keeps them all).
 
@@ -461,7 +486,8 @@ class RobotRetargeter:
         worst = 0.0
         for foot, anchor in zip(feet, anchors):
             if anchor is not None:
-                worst = max(worst, float(np.linalg.norm(foot - anchor.translation)))
+                gap = foot - anchor.translation
+                worst = max(worst, math.sqrt(float(gap @ gap)))
         if len(floor):
             worst = max(worst, -float(floor.min()))
         if len(gaps):
@@ -494,7 +520,7 @@ class RobotRetargeter:
             ub = np.minimum(ub, span - moved)
         return np.minimum(lb, 0.0), np.maximum(ub, 0.0)
 
-    def _floor_rows(self, conf: Configuration, anchors: list[pin.SE3 | None]) -> Inequality:
+    def _floor_rows(self, conf: Configuration, anchors: list[_Anchor | None]) -> Inequality:
         """Sole corners of feet in the air stay above the floor: ``-J_z dq <= z``.
 
         A planted foot has none: its anchor is on or above the floor, and rows that repeat
@@ -515,25 +541,25 @@ class RobotRetargeter:
             h.append(T.translation[2] + r[:, 2])
         return Inequality(np.vstack(G), np.concatenate(h))
 
-    def _air_corners(self, anchors: list[pin.SE3 | None]) -> np.ndarray:
+    def _air_corners(self, anchors: list[_Anchor | None]) -> np.ndarray:
         """Mask of the sole corners (4 per foot, feet in order) of the feet not planted."""
         return self._air[tuple(anchor is not None for anchor in anchors)]
 
-    def _plant_rows(self, conf: Configuration, anchors: list[pin.SE3 | None]) -> Equality:
+    def _plant_rows(self, conf: Configuration, anchors: list[_Anchor | None]) -> Equality:
         """Planted feet keep their anchor placement: 6 rows per foot."""
         rows, b = [], []
         for fid, anchor in zip(self._foot_ids, anchors):
             if anchor is None:
                 continue
-            T = conf.placement(fid)
+            R, p = _frame_pose(conf, fid)
             rows.append(conf.jacobian(fid))
-            b += [anchor.translation - T.translation, log_so3(anchor.rotation @ T.rotation.T)]
+            b += [anchor.translation - p, log_so3(anchor.rotation @ R.T)]
         if not rows:
             return self._no_plants
         return Equality(rows[0] if len(rows) == 1 else np.vstack(rows), np.concatenate(b))
 
     def _update_plants(self, in_contact: np.ndarray, q: np.ndarray,
-                       anchors: list[pin.SE3 | None], waited: np.ndarray, dt: float) -> None:
+                       anchors: list[_Anchor | None], waited: np.ndarray, dt: float) -> None:
         """Plant feet whose source foot is down and whose sole reached the floor; lift others."""
         s = self.settings
         self._configuration.update(q)
@@ -548,7 +574,5 @@ class RobotRetargeter:
             T = self._configuration.placement(fid)
             lowest = float(np.min((foot.corners @ T.rotation.T + T.translation)[:, 2]))
             if lowest <= s.plant_height or waited[i] >= s.plant_wait:
-                anchor = T.copy()
-                if 0.0 < lowest <= s.plant_height:  # set it down on the floor
-                    anchor.translation = T.translation - [0.0, 0.0, lowest]
-                anchors[i] = anchor
+                drop = lowest if 0.0 < lowest <= s.plant_height else 0.0  # onto the floor
+                anchors[i] = _Anchor(T.rotation.copy(), T.translation - [0.0, 0.0, drop])

@@ -160,12 +160,11 @@ def _standing_hip_height(segments: list[str], p_world_segment: np.ndarray) -> fl
 
 
 def _from_bvh(path: Path) -> HumanMotion:
-    from ..mocap.from_bvh import motion_from_bvh
-    from ..mocap.model_motion import segment_poses
+    from ..mocap.from_bvh import segment_motion_from_bvh
 
-    truth = motion_from_bvh(path, direct=True)  # no per-frame solve: see mocap.direct_pose
+    # no per-frame solve (see mocap.direct_pose); segment poses from the contacts' pass
+    truth, p, R = segment_motion_from_bvh(path)
     segments = list(truth.model.segment_names)
-    p, R = segment_poses(truth.model, truth.q)
     names = list(truth.contact_names) or list(CONTACT_SITES)
     return HumanMotion(truth.time, segments, p, R, names, truth.contacts.astype(bool),
                        _standing_hip_height(segments, p), str(path),

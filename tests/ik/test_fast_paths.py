@@ -12,7 +12,7 @@ import pinocchio as pin
 import pytest
 
 from ikfusion.ik import Configuration, SolverSettings
-from ikfusion.ik.fast_math import mean_rows, row_norms
+from ikfusion.ik.fast_math import any_true, mean_rows, row_norms, true_indices
 from ikfusion.ik.limits import ContactConstraint
 from ikfusion.ik.tasks import PositionTask
 from ikfusion.ik.tasks.position import add_products
@@ -27,6 +27,21 @@ def random_configuration(human: HumanModel, rng: np.random.Generator) -> np.ndar
         R = random_rotations(1, rng)[0]
         q[joint.idx_q:joint.idx_q + 4] = pin.Quaternion(R).coeffs()
     return q
+
+
+def test_any_true_and_true_indices_are_numpys_answers() -> None:
+    """Masks and numbers of every kind the solver asks about: empty, all False, one True,
+    NaN (non-zero), -0.0 (zero), 2-D offsets, strided views."""
+    rng = np.random.default_rng(5)
+    cases = [np.zeros(0, dtype=bool), np.zeros(4, dtype=bool), np.eye(4, dtype=bool)[2],
+             np.array([0.0, -0.0]), np.array([0.0, np.nan]), np.zeros((4, 3)),
+             np.eye(3)[1:], rng.normal(size=(5, 3)) * (rng.random((5, 3)) < 0.3)]
+    cases += [rng.random(n) < p for n in (1, 4, 9) for p in (0.0, 0.2, 1.0)]
+    cases += [c[::2] for c in list(cases)]
+    for values in cases:
+        assert any_true(values) is bool(np.any(values))
+        if values.ndim == 1:
+            assert np.array_equal(true_indices(values), np.flatnonzero(values))
 
 
 @pytest.mark.parametrize("shape", [(1, 3), (4, 3), (4, 2), (7, 5)])

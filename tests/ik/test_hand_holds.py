@@ -2,10 +2,7 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
-import pytest
 from motions import frames_from
 
 from ikfusion.app.evaluate import phase_slides
@@ -14,16 +11,6 @@ from ikfusion.ik.contacts import ContactState, ContactThresholds, release_contac
 from ikfusion.mocap.model_motion import TruthMotion, contact_phases, site_positions
 from ikfusion.model import HumanModel
 from ikfusion.model.topology import BodyTopology
-from ikfusion.sim.capture import motion_from_bvh
-
-CARTWHEELS = (Path(__file__).resolve().parents[2] / "benchmarks" / "motions"
-              / "cmu_49_08_cartwheels_amp.bvh.gz")
-
-
-@pytest.fixture(scope="module")
-def cartwheels() -> TruthMotion:
-    """Two cartwheels of the motion library (CMU 49_08, 4.8 s at 60 Hz)."""
-    return motion_from_bvh(CARTWHEELS, rate=60.0)
 
 
 def test_cartwheel_holds_no_point_off_the_floor(cartwheels: TruthMotion) -> None:

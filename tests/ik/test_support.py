@@ -73,8 +73,8 @@ def test_a_swing_foot_is_led_to_the_correction_at_its_speed() -> None:
     f.follow(LEFT, _points(0.0, 0.5), sensed, DT)  # the right foot lifts off
     assert f.swing[1][0] == pytest.approx(0.6 * DT)  # toward the step, at most max_step
     targets, weights = f.swing_targets(sensed)
-    # its heel only, and horizontally only: its height stays with the sensed leg and the floor
-    assert np.array_equal(weights[2], np.diag([1.0, 1.0, 0.0]))
+    # its heel only, on all three axes (above the floor its height is that of the sensed leg)
+    assert np.array_equal(weights[2], np.eye(3))
     assert not np.delete(weights, 2, axis=0).any()
     assert targets[2, 0] == pytest.approx(0.5 + 0.6 * DT)
     for _ in range(30):
@@ -87,6 +87,48 @@ def test_a_swing_foot_is_led_to_the_correction_at_its_speed() -> None:
     f.follow(RIGHT, _points(0.0, 0.6), sensed, DT)
     # a foot placed by the correction is caught up with, even beyond lag_max: no jump
     assert f.lag[0] == pytest.approx(-0.1 + 0.3 * DT) and f.placed
+
+
+def test_a_swing_heel_is_held_at_its_sensed_height_unless_its_foot_sinks_under_the_floor(
+        ) -> None:
+    """Free in height, a led heel rose with the pelvis and landed high, lifting the body at each
+    heel strike (head 1.4 mm higher on average on the demo walk). Held at the sensed leg's
+    height, it lets that go as the sensed foot sinks under the floor: the floor lifts the foot
+    then, and a heel held down while the floor lifts the toe pitches the foot (a pop)."""
+    f = _follower()
+    f.set_step(np.array([0.3, 0.0, 0.0]), max_step=0.1)
+    f.follow(BOTH, _points(0.0, 0.5), _points(0.0, 0.5), DT)
+    f.follow(LEFT, _points(0.0, 0.5), _points(0.0, 0.5), DT)  # the right foot lifts off
+    heights = []
+    for toe_z in (0.05, 0.0, -0.005, -0.01, -0.04):  # the sensed right toe sinks
+        sensed = _points(0.0, 0.5)
+        sensed[2:, 2] = 0.03
+        sensed[3, 2] = toe_z
+        f.follow(LEFT, _points(0.0, 0.5), sensed, DT)
+        _, info = f.swing_targets(sensed)
+        assert np.array_equal(info[2][:2], np.eye(3)[:2])  # always led sideways
+        heights.append(info[2][2, 2])
+    assert heights[:2] == [1.0, 1.0] and 0.0 < heights[2] < 1.0 and heights[3:] == [0.0, 0.0]
+
+
+def test_a_heel_that_left_the_floor_away_from_its_sensed_height_is_led_sideways_only(
+        ) -> None:
+    """A run's sensed legs put a planted heel 4 cm under the floor: the heel left the floor
+    4 cm above the sensed leg's height. Held at that height, it pulled the body up after
+    lift-off and down before landing (run head 3.2 -> 4.0 cm); its height is left free."""
+    sensed = _points(0.0, 0.5)
+    for deviation_z, held in ((0.0, 1.0), (0.005, 0.5), (0.04, 0.0)):
+        f = _follower()
+        f.set_step(np.array([0.3, 0.0, 0.0]), max_step=0.1)
+        f.follow(BOTH, _points(0.0, 0.5), sensed, DT)
+        f.swing_targets(sensed)
+        solved = sensed.copy()
+        solved[2:, 2] += deviation_z  # the right foot held that far above its sensed height
+        f.record(solved, np.zeros(3))
+        f.follow(LEFT, _points(0.0, 0.5), sensed + [0.0, 0.0, 0.05], DT)  # it lifts off
+        _, info = f.swing_targets(sensed + [0.0, 0.0, 0.05])
+        assert info[2][2, 2] == pytest.approx(held)
+        assert np.array_equal(info[2][:2], np.eye(3)[:2])
 
 
 def test_a_touch_down_let_go_at_once_resumes_its_swing_from_where_the_heel_is() -> None:

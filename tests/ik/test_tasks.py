@@ -9,7 +9,7 @@ import pytest
 
 from ikfusion.ik import Configuration
 from ikfusion.ik.limits import JointRangeLimit
-from ikfusion.ik.tasks import OrientationTask, PositionTask, PostureTask
+from ikfusion.ik.tasks import EvenChainTask, OrientationTask, PositionTask, PostureTask
 from ikfusion.model import HumanModel
 from ikfusion.rotations import random_rotations
 
@@ -39,10 +39,13 @@ def make_tasks(model: HumanModel, rng: np.random.Generator):
     position = PositionTask([model.site_frame_id(s) for s in sites], sites)
     position.set_targets(rng.normal(size=(3, 3)), np.ones(3))
     posture = PostureTask.from_joints(model.ball_joints, {}, 1.0)
-    return {"orientation": orientation, "position": position, "posture": posture}
+    chain = EvenChainTask(model.ball_joints, [["jL5S1", "jL4L3", "jL1T12", "jT9T8"],
+                                              ["jT1C7", "jC1Head"]], 1.0, model.segment_names)
+    return {"orientation": orientation, "position": position, "posture": posture,
+            "even_chain": chain}
 
 
-@pytest.mark.parametrize("name", ["orientation", "position", "posture"])
+@pytest.mark.parametrize("name", ["orientation", "position", "posture", "even_chain"])
 def test_task_jacobians_match_finite_differences(human: HumanModel, rng, name: str) -> None:
     for _ in range(4):
         task = make_tasks(human, rng)[name]

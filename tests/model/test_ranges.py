@@ -79,3 +79,25 @@ def test_a_wider_hip_lets_the_solve_follow_a_high_kick(human_athlete: HumanModel
 @pytest.fixture(scope="module")
 def human_athlete() -> HumanModel:
     return HumanModel.from_body(Body.from_dict({"height": 1.75, "ranges": "athlete"}))
+
+
+def test_a_joints_file_is_read_again_once_edited(tmp_path: Path) -> None:
+    """The specs of a joints file are kept between reads only while the file is unchanged."""
+    from ikfusion.model.joints import load_joint_specs
+    from ikfusion.paths import shipped_config
+
+    file = tmp_path / "joints.yaml"
+    text = shipped_config("joints.yaml").read_text()
+    file.write_text(text)
+    first = load_joint_specs(file)
+    again = load_joint_specs(file)
+    assert again == first and again is not first  # the caller's own dict
+    again.clear()
+    assert load_joint_specs(file) == first
+    knee = first["jRightKnee"].angles[0]
+    at = text.index("jRightKnee:")
+    edited = text[:at] + text[at:].replace(f"[{knee.lower_deg:g}, {knee.upper_deg:g}]",
+                                           "[-1, 100]", 1)
+    assert edited != text
+    file.write_text(edited + "\n# edited\n")
+    assert load_joint_specs(file)["jRightKnee"] != first["jRightKnee"]

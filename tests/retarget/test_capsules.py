@@ -102,3 +102,21 @@ def test_distances_along_a_motion_match_a_dense_search(human_as_robot: Path) -> 
                 - config.capsules[first].radius - config.capsules[second].radius
             assert brute - 2e-3 <= found[k, i] <= brute + 1e-12
         np.testing.assert_allclose(found[k], pairs.distances(conf), atol=1e-12)
+
+
+def test_min_distance_is_the_smallest_of_all_pairs_and_frames() -> None:
+    """The metrics' pruned minimum equals the minimum over every pair of every frame."""
+    from ikfusion.mocap.model_motion import frame_poses
+
+    robot = RobotModel(load_retarget_config("g1"))
+    config = robot.config
+    pairs = CapsulePairs(config.capsules, config.collision_pairs, robot.frame_ids,
+                         activation=np.inf)
+    rng = np.random.default_rng(3)
+    q = np.tile(robot.rest, (300, 1))
+    q[:, 7:] = rng.uniform(robot.lower, robot.upper, size=(300, len(robot.lower)))
+    p_links, R_links = frame_poses(robot.model, q, pairs.links)
+    every = pairs.along(R_links, p_links)
+    for frames in (slice(None), slice(0, 1), slice(17, 60)):
+        assert pairs.min_distance(R_links[frames], p_links[frames]) == every[frames].min()
+    assert pairs.min_distance(R_links[:0], p_links[:0]) is None

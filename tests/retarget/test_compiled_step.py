@@ -78,10 +78,11 @@ def test_step_outputs_match_numpy_and_pinocchio(human_as_robot: Path, no_compile
             np.testing.assert_allclose(conf.placement(fid).homogeneous,
                                        plain.placement(fid).homogeneous, atol=1e-12)
             np.testing.assert_allclose(conf.jacobian(fid), plain.jacobian(fid), atol=1e-12)
-        witnesses = conf.capsule_witnesses()
-        assert witnesses is not None
-        np.testing.assert_allclose(witnesses[0], reference._witnesses(plain)[2], atol=1e-12)
-        np.testing.assert_allclose(witnesses[1], reference.inequality(plain).G, atol=1e-12)
+        distances = conf.capsule_distances()
+        rows = conf.capsule_rows(range(len(rt.capsules.pairs)))
+        assert distances is not None and rows is not None
+        np.testing.assert_allclose(distances, reference._witnesses(plain)[2], atol=1e-12)
+        np.testing.assert_allclose(rows, reference.inequality(plain).G, atol=1e-12)
         z, Jz = conf.sole_corners()
         corners = np.concatenate([f.corners @ plain.placement(fid).rotation.T
                                   + plain.placement(fid).translation

@@ -8,7 +8,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..configuration import Configuration
-from ..fast_math import row_norms
+from ..fast_math import any_true, row_norms
 from .base import Equality, Inequality
 
 
@@ -52,7 +52,7 @@ class ContactConstraint:
         """Linearised rows ``J_i dq = anchor_i - p_i`` for the active points."""
         nv = configuration.model.nv
         on = self.active
-        if not on.any():
+        if not any_true(on):
             return Equality(np.zeros((0, nv)), np.zeros(0))
         planted = [f for f, a in zip(self.frame_ids, on) if a]  # Jacobians of these only
         held = self._held[on]
@@ -102,7 +102,7 @@ class FloorLimit:
     def inequality(self, configuration: Configuration) -> Inequality:
         """Rows ``-J_z dq <= z - floor_z`` for the enabled points."""
         nv = configuration.model.nv
-        if not self.enabled.any():
+        if not any_true(self.enabled):
             return Inequality(np.zeros((0, nv)), np.zeros(0))
         return self.rows(configuration.positions(self.frame_ids),
                          configuration.linear_jacobians(self.frame_ids))

@@ -27,6 +27,7 @@ from ...model.angle_continuity import nearest_to_ranges
 from ...model.ball_joints import BallJoint
 from ...rotations import exp_so3, quat_wxyz_to_matrix, xyzw_to_wxyz
 from ..configuration import Configuration
+from ..fast_math import any_true
 from .base import Inequality
 
 _UNIT = np.eye(3)
@@ -110,7 +111,7 @@ class JointRangeLimit:
         """
         a, flipped = nearest_to_ranges(angles, self.lower, self.upper)
         Einv = self.rate_matrices(angles) if rate_matrices is None else rate_matrices
-        if np.any(flipped):
+        if any_true(flipped):
             Einv = Einv.copy()
             Einv[flipped, 1, :] *= -1.0
         G = np.zeros((a.size, nv))  # row 3j + m: angle m of joint j per unit tangent step

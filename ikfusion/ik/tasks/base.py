@@ -8,6 +8,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..configuration import Configuration
+from ..fast_math import any_true
 
 
 class Objective(NamedTuple):
@@ -44,7 +45,7 @@ class Task(ABC):
 
     def is_active(self) -> bool:
         """False when the task has no rows with weight this frame."""
-        return bool(np.any(self.row_weights() > 0.0))
+        return any_true(self.row_weights() > 0.0)
 
     def add_objective(self, configuration: Configuration, H: np.ndarray, c: np.ndarray) -> None:
         """Accumulate ``J^T W J`` into ``H`` and ``J^T W e`` into ``c`` (in place)."""

@@ -9,6 +9,7 @@ import numpy.typing as npt
 
 from ...rotations import left_jacobian_inverse, log_so3
 from ..configuration import Configuration
+from ..fast_math import true_indices
 from .base import Task
 
 
@@ -62,7 +63,7 @@ class OrientationTask(Task):
 
     def add_objective(self, configuration: Configuration, H: np.ndarray, c: np.ndarray) -> None:
         """Accumulate ``J^T W J`` and ``J^T W e`` over the weighted frames, errors taken once."""
-        on = np.flatnonzero(self.weights > 0.0)
+        on = true_indices(self.weights > 0.0)
         if not len(on):
             return
         ids = [self.frame_ids[i] for i in on]

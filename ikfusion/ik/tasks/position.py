@@ -8,6 +8,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..configuration import Configuration
+from ..fast_math import any_true
 from .base import Task
 
 
@@ -88,7 +89,7 @@ class PositionTask(Task):
                  c: np.ndarray) -> None:
         """Accumulate from every frame's position (k, 3) [m] and linear Jacobian (k, 3, nv)."""
         active = self._active
-        if not active.any():
+        if not any_true(active):
             return
         J = J_linear[active]
         e = p_world[active] - self.targets[active]

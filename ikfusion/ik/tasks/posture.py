@@ -15,6 +15,7 @@ import numpy.typing as npt
 
 from ...rotations import log_so3, quat_wxyz_to_matrix, right_jacobian_inverse, xyzw_to_wxyz
 from ..configuration import Configuration
+from ..fast_math import any_true
 from .base import Task
 
 
@@ -87,7 +88,7 @@ class PostureTask(Task):
         """Accumulate the objective from errors (j, 3) and Jacobian blocks ``Jr^-1`` (j, 3, 3)."""
         w = self.weights
         active = w > 0
-        if not active.any():
+        if not any_true(active):
             return
         e, B, cols = e[active], B[active], self._v_cols[active]
         W = w[active, None] * self.axis_weights[active]  # (k, 3) diagonal weights
