@@ -128,9 +128,12 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
             one foot crossing the stance thresholds a sample before the other must not lift it
             (the ball of a foot that rolls over it stays too, until it moves itself).
         needs_rest: (k,) points where the body rests only while lying or sitting (the trunk,
-            the elbows): one whose segment's IMU says it moves is never planted, and a resting
-            one is planted only as one of the lowest points (``enter_relative``), not within
-            ``still_relative`` as a foot, knee or palm (None: no such point).
+            the elbows): one whose segment's IMU says it moves is never planted, not even as
+            the lowest point taking the body, and is left out of the lowest point the others
+            are measured from (an elbow swinging low as a body rises does not lift the knees
+            out of reach); a resting one is planted only as one of the lowest points
+            (``enter_relative``), not within ``still_relative`` as a foot, knee or palm
+            (None: no such point).
 
     Returns:
         A new state: the same anchors for the points that stay, fewer active points, and
@@ -138,7 +141,9 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     """
     th = thresholds
     active = state.active.copy()
-    height_rel = p_sensed[:, 2] - p_sensed[:, 2].min()
+    # above the lowest point that may rest on the floor (not a moving trunk point or elbow)
+    takers = ~_moving_rest_points(needs_rest, foot_still, len(active))
+    height_rel = _height_above_lowest(p_sensed, takers)
     tilted = _tilted(layout, foot_pitch, np.radians(th.tilt_deg))
     still = np.zeros(len(active), dtype=bool)
     handed_over = np.zeros(len(active), dtype=bool)
@@ -176,9 +181,11 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         # Without a flight hint the lowest point of the sensed pose keeps the body down: the
         # lowest planted one, unless the body rests on another point (hands in a cartwheel)
         # or the planted points are all well above the lowest (a foot swung overhead).
+        # (a trunk point or elbow whose segment's IMU says it moves takes nothing: a body
+        # rolling or rising swings them low through the air)
         kept = int(np.argmin(np.where(active, p_sensed[:, 2], np.inf)))
-        lowest = int(np.argmin(p_sensed[:, 2]))
-        handover = bool(not active[lowest] and not tilted[lowest]
+        lowest = int(np.argmin(np.where(takers, p_sensed[:, 2], np.inf)))
+        handover = bool(takers[lowest] and not active[lowest] and not tilted[lowest]
                         and (not layout.stepping[lowest]
                              or height_rel[kept] > th.still_relative))
         if handover:
@@ -206,6 +213,20 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     released = state.released.copy()
     released[leave] = 0.0
     return ContactState(state.names, (active & ~leave) | plant, anchors, age, released)
+
+
+def _height_above_lowest(p: np.ndarray, takers: np.ndarray) -> np.ndarray:
+    """(k,) height [m] of each point ``p`` (k, 3) above the lowest of the ``takers``."""
+    z = p[:, 2]
+    return z - (z[takers].min() if any_true(takers) else z.min())
+
+
+def _moving_rest_points(needs_rest: np.ndarray | None, foot_still: np.ndarray | None,
+                        k: int) -> np.ndarray:
+    """(k,) ``needs_rest`` points whose segment's IMU says it moves (``foot_still`` 0)."""
+    if needs_rest is None or foot_still is None:
+        return np.zeros(k, dtype=bool)
+    return np.asarray(needs_rest, dtype=bool) & (np.asarray(foot_still, dtype=float) == 0.0)
 
 
 def _plant_height(th: ContactThresholds, needs_rest: np.ndarray | None) -> np.ndarray | float:
@@ -266,7 +287,8 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
             while a point of the other foot that does not move is planted.
         foot_still: See :func:`release_contacts`.
         needs_rest: See :func:`release_contacts`: such a point does not touch down while its
-            segment's IMU says it moves (``foot_still`` 0; unknown: the kinematics decide).
+            segment's IMU says it moves (``foot_still`` 0; unknown: the kinematics decide),
+            nor does it count as the lowest point then.
 
     Returns:
         A new state; anchors above the floor settle toward it at ``settle_speed``.
@@ -274,7 +296,8 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     th = thresholds
     active = state.active.copy()
     anchors = state.anchors.copy()
-    height_rel = p_sensed[:, 2] - p_sensed[:, 2].min()
+    height_rel = _height_above_lowest(
+        p_sensed, ~_moving_rest_points(needs_rest, foot_still, len(active)))
     speed = (row_norms(p_solved - p_solved_previous) / dt
              if dt > 0 else np.zeros(len(active)))
     tilted = _tilted(layout, foot_pitch, np.radians(th.tilt_deg))
@@ -286,9 +309,7 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     if points_moving is not None:  # see release_contacts
         moving_point, _ = _point_motion(points_moving, len(active))
         enter &= ~(moving_point & _other_foot(layout, active & ~moving_point))
-    if needs_rest is not None and foot_still is not None:
-        moving_segment = np.asarray(foot_still, dtype=float) == 0.0  # NaN: unknown
-        enter &= ~(np.asarray(needs_rest, dtype=bool) & moving_segment)
+    enter &= ~_moving_rest_points(needs_rest, foot_still, len(active))  # NaN: unknown
     for i, name in enumerate(state.names):
         if hints and name in hints:
             enter[i] = (not active[i]) and bool(hints[name])
