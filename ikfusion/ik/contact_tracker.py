@@ -29,6 +29,11 @@ from .settings import SolverSettings
 from .support import SupportFollower
 from .tasks import PositionTask, Task
 
+#: A trunk point or elbow (``needs_rest``) this far [m] above the lowest contact point of the
+#: sensed pose cannot reach the floor within a frame: it gets no floor row (standing, walking,
+#: running cost nothing for the points of a lying body).
+FAR_FROM_FLOOR = 0.3
+
 
 class ContactTracker:
     """The contact state of a solve and what depends on it (see the module docstring).
@@ -73,6 +78,7 @@ class ContactTracker:
             maxlen=max(2, self.settings.speed_window + 1))
         self._p_sensed = np.zeros((len(self.names), 3))
         self._pitch = np.zeros(len(self.names))
+        self.far_from_floor = np.zeros(len(self.names), dtype=bool)
         self.support.reset()
         self.easing.reset()
 
@@ -126,6 +132,8 @@ class ContactTracker:
         a = self.settings.detection_smoothing  # sensor noise is white: smooth the evidence
         self._p_sensed = a * self._p_sensed + (1.0 - a) * p_sensed
         self._pitch = a * self._pitch + (1.0 - a) * pitch
+        z = self._p_sensed[:, 2]
+        self.far_from_floor = self._needs_rest & (z > z.min() + FAR_FROM_FLOOR)
         still = self._feet_still(frame)
         self.state = release_contacts(self.state, self._p_sensed, self.thresholds,
                                       self._hints(frame), self._pitch, still,

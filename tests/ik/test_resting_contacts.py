@@ -113,3 +113,23 @@ def test_a_moving_elbow_below_the_knees_does_not_keep_them_from_touching_down() 
     state = touch_down(ContactState.empty(CRAWL), solved, solved, p, 1 / 60, th, layout=layout,
                        foot_still=foot_still, needs_rest=needs_rest)
     assert state.active.tolist() == [False, False, True, True]
+
+
+def test_trunk_points_far_above_the_floor_get_no_floor_row() -> None:
+    # issue #19/#22: the 8 points of a lying body must cost nothing while it stands
+    from ikfusion.ik.contact_tracker import FAR_FROM_FLOOR, ContactTracker
+    from ikfusion.ik.frame import Frame
+
+    model = HumanModel.default()
+    tracker = ContactTracker(model, BodyTopology.of(model), NAMES, SolverSettings.load())
+    standing = np.array([[0.0, 0.1, 0.0], [0.2, 0.1, 0.0], [0.0, -0.1, 0.0], [0.2, -0.1, 0.0],
+                         [-0.1, 0.0, 0.9], [0.0, 0.3, 1.0]])
+    lying = standing.copy()
+    lying[4:, 2] = [0.05, FAR_FROM_FLOOR - 0.05]  # on the back, the elbow raised
+    for p, far in ((standing, [False] * 4 + [True, True]),
+                   (lying, [False] * 6)):
+        tracker.reset()
+        tracker.start(p, np.zeros(len(NAMES)))
+        tracker.touch_down(Frame(time=0.0), p, np.zeros(3))
+        tracker.release(Frame(time=1 / 60), p, np.zeros(len(NAMES)))
+        assert tracker.far_from_floor.tolist() == far

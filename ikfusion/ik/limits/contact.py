@@ -104,8 +104,9 @@ class FloorLimit:
         nv = configuration.model.nv
         if not any_true(self.enabled):
             return Inequality(np.zeros((0, nv)), np.zeros(0))
-        return self.rows(configuration.positions(self.frame_ids),
-                         configuration.linear_jacobians(self.frame_ids))
+        on = [f for f, e in zip(self.frame_ids, self.enabled) if e]  # no kinematics for others
+        return Inequality(-configuration.linear_jacobians(on)[:, 2, :],
+                          configuration.positions(on)[:, 2] - self.floor_z)
 
     def rows(self, p_world: np.ndarray, J_linear: np.ndarray) -> Inequality:
         """Rows from every point's position (k, 3) [m] and linear Jacobian (k, 3, nv)."""
