@@ -62,6 +62,9 @@ class ContactTracker:
                                for f, steps in zip(self._foot_names, self.layout.stepping)],
                               dtype=int)
         self._has_foot = self._feet >= 0
+        # the points of each foot, for the per-frame stance lookup
+        self._points_of_foot = {f: np.array([i for i, g in enumerate(self._foot_names) if g == f])
+                                for f in dict.fromkeys(self._foot_names) if f is not None}
         self._foot_rows = self._feet[self._has_foot]  # the segment of each point with a foot
         self.support = SupportFollower(self.layout, s.lag_speed, s.lag_max, s.swing_speed,
                                        s.lean_max, s.lean_speed, s.touchdown_confirm,
@@ -233,8 +236,8 @@ class ContactTracker:
         if not frame.feet_still:
             return None
         out = np.full(len(self.names), np.nan)
-        for i, foot in enumerate(self._foot_names):
-            still = frame.feet_still.get(foot) if foot is not None else None
+        for foot, points in self._points_of_foot.items():  # per foot: fewer lookups
+            still = frame.feet_still.get(foot)
             if still is not None:
-                out[i] = float(still)
+                out[points] = float(still)
         return out
