@@ -129,11 +129,11 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
             (the ball of a foot that rolls over it stays too, until it moves itself).
         needs_rest: (k,) points where the body rests only while lying or sitting (the trunk,
             the elbows): one whose segment's IMU says it moves is never planted, not even as
-            the lowest point taking the body, and is left out of the lowest point the others
-            are measured from (an elbow swinging low as a body rises does not lift the knees
-            out of reach); a resting one is planted only as one of the lowest points
-            (``enter_relative``), not within ``still_relative`` as a foot, knee or palm
-            (None: no such point).
+            the lowest point taking the body when the planted points let go (an elbow swung
+            low as a body rises); it still counts as the lowest point the others are measured
+            from (a trunk sitting up is low while it moves); a resting one is planted only as
+            one of the lowest points (``enter_relative``), not within ``still_relative`` as a
+            foot, knee or palm (None: no such point).
 
     Returns:
         A new state: the same anchors for the points that stay, fewer active points, and
@@ -141,9 +141,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     """
     th = thresholds
     active = state.active.copy()
-    # above the lowest point that may rest on the floor (not a moving trunk point or elbow)
-    takers = ~_moving_rest_points(needs_rest, foot_still, len(active))
-    height_rel = _height_above_lowest(p_sensed, takers)
+    height_rel = p_sensed[:, 2] - p_sensed[:, 2].min()
     tilted = _tilted(layout, foot_pitch, np.radians(th.tilt_deg))
     still = np.zeros(len(active), dtype=bool)
     handed_over = np.zeros(len(active), dtype=bool)
@@ -184,6 +182,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         # (a trunk point or elbow whose segment's IMU says it moves takes nothing: a body
         # rolling or rising swings them low through the air)
         kept = int(np.argmin(np.where(active, p_sensed[:, 2], np.inf)))
+        takers = ~_moving_rest_points(needs_rest, foot_still, len(active))
         lowest = int(np.argmin(np.where(takers, p_sensed[:, 2], np.inf)))
         handover = bool(takers[lowest] and not active[lowest] and not tilted[lowest]
                         and (not layout.stepping[lowest]
@@ -213,12 +212,6 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     released = state.released.copy()
     released[leave] = 0.0
     return ContactState(state.names, (active & ~leave) | plant, anchors, age, released)
-
-
-def _height_above_lowest(p: np.ndarray, takers: np.ndarray) -> np.ndarray:
-    """(k,) height [m] of each point ``p`` (k, 3) above the lowest of the ``takers``."""
-    z = p[:, 2]
-    return z - (z[takers].min() if any_true(takers) else z.min())
 
 
 def _moving_rest_points(needs_rest: np.ndarray | None, foot_still: np.ndarray | None,
@@ -287,8 +280,7 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
             while a point of the other foot that does not move is planted.
         foot_still: See :func:`release_contacts`.
         needs_rest: See :func:`release_contacts`: such a point does not touch down while its
-            segment's IMU says it moves (``foot_still`` 0; unknown: the kinematics decide),
-            nor does it count as the lowest point then.
+            segment's IMU says it moves (``foot_still`` 0; unknown: the kinematics decide).
 
     Returns:
         A new state; anchors above the floor settle toward it at ``settle_speed``.
@@ -296,8 +288,7 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     th = thresholds
     active = state.active.copy()
     anchors = state.anchors.copy()
-    height_rel = _height_above_lowest(
-        p_sensed, ~_moving_rest_points(needs_rest, foot_still, len(active)))
+    height_rel = p_sensed[:, 2] - p_sensed[:, 2].min()
     speed = (row_norms(p_solved - p_solved_previous) / dt
              if dt > 0 else np.zeros(len(active)))
     tilted = _tilted(layout, foot_pitch, np.radians(th.tilt_deg))

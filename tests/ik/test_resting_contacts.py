@@ -74,9 +74,9 @@ def _crawl_setup() -> tuple[ContactThresholds, FootLayout, np.ndarray]:
 
 
 def test_a_moving_elbow_does_not_take_the_body_when_the_knees_let_go() -> None:
-    # dm-getup-facedown (default sensor errors, IMU only): as the body rises from the floor the
-    # knees let go and the right elbow, swung lowest in the sensed pose while its upper arm
-    # moved, took the body for a frame: the pelvis shifted 3.5 cm (head RMS 11.1 -> 12.7 cm)
+    # dm-getup-facedown: as the body rises from the floor the knees let go and the right elbow,
+    # swung lowest in the sensed pose while its upper arm moved, took the body for a frame
+    # (perfect sensors, no-slide: contact slide 35 mm against 22 mm on integ)
     th, layout, needs_rest = _crawl_setup()
     state = ContactState.empty(CRAWL)
     state.active[:2] = True
@@ -95,24 +95,6 @@ def test_a_moving_elbow_does_not_take_the_body_when_the_knees_let_go() -> None:
         new = release_contacts(state, p, th, foot_still=foot_still, layout=layout,
                                needs_rest=needs_rest)
         assert new.active[3] and not new.active[2]
-
-
-def test_a_moving_elbow_below_the_knees_does_not_keep_them_from_touching_down() -> None:
-    # the same get-up: the knees 2.5 cm above the palm, the moving elbow 2 cm below it; measured
-    # from the elbow the knees were 4.5 cm up, above enter_relative, and never touched down
-    th, layout, needs_rest = _crawl_setup()
-    p = np.array([[0.0, 0.1, 0.045], [0.0, -0.1, 0.045], [0.5, 0.2, 0.02], [0.3, 0.2, 0.0]])
-    solved = p - [0.0, 0.0, 0.02]  # the solved knees 2.5 cm above the floor, slow
-    solved[:, 2] = np.maximum(solved[:, 2], 0.0)
-    foot_still = np.array([np.nan, np.nan, np.nan, 0.0])
-    state = touch_down(ContactState.empty(CRAWL), solved, solved, p, 1 / 60, th, layout=layout,
-                       foot_still=foot_still, needs_rest=needs_rest)
-    assert state.active.tolist() == [True, True, True, False]
-    # a resting elbow is the lowest point: the knees stay up
-    foot_still[3] = 1.0
-    state = touch_down(ContactState.empty(CRAWL), solved, solved, p, 1 / 60, th, layout=layout,
-                       foot_still=foot_still, needs_rest=needs_rest)
-    assert state.active.tolist() == [False, False, True, True]
 
 
 def test_trunk_points_far_above_the_floor_get_no_floor_row() -> None:
