@@ -6,24 +6,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from room_captures import room_walk
 
 from ikfusion.cli import main
-from ikfusion.paths import shipped_config
-from ikfusion.sim.capture import truth_motion, write_capture
-from ikfusion.sim.imu import ImuNoise
-from ikfusion.uwb.constellation import load_constellation
 from ikfusion.view.load import read_long_csv
 
 
 @pytest.fixture(scope="module")
 def walk_capture(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A generated walk of 8 s with the default sensor errors in the middle of the UWB room."""
-    room = load_constellation(shipped_config("constellations", "room_6x8.yaml"))
-    truth = truth_motion("gait", 8.0, 60.0)
-    truth.q[:, :2] += [3.0, 2.5]
-    folder = tmp_path_factory.mktemp("walk_height") / "capture"
-    write_capture(folder, truth, ImuNoise(), 5, constellation=room)
-    return folder
+    return room_walk(tmp_path_factory.mktemp("walk_height") / "capture", 8.0, 5)
 
 
 def _heel_strikes(truth: np.lib.npyio.NpzFile) -> np.ndarray:

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from room_captures import room_walk
 
 from ikfusion.app.evaluate import evaluate, joint_angle_jump
 from ikfusion.app.far_from_tags import far_intervals
@@ -179,8 +180,9 @@ def test_a_planted_foot_whose_tag_runs_away_is_let_go() -> None:
     release = FootRelease(distance=0.10, speed=1.0, jump_speed=20.0)
     cov = np.eye(3) * 0.01**2
     dt = 1 / 60
+    site = np.array([0.0, 0.0, 0.1])  # the solved foot stands where it was planted
     for k in range(30):  # planted, its tag moving at 4 m/s (a running foot planted wrongly)
-        release.update(True, np.array([4.0 * k * dt, 0.0, 0.1]), cov, dt)
+        release.update(True, np.array([4.0 * k * dt, 0.0, 0.1]), cov, site, dt)
         if release.released:
             break
     assert release.released and 4.0 * k * dt == pytest.approx(0.10, abs=0.07)
@@ -189,9 +191,32 @@ def test_a_planted_foot_whose_tag_runs_away_is_let_go() -> None:
 def test_a_standing_foot_with_noisy_fixes_stays_planted(rng: np.random.Generator) -> None:
     release = FootRelease(distance=0.10, speed=1.0, jump_speed=20.0)
     cov = np.eye(3) * 0.02**2
+    site = np.array([0.95, 2.03, 0.1])  # the solved foot, a few cm off its tag (drift)
     for _ in range(600):  # 10 s planted, fixes with 2 cm noise
-        release.update(True, np.array([1.0, 2.0, 0.1]) + rng.normal(0, 0.02, 3), cov, 1 / 60)
+        release.update(True, np.array([1.0, 2.0, 0.1]) + rng.normal(0, 0.02, 3), cov, site,
+                       1 / 60)
         assert not release.released
+
+
+def test_a_foot_rising_onto_its_toe_stays_planted() -> None:
+    """Issue #19 (the lead-in's step into a run): the heel rises over 0.5 s onto the planted
+    toe and carries the tag on the instep 14 cm forward and 8 cm up. The solved foot turns the
+    same way about its planted toe, so the tag did not run away: the foot stays planted (it
+    was let go and the body jumped 28 mm). Once the toe itself slides 10 cm, it is let go."""
+    release = FootRelease(distance=0.10, speed=1.0, jump_speed=20.0)
+    cov, dt = np.eye(3) * 0.01**2, 1 / 60
+    toe = np.array([1.0, 2.0, 0.0])
+    for k in range(60):
+        pitch = np.radians(60.0) * min(k / 30, 1.0)  # heel up to 60 deg, then held
+        c, s = np.cos(pitch), np.sin(pitch)  # the instep tag 16 cm behind the toe, 6 cm up
+        tag = toe + np.array([-0.16 * c + 0.06 * s, 0.0, 0.16 * s + 0.06 * c])
+        release.update(True, tag, cov, tag, dt)  # the solved site turns as the foot does
+        assert not release.released
+    for k in range(30):  # the toe slides on at 1.5 m/s while the solved toe is held
+        release.update(True, tag + [1.5 * (k + 1) * dt, 0.0, 0.0], cov, tag, dt)
+        if release.released:
+            break
+    assert release.released and 1.5 * (k + 1) * dt == pytest.approx(0.10, abs=0.03)
 
 
 def test_a_jump_of_the_positioning_does_not_let_a_standing_foot_go() -> None:
@@ -199,9 +224,10 @@ def test_a_jump_of_the_positioning_does_not_let_a_standing_foot_go() -> None:
     is not a foot running away: the standing foot stays planted (it was let go before)."""
     release = FootRelease(distance=0.10, speed=1.0, jump_speed=20.0)
     cov = np.eye(3) * 0.01**2
+    site = np.array([1.0, 2.0, 0.1])
     for k in range(120):
         shift = 1.0 if k >= 60 else 0.0
-        release.update(True, np.array([1.0 + shift, 2.0, 0.1]), cov, 1 / 60)
+        release.update(True, np.array([1.0 + shift, 2.0, 0.1]), cov, site, 1 / 60)
         assert not release.released
 
 
@@ -382,12 +408,7 @@ def test_a_clean_walk_raises_no_alarm(walk, causal: bool) -> None:  # type: igno
 @pytest.fixture(scope="module")
 def walk_capture(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A generated walk of 8 s with the default sensor errors in the middle of the UWB room."""
-    room = load_constellation(shipped_config("constellations", "room_6x8.yaml"))
-    truth = truth_motion("gait", 8.0, 60.0)
-    truth.q[:, :2] += [3.0, 2.5]
-    folder = tmp_path_factory.mktemp("walk_pops") / "capture"
-    write_capture(folder, truth, ImuNoise(), 3, constellation=room)
-    return folder
+    return room_walk(tmp_path_factory.mktemp("walk_pops") / "capture", 8.0, 3)
 
 
 def test_no_slide_adds_no_pops_to_a_walk(walk_capture: Path, tmp_path: Path) -> None:

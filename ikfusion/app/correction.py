@@ -25,10 +25,12 @@ the last ``heading_window`` seconds is compared with the direction the solved ta
 travelled; when both moved far enough, their angle is the heading error, and the solver's
 orientation targets are turned toward it at a bounded rate (``slide`` and ``no-slide``).
 
-The first fix places the body in the tag frame at once (there is nothing to slide yet); the
-frames solved before it are moved by the same offset afterwards (:meth:`DriftCorrection.
-place_start`), so the whole motion is in the tag frame. Heights come from the floor, so only
-the horizontal error is corrected.
+The first fix places the body in the tag frame at once (there is nothing to slide yet); in
+``no-slide``, until the body's first step (the same feet planted) it keeps following the fixes,
+which settle as the tag filters converge (a causal filter's first fix can be centimetres off,
+and nothing else moves a standing body). The frames solved before are moved by these offsets
+afterwards (:meth:`DriftCorrection.place_start`), so the whole motion is in the tag frame.
+Heights come from the floor, so only the horizontal error is corrected.
 
 In ``slide`` and ``no-slide``, stretches where a solved tag site stays more than ``far_distance``
 from its fix for longer than ``far_duration`` are reported (:mod:`.far_from_tags`).
@@ -102,7 +104,8 @@ class CorrectionSettings(ShippedSettings):
         release_distance: A planted foot whose tag moved farther than this [m]
             is let go (:mod:`.tag_release`) ...
         release_speed: ... until its tag moves slower than this [m/s]; a step of a fix faster
-            than ``release_jump_speed`` [m/s] is a jump of the positioning, not a foot moving.
+            than ``release_jump_speed`` [m/s] is a jump of the positioning, not a foot moving
+            (nor a heading drift: such a window is not compared).
         far_distance: A tag site farther than this from its fix [m] ...
         far_duration: ... for longer than this [s] is reported.
     """
@@ -157,6 +160,8 @@ class DriftCorrection:
     time: np.ndarray = field(default_factory=lambda: np.zeros(0))
     _placed: bool = False
     _placement: tuple[int, np.ndarray] | None = None
+    _placed_total: np.ndarray = field(default_factory=lambda: np.zeros(2))  # placing moves [m]
+    _slid: np.ndarray = field(default_factory=lambda: np.zeros(2))  # slide mode's moves [m]
     _body: list[bool] = field(default_factory=list)  # per fix: on the body, not on a foot
     _feet: list[str | None] = field(default_factory=list)  # per fix: the foot carrying it
     _foot_of_point: dict[str, str | None] = field(default_factory=dict)
@@ -165,6 +170,7 @@ class DriftCorrection:
     _release: list[FootRelease | None] = field(default_factory=list)  # per fix on a foot
     _body_release: list[BodyRelease | None] = field(default_factory=list)  # per fix on the body
     _swing: SwingClock = field(default_factory=SwingClock)  # each foot's time off the floor
+    _stance: set[str] = field(default_factory=set)  # feet planted since the placement
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -176,6 +182,7 @@ class DriftCorrection:
         self.distance = np.full((len(self.fixes), n), np.nan)
         self.time = np.full(n, np.nan)
         self._solved = np.full((len(self.fixes), n, 2), np.nan)  # solved sites, horizontal
+        self._placed_before = np.zeros((n, 2))  # placing moves before each frame's [m]
 
     def grow(self, n: int) -> None:
         """Room for at least ``n`` frames (a live stream's fixes are filled frame by frame).
@@ -197,6 +204,7 @@ class DriftCorrection:
             [self.distance, np.full((len(self.fixes), extra), np.nan)], axis=1)
         self._solved = np.concatenate(
             [self._solved, np.full((len(self.fixes), extra, 2), np.nan)], axis=1)
+        self._placed_before = np.concatenate([self._placed_before, np.zeros((extra, 2))])
 
     def horizontal_error(self, pose: Pose, k: int) -> np.ndarray | None:
         """Information-weighted mean of (measured - solved) over the sites with a fix [m]."""
@@ -215,6 +223,7 @@ class DriftCorrection:
     def after_frame(self, solver: Solver, pose: Pose, k: int, dt: float) -> None:
         """Compare frame ``k`` with the fixes and steer the solver's feet for the next frames."""
         world = solver.world  # what a correction moves (and, in flight, solver.ballistic)
+        self._placed_before[k] = self._placed_total
         if len(self._body) != len(self.fixes):  # sites on the body, not on a foot
             topology = solver.topology
             self._feet = [topology.foot_of(f.site) for f in self.fixes]
@@ -241,9 +250,13 @@ class DriftCorrection:
             {foot: np.array([pose.site_position(p)[2] - floor_z for p, of in
                              self._foot_of_point.items() if of == foot])
              for foot in self._anchors}, planted, dt)
-        for f, foot, release in zip(self.fixes, self._feet, self._release):
+        # A foot's release judges its site without the slides of planted points (slide mode): a
+        # foot slid after its running-away tag is still a false hold. The body's release keeps
+        # the solved site: its hold spans a whole walk, which the slides rightly close.
+        p_own = self._last.p_sites - np.array([self._slid[0], self._slid[1], 0.0])
+        for f, foot, release, p_site in zip(self.fixes, self._feet, self._release, p_own):
             if release is not None:
-                release.update(foot in planted, f.p_world[k], f.cov[k], dt)
+                release.update(foot in planted, f.p_world[k], f.cov[k], p_site, dt)
         held = any(self._last.contacts.values())
         for f, body_release, p_site in zip(self.fixes, self._body_release, self._last.p_sites):
             if body_release is not None:
@@ -267,13 +280,22 @@ class DriftCorrection:
         delta = np.array([error[0], error[1], 0.0])
         if self.mode == "off":
             return
+        if self._placed and planted != self._stance:
+            self._stance = set()  # a foot lifted or landed: the body has moved since
         if not self._placed:
+            self._stance = planted
             world.translate(delta)
             self._placed = True
             self._placement = (k, delta)
+            self._placed_total = self._placed_total + delta[:2]
+        elif self.mode == "no-slide" and self._stance:
+            world.translate(delta)  # not a step yet: the placement follows the settling fixes
+            self._placed_total = self._placed_total + delta[:2]
         elif self.mode == "slide":
             if not flight:  # in flight the tags move the ballistic path (above)
-                world.slide(delta * min(1.0, dt / self.settings.time_constant))
+                slid = delta * min(1.0, dt / self.settings.time_constant)
+                world.slide(slid)
+                self._slid = self._slid + slid[:2]
         else:
             world.lead_steps(delta, self.settings.max_step)
 
@@ -375,7 +397,9 @@ class DriftCorrection:
         """Angle from the solved sites' inertial travel to the tags' travel over the window [rad].
 
         The median over the sites whose fix and solved position both moved at least
-        ``heading_travel`` by lengths within ``heading_length_ratio`` of each other, the head's
+        ``heading_travel`` by lengths within ``heading_length_ratio`` of each other, and whose
+        fix did not step faster than ``release_jump_speed`` within the window (the positioning
+        jumped: a jump across the travel turns it with hardly a change of length), the head's
         (body sites') only when it has one (swing feet are led by the no-slide correction);
         None when none did (standing, turning on the spot, a jump of the fixes, no fixes).
         """
@@ -394,6 +418,9 @@ class DriftCorrection:
                 continue
             if max(lengths) > s.heading_length_ratio * min(lengths):
                 continue  # a jump of the fixes, not a turn: heading drift keeps the length
+            steps = np.linalg.norm(np.diff(f.p_world[back:k + 1, :2], axis=0), axis=1)
+            if (steps > s.release_jump_speed * dt).any():
+                continue  # the positioning jumped within the window (across its travel too)
             angles.append(np.arctan2(solved[0] * measured[1] - solved[1] * measured[0],
                                      solved @ measured))
             body.append(self._body[i])  # set by after_frame from the model's topology
@@ -421,6 +448,16 @@ class DriftCorrection:
         """(frame index, (3,) offset [m]) of the first fix's placement, None before it."""
         return self._placement
 
+    def placement_lacking(self, k: int) -> np.ndarray:
+        """Horizontal placing moves (2,) [m] that frame ``k`` was solved before.
+
+        The first fix places the body (:meth:`after_frame`); while the body then stands without
+        a step (the same feet planted), it follows the settling fixes: nothing else corrects
+        a standing body, and it has not moved. A frame solved before these moves (frame ``j``'s
+        move is solved into frame ``j + 1`` on) is moved by their sum afterwards.
+        """
+        return self._placed_total - self._placed_before[k]
+
     def place_start(self, motion: Motion) -> None:
         """Move the frames solved before the first fix by its offset (in place).
 
@@ -430,7 +467,8 @@ class DriftCorrection:
         """
         if self._placement is None:
             return
-        k, delta = self._placement
-        motion.q[:k + 1, :2] += delta[:2]
+        k = self._placement[0]
+        n = min(len(motion.q), len(self._placed_before))
+        motion.q[:n, :2] += self._placed_total - self._placed_before[:n]
         self.gap[:k + 1] = np.nan  # measured before the placement
         self.distance[:, :k + 1] = np.nan

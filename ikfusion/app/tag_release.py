@@ -5,14 +5,17 @@ in running, jumps and cartwheels a foot is sometimes planted that is in the air,
 planted point, a hard constraint, then holds the whole body back while the tags run away.
 Nothing a soft task could pull would move it.
 
-A foot's own tag tells: while the foot is planted its fix stays put (up to its noise). So when
-a foot is planted, its fix is remembered; once the fix has moved farther than ``distance``
-(and three standard deviations of its horizontal noise) from there, the foot is let go (a
-contact hint of the frames, :class:`ikfusion.ik.Frame`), and it stays let go while its fix
-keeps moving faster than ``speed``. Drift of the solved body does not enter: the fix is compared
-with the fix, never with the solved foot. A fix that steps faster than ``jump_speed`` (faster
-than any foot moves: the positioning itself jumped, e.g. a reader came back) moves the
-remembered place with it instead of letting a standing foot go.
+A foot's own tag tells: while the foot is planted its fix moves only as the solved foot turns
+about its planted point (a heel rising onto the toe carries a tag on the instep 10 cm forward).
+So when a foot is planted, the gap from its solved tag site to its fix is remembered; once that
+gap has changed by more than ``distance`` (and three standard deviations of the fix's horizontal
+noise), the foot is let go (a contact hint of the frames, :class:`ikfusion.ik.Frame`), and it
+stays let go while its fix keeps moving faster than ``speed``. Drift of the solved body does not
+enter: a planted point does not move in the solve, so the solved site moves only with the foot's
+sensed orientation, and the part of a change that closes the gap (the first fix placing the
+body) does not count (:func:`unclosed_change`). A fix that steps faster than ``jump_speed``
+(faster than any foot moves: the positioning itself jumped, e.g. a reader came back) moves the
+remembered gap with it instead of letting a standing foot go.
 """
 
 from __future__ import annotations
@@ -38,21 +41,24 @@ class FootRelease:
     speed: float
     jump_speed: float
     released: bool = False
-    _anchor: np.ndarray | None = None
+    _anchor: np.ndarray | None = None  # (2,) the gap [m] when the foot was planted
     _last: np.ndarray | None = field(default=None)
 
-    def update(self, planted: bool, p_fix: np.ndarray, cov: np.ndarray, dt: float) -> None:
-        """After a frame: was the foot ``planted``, where is its fix ``p_fix`` (3,) [m].
+    def update(self, planted: bool, p_fix: np.ndarray, cov: np.ndarray, p_site: np.ndarray,
+               dt: float) -> None:
+        """After a frame: was the foot ``planted``, where are its fix and its solved tag site.
 
         Args:
             planted: A point of the foot is planted in the solved frame.
-            p_fix: The fix (NaN: none this frame).
+            p_fix: (3,) the fix [m] (NaN: none this frame).
             cov: (3, 3) its covariance [m^2].
+            p_site: (3,) the solved tag site [m].
             dt: Time since the last frame [s].
         """
         if not (np.isfinite(p_fix).all() and np.isfinite(cov).all()):
             return
         p = np.asarray(p_fix[:2], dtype=float)
+        gap = p - np.asarray(p_site[:2], dtype=float)
         step = 0.0 if self._last is None else float(np.linalg.norm(p - self._last))
         jumped = dt > 0 and step > self.jump_speed * dt
         if jumped and self._anchor is not None and self._last is not None:
@@ -67,10 +73,10 @@ class FootRelease:
             self._anchor = None
             return
         if self._anchor is None:
-            self._anchor = p
+            self._anchor = gap
             return
         noise = 3.0 * float(np.sqrt(max(np.trace(cov[:2, :2]), 0.0)))
-        if float(np.linalg.norm(p - self._anchor)) > max(self.distance, noise):
+        if float(np.linalg.norm(unclosed_change(self._anchor, gap))) > max(self.distance, noise):
             self.released = True
             self._anchor = None
 

@@ -219,9 +219,13 @@ class ContactTracker:
                                 foot_still=self._feet_still(frame), needs_rest=self._needs_rest)
 
     def _hints(self, frame: Frame) -> Mapping[str, bool] | None:
-        """The frame's contact hints; in flight (``frame.airborne``) every point is free."""
-        if frame.contacts is None and frame.airborne:
-            return dict.fromkeys(self.names, False)
+        """The frame's contact hints; in flight (``frame.airborne``) every point is free.
+
+        A hint takes precedence for its own point only: a flight frame that hints one foot off
+        (a foot its tag let go, :mod:`ikfusion.app.tag_release`) still frees the other foot.
+        """
+        if frame.airborne:
+            return {**dict.fromkeys(self.names, False), **(frame.contacts or {})}
         return frame.contacts
 
     def _points_moving(self, frame: Frame) -> np.ndarray | None:

@@ -293,12 +293,13 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
              if dt > 0 else np.zeros(len(active)))
     tilted = _tilted(layout, foot_pitch, np.radians(th.tilt_deg))
     released = np.where(active, state.released, state.released + max(dt, 0.0))
-    # a point that just let go (toe-off) does not come back down at once while it is low
+    moving_point, settled = _point_motion(points_moving, len(active))
+    # a point that just let go (toe-off) does not come back down at once while it is low,
+    # unless its foot IMU says it no longer moves (a landing heel let go while it skidded)
     enter = (~active & (p_solved[:, 2] < th.floor_z + th.enter_height)
              & (speed < th.enter_speed) & (height_rel < th.enter_relative) & ~tilted
-             & (released >= th.reenter_delay))
+             & ((released >= th.reenter_delay) | settled))
     if points_moving is not None:  # see release_contacts
-        moving_point, _ = _point_motion(points_moving, len(active))
         enter &= ~(moving_point & _other_foot(layout, active & ~moving_point))
     enter &= ~_moving_rest_points(needs_rest, foot_still, len(active))  # NaN: unknown
     for i, name in enumerate(state.names):

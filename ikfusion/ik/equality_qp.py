@@ -69,11 +69,12 @@ def independent_solve(S: np.ndarray, r: np.ndarray) -> np.ndarray | None:
 def satisfies(x: np.ndarray, G: np.ndarray | None, h: np.ndarray | None,
               lb: np.ndarray | None, ub: np.ndarray | None) -> bool:
     """Whether ``x`` satisfies ``G x <= h`` and ``lb <= x <= ub`` (exactly, no tolerance)."""
-    if G is not None and h is not None and len(h) and not bool(np.all(G @ x <= h)):
+    # the arrays' own all(): the same test without NumPy's per-call dispatch
+    if G is not None and h is not None and len(h) and not (G @ x <= h).all():
         return False
-    if lb is not None and not bool(np.all(x >= lb)):
+    if lb is not None and not (x >= lb).all():
         return False
-    return ub is None or bool(np.all(x <= ub))
+    return ub is None or bool((x <= ub).all())
 
 
 #: Smallest squared Cholesky pivot of a Gram matrix relative to its largest diagonal entry

@@ -36,7 +36,7 @@ class Frame:
             unknown. A planted point that moves lets go.
         airborne: The body is in the air (:func:`ikfusion.imu.flight.detect_flight`): no point
             is planted and none touches down; the pelvis flies on the ballistic path from its
-            take-off velocity. Contact hints, when given, take precedence.
+            take-off velocity. A contact hint takes precedence for its own point.
         root_acceleration: ``a_world_pelvis`` (3,) [m/s^2], the pelvis IMU's acceleration in
             the world frame (gravity removed), when recorded: it keeps the pelvis velocity
             honest across take-offs (:mod:`ikfusion.ik.ballistic`).

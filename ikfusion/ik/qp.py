@@ -61,6 +61,9 @@ class QpProblem:
     b: np.ndarray
     lb: np.ndarray | None = None
     ub: np.ndarray | None = None
+    #: H, c, G, h, A and b as consecutive views of this one array (:class:`QpBuffer`), so that
+    #: their finite check is one sum; None when they are separate arrays.
+    packed: np.ndarray | None = None
 
 
 @dataclass
@@ -106,6 +109,61 @@ def assemble_qp(H: np.ndarray, c: np.ndarray, inequalities: Sequence[Inequality]
     b = np.concatenate([e.b for e in eq]) if eq else np.zeros(0)
     lb, ub = bounds if bounds is not None else (None, None)
     return QpProblem(H, c, G, h, A, b, lb, ub)
+
+
+class QpBuffer:
+    """One preallocated array holding a step's ``H, c, G, h, A, b``, reused step after step.
+
+    :meth:`assemble` builds the same problem as :func:`assemble_qp` (the same numbers in the
+    same layout) into views of the buffer, which :func:`solve_qp` checks for NaN and
+    infinities with one sum. A problem assembled here is overwritten by the next one.
+
+    Args:
+        nv: Tangent-space dimension (the number of variables).
+    """
+
+    def __init__(self, nv: int) -> None:
+        self.nv = nv
+        self._flat = np.empty(nv * nv + nv)
+
+    def assemble(self, H: np.ndarray, c: np.ndarray, inequalities: Sequence[Inequality],
+                 equalities: Sequence[Equality], bounds: tuple[np.ndarray, np.ndarray] | None,
+                 damping: float) -> QpProblem:
+        """:func:`assemble_qp` into the buffer (``H`` is copied, not changed)."""
+        nv = self.nv
+        m_in = sum(len(i.h) for i in inequalities)
+        m_eq = sum(len(e.b) for e in equalities)
+        size = nv * nv + nv + (m_in + m_eq) * (nv + 1)
+        if len(self._flat) < size:
+            self._flat = np.empty(max(size, 2 * len(self._flat)))
+        packed = self._flat[:size]
+        H_out = packed[:nv * nv].reshape(nv, nv)
+        np.copyto(H_out, H)
+        H_out.flat[::nv + 1] += damping  # the diagonal
+        end = nv * nv + nv
+        c_out = packed[nv * nv:end]
+        np.copyto(c_out, c)
+        G_out, h_out, end = _stacked_rows(packed, end, m_in, nv,
+                                          [(i.G, i.h) for i in inequalities if len(i.h)])
+        A_out, b_out, end = _stacked_rows(packed, end, m_eq, nv,
+                                          [(e.A, e.b) for e in equalities if len(e.b)])
+        lb, ub = bounds if bounds is not None else (None, None)
+        return QpProblem(H_out, c_out, G_out, h_out, A_out, b_out, lb, ub, packed)
+
+
+def _stacked_rows(packed: np.ndarray, start: int, m: int, nv: int,
+                  blocks: list[tuple[np.ndarray, np.ndarray]]
+                  ) -> tuple[np.ndarray, np.ndarray, int]:
+    """Row blocks ``(M, v)`` stacked into ``packed`` from ``start``: ``(M, v, end)``."""
+    M = packed[start:start + m * nv].reshape(m, nv)
+    v = packed[start + m * nv:start + m * (nv + 1)]
+    row = 0
+    for block, values in blocks:
+        k = len(values)
+        M[row:row + k] = block
+        v[row:row + k] = values
+        row += k
+    return M, v, start + m * (nv + 1)
 
 
 def _solver_options(backend: str, settings: QpSettings) -> dict[str, Any]:
@@ -202,19 +260,15 @@ def _call_daqp(max_iterations: int, H: np.ndarray, c: np.ndarray, G: np.ndarray 
 _EXACT_BACKENDS = ("daqp", "proxqp")
 
 
-def solve_qp(problem: QpProblem, backend: str, settings: QpSettings) -> QpSolution:
-    """Solve the step; fall back to the penalised-slack relaxation when it is infeasible.
+def solve_unrelaxed(problem: QpProblem, backend: str, settings: QpSettings
+                    ) -> QpSolution | None:
+    """The step with every constraint held, or None when no exact backend finds one.
 
-    Args:
-        problem: The step's QP.
-        backend: The QP backend (qpsolvers name) tried first.
-        settings: Iteration limits, tolerances and the slack penalties.
+    :func:`solve_qp` without its relaxation: for a caller that, when the constraints cannot
+    all hold, changes the problem rather than relaxing this one.
 
     Raises:
-        SolverError: A problem holding NaN or infinite numbers (a target or the pose is not
-            finite: no backend is tried), or when even the relaxed problem fails with every
-            backend (never silently; the solver then keeps the previous pose for that frame
-            and says so).
+        SolverError: A problem holding NaN or infinite numbers (no backend is tried).
     """
     p = problem
     _check_finite(p)
@@ -232,6 +286,27 @@ def solve_qp(problem: QpProblem, backend: str, settings: QpSettings) -> QpSoluti
             x = _call(other, settings, p.H, p.c, G, h, A, b, p.lb, p.ub)
             if x is not None:
                 return QpSolution(x)
+    return None
+
+
+def solve_qp(problem: QpProblem, backend: str, settings: QpSettings) -> QpSolution:
+    """Solve the step; fall back to the penalised-slack relaxation when it is infeasible.
+
+    Args:
+        problem: The step's QP.
+        backend: The QP backend (qpsolvers name) tried first.
+        settings: Iteration limits, tolerances and the slack penalties.
+
+    Raises:
+        SolverError: A problem holding NaN or infinite numbers (a target or the pose is not
+            finite: no backend is tried), or when even the relaxed problem fails with every
+            backend (never silently; the solver then keeps the previous pose for that frame
+            and says so).
+    """
+    p = problem
+    solution = solve_unrelaxed(p, backend, settings)
+    if solution is not None:
+        return solution
     # Infeasible (or a numerical failure): relax, with a milder penalty and another backend
     # before giving up, since a heavy penalty makes the relaxed problem ill-conditioned.
     heavy = settings.slack_weight
@@ -250,10 +325,13 @@ def solve_qp(problem: QpProblem, backend: str, settings: QpSettings) -> QpSoluti
 
 def _check_finite(p: QpProblem) -> None:
     """Raise a clear error instead of handing a backend NaN or infinite numbers."""
-    # One sum per array is finite when every entry is (and when it is not, the slow path
-    # below names the culprits; absurd finite values overflowing the sum land there too).
-    if np.isfinite(p.H.sum() + p.c.sum() + p.h.sum() + p.b.sum() + p.G.sum() + p.A.sum()) \
-            and not any(m is not None and np.isnan(m.sum()) for m in (p.lb, p.ub)):
+    # One sum per array (or one for a packed problem) is finite when every entry is (and when
+    # it is not, the slow path below names the culprits; absurd finite values overflowing the
+    # sum land there too).
+    total = p.packed.sum() if p.packed is not None else (
+        p.H.sum() + p.c.sum() + p.h.sum() + p.b.sum() + p.G.sum() + p.A.sum())
+    if np.isfinite(total) and not (p.lb is not None and np.isnan(p.lb.sum())) \
+            and not (p.ub is not None and np.isnan(p.ub.sum())):
         return
     bad = [name for name, m in (("H", p.H), ("c (targets)", p.c), ("h (inequalities)", p.h),
                                 ("b (equalities)", p.b), ("G", p.G), ("A", p.A))

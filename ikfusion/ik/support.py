@@ -287,8 +287,20 @@ class SupportFollower:
         out = np.zeros((len(active), 3))
         planted = self._planted(active)
         if planted.sum() >= 2:
-            young = int(np.argmin(np.where(planted, self._planted_for, np.inf)))
-            out[self._feet[young]] = self._landed_swing[young]
+            # a foot that touched down since the last frame is still swinging here (its
+            # landing is settled when the body follows): it is the youngest
+            landing = planted & self._swinging
+            young = int(np.argmin(np.where(planted, np.where(landing, -1.0, self._planted_for),
+                                           np.inf)))
+            if not np.any(self._goal[young]):  # not led: only its swing (a resumed one)
+                out[self._feet[young]] = (self.swing[young] if landing[young]
+                                          else self._landed_swing[young])
+                return out
+            # led from the pelvis (lag and lean on the foot the body stands on) plus its
+            # swing: the same placement :meth:`_settle_landings` records
+            placed = (self.displacement + self.swing[young] if landing[young]
+                      else self._placed_by[young])
+            out[self._feet[young]] = placed - self._placed_by[self._reference_feet].mean(axis=0)
         return out
 
     def swing_targets(self, p_points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

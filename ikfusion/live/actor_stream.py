@@ -304,11 +304,12 @@ class ActorStream:
         placed = None if self.correction is None else self.correction.placement
         if placed is None or self.correction is None:
             return
-        k, delta = placed
+        k = placed[0]
         for pose in poses:
-            if self._fix_index(pose.time) <= k:
+            offset = self.correction.placement_lacking(self._fix_index(pose.time))
+            if offset.any():
                 pose.q = pose.q.copy()  # the solver keeps the array it returned
-                pose.q[:2] += delta[:2]
+                pose.q[:2] += offset[:2]
         self.correction.gap[:k + 1] = np.nan  # measured before the placement
 
     def _fix_index(self, time_s: float) -> int:

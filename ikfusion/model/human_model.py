@@ -8,9 +8,10 @@ pelvis frame, then one rotation vector per joint in the child frame.
 
 from __future__ import annotations
 
-import tempfile
+import copy
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 from typing import TypeVar
 
@@ -32,7 +33,7 @@ from .layout import (
     TAG_SITES,
     TRUNK_CONTACT_SITES,
 )
-from .urdf import SITE_SUFFIX, write_urdf
+from .urdf import SITE_SUFFIX, body_to_urdf, write_urdf
 
 #: The shipped default subject (1.75 m).
 DEFAULT_URDF = "human.urdf"
@@ -83,6 +84,10 @@ class HumanModel:
         except (RuntimeError, ValueError) as err:
             raise ConfigError(f"URDF could not be loaded: {err}", path=path) from err
         self.urdf_path: Path | None = path
+        self._set_up(revolute, body, merge_ball_joints)
+
+    def _set_up(self, revolute: pin.Model, body: Body | None, merge_ball_joints: bool) -> None:
+        """Names, ball joints and the N-pose of a model loaded with revolute joints."""
         self.body = body
         self.revolute_model = revolute
         if merge_ball_joints:
@@ -94,11 +99,18 @@ class HumanModel:
             self.model = revolute
             self.ball_joints = {}
             self.joint_map = {j: j for j in range(revolute.njoints)}
-        self.data = self.model.createData()
+        self._data: pin.Data | None = None
         self._frames = {f.name: i for i, f in enumerate(self.model.frames)}
         self._segments = self._find_segments()
         self._sites = self._find_sites()
         self._q_neutral = self._neutral_on_floor()
+
+    @property
+    def data(self) -> pin.Data:
+        """The internal ``pinocchio.Data`` of the convenience queries (created on first use)."""
+        if self._data is None:
+            self._data = self.model.createData()
+        return self._data
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -108,15 +120,30 @@ class HumanModel:
 
     @classmethod
     def from_body(cls, body: Body, urdf_path: str | Path | None = None) -> HumanModel:
-        """Generate the URDF of ``body`` (to ``urdf_path`` or a temporary file) and load it."""
+        """The model of ``body``; its URDF written to ``urdf_path`` when given.
+
+        Without ``urdf_path`` the URDF is parsed in memory, once per body dimensions in a
+        process (:func:`_model_of_body`): later calls with an equal body get a copy that
+        shares the Pinocchio models (never modified) and has its own ``data``.
+        """
         if urdf_path is not None:
             write_urdf(body, urdf_path)
             return cls(urdf_path, body=body)
-        with tempfile.TemporaryDirectory(prefix="ikfusion-model-") as folder:
-            path = write_urdf(body, Path(folder) / "human.urdf")
-            model = cls(path, body=body)
+        return _model_of_body(body)._shared_copy()
+
+    @classmethod
+    def _from_urdf_text(cls, text: str, body: Body) -> HumanModel:
+        """The model of a generated URDF text (no file; ``urdf_path`` is None)."""
+        model = cls.__new__(cls)
         model.urdf_path = None
+        model._set_up(pin.buildModelFromXML(text, pin.JointModelFreeFlyer()), body, True)
         return model
+
+    def _shared_copy(self) -> HumanModel:
+        """A copy sharing the Pinocchio models and name tables, with its own ``data``."""
+        other = copy.copy(self)
+        other._data = None
+        return other
 
     @classmethod
     def from_urdf(cls, path: str | Path, merge_ball_joints: bool = True) -> HumanModel:
@@ -361,6 +388,15 @@ class HumanModel:
             f"  URDF: {self.urdf_path}\n"
             f"  sites: {', '.join(self._sites)}"
         )
+
+
+@lru_cache(maxsize=16)
+def _model_of_body(body: Body) -> HumanModel:
+    """The model of ``body`` built from its URDF text in memory, kept for equal bodies.
+
+    A few per process: a batch's clips of one subject share one.
+    """
+    return HumanModel._from_urdf_text(body_to_urdf(body), body)
 
 
 def _in_spec_order(ball_joints: dict[str, BallJoint]) -> dict[str, BallJoint]:

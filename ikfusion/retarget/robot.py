@@ -31,7 +31,7 @@ from tqdm import tqdm
 
 from ..ik.configuration import Configuration
 from ..ik.limits.base import Equality, Inequality
-from ..ik.qp import QpSettings, assemble_qp, solve_qp
+from ..ik.qp import QpBuffer, QpSettings, solve_qp, solve_unrelaxed
 from ..ik.tasks import DampingTask, OrientationTask, PositionTask
 from ..model import layout
 from ..model.human_model import HumanModel
@@ -239,6 +239,7 @@ class RobotRetargeter:
         self._rest_feet = [T.rotation for T in rest_feet]
         self._rest_feet_z = [float(T.translation[2]) for T in rest_feet]
         self._configuration = Configuration(model, robot.rest)
+        self._qp_buffer = QpBuffer(model.nv)
         self._no_plants = Equality(np.zeros((0, model.nv)), np.zeros(0))
         self._ones = np.ones(len(self.segments)), np.ones(len(self.feet))
         self._stacked = np.zeros((0, len(self.segments), 3, 3)), np.zeros((0, 0, 3))
@@ -428,12 +429,18 @@ class RobotRetargeter:
             moving = np.flatnonzero(np.any(near.G[:, 6:] != 0.0, axis=0)) + 6 \
                 if step < s.trusted_steps and len(near.h) else self._none
             box = self._box(q, moved, dt, moving)
-            solution = solve_qp(assemble_qp(H.copy(), c, *rows, box, s.levenberg_marquardt),
-                                self.backend, self._qp)
-            if solution.relaxed and len(moving):  # the trust region was too tight
-                box = self._box(q, moved, dt)
-                solution = solve_qp(assemble_qp(H, c, *rows, box, s.levenberg_marquardt),
-                                    self.backend, self._qp)
+            assemble = self._qp_buffer.assemble
+            problem = assemble(H, c, *rows, box, s.levenberg_marquardt)
+            # within the trust region, the constraints held or nothing (its relaxation would
+            # be thrown away): when they cannot all hold, the region was too tight
+            trusted = solve_unrelaxed(problem, self.backend, self._qp) if len(moving) else None
+            if trusted is not None:
+                solution = trusted
+            else:
+                if len(moving):
+                    box = self._box(q, moved, dt)
+                    problem = assemble(H, c, *rows, box, s.levenberg_marquardt)
+                solution = solve_qp(problem, self.backend, self._qp)
             relaxed |= solution.relaxed
             factor = self._damped(solution.dq, previous, factor)
             # The box holds to the QP's tolerance; clipped, limits hold exactly.

@@ -31,6 +31,7 @@ class RobotModel:
     def __init__(self, config: RetargetConfig) -> None:
         self.config = config
         self.model = _reduced_model(config)
+        self._data: pin.Data | None = None
         self.frame_ids = {}
         names = [f.name for f in self.model.frames]
         wanted = (list(config.links.values()) + [f.link for f in config.feet.values()]
@@ -88,15 +89,25 @@ class RobotModel:
         q[2] -= self.sole_corners(q)[..., 2].min()  # soles on the floor
         return q
 
+    def _kinematics(self) -> pin.Data:
+        """The ``pinocchio.Data`` of this model's own queries (created once, ~0.1 ms each).
+
+        Every query recomputes the kinematics it reads, so reusing it changes no result; not
+        thread-safe, as Pinocchio's data are not.
+        """
+        if self._data is None:
+            self._data = self.model.createData()
+        return self._data
+
     def placement(self, q: np.ndarray, link: str) -> pin.SE3:
         """``T_world_link`` at ``q``."""
-        data = self.model.createData()
+        data = self._kinematics()
         pin.framesForwardKinematics(self.model, data, q)
         return data.oMf[self.frame_ids[link]].copy()
 
     def sole_corners(self, q: np.ndarray) -> np.ndarray:
         """World positions of both soles' corners (2, 4, 3) [m], left first."""
-        data = self.model.createData()
+        data = self._kinematics()
         pin.framesForwardKinematics(self.model, data, q)
         out = []
         for side in ("left", "right"):
@@ -111,7 +122,7 @@ class RobotModel:
         The hips are the parents of the first joints of the two legs' chains: taken as the
         mean height of the joints that carry the foot links, highest ones.
         """
-        data = self.model.createData()
+        data = self._kinematics()
         pin.forwardKinematics(self.model, data, self.rest)
         heights = []
         for side in ("left", "right"):

@@ -85,8 +85,11 @@ def test_a_short_clip_simulates_and_solves_through_the_benchmark(tmp_path: Path)
     rows = bench.run_clip(clip, tmp_path, ["imu-only", "slide"], None, seed=3, noise="none")
     assert [r.mode for r in rows] == ["imu-only", "slide"]
     truth = np.load(tmp_path / clip.name / "capture" / "truth.npz")
-    # 2 s N-pose + 1 s transition + the 81 frames of the clip, at 60 Hz, inside the room
-    assert len(truth["time"]) == 180 + 81
+    # the lead-in (a 2 s N-pose, then a step into the run) + the 81 frames of the clip, at
+    # 60 Hz, inside the room
+    lead_in = bench.clip_truth(clip, None).info["lead_in_s"]
+    assert 2.0 < lead_in < 5.0
+    assert len(truth["time"]) == round(lead_in * 60.0) + 81
     pelvis = truth["p_world_segment"][:, 0, :2]
     assert pelvis.min() > 0.0 and pelvis[:, 0].max() < 6.0 and pelvis[:, 1].max() < 8.0
     for row in rows:

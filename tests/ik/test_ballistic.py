@@ -82,11 +82,13 @@ def jumps() -> TruthMotion:
     return generate_gait(HumanModel.default(), gait_preset("jump", 5.0, stand=1.0), rate=RATE)
 
 
-def _solve_q(truth: TruthMotion, airborne: bool, late: int = 0) -> np.ndarray:
+def _solve_q(truth: TruthMotion, airborne: bool, late: int = 0,
+             hints: dict[str, bool] | None = None) -> np.ndarray:
     """Solved configurations (N, nq) from the truth's sensed segments (IMU only).
 
     With ``airborne`` the frames without a contact in the truth are flagged airborne, and the
-    ``late`` frames after each of them too (a flight the accelerometers end late).
+    ``late`` frames after each of them too (a flight the accelerometers end late); ``hints``
+    are the contact hints of those frames.
     """
     frames = orientation_frames(truth.model, truth.q, truth.time, list(SENSOR_SEGMENTS))
     a_pelvis = np.gradient(np.gradient(truth.q[:, :3], 1.0 / RATE, axis=0), 1.0 / RATE, axis=0)
@@ -94,14 +96,16 @@ def _solve_q(truth: TruthMotion, airborne: bool, late: int = 0) -> np.ndarray:
     for _ in range(late):
         flying[1:] |= flying[:-1].copy()
     if airborne:
-        frames = [replace(f, airborne=bool(flying[k]), root_acceleration=a_pelvis[k])
+        frames = [replace(f, airborne=bool(flying[k]), root_acceleration=a_pelvis[k],
+                          contacts=hints if flying[k] else None)
                   for k, f in enumerate(frames)]
     return np.asarray(Solver(truth.model).solve(frames).q)
 
 
-def _solve(truth: TruthMotion, airborne: bool) -> np.ndarray:
+def _solve(truth: TruthMotion, airborne: bool, hints: dict[str, bool] | None = None
+           ) -> np.ndarray:
     """Solved pelvis positions (N, 3) [m] from the truth's sensed segments (IMU only)."""
-    return _solve_q(truth, airborne)[:, :3]
+    return _solve_q(truth, airborne, hints=hints)[:, :3]
 
 
 def test_airborne_frames_fly_the_pelvis_on_the_truth_parabola(jumps: TruthMotion) -> None:
@@ -131,6 +135,21 @@ def test_airborne_frames_fly_the_pelvis_on_the_truth_parabola(jumps: TruthMotion
     for _, b in flights:
         step_error = np.diff(solved[b - 3:b + 4], axis=0) - np.diff(truth[b - 3:b + 4], axis=0)
         assert np.linalg.norm(step_error, axis=1).max() < 0.025
+
+
+def test_a_flight_that_hints_one_foot_off_frees_the_other_too(jumps: TruthMotion) -> None:
+    """Issue #19: the no-slide correction hints the points of a foot its tag let go off the
+    floor; in flight those hints replaced the flight, the other foot stayed planted and held
+    the body down (a run's first stride: a toe held 100 ms into the flight, the landing foot
+    then slid 2 cm on the floor). Now every point not hinted is free: the body flies as high
+    as without the hints."""
+    hints = {"LeftHeel": False, "LeftToe": False}
+    hinted = _solve(jumps, airborne=True, hints=hints)
+    plain = _solve(jumps, airborne=True)
+    for a, b in [(a, b) for a, b in _runs(~jumps.contacts.any(axis=1)) if b - a >= 8]:
+        rise = jumps.q[a:b, 2].max() - jumps.q[a, 2]
+        assert hinted[a:b, 2].max() - hinted[a, 2] == pytest.approx(rise, abs=0.025)
+        np.testing.assert_allclose(hinted[a:b], plain[a:b], atol=0.01)
 
 
 def test_without_flight_the_body_stays_on_the_floor(jumps: TruthMotion) -> None:

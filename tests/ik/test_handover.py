@@ -54,3 +54,17 @@ def test_a_moving_point_does_not_touch_down_while_the_other_foot_holds() -> None
         out = touch_down(state, P, P, P, 0.1, TH, foot_pitch=np.zeros(4), layout=LAYOUT,
                          points_moving=moving)
         assert out.active[:2].tolist() == [planted, planted]
+
+
+def test_a_heel_let_go_while_it_skidded_lands_again_once_it_stops() -> None:
+    """A landing heel that skids lets go (its IMU says it moves while the other toe holds);
+    the moment its IMU says it stopped, it lands again, without waiting ``reenter_delay`` as a
+    toe that pushed off does (issue #19: cmu-02-01-walk's heel waited 0.2 s while the rear toe
+    held the body; the heel slid 70 mm in the truth's contact phase)."""
+    state = ContactState(NAMES, np.array([False, False, False, True]), P.copy(), np.zeros(4))
+    state.released[:] = [0.0, np.inf, np.inf, np.inf]  # the left heel let go just now
+    for moving, planted in ((np.array([0.0, 1.0, 1.0, 1.0]), True),  # stopped
+                            (np.array([np.nan, 1.0, 1.0, 1.0]), False)):  # unknown: it waits
+        out = touch_down(state, P, P, P, 1.0 / 60.0, TH, foot_pitch=np.zeros(4), layout=LAYOUT,
+                         points_moving=moving)
+        assert bool(out.active[0]) is planted

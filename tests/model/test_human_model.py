@@ -192,3 +192,33 @@ def test_joint_angle_matrix_matches_dict(human: HumanModel, rng) -> None:
     for k, q in enumerate(qs):
         angles = human.joint_angles(q)
         np.testing.assert_allclose(M[k], [angles[c] for c in human.angle_columns], atol=1e-9)
+
+
+def _same_model(a: pin.Model, b: pin.Model) -> bool:
+    """Equal joints, placements, limits, inertias and frames (exactly)."""
+    return (a.nq == b.nq and a.nv == b.nv and list(a.names) == list(b.names)
+            and all(pa == pb for pa, pb in zip(a.jointPlacements, b.jointPlacements))
+            and np.array_equal(a.lowerPositionLimit, b.lowerPositionLimit)
+            and np.array_equal(a.upperPositionLimit, b.upperPositionLimit)
+            and all(ia == ib for ia, ib in zip(a.inertias, b.inertias))
+            and [f.name for f in a.frames] == [f.name for f in b.frames]
+            and all(np.array_equal(fa.placement.homogeneous, fb.placement.homogeneous)
+                    for fa, fb in zip(a.frames, b.frames)))
+
+
+def test_a_body_is_parsed_once_and_equals_its_urdf_file(tmp_path) -> None:
+    # Building a clip's body took ~20 ms of every BVH retarget (issue #20): an equal body
+    # reuses the parsed model, which is exactly the model its URDF file loads to.
+    body = Body.from_height(1.62)
+    first, second = HumanModel.from_body(body), HumanModel.from_body(Body.from_height(1.62))
+    assert second.model is first.model  # parsed once
+    assert second.data is not first.data  # each its own kinematics buffer
+    assert first.urdf_path is None
+    from_file = HumanModel.from_body(body, tmp_path / "human.urdf")
+    assert _same_model(first.model, from_file.model)
+    assert _same_model(first.revolute_model, from_file.revolute_model)
+    np.testing.assert_array_equal(first.neutral(), from_file.neutral())
+    assert first.sites == from_file.sites and first.segment_names == from_file.segment_names
+    other = HumanModel.from_body(Body.from_height(1.80))
+    assert other.model is not first.model
+    assert not _same_model(other.model, first.model)
