@@ -29,7 +29,7 @@ from .settings import SolverSettings
 from .support import SupportFollower
 from .tasks import PositionTask, Task
 
-#: A trunk point or elbow (``needs_rest``) this far [m] above the lowest contact point of the
+#: A trunk point (``needs_rest``) this far [m] above the lowest contact point of the
 #: sensed pose cannot reach the floor within a frame: it gets no floor row (standing, walking,
 #: running cost nothing for the points of a lying body).
 FAR_FROM_FLOOR = 0.3
@@ -56,7 +56,7 @@ class ContactTracker:
         segments = model.segment_names
         self._foot_names = [topology.foot_of(n) for n in self.names]
         # the pitch of a foot proper rules its heel or toe out; knees and palms have none
-        # where a lying or sitting body rests (trunk, elbows): planted only with its IMU's rest
+        # where a lying or sitting body rests (the trunk): planted only with its IMU's rest
         self._needs_rest = np.array([n in TRUNK_CONTACT_SITES for n in self.names], dtype=bool)
         self._feet = np.array([segments.index(f) if f is not None and steps else -1
                                for f, steps in zip(self._foot_names, self.layout.stepping)],

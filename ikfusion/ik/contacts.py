@@ -15,8 +15,8 @@ its points that the foot IMU says do not move (:mod:`ikfusion.imu.point_speed`).
 Knees and palms may carry the same evidence from their accelerometers
 (:mod:`ikfusion.imu.resting`), weaker than a foot's: it plants and hands over, but does not
 stop the sensed pose from lifting them. So may the points where a lying or sitting body rests
-(sacrum, buttocks, shoulder blades, chest, elbows: ``needs_rest``), with a stricter rule, as
-their segments are also calm when the body stands still or an arm brushes the floor: they are
+(sacrum, buttocks, shoulder blades, chest: ``needs_rest``), with a stricter rule, as their
+segments are also calm when the body stands still: they are
 planted only among the lowest points and never while their segment's IMU says it moves.
 When every planted point lets go, the lowest point of the sensed pose takes the body (a palm
 in a cartwheel), not a foot swung overhead.
@@ -127,10 +127,10 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
             two-footed take-off accelerates flat on the floor before it turns or slides, and
             one foot crossing the stance thresholds a sample before the other must not lift it
             (the ball of a foot that rolls over it stays too, until it moves itself).
-        needs_rest: (k,) points where the body rests only while lying or sitting (the trunk,
-            the elbows): one whose segment's IMU says it moves is never planted, not even as
-            the lowest point taking the body when the planted points let go (an elbow swung
-            low as a body rises); it still counts as the lowest point the others are measured
+        needs_rest: (k,) points where the body rests only while lying or sitting (the
+            trunk): one whose segment's IMU says it moves is never planted, not even as the
+            lowest point taking the body when the planted points let go (a body rolling or
+            rising); it still counts as the lowest point the others are measured
             from (a trunk sitting up is low while it moves); a resting one is planted only as
             one of the lowest points (``enter_relative``), not within ``still_relative`` as a
             foot, knee or palm (None: no such point).
@@ -179,8 +179,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         # Without a flight hint the lowest point of the sensed pose keeps the body down: the
         # lowest planted one, unless the body rests on another point (hands in a cartwheel)
         # or the planted points are all well above the lowest (a foot swung overhead).
-        # (a trunk point or elbow whose segment's IMU says it moves takes nothing: a body
-        # rolling or rising swings them low through the air)
+        # (a trunk point whose segment's IMU says it moves takes nothing: a body rolling or
+        # rising swings it low through the air)
         kept = int(np.argmin(np.where(active, p_sensed[:, 2], np.inf)))
         takers = ~_moving_rest_points(needs_rest, foot_still, len(active))
         lowest = int(np.argmin(np.where(takers, p_sensed[:, 2], np.inf)))

@@ -7,8 +7,8 @@ little. The sensor, a few centimetres from the pivot, then feels almost no accel
 accelerates by metres per second squared. A segment is therefore *resting* where its world
 acceleration (gravity removed, :func:`ikfusion.imu.flight.world_acceleration`) stays below a
 threshold for a minimum duration. A slide at constant speed would pass; on a floor it does not
-happen. The same holds for a body lying or sitting on the floor: its pelvis, upper trunk and
-upper arms (elbows) rest, and so do they while it stands still, whence the contacts plant a
+happen. The same holds for a body lying or sitting on the floor: its pelvis and upper trunk
+rest, and so do they while it stands still, whence the contacts plant a
 resting point only where it is also the lowest (:func:`ikfusion.ik.contacts.release_contacts`).
 """
 
@@ -22,9 +22,8 @@ from .stance import _bridge_short_gaps, _drop_short_runs, _running_max
 
 #: Segments whose contact points rest on the floor while their sensor is calm: knees, palms,
 #: and where a lying or sitting body rests: the pelvis (sacrum, buttocks), the upper trunk (T8:
-#: shoulder blades, chest) and the upper arms (elbows).
-RESTING_SEGMENTS = ("LeftLowerLeg", "RightLowerLeg", "LeftHand", "RightHand",
-                    "Pelvis", "T8", "LeftUpperArm", "RightUpperArm")
+#: shoulder blades, chest).
+RESTING_SEGMENTS = ("LeftLowerLeg", "RightLowerLeg", "LeftHand", "RightHand", "Pelvis", "T8")
 
 
 @dataclass(frozen=True)

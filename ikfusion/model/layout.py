@@ -38,11 +38,12 @@ CONTACT_SITES: tuple[str, ...] = ("LeftHeel", "LeftToe", "RightHeel", "RightToe"
 BODY_CONTACT_SITES: tuple[str, ...] = ("LeftKnee", "RightKnee", "LeftPalm", "RightPalm")
 #: Contact points where a lying or sitting body rests on the floor: the sacrum and the two
 #: buttocks (sitting, lying on the back) on the pelvis; the shoulder blades (lying on the back)
-#: and the chest (lying face down) on the upper trunk; the point of each elbow (propped on the
-#: elbows, lying on the side).
+#: and the chest (lying face down) on the upper trunk. (Elbows are not among them: in the
+#: motion library they never carry the body, they brush the floor as a crawl's arm swings or are
+#: swung lowest as a body rises, and held there they cost 0.2-1 cm of head position.)
 TRUNK_CONTACT_SITES: tuple[str, ...] = (
     "Sacrum", "LeftButtock", "RightButtock", "LeftShoulderBlade", "RightShoulderBlade",
-    "Chest", "LeftElbow", "RightElbow")
+    "Chest")
 
 #: The heel lies behind the ankle joint by this fraction of the foot length (the toe tip lies
 #: ahead of it by the rest); BVH skeletons, which have no heel, are scaled with the same rule.
@@ -260,10 +261,6 @@ def _trunk_contacts(H: float, origin: dict[str, np.ndarray], tip: dict[str, np.n
         # each shoulder blade on the back of the upper trunk (lying on the back)
         out[f"{side_name}ShoulderBlade"] = (
             "T8", t8 + (tip["T8"] - t8) / 2.0 + [-0.070 * H, s * 0.050 * H, 0.0], "contact")
-        # the point of the elbow, behind the lower end of the upper arm (propped on the elbows)
-        out[f"{side_name}Elbow"] = (
-            f"{side_name}UpperArm", tip[f"{side_name}UpperArm"] + [-0.020 * H, 0.0, 0.0],
-            "contact")
     return out
 
 

@@ -7,9 +7,9 @@ segment that carries a contact point:
 * the *foot* of a contact point (the group of points that move as one body part) is the carrier
   itself; a carrier with no carrier below it whose parent is a carrier (the toes) belongs to its
   parent's foot. The feet proper (heel and toes) are then one group each, and a knee (on the
-  lower leg), a palm (on the hand), an elbow (on the upper arm), the chest and shoulder blades
-  (on the upper trunk) or the sacrum and buttocks (on the pelvis, the root) are groups of their
-  own; a segment that carries no point is on no foot;
+  lower leg), a palm (on the hand), the chest and shoulder blades (on the upper trunk) or the
+  sacrum and buttocks (on the pelvis, the root) are groups of their own; a segment that carries
+  no point is on no foot;
 * a contact point *on its foot* (a heel, a knee, a palm) sits on the group's segment itself; the
   others (toes) sit on a segment below it; a group with both *steps* (a foot proper: heel-toe
   roll, IMU stance and swing leading apply to it);
