@@ -71,10 +71,7 @@ def _secondary_rows(first: np.ndarray, second: np.ndarray, point: np.ndarray, or
                     ) -> tuple[np.ndarray, np.ndarray]:
     """Orthonormal directions (3, 3) of the ``order``-th point (1 or 2) and which are held."""
     line = second - first
-    if order == 1:
-        axis, count = line, 2
-    else:
-        axis, count = np.cross(line, point - first), 1
+    axis = line if order == 1 else np.cross(line, point - first)
     length = float(np.linalg.norm(axis))
     scale = float(np.linalg.norm(line)) if order == 2 else 1.0
     if length < COLLINEAR_M * max(scale, 1e-9):  # coincident or collinear: no rotation fixed
