@@ -19,6 +19,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..model.human_model import HumanModel
+from ..model.layout import TRUNK_CONTACT_SITES
 from ..model.topology import BodyTopology
 from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
 from .fast_math import any_true, true_indices
@@ -27,6 +28,11 @@ from .release import ReleaseEasing
 from .settings import SolverSettings
 from .support import SupportFollower
 from .tasks import PositionTask, Task
+
+#: A trunk point (``needs_rest``) this far [m] above the lowest contact point of the
+#: sensed pose cannot reach the floor within a frame: it gets no floor row (standing, walking,
+#: running cost nothing for the points of a lying body).
+FAR_FROM_FLOOR = 0.3
 
 
 class ContactTracker:
@@ -50,10 +56,15 @@ class ContactTracker:
         segments = model.segment_names
         self._foot_names = [topology.foot_of(n) for n in self.names]
         # the pitch of a foot proper rules its heel or toe out; knees and palms have none
+        # where a lying or sitting body rests (the trunk): planted only with its IMU's rest
+        self._needs_rest = np.array([n in TRUNK_CONTACT_SITES for n in self.names], dtype=bool)
         self._feet = np.array([segments.index(f) if f is not None and steps else -1
                                for f, steps in zip(self._foot_names, self.layout.stepping)],
                               dtype=int)
         self._has_foot = self._feet >= 0
+        # the points of each foot, for the per-frame stance lookup
+        self._points_of_foot = {f: np.array([i for i, g in enumerate(self._foot_names) if g == f])
+                                for f in dict.fromkeys(self._foot_names) if f is not None}
         self._foot_rows = self._feet[self._has_foot]  # the segment of each point with a foot
         self.support = SupportFollower(self.layout, s.lag_speed, s.lag_max, s.swing_speed,
                                        s.lean_max, s.lean_speed, s.touchdown_confirm,
@@ -70,6 +81,7 @@ class ContactTracker:
             maxlen=max(2, self.settings.speed_window + 1))
         self._p_sensed = np.zeros((len(self.names), 3))
         self._pitch = np.zeros(len(self.names))
+        self.far_from_floor = np.zeros(len(self.names), dtype=bool)
         self.support.reset()
         self.easing.reset()
 
@@ -123,12 +135,15 @@ class ContactTracker:
         a = self.settings.detection_smoothing  # sensor noise is white: smooth the evidence
         self._p_sensed = a * self._p_sensed + (1.0 - a) * p_sensed
         self._pitch = a * self._pitch + (1.0 - a) * pitch
+        z = self._p_sensed[:, 2]
+        self.far_from_floor = self._needs_rest & (z > z.min() + FAR_FROM_FLOOR)
         still = self._feet_still(frame)
         self.state = release_contacts(self.state, self._p_sensed, self.thresholds,
                                       self._hints(frame), self._pitch, still,
                                       self._history[-1][1],
                                       self.support.placed_offsets(self.state.active),
-                                      layout=self.layout, points_moving=self._points_moving(frame))
+                                      layout=self.layout, points_moving=self._points_moving(frame),
+                                      needs_rest=self._needs_rest)
         # a planted heel whose foot already rolls toe-down may rise (it still cannot slip),
         # unless its IMU says the foot stands still
         rising = self.layout.on_foot & (pitch > np.radians(self.settings.heel_rise_deg))
@@ -200,7 +215,8 @@ class ContactTracker:
         self.state = touch_down(self.state, p_contacts, p_old, self._p_sensed,
                                 frame.time - t_old, self.thresholds, self._hints(frame),
                                 self._pitch, layout=self.layout,
-                                points_moving=self._points_moving(frame))
+                                points_moving=self._points_moving(frame),
+                                foot_still=self._feet_still(frame), needs_rest=self._needs_rest)
 
     def _hints(self, frame: Frame) -> Mapping[str, bool] | None:
         """The frame's contact hints; in flight (``frame.airborne``) every point is free.
@@ -224,8 +240,8 @@ class ContactTracker:
         if not frame.feet_still:
             return None
         out = np.full(len(self.names), np.nan)
-        for i, foot in enumerate(self._foot_names):
-            still = frame.feet_still.get(foot) if foot is not None else None
+        for foot, points in self._points_of_foot.items():  # per foot: fewer lookups
+            still = frame.feet_still.get(foot)
             if still is not None:
-                out[i] = float(still)
+                out[points] = float(still)
         return out

@@ -14,8 +14,12 @@ kinematic threshold missed by a few centimetres cannot hold a swinging foot on t
 its points that the foot IMU says do not move (:mod:`ikfusion.imu.point_speed`).
 Knees and palms may carry the same evidence from their accelerometers
 (:mod:`ikfusion.imu.resting`), weaker than a foot's: it plants and hands over, but does not
-stop the sensed pose from lifting them. When every planted point lets go, the lowest point of
-the sensed pose takes the body (a palm in a cartwheel), not a foot swung overhead.
+stop the sensed pose from lifting them. So may the points where a lying or sitting body rests
+(sacrum, buttocks, shoulder blades, chest: ``needs_rest``), with a stricter rule, as their
+segments are also calm when the body stands still: they are
+planted only among the lowest points and never while their segment's IMU says it moves.
+When every planted point lets go, the lowest point of the sensed pose takes the body (a palm
+in a cartwheel), not a foot swung overhead.
 """
 
 from __future__ import annotations
@@ -93,8 +97,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
                      foot_still: np.ndarray | None = None,
                      p_solved: np.ndarray | None = None,
                      placed: np.ndarray | None = None, *,
-                     layout: FootLayout, points_moving: np.ndarray | None = None
-                     ) -> ContactState:
+                     layout: FootLayout, points_moving: np.ndarray | None = None,
+                     needs_rest: np.ndarray | None = None) -> ContactState:
     """Let go of planted points the current frame's sensed pose lifts (run before solving).
 
     With ``foot_still``, also plant the points of still feet and hand the body over to them.
@@ -123,6 +127,13 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
             two-footed take-off accelerates flat on the floor before it turns or slides, and
             one foot crossing the stance thresholds a sample before the other must not lift it
             (the ball of a foot that rolls over it stays too, until it moves itself).
+        needs_rest: (k,) points where the body rests only while lying or sitting (the
+            trunk): one whose segment's IMU says it moves is never planted, not even as the
+            lowest point taking the body when the planted points let go (a body rolling or
+            rising); it still counts as the lowest point the others are measured
+            from (a trunk sitting up is low while it moves); a resting one is planted only as
+            one of the lowest points (``enter_relative``), not within ``still_relative`` as a
+            foot, knee or palm (None: no such point).
 
     Returns:
         A new state: the same anchors for the points that stay, fewer active points, and
@@ -143,7 +154,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         # low in the sensed pose is planted while the other foot holds the body (after a
         # flight the usual touch-down, near the floor and slow, plants the landing feet).
         handed_over = active & moving & _other_foot(layout, active & still)
-        plant = (~active & still & (height_rel < th.still_relative) & ~tilted
+        plant = (~active & still & (height_rel < _plant_height(th, needs_rest)) & ~tilted
                  & _other_foot(layout, active))
         handed_over |= active & moving & _other_foot(layout, plant)
         handed_over &= ~settled
@@ -168,9 +179,12 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         # Without a flight hint the lowest point of the sensed pose keeps the body down: the
         # lowest planted one, unless the body rests on another point (hands in a cartwheel)
         # or the planted points are all well above the lowest (a foot swung overhead).
+        # (a trunk point whose segment's IMU says it moves takes nothing: a body rolling or
+        # rising swings it low through the air)
         kept = int(np.argmin(np.where(active, p_sensed[:, 2], np.inf)))
-        lowest = int(np.argmin(p_sensed[:, 2]))
-        handover = bool(not active[lowest] and not tilted[lowest]
+        takers = ~_moving_rest_points(needs_rest, foot_still, len(active))
+        lowest = int(np.argmin(np.where(takers, p_sensed[:, 2], np.inf)))
+        handover = bool(takers[lowest] and not active[lowest] and not tilted[lowest]
                         and (not layout.stepping[lowest]
                              or height_rel[kept] > th.still_relative))
         if handover:
@@ -198,6 +212,21 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     released = state.released.copy()
     released[leave] = 0.0
     return ContactState(state.names, (active & ~leave) | plant, anchors, age, released)
+
+
+def _moving_rest_points(needs_rest: np.ndarray | None, foot_still: np.ndarray | None,
+                        k: int) -> np.ndarray:
+    """(k,) ``needs_rest`` points whose segment's IMU says it moves (``foot_still`` 0)."""
+    if needs_rest is None or foot_still is None:
+        return np.zeros(k, dtype=bool)
+    return np.asarray(needs_rest, dtype=bool) & (np.asarray(foot_still, dtype=float) == 0.0)
+
+
+def _plant_height(th: ContactThresholds, needs_rest: np.ndarray | None) -> np.ndarray | float:
+    """How far above the lowest point [m] a still point is planted at once, per point."""
+    if needs_rest is None:
+        return th.still_relative
+    return np.where(np.asarray(needs_rest, dtype=bool), th.enter_relative, th.still_relative)
 
 
 def _point_motion(points_moving: np.ndarray | None, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -229,7 +258,9 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
                p_sensed: np.ndarray, dt: float, thresholds: ContactThresholds,
                hints: Mapping[str, bool] | None = None,
                foot_pitch: np.ndarray | None = None, *, layout: FootLayout,
-               points_moving: np.ndarray | None = None) -> ContactState:
+               points_moving: np.ndarray | None = None,
+               foot_still: np.ndarray | None = None,
+               needs_rest: np.ndarray | None = None) -> ContactState:
     """Plant the points that reached the floor this frame (run after solving).
 
     A point enters contact when it is near the floor, slow, among the lowest points of the
@@ -247,6 +278,9 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
         layout: See :func:`release_contacts`.
         points_moving: See :func:`release_contacts`: a moving point does not touch down
             while a point of the other foot that does not move is planted.
+        foot_still: See :func:`release_contacts`.
+        needs_rest: See :func:`release_contacts`: such a point does not touch down while its
+            segment's IMU says it moves (``foot_still`` 0; unknown: the kinematics decide).
 
     Returns:
         A new state; anchors above the floor settle toward it at ``settle_speed``.
@@ -270,6 +304,7 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
              & ~tilted & ((released >= th.reenter_delay) | settled))
     if points_moving is not None:  # see release_contacts
         enter &= ~(moving_point & _other_foot(layout, active & ~moving_point))
+    enter &= ~_moving_rest_points(needs_rest, foot_still, len(active))  # NaN: unknown
     for i, name in enumerate(state.names):
         if hints and name in hints:
             enter[i] = (not active[i]) and bool(hints[name])

@@ -27,7 +27,8 @@ class Frame:
             or a ballistic path), with weight ``root_position_weight`` [1/m^2].
         feet_still: Segment carrying contact points -> its IMU says they stand still: a foot
             (``LeftFoot``/``RightFoot``) by its gyroscope
-            (:func:`ikfusion.imu.stance.foot_still`), a shin or hand (knee, palm) by its
+            (:func:`ikfusion.imu.stance.foot_still`), a shin, hand, pelvis or upper trunk (knee,
+            palm, sacrum and buttocks, shoulder blades and chest) by its
             accelerometer (:func:`ikfusion.imu.resting.segment_resting`); absent when unknown.
             Contact detection keeps a still foot planted and hands the body over to it.
         points_moving: Contact point name -> its foot's IMU says the point moves (faster than

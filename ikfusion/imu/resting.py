@@ -1,4 +1,4 @@
-"""Rest of a hand or a knee from its IMU: the sensor barely accelerates while the point is down.
+"""Rest of a hand, a knee or the trunk from its IMU: the sensor barely accelerates while down.
 
 A palm or a knee on the floor is a pivot: its segment may turn about it at a rad/s or more (a
 crawling shin, a hand under a cartwheel) while the point itself stays put, so the gyroscope says
@@ -7,7 +7,9 @@ little. The sensor, a few centimetres from the pivot, then feels almost no accel
 accelerates by metres per second squared. A segment is therefore *resting* where its world
 acceleration (gravity removed, :func:`ikfusion.imu.flight.world_acceleration`) stays below a
 threshold for a minimum duration. A slide at constant speed would pass; on a floor it does not
-happen.
+happen. The same holds for a body lying or sitting on the floor: its pelvis and upper trunk
+rest, and so do they while it stands still, whence the contacts plant a
+resting point only where it is also the lowest (:func:`ikfusion.ik.contacts.release_contacts`).
 """
 
 from __future__ import annotations
@@ -18,8 +20,10 @@ import numpy as np
 
 from .stance import _bridge_short_gaps, _drop_short_runs, _running_max
 
-#: Segments whose contact points (knees, palms) rest on the floor while their sensor is calm.
-RESTING_SEGMENTS = ("LeftLowerLeg", "RightLowerLeg", "LeftHand", "RightHand")
+#: Segments whose contact points rest on the floor while their sensor is calm: knees, palms,
+#: and where a lying or sitting body rests: the pelvis (sacrum, buttocks), the upper trunk (T8:
+#: shoulder blades, chest).
+RESTING_SEGMENTS = ("LeftLowerLeg", "RightLowerLeg", "LeftHand", "RightHand", "Pelvis", "T8")
 
 
 @dataclass(frozen=True)

@@ -33,6 +33,7 @@ from .model_motion import (
     TruthMotion,
     contact_phases_from_points,
     frame_poses,
+    limb_contact_sites,
     moved_configurations,
     site_positions,
 )
@@ -231,12 +232,13 @@ def _bvh_motion(path: str | Path, rate: float, progress: bool, lock_contacts: bo
                                                 mapped.root_position)
     else:
         q = _solved_configurations(model, mapped, time, progress)
-    contacts = model.sites_of_kind("contact")
-    q = level_on_floor(q, site_positions(model, q, contacts), time)
+    contacts = model.sites_of_kind("contact")  # all labelled, the floor from the limbs'
+    limbs = limb_contact_sites(model)
+    q = level_on_floor(q, site_positions(model, q, limbs), time)
     offset = np.zeros((len(time), 2))
     if lock_contacts:  # before the lift: the clip's standing points, not those it lifted
-        q, offset = lock_planted_points(model, q, time, contacts)
-    lift = floor_lift(site_positions(model, q, contacts), time)
+        q, offset = lock_planted_points(model, q, time, limbs)
+    lift = floor_lift(site_positions(model, q, limbs), time)
     q[:, 2] += lift
     segment_ids = [model.segment_frame_id(s) for s in model.segment_names] if segments else []
     p, R = frame_poses(model.model, q, [*(model.site_frame_id(n) for n in contacts),

@@ -13,6 +13,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..model.human_model import HumanModel
+from ..model.layout import TRUNK_CONTACT_SITES
 from ..model.motion_kinematics import frame_placements
 
 
@@ -55,6 +56,18 @@ def moved_configurations(q: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndar
     for k in range(len(q)):
         out[k, 3:7] = pin.Quaternion(R @ pin.Quaternion(q[k, 3:7]).matrix()).coeffs()
     return out
+
+
+def limb_contact_sites(model: HumanModel) -> list[str]:
+    """The contact sites at the ends of the limbs: heels, toes, knees, palms.
+
+    A truth's floor is fitted to these and its planted points locked with these, never with
+    the points where a lying body rests (:data:`~ikfusion.model.TRUNK_CONTACT_SITES`): those
+    are the model's guess of the trunk's surface (how deep the back lies behind the joints),
+    the very guess the solver makes, so a truth shaped by them would agree with the solver by
+    construction; a mocap clip's body ends where its bones do, at its feet and hands.
+    """
+    return [n for n in model.sites_of_kind("contact") if n not in TRUNK_CONTACT_SITES]
 
 
 def contact_phases(model: HumanModel, q: np.ndarray, time: np.ndarray,

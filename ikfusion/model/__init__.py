@@ -9,6 +9,7 @@ from .layout import (
     CONTACT_SITES,
     SENSOR_SEGMENTS,
     TAG_SITES,
+    TRUNK_CONTACT_SITES,
     BodyLayout,
     build_layout,
 )
@@ -23,6 +24,7 @@ __all__ = [
     "SEGMENTS",
     "SENSOR_SEGMENTS",
     "TAG_SITES",
+    "TRUNK_CONTACT_SITES",
     "AngleSpec",
     "BallJoint",
     "Body",

@@ -26,7 +26,13 @@ from .angle_continuity import continuous_series, nearest_equivalent
 from .ball_joints import BallJoint, merge_revolute_triplets
 from .body import Body
 from .joints import JOINTS, SEGMENTS
-from .layout import BODY_CONTACT_SITES, CONTACT_SITES, SENSOR_SEGMENTS, TAG_SITES
+from .layout import (
+    BODY_CONTACT_SITES,
+    CONTACT_SITES,
+    SENSOR_SEGMENTS,
+    TAG_SITES,
+    TRUNK_CONTACT_SITES,
+)
 from .motion_kinematics import frame_placements
 from .urdf import SITE_SUFFIX, body_to_urdf, write_urdf
 
@@ -156,7 +162,8 @@ class HumanModel:
     def _find_sites(self) -> dict[str, SiteInfo]:
         sites = {}
         kinds = {**{s: "sensor" for s in SENSOR_SEGMENTS}, **{s: "tag" for s in TAG_SITES},
-                 **{s: "contact" for s in (*CONTACT_SITES, *BODY_CONTACT_SITES)}}
+                 **{s: "contact" for s in (*CONTACT_SITES, *BODY_CONTACT_SITES,
+                                          *TRUNK_CONTACT_SITES)}}
         for i, f in enumerate(self.model.frames):
             if f.type != pin.FrameType.BODY or not f.name.endswith(SITE_SUFFIX):
                 continue
@@ -165,7 +172,7 @@ class HumanModel:
             segment = self.model.frames[parent.parentFrame].name
             sites[name] = SiteInfo(name, i, segment, kinds.get(name, "other"))
         # the contact points beyond the feet come last, so the feet keep their columns
-        last = [n for n in BODY_CONTACT_SITES if n in sites]
+        last = [n for n in (*BODY_CONTACT_SITES, *TRUNK_CONTACT_SITES) if n in sites]
         return {**{n: s for n, s in sites.items() if n not in last}, **{n: sites[n] for n in last}}
 
     @property

@@ -36,6 +36,14 @@ CONTACT_SITES: tuple[str, ...] = ("LeftHeel", "LeftToe", "RightHeel", "RightToe"
 #: Contact points beyond the feet, where the body rests when kneeling, crawling or in a
 #: cartwheel: the front of each knee (top of the tibia) and the palm of each hand.
 BODY_CONTACT_SITES: tuple[str, ...] = ("LeftKnee", "RightKnee", "LeftPalm", "RightPalm")
+#: Contact points where a lying or sitting body rests on the floor: the sacrum and the two
+#: buttocks (sitting, lying on the back) on the pelvis; the shoulder blades (lying on the back)
+#: and the chest (lying face down) on the upper trunk. (Elbows are not among them: in the
+#: motion library they never carry the body, they brush the floor as a crawl's arm swings or are
+#: swung lowest as a body rises, and held there they cost 0.2-1 cm of head position.)
+TRUNK_CONTACT_SITES: tuple[str, ...] = (
+    "Sacrum", "LeftButtock", "RightButtock", "LeftShoulderBlade", "RightShoulderBlade",
+    "Chest")
 
 #: The heel lies behind the ankle joint by this fraction of the foot length (the toe tip lies
 #: ahead of it by the rest); BVH skeletons, which have no heel, are scaled with the same rule.
@@ -228,7 +236,32 @@ def _sites(body: Body, origin: dict[str, np.ndarray], tip: dict[str, np.ndarray]
         inward = np.array([0.0, -_side(side_name), 0.0])
         world[f"{side_name}Palm"] = (
             f"{side_name}Hand", mid(f"{side_name}Hand", 0.4) + 0.010 * H * inward, "contact")
+    world.update(_trunk_contacts(H, origin, tip))
     return {name: Site(name, seg, p - origin[seg], kind) for name, (seg, p, kind) in world.items()}
+
+
+def _trunk_contacts(H: float, origin: dict[str, np.ndarray], tip: dict[str, np.ndarray]
+                    ) -> dict[str, tuple[str, np.ndarray, str]]:
+    """The :data:`TRUNK_CONTACT_SITES`: segment, N-pose world position [m] and kind of each.
+
+    On the body's surface as the pelvis and T8 sensor sites are (the back of the trunk lies
+    0.06-0.075 ``H`` behind the hip joint centres; the chest is 0.13 ``H`` deep).
+    """
+    pelvis, t8 = origin["Pelvis"], origin["T8"]
+    out = {
+        # the back of the sacrum, just below the pelvis sensor; a lying body rests on it
+        "Sacrum": ("Pelvis", pelvis + [-0.065 * H, 0.0, 0.010 * H], "contact"),
+        # the chest over the sternum, a third of the way up the upper trunk (lying face down)
+        "Chest": ("T8", t8 + (tip["T8"] - t8) / 3.0 + [0.075 * H, 0.0, 0.0], "contact")}
+    for side_name in ("Left", "Right"):
+        s = _side(side_name)
+        # the bottom of each buttock, behind and below the hip joint (sitting on the floor)
+        out[f"{side_name}Buttock"] = (
+            "Pelvis", pelvis + [-0.050 * H, s * 0.045 * H, -0.040 * H], "contact")
+        # each shoulder blade on the back of the upper trunk (lying on the back)
+        out[f"{side_name}ShoulderBlade"] = (
+            "T8", t8 + (tip["T8"] - t8) / 2.0 + [-0.070 * H, s * 0.050 * H, 0.0], "contact")
+    return out
 
 
 def _segment_mass(body: Body, segment: str, origin: dict[str, np.ndarray],

@@ -5,9 +5,11 @@ the segment carrying each site (:attr:`SiteInfo.segment`), never from names. A *
 segment that carries a contact point:
 
 * the *foot* of a contact point (the group of points that move as one body part) is the carrier
-  nearest it on its chain; a carrier with no carrier below it whose parent is a carrier (the toes)
-  belongs to its parent's foot. The feet proper (heel and toes) are then one group each, and a
-  knee (on the lower leg) or a palm (on the hand) are groups of their own;
+  itself; a carrier with no carrier below it whose parent is a carrier (the toes) belongs to its
+  parent's foot. The feet proper (heel and toes) are then one group each, and a knee (on the
+  lower leg), a palm (on the hand), the chest and shoulder blades (on the upper trunk) or the
+  sacrum and buttocks (on the pelvis, the root) are groups of their own; a segment that carries
+  no point is on no foot;
 * a contact point *on its foot* (a heel, a knee, a palm) sits on the group's segment itself; the
   others (toes) sit on a segment below it; a group with both *steps* (a foot proper: heel-toe
   roll, IMU stance and swing leading apply to it);
@@ -119,14 +121,18 @@ class BodyTopology:
         return child in self._carriers() and self.foot_of_segment(child) == parent
 
     def foot_of_segment(self, segment: str) -> str | None:
-        """The foot ``segment`` belongs to (the nearest carrier on its chain); None if none."""
+        """The foot ``segment`` belongs to; None unless it carries a contact point.
+
+        A carrier is its own foot (the root too: a pelvis resting on the floor), except a
+        carrier with no carrier below it whose parent carries points (toes): its parent's.
+        A segment without points (the head under a chest that rests face down) is on no foot.
+        """
         carriers = self._carriers()
-        nearest = next((s for s in self.chain(segment) if s in carriers), None)
-        if nearest is None:
+        if segment not in carriers:
             return None
-        parent = self.parent.get(nearest)
-        below = any(c in carriers and nearest in self.chain(c)[1:] for c in carriers)
-        return parent if parent in carriers and not below else nearest
+        parent = self.parent.get(segment)
+        below = any(segment in self.chain(c)[1:] for c in carriers)
+        return parent if parent in carriers and not below else segment
 
     def limb(self, segment: str) -> list[str]:
         """``segment`` and its ancestors up to the first one with several children, excluded.

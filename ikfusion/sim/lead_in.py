@@ -25,8 +25,14 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from ..mocap.model_motion import TruthMotion, contact_phases, site_positions
+from ..mocap.model_motion import (
+    TruthMotion,
+    contact_phases,
+    limb_contact_sites,
+    site_positions,
+)
 from ..model.human_model import HumanModel
+from ..model.layout import TRUNK_CONTACT_SITES
 
 #: A pose stands upright when the pelvis' up axis is within this of vertical [deg] ...
 UPRIGHT_TILT_DEG = 30.0
@@ -134,8 +140,8 @@ def anchored_transition(model: HumanModel, target: np.ndarray, n_still: int, n_m
 
 
 def _above_floor(model: HumanModel, q: np.ndarray) -> np.ndarray:
-    """Configurations (N, nq) lifted where a contact point is under the floor (z < 0)."""
-    low = site_positions(model, q, model.sites_of_kind("contact"))[..., 2].min(axis=1)
+    """Configurations (N, nq) lifted where a limb's contact point is under the floor (z < 0)."""
+    low = site_positions(model, q, limb_contact_sites(model))[..., 2].min(axis=1)
     out = q.copy()
     out[:, 2] += np.maximum(0.0, -low)
     return out
@@ -156,7 +162,9 @@ def _rested_on_floor(model: HumanModel, q: np.ndarray, support: str, n_settle: i
     pose may have a point under it). Returns all but the last configuration: ``q[-1]`` is the
     clip's first frame, which follows.
     """
-    names = list(model.site_names)  # a lying body rests on its back, not on a contact point
+    # a lying body rests on its back (the sensor sites there), not on a contact point; the
+    # model's guessed trunk surface (limb_contact_sites) shapes no truth
+    names = [n for n in model.site_names if n not in TRUNK_CONTACT_SITES]
     P = site_positions(model, q, names)
     k = names.index(support)
     held = P[0, k] * [1.0, 1.0, 0.0]

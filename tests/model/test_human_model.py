@@ -14,6 +14,7 @@ from ikfusion.model import (
     SEGMENTS,
     SENSOR_SEGMENTS,
     TAG_SITES,
+    TRUNK_CONTACT_SITES,
     Body,
     HumanModel,
 )
@@ -36,9 +37,11 @@ def test_default_model_sizes(human: HumanModel) -> None:
     assert shortnames.count("JointModelSpherical") == 22
     assert len(shortnames) == 23
     assert set(human.site_names) == (set(SENSOR_SEGMENTS) | set(TAG_SITES) | set(CONTACT_SITES)
-                                     | set(BODY_CONTACT_SITES))
+                                     | set(BODY_CONTACT_SITES) | set(TRUNK_CONTACT_SITES))
     assert human.site("LeftKnee").segment == "LeftLowerLeg"
     assert human.site("RightPalm").segment == "RightHand"
+    assert human.site("Sacrum").segment == "Pelvis" and human.site("Chest").segment == "T8"
+    assert "LeftElbow" not in human.site_names  # elbows carry no body in the library
     assert human.site("LeftToe").segment == "LeftToe"
     assert human.site("LeftToe").kind == "contact"
     assert human.site("Pelvis").kind == "sensor"

@@ -16,7 +16,9 @@ def test_feet_legs_and_toe_joints_of_the_default_model() -> None:
         "LeftHeel": "LeftFoot", "LeftToe": "LeftFoot",
         "RightHeel": "RightFoot", "RightToe": "RightFoot",
         "LeftKnee": "LeftLowerLeg", "RightKnee": "RightLowerLeg",
-        "LeftPalm": "LeftHand", "RightPalm": "RightHand"}
+        "LeftPalm": "LeftHand", "RightPalm": "RightHand",
+        "Sacrum": "Pelvis", "LeftButtock": "Pelvis", "RightButtock": "Pelvis",
+        "LeftShoulderBlade": "T8", "RightShoulderBlade": "T8", "Chest": "T8"}
     assert topology.chain("LeftFoot") == ["LeftFoot", "LeftLowerLeg", "LeftUpperLeg"]
     assert topology.foot_of("HeadTop") is None and topology.foot_of("LeftFootTop") == "LeftFoot"
     toes = [j.name for j in model.ball_joints.values()
@@ -50,10 +52,11 @@ def test_knees_and_palms_are_contact_groups_of_their_own() -> None:
     model = HumanModel.default()
     topology = BodyTopology.of(model)
     points = model.sites_of_kind("contact")
-    assert points == ["LeftHeel", "LeftToe", "RightHeel", "RightToe",
-                      "LeftKnee", "RightKnee", "LeftPalm", "RightPalm"]
+    assert points[:8] == ["LeftHeel", "LeftToe", "RightHeel", "RightToe",
+                          "LeftKnee", "RightKnee", "LeftPalm", "RightPalm"]
     layout = topology.foot_layout(points)
-    assert layout.feet.sum(axis=1).tolist() == [2, 2, 1, 1, 1, 1]
+    # then the pelvis (sacrum, buttocks) and the upper trunk (shoulder blades, chest)
+    assert layout.feet.sum(axis=1).tolist() == [2, 2, 1, 1, 1, 1, 3, 3]
     assert topology.limb("LeftFoot") == topology.chain("LeftFoot")
     assert topology.limb("LeftLowerLeg") == ["LeftLowerLeg", "LeftUpperLeg"]
     assert topology.limb("RightHand") == ["RightHand", "RightForeArm", "RightUpperArm",
@@ -62,6 +65,27 @@ def test_knees_and_palms_are_contact_groups_of_their_own() -> None:
     # the N-pose stands on heels and toes; knees and palms are far above the floor
     for name in ("LeftKnee", "RightKnee", "LeftPalm", "RightPalm"):
         assert model.site_position(q, name)[2] > 0.3
+
+
+def test_a_lying_body_rests_on_trunk_groups_that_swallow_no_other_segment() -> None:
+    """The pelvis (the root) and the upper trunk carry contact groups of their own; the head
+    under the trunk stays on no foot (its tag is a body tag), and a hand is its own."""
+    model = HumanModel.default()
+    topology = BodyTopology.of(model)
+    assert topology.foot_of("HeadTop") is None
+    assert topology.foot_of_segment("Head") is None and topology.foot_of_segment("T12") is None
+    assert topology.foot_of("LeftPalm") == "LeftHand"
+    assert topology.feet(["Sacrum", "Chest", "RightPalm"]) == ["Pelvis", "T8", "RightHand"]
+    assert topology.limb("Pelvis") == [] and topology.limb("T8")[0] == "T8"
+    assert not any(topology.is_toe_joint(j.spec.parent, j.spec.child)
+                   for j in model.ball_joints.values() if "Toe" not in j.spec.child)
+    layout = topology.foot_layout(model.sites_of_kind("contact"))
+    trunk = [model.sites_of_kind("contact").index(n) for n in ("Sacrum", "Chest", "LeftButtock")]
+    assert not layout.stepping[trunk].any()
+    q = model.neutral()
+    # standing in the N-pose, the trunk's points are far above the floor
+    for name in ("Sacrum", "LeftButtock", "RightShoulderBlade", "Chest"):
+        assert model.site_position(q, name)[2] > 0.7
 
 
 def test_the_topology_does_not_read_names() -> None:

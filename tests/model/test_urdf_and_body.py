@@ -36,7 +36,8 @@ def test_independent_parser_sees_the_same_link_tree(tmp_path: Path) -> None:
             pin_parents[f.name] = ours.frames[parent_joint_frame.parentFrame].name
     pin_parents.pop("Pelvis", None)
     assert parents == pin_parents
-    assert len(urdf.robot.links) == 23 + 2 * 22 + 28  # sites: 24 and the knees and palms
+    # sites: 24, the knees and palms, and the 6 where a lying or sitting body rests
+    assert len(urdf.robot.links) == 23 + 2 * 22 + 28 + 6
     revolute = [j for j in urdf.robot.joints if j.type == "revolute"]
     assert len(revolute) == 66
     assert all(j.limit is not None and j.limit.lower < j.limit.upper for j in revolute)

@@ -10,6 +10,7 @@ import numpy.typing as npt
 from ..configuration import Configuration
 from ..fast_math import any_true, row_norms
 from .base import Equality, Inequality
+from .shared_segment import shared_segment_rows
 
 
 class ContactConstraint:
@@ -17,19 +18,27 @@ class ContactConstraint:
 
     A point may be held horizontally only (``free_z``): a heel rising as its foot rolls onto
     the toes does not slip, but it leaves the floor gradually instead of all at once.
+    Planted points that share a rigid segment (the shoulder blades of a lying body) are held
+    by independent rows only (:func:`~.shared_segment.shared_segment_rows`), so that the
+    constraints stay feasible.
 
     Args:
         frame_ids: Frame indices of the contact points.
         names: Their names (``LeftHeel``, ...).
+        segments: The segment carrying each point (None: each point on its own).
     """
 
-    def __init__(self, frame_ids: Sequence[int], names: Sequence[str]) -> None:
+    def __init__(self, frame_ids: Sequence[int], names: Sequence[str],
+                 segments: Sequence[str] | None = None) -> None:
         self.frame_ids = list(frame_ids)
         self.names = list(names)
+        self.segments = list(self.names if segments is None else segments)
         self.active = np.zeros(len(self.frame_ids), dtype=bool)
         self.anchors = np.zeros((len(self.frame_ids), 3))
         self.free_z = np.zeros(len(self.frame_ids), dtype=bool)
         self._held = np.zeros((len(self.frame_ids), 3), dtype=bool)
+        # (k, 3, 3) the directions held of each point, when points share a segment
+        self._basis: np.ndarray | None = None
 
     def set_anchors(self, active: npt.ArrayLike, anchors: npt.ArrayLike,
                     free_z: npt.ArrayLike | None = None) -> None:
@@ -44,9 +53,19 @@ class ContactConstraint:
         self.anchors = np.asarray(anchors, dtype=float).reshape(-1, 3).copy()
         self.free_z = (np.zeros_like(self.active) if free_z is None
                        else np.asarray(free_z, dtype=bool) & self.active)
-        held = np.repeat(self.active[:, None], 3, axis=1)
-        held[:, 2] &= ~self.free_z
-        self._held = held  # (k, 3) the coordinates held, one row each
+        shared = shared_segment_rows(self.segments, self.active, self.anchors, self.free_z)
+        if shared is None:  # the usual case: the world axes
+            held = np.repeat(self.active[:, None], 3, axis=1)
+            held[:, 2] &= ~self.free_z
+            self._basis, self._held = None, held  # (k, 3) the coordinates held, one row each
+        else:
+            self._basis, self._held = shared
+
+    def _along_held(self, vectors: np.ndarray, on: np.ndarray | slice) -> np.ndarray:
+        """Per point ``on``, ``vectors`` (m, 3, ...) in its held directions' frame."""
+        if self._basis is None:
+            return vectors
+        return np.einsum("kij,kj...->ki...", self._basis[on], vectors)
 
     def equality(self, configuration: Configuration) -> Equality:
         """Linearised rows ``J_i dq = anchor_i - p_i`` for the active points."""
@@ -56,23 +75,26 @@ class ContactConstraint:
             return Equality(np.zeros((0, nv)), np.zeros(0))
         planted = [f for f, a in zip(self.frame_ids, on) if a]  # Jacobians of these only
         held = self._held[on]
-        return Equality(configuration.linear_jacobians(planted)[held],
-                        (self.anchors[on] - configuration.positions(planted))[held])
+        J = self._along_held(configuration.linear_jacobians(planted), on)
+        return Equality(J[held], self._along_held(self.anchors[on]
+                                                  - configuration.positions(planted), on)[held])
 
     def rows(self, p_world: np.ndarray, J_linear: np.ndarray) -> Equality:
         """Rows from every point's position (k, 3) [m] and linear Jacobian (k, 3, nv)."""
-        held = self._held
-        return Equality(J_linear[held], (self.anchors - p_world)[held])
+        held, every = self._held, slice(None)
+        return Equality(self._along_held(J_linear, every)[held],
+                        self._along_held(self.anchors - p_world, every)[held])
 
     def planted_slide_m(self, p_world: np.ndarray) -> np.ndarray:
         """Distance of each point in contact from its anchor (active,) [m].
 
         The same numbers as :meth:`slide_m` without the NaN rows, from the points' positions
-        (k, 3) [m].
+        (k, 3) [m], counting only the directions held (all but a rising heel's height and,
+        for points sharing a segment, what the segment's shape fixes).
         """
-        d = p_world[self.active] - self.anchors[self.active]
-        d[self.free_z[self.active], 2] = 0.0
-        return row_norms(d)
+        on = self.active
+        d = self._along_held(p_world[on] - self.anchors[on], on)
+        return row_norms(np.where(self._held[on], d, 0.0))
 
     def slide_m(self, configuration: Configuration,
                 p_world: np.ndarray | None = None) -> np.ndarray:
@@ -104,8 +126,9 @@ class FloorLimit:
         nv = configuration.model.nv
         if not any_true(self.enabled):
             return Inequality(np.zeros((0, nv)), np.zeros(0))
-        return self.rows(configuration.positions(self.frame_ids),
-                         configuration.linear_jacobians(self.frame_ids))
+        on = [f for f, e in zip(self.frame_ids, self.enabled) if e]  # no kinematics for others
+        return Inequality(-configuration.linear_jacobians(on)[:, 2, :],
+                          configuration.positions(on)[:, 2] - self.floor_z)
 
     def rows(self, p_world: np.ndarray, J_linear: np.ndarray) -> Inequality:
         """Rows from every point's position (k, 3) [m] and linear Jacobian (k, 3, nv)."""
