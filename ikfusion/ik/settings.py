@@ -79,6 +79,7 @@ class SolverSettings(ShippedSettings):
     still_rate: float
     still_duration: float
     still_acceleration: float
+    rolling_rate: float
     release_speed: float
     speed_window: int
     detection_smoothing: float

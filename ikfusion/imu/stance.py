@@ -63,7 +63,8 @@ class StanceThresholds:
 def stance_thresholds(settings: SolverSettings) -> StanceThresholds:
     """The thresholds of a :class:`ikfusion.ik.SolverSettings` (its ``still_*`` keys)."""
     return StanceThresholds(max_rate=settings.still_rate, min_duration=settings.still_duration,
-                            max_acceleration=settings.still_acceleration)
+                            max_acceleration=settings.still_acceleration,
+                            rolling_rate=settings.rolling_rate)
 
 
 def free_acceleration(R_world_sensor: np.ndarray, acc: np.ndarray) -> np.ndarray:
