@@ -26,7 +26,6 @@ from ..ik.solver import Solver
 from ..io.bvh import read_bvh
 from ..model.body import Body
 from ..model.human_model import HumanModel
-from ..model.joint_angles_in_range import held_in_ranges
 from ..rotations import angle_between
 from .direct_pose import configurations_from_orientations
 from .foot_lock import lock_planted_points
@@ -232,9 +231,7 @@ def _bvh_motion(path: str | Path, rate: float, progress: bool, lock_contacts: bo
         q, _ = configurations_from_orientations(model, mapped.R_world_segment,
                                                 mapped.root_position)
     else:
-        # the solve's linearised limits leave a few degrees beyond a range where the clip asks
-        # for far more: the truth is the model's, inside its ranges
-        q = held_in_ranges(model, _solved_configurations(model, mapped, time, progress))
+        q = _solved_configurations(model, mapped, time, progress)
     contacts = model.sites_of_kind("contact")  # all labelled, the floor from the limbs'
     limbs = limb_contact_sites(model)
     q = level_on_floor(q, site_positions(model, q, limbs), time)

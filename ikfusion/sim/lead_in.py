@@ -32,7 +32,6 @@ from ..mocap.model_motion import (
     site_positions,
 )
 from ..model.human_model import HumanModel
-from ..model.joint_angles_in_range import held_in_ranges
 from ..model.layout import TRUNK_CONTACT_SITES
 
 #: A pose stands upright when the pelvis' up axis is within this of vertical [deg] ...
@@ -124,10 +123,8 @@ def anchored_transition(model: HumanModel, target: np.ndarray, n_still: int, n_m
     origin = np.zeros(model.model.nq)
     out = np.empty((len(blend), model.model.nq))
     for k, (a, w) in enumerate(zip(blend, swing, strict=True)):
-        # the swing's bend on top of the blended pose can pass a range (an ankle already
-        # flexed in the target): held inside, as the clip's own poses are
-        joints = held_in_ranges(model, _with_swing(
-            model, pin.interpolate(model.model, q_from, target, float(a)), other, float(w)))[0]
+        joints = _with_swing(model, pin.interpolate(model.model, q_from, target, float(a)),
+                             other, float(w))
         origin[7:] = joints[7:]
         origin[3:7] = [0.0, 0.0, 0.0, 1.0]
         R_world_foot = R_start @ pin.exp3(a * turn)

@@ -26,7 +26,6 @@ import pinocchio as pin
 
 from ..errors import InputError
 from ..mocap.model_motion import TruthMotion, site_positions
-from ..model.joint_angles_in_range import smoothed_in_ranges
 from ..rotations import continuous_quaternions
 from ..uwb.constellation import Constellation, save_constellation
 from ..uwb.imu_units import FOOT_TAG_SITES, tag_segment
@@ -246,12 +245,7 @@ def smooth_truth(truth: TruthMotion, sigma_seconds: float = 0.05) -> TruthMotion
     The gait generator solves each frame's IK separately, which leaves millimetre jitter in the
     motion; differentiated twice for simulated accelerometers that is several m/s^2 of
     "true" acceleration that no real body makes, and it dominates inertial coasting. Smoothing
-    the configurations gives a physically plausible truth: the root's position and orientation
-    (quaternion renormalised) as coordinates, the ball joints on their anatomical angles inside
-    their ranges of motion (:func:`ikfusion.model.joint_angles_in_range.smoothed_in_ranges`),
-    so that the truth stays inside the ranges and out of the band near gimbal lock the solver
-    keeps out of, and a truth that switches between two edges of a range turns over a few
-    frames instead of one.
+    the configurations (quaternion blocks renormalised) gives a physically plausible truth.
 
     Args:
         truth: The motion.
@@ -275,10 +269,5 @@ def smooth_truth(truth: TruthMotion, sigma_seconds: float = 0.05) -> TruthMotion
     for start in blocks:
         block = q[:, start:start + 4]
         block /= np.linalg.norm(block, axis=1, keepdims=True)
-    # The ball joints are averaged on their angles inside the ranges instead: averaged as
-    # quaternions, poses at two edges of a range gave a truth beyond it, near gimbal lock.
-    joints = smoothed_in_ranges(truth.model, truth.q, kernel)
-    for joint in truth.model.ball_joints.values():
-        q[:, joint.idx_q:joint.idx_q + 4] = joints[:, joint.idx_q:joint.idx_q + 4]
     return TruthMotion(truth.model, truth.time.copy(), q, list(truth.contact_names),
                        truth.contacts.copy(), truth.source, dict(truth.info))
