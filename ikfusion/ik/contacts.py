@@ -237,6 +237,11 @@ def _point_motion(points_moving: np.ndarray | None, k: int) -> tuple[np.ndarray,
     return value == 1.0, value == 0.0
 
 
+def _support_moving(active: np.ndarray, moving_point: np.ndarray) -> bool:
+    """Some point is planted and the IMUs say every planted point moves."""
+    return any_true(active) and not any_true(active & ~moving_point)
+
+
 def _other_foot(layout: FootLayout, mask: np.ndarray) -> np.ndarray:
     """Per point: does the *other* foot have a point in ``mask``?"""
     same = layout.same_foot
@@ -277,7 +282,9 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
         foot_pitch: See :func:`release_contacts`.
         layout: See :func:`release_contacts`.
         points_moving: See :func:`release_contacts`: a moving point does not touch down
-            while a point of the other foot that does not move is planted.
+            while a point of the other foot that does not move is planted; while every planted
+            point moves, a point as low as they are in the sensed pose touches down whatever
+            its solved speed.
         foot_still: See :func:`release_contacts`.
         needs_rest: See :func:`release_contacts`: such a point does not touch down while its
             segment's IMU says it moves (``foot_still`` 0; unknown: the kinematics decide).
@@ -298,9 +305,15 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     # unless its foot IMU says it no longer moves (a landing heel let go while it skidded).
     # A point its foot IMU says does not move is slow whatever its solved speed: that speed
     # is relative to the planted points, and a planted point that truly slides (a toe dragged
-    # at push-off) moves the whole solved body, the landing foot with it.
+    # at push-off) moves the whole solved body, the landing foot with it. For the same reason
+    # the solved speed says nothing while the IMUs say every planted point moves (a body held
+    # on a toe that lifts): the sensed pose decides then, a point taking the body once it is
+    # as low as the planted points.
+    support_moving = (_support_moving(active, moving_point)
+                      & (height_rel <= np.min(height_rel[active], initial=np.inf)))
     enter = (~active & (p_solved[:, 2] < th.floor_z + th.enter_height)
-             & ((speed < th.enter_speed) | settled) & (height_rel < th.enter_relative)
+             & ((speed < th.enter_speed) | settled | support_moving)
+             & (height_rel < th.enter_relative)
              & ~tilted & ((released >= th.reenter_delay) | settled))
     if points_moving is not None:  # see release_contacts
         enter &= ~(moving_point & _other_foot(layout, active & ~moving_point))

@@ -86,3 +86,25 @@ def test_a_landing_heel_its_imu_says_is_still_touches_down_though_the_body_slide
                          points_moving=moving)
         assert bool(out.active[0]) is planted
         assert not out.active[1]
+
+
+def test_a_toe_lands_while_the_toe_holding_the_body_lifts() -> None:
+    """The body held on a left toe its IMU says lifts (getting down onto the knees): the right
+    toe, solved relative to that toe, moves at 0.7 m/s while it truly lands, so its solved
+    speed says nothing; it touches down once it is as low as the planted toe in the sensed
+    pose (issue #19: dm-getup-facedown's right toe waited 0.2 s unheld and slid 15 cm)."""
+    state = ContactState(NAMES, np.array([False, True, False, False]), P.copy(), np.full(4, 1.0))
+    state.released[:] = 1.0
+    dt = 1.0 / 60.0
+    previous = P - np.array([0.7 * dt, 0.0, 0.0])  # solved 0.7 m/s forward in one frame
+    above = P + np.array([0.0, 0.0, 0.02])  # the right toe still 2 cm above the left one
+    above[1, 2] = 0.0
+    for moving, sensed, planted in (
+            (np.array([np.nan, 1.0, np.nan, 1.0]), P, True),  # the held toe lifts
+            (np.array([np.nan, 0.0, np.nan, 1.0]), P, False),  # it stands: the speed rules
+            (np.array([np.nan, np.nan, np.nan, 1.0]), P, False),  # unknown: the speed rules
+            (np.array([np.nan, 1.0, np.nan, 1.0]), above, False)):  # not down yet
+        out = touch_down(state, P, previous, sensed, dt, TH, foot_pitch=np.zeros(4),
+                         layout=LAYOUT, points_moving=moving)
+        assert bool(out.active[3]) is planted
+        assert out.active[1]
