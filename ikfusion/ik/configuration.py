@@ -81,7 +81,15 @@ class Configuration:
         key = tuple(frame_ids)
         P = self._points.get(key)
         if P is None:
-            P = np.array([self.placement(f).translation for f in frame_ids]).reshape(-1, 3)
+            self._kinematics()
+            model, data, placements = self.model, self.data, self._placements
+            rows = []
+            for f in key:  # placement() inlined: called for every contact point, every frame
+                T = placements.get(f)
+                if T is None:
+                    T = placements[f] = pin.updateFramePlacement(model, data, f)
+                rows.append(T.translation)
+            P = np.array(rows).reshape(-1, 3)
             P.setflags(write=False)
             self._points[key] = P
         return P

@@ -82,6 +82,8 @@ class ContactTracker:
         self._p_sensed = np.zeros((len(self.names), 3))
         self._pitch = np.zeros(len(self.names))
         self.far_from_floor = np.zeros(len(self.names), dtype=bool)
+        # the IMU evidence of the frame being solved: (frame, feet still, points moving)
+        self._evidence: tuple[Frame, np.ndarray | None, np.ndarray | None] | None = None
         self.support.reset()
         self.easing.reset()
 
@@ -137,12 +139,13 @@ class ContactTracker:
         self._pitch = a * self._pitch + (1.0 - a) * pitch
         z = self._p_sensed[:, 2]
         self.far_from_floor = self._needs_rest & (z > z.min() + FAR_FROM_FLOOR)
-        still = self._feet_still(frame)
+        still, moving = self._imu_evidence(frame)
+        self._evidence = (frame, still, moving)  # touch_down() of the same frame reuses it
         self.state = release_contacts(self.state, self._p_sensed, self.thresholds,
                                       self._hints(frame), self._pitch, still,
                                       self._history[-1][1],
                                       self.support.placed_offsets(self.state.active),
-                                      layout=self.layout, points_moving=self._points_moving(frame),
+                                      layout=self.layout, points_moving=moving,
                                       needs_rest=self._needs_rest)
         # a planted heel whose foot already rolls toe-down may rise (it still cannot slip),
         # unless its IMU says the foot stands still
@@ -212,11 +215,13 @@ class ContactTracker:
         self._history.append((frame.time, p_contacts))
         self.support.record(p_contacts, p_root)
         t_old, p_old = self._history[0]
+        released, self._evidence = self._evidence, None
+        still, moving = (released[1:] if released is not None and released[0] is frame
+                         else self._imu_evidence(frame))
         self.state = touch_down(self.state, p_contacts, p_old, self._p_sensed,
                                 frame.time - t_old, self.thresholds, self._hints(frame),
-                                self._pitch, layout=self.layout,
-                                points_moving=self._points_moving(frame),
-                                foot_still=self._feet_still(frame), needs_rest=self._needs_rest)
+                                self._pitch, layout=self.layout, points_moving=moving,
+                                foot_still=still, needs_rest=self._needs_rest)
 
     def _hints(self, frame: Frame) -> Mapping[str, bool] | None:
         """The frame's contact hints; in flight (``frame.airborne``) every point is free.
@@ -227,6 +232,10 @@ class ContactTracker:
         if frame.airborne:
             return {**dict.fromkeys(self.names, False), **(frame.contacts or {})}
         return frame.contacts
+
+    def _imu_evidence(self, frame: Frame) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """The frame's :meth:`_feet_still` and :meth:`_points_moving`."""
+        return self._feet_still(frame), self._points_moving(frame)
 
     def _points_moving(self, frame: Frame) -> np.ndarray | None:
         """Per point: 1 moves by its foot's IMU (``frame.points_moving``), 0 not, NaN unknown."""

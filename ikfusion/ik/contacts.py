@@ -31,6 +31,7 @@ import numpy as np
 
 from ..model.topology import FootLayout
 from .fast_math import any_true, mean_rows, row_norms, true_indices
+from .foot_pairs import drift_from_other_foot, landing_anchors, other_foot
 
 
 @dataclass
@@ -153,14 +154,14 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         # A moving foot lets go once the other foot stands planted and still; a still foot
         # low in the sensed pose is planted while the other foot holds the body (after a
         # flight the usual touch-down, near the floor and slow, plants the landing feet).
-        handed_over = active & moving & _other_foot(layout, active & still)
+        handed_over = active & moving & other_foot(layout, active & still)
         plant = (~active & still & (height_rel < _plant_height(th, needs_rest)) & ~tilted
-                 & _other_foot(layout, active))
-        handed_over |= active & moving & _other_foot(layout, plant)
+                 & other_foot(layout, active))
+        handed_over |= active & moving & other_foot(layout, plant)
         handed_over &= ~settled
     staying = active & ~handed_over
     held = state.anchors if placed is None else state.anchors - placed
-    drift, other_age = _drift_from_other_foot(layout, staying, held, p_sensed, state.age)
+    drift, other_age = drift_from_other_foot(layout, staying, held, p_sensed, state.age)
     # Two planted feet that disagree: the foot planted earlier lets go (toe-off), even a
     # still one (its anchor is out of date); a still foot ignores the sensed height and pitch.
     pulled = (drift > th.leave_distance) & (state.age >= other_age)
@@ -169,11 +170,10 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     lifted = ((height_rel > th.leave_relative) | tilted) & ~(still & layout.stepping)
     leave = handed_over | (staying & (lifted | pulled))
     if points_moving is not None:  # while a still point of the other foot holds the body
-        leave |= staying & moving_point & _other_foot(layout, staying & ~moving_point)
-    for i, name in enumerate(state.names):
-        if hints and name in hints:
-            leave[i] = active[i] and not hints[name]
-            plant[i] = not active[i] and bool(hints[name]) and plant[i]
+        leave |= staying & moving_point & other_foot(layout, staying & ~moving_point)
+    for i, hinted in _hinted(state.names, hints):
+        leave[i] = active[i] and not hinted
+        plant[i] = not active[i] and hinted and plant[i]
     handover = False
     if any_true(active) and not any_true(active & ~leave) and not any_true(plant) and not hints:
         # Without a flight hint the lowest point of the sensed pose keeps the body down: the
@@ -197,7 +197,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
             # where the sensed pose puts it, aligned on the points that let go this frame
             anchors[plant] = p_sensed[plant] + _sensed_offset(p_sensed, anchors, active)
         elif p_solved is not None:
-            anchors[plant] = _landing_anchors(layout, active & ~leave, anchors, p_solved,
+            anchors[plant] = landing_anchors(layout, active & ~leave, anchors, p_solved,
                                               plant)
         else:
             reference = active & ~leave if any_true(active & ~leave) else active
@@ -212,6 +212,13 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     released = state.released.copy()
     released[leave] = 0.0
     return ContactState(state.names, (active & ~leave) | plant, anchors, age, released)
+
+
+def _hinted(names: Sequence[str], hints: Mapping[str, bool] | None) -> list[tuple[int, bool]]:
+    """(index, in contact) of the points ``hints`` names; none without hints (the usual case)."""
+    if not hints:
+        return []
+    return [(i, bool(hints[n])) for i, n in enumerate(names) if n in hints]
 
 
 def _moving_rest_points(needs_rest: np.ndarray | None, foot_still: np.ndarray | None,
@@ -240,12 +247,6 @@ def _point_motion(points_moving: np.ndarray | None, k: int) -> tuple[np.ndarray,
 def _support_moving(active: np.ndarray, moving_point: np.ndarray) -> bool:
     """Some point is planted and the IMUs say every planted point moves."""
     return any_true(active) and not any_true(active & ~moving_point)
-
-
-def _other_foot(layout: FootLayout, mask: np.ndarray) -> np.ndarray:
-    """Per point: does the *other* foot have a point in ``mask``?"""
-    same = layout.same_foot
-    return np.asarray((~same & mask[None, :]).any(axis=1))
 
 
 def _sensed_offset(p_sensed: np.ndarray, anchors: np.ndarray, reference: np.ndarray
@@ -316,16 +317,15 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
              & (height_rel < th.enter_relative)
              & ~tilted & ((released >= th.reenter_delay) | settled))
     if points_moving is not None:  # see release_contacts
-        enter &= ~(moving_point & _other_foot(layout, active & ~moving_point))
+        enter &= ~(moving_point & other_foot(layout, active & ~moving_point))
     enter &= ~_moving_rest_points(needs_rest, foot_still, len(active))  # NaN: unknown
-    for i, name in enumerate(state.names):
-        if hints and name in hints:
-            enter[i] = (not active[i]) and bool(hints[name])
+    for i, hinted in _hinted(state.names, hints):
+        enter[i] = (not active[i]) and hinted
     if not any_true(active) and not any_true(enter) and not hints:
         enter[int(np.argmin(p_sensed[:, 2]))] = True
     landing = any_true(enter)
     if landing:
-        anchors[enter] = _landing_anchors(layout, active, anchors, p_solved, enter)
+        anchors[enter] = landing_anchors(layout, active, anchors, p_solved, enter)
         active |= enter
         anchors[enter, 2] = np.maximum(anchors[enter, 2], th.floor_z)
     anchors[:, 2] = np.maximum(anchors[:, 2] - th.settle_speed * max(dt, 0.0), th.floor_z)
@@ -335,24 +335,6 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     return ContactState(state.names, active, anchors, age, released)
 
 
-def _landing_anchors(layout: FootLayout, active: np.ndarray, anchors: np.ndarray,
-                     p_solved: np.ndarray, enter: np.ndarray) -> np.ndarray:
-    """Anchors [m] of the ``enter`` points: where they were solved, shifted with their foot.
-
-    A point that lands while another point of its foot is planted is anchored consistently
-    with that foot's anchors (where it was solved plus the foot's mean anchor - solved
-    offset), so the foot's anchors keep its shape even when the planted points were not held
-    exactly (a relaxed frame, a touch-down offset of the drift correction).
-    """
-    same = layout.same_foot
-    out = p_solved[enter].copy()
-    for row, i in enumerate(true_indices(enter)):
-        planted = same[i] & active
-        if any_true(planted):
-            out[row] += mean_rows(anchors[planted] - p_solved[planted])
-    return out
-
-
 def _tilted(layout: FootLayout, foot_pitch: np.ndarray | None, limit: float) -> np.ndarray:
     """Points whose foot pitch rules them out: heels when toe-down, toes when toe-up."""
     if foot_pitch is None:
@@ -360,24 +342,3 @@ def _tilted(layout: FootLayout, foot_pitch: np.ndarray | None, limit: float) -> 
     heel, toe = layout.on_foot, layout.below_foot
     pitch = np.asarray(foot_pitch, dtype=float)  # NaN (unknown) compares False: not tilted
     return (heel & (pitch > limit)) | (toe & (pitch < -limit))
-
-
-def _drift_from_other_foot(layout: FootLayout, active: np.ndarray, anchors: np.ndarray,
-                           p_sensed: np.ndarray, age: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """How far each planted point is pulled from its anchor by the other foot.
-
-    The sensed pose is aligned on the planted points of the *other* foot; the horizontal
-    distance of the point from its anchor then says how much the two feet disagree [m] (0 when
-    the other foot has no planted point). Also returns the longest contact age of the other
-    foot's planted points [s] (+inf when none).
-    """
-    same = layout.same_foot
-    others = active[:, None] & active[None, :] & ~same  # row i: the other foot's planted points
-    if not any_true(others):  # the usual case: at most one foot planted
-        return np.zeros(len(active)), np.full(len(active), np.inf)
-    count = others.sum(axis=1)
-    has = count > 0
-    offset = (others @ (anchors - p_sensed)) / np.maximum(count, 1)[:, None]
-    drift = np.where(has, row_norms((p_sensed + offset - anchors)[:, :2]), 0.0)
-    other_age = np.where(has, np.where(others, age[None, :], -np.inf).max(axis=1), np.inf)
-    return drift, other_age

@@ -1,0 +1,56 @@
+"""The two feet of the contact points: which points the other foot holds, how far they disagree.
+
+Helpers of :mod:`.contacts`; a point's foot is given by :class:`FootLayout` ``same_foot``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..model.topology import FootLayout
+from .fast_math import any_true, mean_rows, row_norms, true_indices
+
+
+def other_foot(layout: FootLayout, mask: np.ndarray) -> np.ndarray:
+    """Per point: does the *other* foot have a point in ``mask``?"""
+    same = layout.same_foot
+    return np.asarray((~same & mask[None, :]).any(axis=1))
+
+
+def landing_anchors(layout: FootLayout, active: np.ndarray, anchors: np.ndarray,
+                     p_solved: np.ndarray, enter: np.ndarray) -> np.ndarray:
+    """Anchors [m] of the ``enter`` points: where they were solved, shifted with their foot.
+
+    A point that lands while another point of its foot is planted is anchored consistently
+    with that foot's anchors (where it was solved plus the foot's mean anchor - solved
+    offset), so the foot's anchors keep its shape even when the planted points were not held
+    exactly (a relaxed frame, a touch-down offset of the drift correction).
+    """
+    same = layout.same_foot
+    out = p_solved[enter].copy()
+    for row, i in enumerate(true_indices(enter)):
+        planted = same[i] & active
+        if any_true(planted):
+            out[row] += mean_rows(anchors[planted] - p_solved[planted])
+    return out
+
+
+def drift_from_other_foot(layout: FootLayout, active: np.ndarray, anchors: np.ndarray,
+                           p_sensed: np.ndarray, age: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """How far each planted point is pulled from its anchor by the other foot.
+
+    The sensed pose is aligned on the planted points of the *other* foot; the horizontal
+    distance of the point from its anchor then says how much the two feet disagree [m] (0 when
+    the other foot has no planted point). Also returns the longest contact age of the other
+    foot's planted points [s] (+inf when none).
+    """
+    same = layout.same_foot
+    others = active[:, None] & active[None, :] & ~same  # row i: the other foot's planted points
+    if not any_true(others):  # the usual case: at most one foot planted
+        return np.zeros(len(active)), np.full(len(active), np.inf)
+    count = others.sum(axis=1)
+    has = count > 0
+    offset = (others @ (anchors - p_sensed)) / np.maximum(count, 1)[:, None]
+    drift = np.where(has, row_norms((p_sensed + offset - anchors)[:, :2]), 0.0)
+    other_age = np.where(has, np.where(others, age[None, :], -np.inf).max(axis=1), np.inf)
+    return drift, other_age
