@@ -23,6 +23,7 @@ from .limits.joint_range import LinearisedRanges
 from .qp import QpProblem, build_qp
 from .settings import SolverSettings
 from .tasks import (
+    ChainShareTask,
     DampingTask,
     EvenChainTask,
     OrientationTask,
@@ -57,6 +58,7 @@ class FrameTasks:
         position: Site positions (UWB, markers).
         posture: The prior on joints the sensors leave open.
         even_chain: Unsensed columns (spine, neck) bend evenly.
+        chain_share: ... and keep the last frame's share of their bend.
         damping: Smoothness toward the previous frame.
         persistence: The bend of sensed joints kept (:class:`.sensed_pose.Persistence`).
         root: The pelvis position (aiding, flight, support).
@@ -72,6 +74,7 @@ class FrameTasks:
     position: PositionTask
     posture: PostureTask
     even_chain: EvenChainTask
+    chain_share: ChainShareTask
     damping: DampingTask
     persistence: DampingTask
     root: PositionTask
@@ -97,6 +100,7 @@ class FrameTasks:
             posture=PostureTask.from_joints(model.ball_joints, s.posture_joints, s.posture,
                                             s.posture_axes),
             even_chain=EvenChainTask(model.ball_joints, s.even_chains, s.even_chain, segments),
+            chain_share=ChainShareTask(model.ball_joints, s.even_chains, s.chain_share, segments),
             damping=DampingTask(tangent_vector(nv, s.smoothness_root_translation,
                                                s.smoothness_root_rotation, s.smoothness_joints)),
             persistence=persistence,
@@ -179,6 +183,8 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     same = tasks.damping.q_reference is previous
     tasks.damping.add_objective(conf, H, c, moved if same else None)
     tasks.persistence.add_objective(conf, H, c)
+    if tasks.chain_share in active:
+        tasks.chain_share.add_objective(conf, H, c)
     Pc, Jc = P[tasks.contact_rows], J[tasks.contact_rows]
     if tasks.swing in active:
         tasks.swing.add_rows(Pc, Jc, H, c)

@@ -85,6 +85,7 @@ class TargetLoader:
         tasks.orientation.set_targets(R, w)
         tracked = tasks.orientation.weights > 0
         tasks.even_chain.set_tracked(tracked)
+        tasks.chain_share.set_tracked(tracked)
         if frame.positions or self._positions_set:
             self._load_positions(frame)
         self._positions_set = bool(frame.positions)

@@ -44,6 +44,7 @@ class SolverSettings(ShippedSettings):
     hinge_joints: list[str]
     even_chain: float
     even_chains: list[list[str]]
+    chain_share: float
     smoothness_root_translation: float
     smoothness_root_rotation: float
     smoothness_joints: float

@@ -134,6 +134,7 @@ class Solver:
         q, p_sensed = self.sensed.pose(last.q, targets.R_sensed, targets.tracked)
         tasks.damping.set_reference(last.q)
         tasks.velocity.set_previous(last.q, dt)
+        tasks.chain_share.set_previous(last.q)
         q_warm = q.copy()
         self.persistence.hold(q_warm, targets.sensed_joints, last.bent)
         rising = contacts.release(
@@ -180,6 +181,7 @@ class Solver:
         q = self.sensed.configuration(q_start, targets.R_sensed, targets.tracked)
         tasks.damping.set_reference(None)
         tasks.velocity.set_previous(None, 0.0)
+        tasks.chain_share.set_previous(None)
         q_warm = q.copy()
         self.persistence.hold(q_warm, targets.sensed_joints, None)
         self._hold_contacts(None)
@@ -222,8 +224,8 @@ class Solver:
     def _base_tasks(self, frame: Frame) -> list[Task]:
         """The tasks of every frame, with the pelvis at its aiding position when it has one."""
         t = self.tasks
-        active: list[Task] = [t.orientation, t.position, t.posture, t.even_chain, t.damping,
-                              t.persistence]
+        active: list[Task] = [t.orientation, t.position, t.posture, t.even_chain,
+                              t.chain_share, t.damping, t.persistence]
         if frame.root_position is not None:
             t.root.set_targets(np.asarray(frame.root_position, dtype=float)[None],
                                [frame.root_position_weight])

@@ -1,11 +1,11 @@
 """IK tasks: each is an error and its Jacobian; the QP is assembled in ``ikfusion.ik.qp``."""
 
 from .base import Objective, Task
-from .chain import EvenChainTask
+from .chain import ChainShareTask, EvenChainTask
 from .damping import DampingTask
 from .orientation import OrientationTask
 from .position import PositionTask
 from .posture import PostureTask
 
-__all__ = ["DampingTask", "EvenChainTask", "Objective", "OrientationTask", "PositionTask",
-           "PostureTask", "Task"]
+__all__ = ["ChainShareTask", "DampingTask", "EvenChainTask", "Objective", "OrientationTask",
+           "PositionTask", "PostureTask", "Task"]

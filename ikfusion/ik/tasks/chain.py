@@ -71,6 +71,7 @@ class EvenChainTask(Task):
         self.pair_v = np.array([[a.idx_v, b.idx_v] for a, b in pairs], dtype=int).reshape(-1, 2)
         self.shared = np.array([index[a.spec.child] for a, _ in pairs], dtype=int)
         self.active = np.ones(len(pairs), dtype=bool)
+        self.reference = np.zeros((len(pairs), 3))  # each pair's wanted difference [rad]
 
     def set_tracked(self, tracked: np.ndarray) -> None:
         """Pairs whose shared segment has an orientation target this frame are left out."""
@@ -86,9 +87,9 @@ class EvenChainTask(Task):
         return log_so3(quat_wxyz_to_matrix(xyzw_to_wxyz(np.asarray(q)[cols])))
 
     def compute_error(self, configuration: Configuration) -> np.ndarray:
-        """``log(R_i) - log(R_j)`` per pair, stacked (3 pairs,) [rad]."""
+        """``log(R_i) - log(R_j)`` (minus :attr:`reference`) per pair, stacked (3 pairs,) [rad]."""
         e = self._logs(configuration.q)
-        return (e[:, 0] - e[:, 1]).reshape(-1)
+        return (e[:, 0] - e[:, 1] - self.reference).reshape(-1)
 
     def compute_jacobian(self, configuration: Configuration) -> np.ndarray:
         """(3 pairs, nv): ``Jr^-1`` of the first joint, minus that of the second."""
@@ -119,4 +120,49 @@ class EvenChainTask(Task):
         logs = self._logs(configuration.q, pairs)
         nv = configuration.model.nv
         J = self._jacobian(logs, self.pair_v[pairs], nv).reshape(-1, nv)
-        add_products(J, self.weight * J, (logs[:, 0] - logs[:, 1]).reshape(-1), H, c)
+        e = logs[:, 0] - logs[:, 1] - self.reference[pairs]
+        add_products(J, self.weight * J, e.reshape(-1), H, c)
+
+
+class ChainShareTask(EvenChainTask):
+    """Each column keeps the last frame's share of its bend (see :class:`EvenChainTask`).
+
+    The sensed segments at a column's ends fix its whole bend; how the unsensed joints share
+    it is left to soft tasks: :class:`EvenChainTask` wants it even, a position task on a site
+    beyond the column (the head's tag, :mod:`ikfusion.app.tag_tasks`) wants it uneven as the
+    fix says. A change of the contact set (a toe letting go) changes what else can move that
+    site, and the share that balances these tasks jumped in one frame (4 deg of the lower
+    spine, issue #19). This task holds each pair's difference of rotation vectors where the
+    last frame left it,
+
+        e_ij = log(R_i) - log(R_j) - d_ij    [rad],    d_ij = the last frame's difference,
+
+    so the share follows the other tasks over a few frames instead (a first-order lag whose
+    length grows with ``weight``); the whole bend still follows the sensors at once.
+    Arguments as :class:`EvenChainTask`'s; off until :meth:`set_previous` holds a frame.
+    """
+
+    def __init__(self, joints: Mapping[str, BallJoint], chains: Sequence[Sequence[str]],
+                 weight: float, segments: Sequence[str]) -> None:
+        super().__init__(joints, chains, weight, segments)
+        self._on = False
+
+    def set_previous(self, q_previous: np.ndarray | None) -> None:
+        """Hold the differences of ``q_previous`` (the last solved frame); None: off."""
+        if q_previous is None or not len(self.pairs):
+            self.reference = np.zeros((len(self.pairs), 3))
+            self._on = False
+            return
+        logs = self._logs(q_previous)
+        self.reference = logs[:, 0] - logs[:, 1]
+        self._on = True
+
+    def row_weights(self) -> np.ndarray:
+        """Three rows per active pair: ``weight`` once a last frame is held, 0 before."""
+        return super().row_weights() if self._on \
+            else np.zeros(3 * len(self.pairs))
+
+    def add_objective(self, configuration: Configuration, H: np.ndarray, c: np.ndarray) -> None:
+        """Accumulate the active pairs' objective (none before a last frame is held)."""
+        if self._on:
+            super().add_objective(configuration, H, c)
