@@ -8,14 +8,12 @@ sensors' accelerometers say when they rest (:mod:`ikfusion.imu.resting`).
 
 from __future__ import annotations
 
-import contextlib
-import io
 from pathlib import Path
 
 import pytest
+from room_captures import solved_scored
 
-from ikfusion.app.evaluate import Evaluation, evaluate
-from ikfusion.cli import main as cli
+from ikfusion.app.evaluate import Evaluation
 from ikfusion.sim.capture import Capture, truth_motion, write_capture
 from ikfusion.sim.imu import ImuNoise
 
@@ -31,13 +29,7 @@ def capture(tmp_path_factory: pytest.TempPathFactory) -> Capture:
 
 def solved(capture: Capture, out: Path, *options: str) -> Evaluation:
     """The crawl solved IMU-only into ``out``, scored against its truth."""
-    with contextlib.redirect_stdout(io.StringIO()):
-        code = cli(["solve", "--imu", str(capture.folder / "imu"),
-                    "--map", str(capture.folder / "sensors.yaml"),
-                    "--body", str(capture.folder / "body.yaml"), "--out", str(out), "--quiet",
-                    *options])
-    assert code == 0
-    return evaluate(out, capture.folder / "truth.npz")
+    return solved_scored(capture.folder, out, *options)
 
 
 def test_knees_held_only_while_they_rest(capture: Capture, tmp_path: Path) -> None:

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from room_captures import room_clip_solved
 
 from ikfusion.app.evaluate import evaluate
 from ikfusion.app.tag_tasks import (
@@ -21,14 +22,6 @@ from ikfusion.app.tag_tasks import (
     body_targets,
     column_bend,
 )
-from ikfusion.cli import main
-from ikfusion.mocap.model_motion import TruthMotion
-from ikfusion.paths import shipped_config
-from ikfusion.sim.area_fit import DEFAULT_MARGIN, place_in_area
-from ikfusion.sim.capture import truth_motion, write_capture
-from ikfusion.sim.imu import ImuNoise
-from ikfusion.uwb.constellation import load_constellation
-from ikfusion.uwb.dop import capture_area
 
 MOTIONS = Path(__file__).resolve().parents[1] / "benchmarks" / "motions"
 SETTINGS = TagTaskSettings(speed=1.0, weight=0.1, sigma=0.05, vertical=False,
@@ -90,22 +83,8 @@ def test_an_upright_column_is_hardly_pulled() -> None:
 @pytest.fixture(scope="module")
 def crouch(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """The first 9 s of CMU 02_06 (stand, bend over, scoop) in the UWB room, solved no-slide."""
-    room = load_constellation(shipped_config("constellations", "room_6x8.yaml"))
-    whole = truth_motion(str(MOTIONS / "cmu_02_06_bend_scoop_rise.bvh.gz"), 9.0, 60.0)
-    n = int(9.0 * 60.0) + 1
-    truth = TruthMotion(whole.model, whole.time[:n].copy(), whole.q[:n].copy(),
-                        list(whole.contact_names), whole.contacts[:n].copy(), whole.source,
-                        dict(whole.info))
-    truth, _ = place_in_area(truth, capture_area(room), DEFAULT_MARGIN)
-    capture = tmp_path_factory.mktemp("crouch") / "capture"
-    write_capture(capture, truth, ImuNoise(), 1, constellation=room)
-    out = capture.parent / "no-slide"
-    assert main(["solve", "--imu", str(capture / "imu"), "--map", str(capture / "sensors.yaml"),
-                 "--body", str(capture / "body.yaml"), "--toa", str(capture / "toa.csv"),
-                 "--readers", str(capture / "readers.yaml"), "--tags",
-                 str(capture / "tags.yaml"), "--correction", "no-slide", "--out", str(out),
-                 "--quiet"]) == 0
-    return capture, out
+    return room_clip_solved(MOTIONS / "cmu_02_06_bend_scoop_rise.bvh.gz", 9.0,
+                            tmp_path_factory.mktemp("crouch"), "no-slide")
 
 
 def _head_errors(capture: Path, out: Path) -> tuple[np.ndarray, np.ndarray]:

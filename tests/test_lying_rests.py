@@ -11,15 +11,13 @@ a palm) slid under it in the truth.
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 from pathlib import Path
 
 import pytest
+from room_captures import solved_scored
 
-from ikfusion.app.evaluate import Evaluation, evaluate
-from ikfusion.cli import main as cli
+from ikfusion.app.evaluate import Evaluation
 from ikfusion.sim.capture import Capture, truth_motion, write_capture
 from ikfusion.sim.imu import ImuNoise
 
@@ -36,13 +34,7 @@ def capture(tmp_path_factory: pytest.TempPathFactory) -> Capture:
 
 def solved(capture: Capture, out: Path, *options: str) -> Evaluation:
     """The get-up solved IMU-only into ``out``, scored against its truth."""
-    with contextlib.redirect_stdout(io.StringIO()):
-        code = cli(["solve", "--imu", str(capture.folder / "imu"),
-                    "--map", str(capture.folder / "sensors.yaml"),
-                    "--body", str(capture.folder / "body.yaml"), "--out", str(out), "--quiet",
-                    *options])
-    assert code == 0
-    return evaluate(out, capture.folder / "truth.npz")
+    return solved_scored(capture.folder, out, *options)
 
 
 def relaxed_frames(out: Path) -> int:

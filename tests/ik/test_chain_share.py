@@ -15,20 +15,13 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from room_captures import room_clip_solved
 
 from ikfusion.app.evaluate import joint_angle_jump
-from ikfusion.cli import main
 from ikfusion.ik.configuration import Configuration
 from ikfusion.ik.settings import SolverSettings
 from ikfusion.ik.tasks import ChainShareTask
-from ikfusion.mocap.model_motion import TruthMotion
 from ikfusion.model.human_model import HumanModel
-from ikfusion.paths import shipped_config
-from ikfusion.sim.area_fit import DEFAULT_MARGIN, place_in_area
-from ikfusion.sim.capture import truth_motion, write_capture
-from ikfusion.sim.imu import ImuNoise
-from ikfusion.uwb.constellation import load_constellation
-from ikfusion.uwb.dop import capture_area
 
 MOTIONS = Path(__file__).resolve().parents[2] / "benchmarks" / "motions"
 SPINE = ("jL5S1", "jL4L3", "jL1T12", "jT9T8")
@@ -66,22 +59,8 @@ def test_the_share_task_holds_the_last_frames_differences(human: HumanModel) -> 
 def spins(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """The first 7.5 s of the AMP dance spin (as the benchmark's clip) in the UWB room, solved
     no-slide; the right toe lets go at 6.87 s, both feet still on the floor just before."""
-    room = load_constellation(shipped_config("constellations", "room_6x8.yaml"))
-    whole = truth_motion(str(MOTIONS / "cmu_55_01_dance_whirl_amp.bvh.gz"), 7.5, 60.0)
-    n = int(7.5 * 60.0) + 1
-    truth = TruthMotion(whole.model, whole.time[:n].copy(), whole.q[:n].copy(),
-                        list(whole.contact_names), whole.contacts[:n].copy(), whole.source,
-                        dict(whole.info))
-    truth, _ = place_in_area(truth, capture_area(room), DEFAULT_MARGIN)
-    capture = tmp_path_factory.mktemp("spins") / "capture"
-    write_capture(capture, truth, ImuNoise(), 1, constellation=room)
-    out = capture.parent / "no-slide"
-    assert main(["solve", "--imu", str(capture / "imu"), "--map", str(capture / "sensors.yaml"),
-                 "--body", str(capture / "body.yaml"), "--toa", str(capture / "toa.csv"),
-                 "--readers", str(capture / "readers.yaml"), "--tags",
-                 str(capture / "tags.yaml"), "--correction", "no-slide", "--out", str(out),
-                 "--quiet"]) == 0
-    return capture, out
+    return room_clip_solved(MOTIONS / "cmu_55_01_dance_whirl_amp.bvh.gz", 7.5,
+                            tmp_path_factory.mktemp("spins"), "no-slide")
 
 
 def test_the_spine_share_does_not_jump_when_a_toe_lets_go(spins: tuple[Path, Path]) -> None:
