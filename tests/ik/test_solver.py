@@ -167,6 +167,12 @@ def test_a_pose_beyond_a_limit_is_held_at_that_limit_not_thrown_to_the_other(
     np.testing.assert_allclose(solved[inside, 0], flex[inside], atol=1.0)
 
 
+def shoulder_rotations(human: HumanModel, qs: np.ndarray, side: str) -> np.ndarray:
+    """(N, 3, 3) ``R_shoulder_upperarm`` of the ``side`` ("Left"/"Right") arm per configuration."""
+    return np.array([human.segment_rotation(q, f"{side}Shoulder").T
+                     @ human.segment_rotation(q, f"{side}UpperArm") for q in qs])
+
+
 def test_a_shoulder_near_gimbal_lock_past_its_limit_is_held_there_not_thrown_through_it(
         human: HumanModel) -> None:
     """Issue #19 (cmu-02-10-wash: a 20 deg pop of the right shoulder, every mode): the upper arm
@@ -182,13 +188,8 @@ def test_a_shoulder_near_gimbal_lock_past_its_limit_is_held_there_not_thrown_thr
                                         "jRightShoulder_abd": 108.0 - (f + 65.0)})
                    for f in flex])
     _, q_est = solve_exact(human, qs)
-
-    def joint(q: np.ndarray) -> np.ndarray:
-        return (human.segment_rotation(q, "RightShoulder").T
-                @ human.segment_rotation(q, "RightUpperArm"))
-
-    target = np.array([joint(q) for q in qs])
-    solved = np.array([joint(q) for q in q_est])
+    target = shoulder_rotations(human, qs, "Right")
+    solved = shoulder_rotations(human, q_est, "Right")
     error = np.degrees(angle_between(target, solved))
     bounds = [(np.radians(a.lower_deg), np.radians(a.upper_deg)) for a in spec.angles]
     for k in np.flatnonzero(flex < -80.0)[::6]:  # the farthest past the limit
@@ -211,13 +212,8 @@ def test_an_arm_turning_through_the_shoulders_gimbal_lock_passes_without_a_pop(
     qs = np.array([human.configuration({"jLeftShoulder_flex": 170.0, "jLeftShoulder_rot": r,
                                         "jLeftShoulder_abd": -23.0}) for r in rot])
     _, q_est = solve_exact(human, qs)
-
-    def joint(q: np.ndarray) -> np.ndarray:
-        return (human.segment_rotation(q, "LeftShoulder").T
-                @ human.segment_rotation(q, "LeftUpperArm"))
-
-    target = np.array([joint(q) for q in qs])
-    solved = np.array([joint(q) for q in q_est])
+    target = shoulder_rotations(human, qs, "Left")
+    solved = shoulder_rotations(human, q_est, "Left")
     error = np.swapaxes(target, -1, -2) @ solved
     assert np.max(np.degrees(angle_between(error, np.eye(3)))) < 1.5  # was 4.8
     # a pop across the walled-off cone changed the error by 9 deg in one frame
