@@ -26,14 +26,15 @@ ROOM = Path(__file__).resolve().parents[2] / "configs" / "constellations" / "roo
 @pytest.mark.skipif(not os.path.exists(CHROMIUM),
                     reason=f"{CHROMIUM} is absent (apt-get install chromium)")
 def test_live_page_draws_the_body_and_follows_the_newest_frame(tmp_path: Path) -> None:
-    """A 20 s walk replayed at half its pace (40 s of stream): the page shows the body without
+    """A 40 s walk replayed at half its pace (80 s of stream): the page shows the body without
     any click, and while the stream goes on the body walks on (the time cursor follows it).
 
-    The page can take tens of seconds to load on a busy machine, so the stream is long and the
-    body's movement is polled rather than sampled once at a fixed delay."""
+    The page can take tens of seconds to load on a busy machine (a 40 s stream once ended
+    before Chromium drew it), so the stream is long, the test stops it as soon as the body has
+    moved, and the body's movement is polled rather than sampled once at a fixed delay."""
     pytest.importorskip("PIL.Image")
     capture = tmp_path / "capture"
-    assert main(["simulate", "--motion", "gait", "--seconds", "20", "--readers", str(ROOM),
+    assert main(["simulate", "--motion", "gait", "--seconds", "40", "--readers", str(ROOM),
                  "--seed", "3", "--out", str(capture), "--quiet"]) == 0
     proc = subprocess.Popen(
         [sys.executable, "-m", "ikfusion", "live", "--replay", str(capture), "--speed", "0.5",
