@@ -48,6 +48,9 @@ class FootLayout:
         feet: (f, k) one row per foot, in the order of its first point: its points.
         stepping: (k,) points of a foot proper (one with points on and below it: heel, toe),
             not a knee or a palm.
+        same_segment: (k, k) point i and point j are on one rigid segment (the shoulder
+            blades and chest on T8; the sacrum and buttocks on the pelvis; a heel and its toe
+            are not).
     """
 
     same_foot: np.ndarray
@@ -55,6 +58,7 @@ class FootLayout:
     below_foot: np.ndarray
     feet: np.ndarray
     stepping: np.ndarray
+    same_segment: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -112,9 +116,11 @@ class BodyTopology:
         feet = np.array([[g == f for g in foot] for f in names], dtype=bool).reshape(len(names), k)
         below = ~on_foot
         stepping = (same & on_foot[None, :]).any(axis=1) & (same & below[None, :]).any(axis=1)
-        for a in (same, on_foot, below, feet, stepping):
+        carrier = [self.site_segment[p] for p in points]
+        rigid = np.array([[a == b for b in carrier] for a in carrier], dtype=bool).reshape(k, k)
+        for a in (same, on_foot, below, feet, stepping, rigid):
             a.setflags(write=False)
-        return FootLayout(same, on_foot, below, feet, stepping)
+        return FootLayout(same, on_foot, below, feet, stepping, rigid)
 
     def is_toe_joint(self, parent: str, child: str) -> bool:
         """Does the joint ``parent`` -> ``child`` link a foot to a segment with contact points?"""

@@ -4,10 +4,13 @@ A rigid segment has six degrees of freedom, and its points move together: with `
 ``omega`` the segment's velocity, a point ``r`` moves at ``v + omega x r``. Two points of
 it planted with three rows each give six rows of rank five, since ``(r_2 - r_1) . (v_2 - v_1)
 = 0``: their distance cannot change. Three points give nine rows of rank six. Whenever the
-anchors are not exactly where the segment's shape puts them (anchors settling toward the
-floor one by one, the linearisation of a turning segment: second-order residuals), such
-dependent rows are inconsistent and the step's QP is infeasible (a lying body planted on both
-shoulder blades needed relaxed constraints frame after frame).
+anchors are not exactly where the segment's shape puts them (anchors settled apart, the
+linearisation of a turning segment: second-order residuals), such dependent rows are
+inconsistent and the step's QP is infeasible (a lying body planted on both shoulder blades
+needed relaxed constraints frame after frame). The anchors of one segment
+settle toward the floor together (:func:`ikfusion.ik.contacts.settled_heights`) and a point
+that lands beside planted ones is anchored with their offset
+(:func:`ikfusion.ik.foot_pairs.landing_anchors`), so they keep its shape.
 
 The rows are therefore chosen per segment as a rigid body's are: the first planted point of a
 segment is held in all three directions (the segment's translation); the second only across
