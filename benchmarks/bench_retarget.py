@@ -9,22 +9,24 @@ onto the human model, retargeting, the metrics and writing the output folder), j
 and velocity-limit violations, foot slide over the planted phases (max mm), floor penetration
 (max mm), the closest capsule pair (cm), relaxed frames, and the worst mapped link's orientation
 RMS (deg). The peer, GMR (general-motion-retargeting), is not a dependency: its figure is
-printed as a reference, with where it comes from. Then ``ikfusion batch retarget`` over all
-clips onto G1 with 1 and 2 workers (files and frames per second of wall time, source loading
-included).
+printed as a reference, with where it comes from. Then ``ikfusion batch retarget`` over
+``--copies`` copies of all clips onto G1 with 1 and 2 workers (files and frames per second of
+wall time, source loading included; the start-up and CPU seconds of all processes, see
+``batch_timing.py``).
 
 ``--cpu`` times ``call`` and ``whole`` by this process's CPU time instead of the wall clock
 (fair on a machine other jobs share; ``fps`` stays ``summary.json``'s wall-clock figure);
 ``--repeat N`` keeps the best of N timings of each (other jobs only ever slow a run down).
 
 Run: .venv/bin/python benchmarks/bench_retarget.py [--robots g1 talos] [--clips walk] [--cpu]
-[--repeat N] [--no-batch]
+[--repeat N] [--no-batch | --no-table] [--copies N]
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import shutil
 import tempfile
 import time
 from pathlib import Path
@@ -104,11 +106,23 @@ def robot_table(robots: list[str], pattern: str = "", cpu: bool = False,
     print(f"peer: {GMR_REFERENCE}")
 
 
-def batch_table() -> None:
-    """``batch retarget`` of every clip onto G1 with 1 and 2 local workers."""
-    inputs = [str(c) for c in clips()]
-    print(f"\nbatch retarget onto g1, {len(inputs)} inputs (source loading included)")
-    print_batch_rows(batch_rows("retarget", inputs, {"robot": "g1"}))
+def batch_table(copies: int) -> None:
+    """``batch retarget`` of ``copies`` copies of every clip onto G1 with 1 and 2 local workers.
+
+    Copies (each its own file, as distinct recordings are) make a batch long enough that the
+    start-up of the cluster and its workers (the ``start s`` column) is not the whole story.
+    """
+    with tempfile.TemporaryDirectory() as tmp:
+        inputs = []
+        for i in range(copies):
+            folder = Path(tmp) / f"copy{i}"
+            folder.mkdir()
+            for clip in clips():
+                inputs.append(str(shutil.copy(clip, folder / clip.name)))
+        frames = sum(len(load_source(c)) for c in clips())
+        print(f"\nbatch retarget onto g1: {copies} copies of the {len(clips())} clips, "
+              f"{len(inputs)} inputs, {copies * frames} frames (source loading included)")
+        print_batch_rows(batch_rows("retarget", inputs, {"robot": "g1"}))
 
 
 def main() -> None:
@@ -118,12 +132,16 @@ def main() -> None:
     parser.add_argument("--cpu", action="store_true",
                         help="time call and whole by CPU time (a shared machine)")
     parser.add_argument("--no-batch", action="store_true", help="skip the batch throughput")
+    parser.add_argument("--copies", type=int, default=4,
+                        help="copies of every clip in the batch (start-up counts less)")
+    parser.add_argument("--no-table", action="store_true", help="only the batch throughput")
     parser.add_argument("--repeat", type=int, default=1,
                         help="time call and whole this many times, keep the best (a busy machine)")
     args = parser.parse_args()
-    robot_table(args.robots, args.clips, args.cpu, max(1, args.repeat))
+    if not args.no_table:
+        robot_table(args.robots, args.clips, args.cpu, max(1, args.repeat))
     if not args.no_batch:
-        batch_table()
+        batch_table(max(1, args.copies))
 
 
 if __name__ == "__main__":

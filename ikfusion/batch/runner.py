@@ -1,8 +1,9 @@
 """Run a batch on Dask: one output folder per input, resumable, interruptible.
 
 The client (this process) expands the inputs, names their output folders, skips those already
-finished with the same fingerprint and submits the rest, one Dask task each, to a
-``LocalCluster`` (N worker processes, one thread each) or to a running scheduler. A task writes
+finished with the same fingerprint and submits the rest, one Dask task each and the largest
+inputs first, to a ``LocalCluster`` (N worker processes, one thread each, forked from a server
+that imported the job kind once: :mod:`.workers`) or to a running scheduler. A task writes
 into a partial folder that is renamed on success (:func:`ikfusion.atomic.atomic_folder`),
 so an output folder is whole or absent. On Ctrl-C the pending tasks are cancelled, the cluster
 is closed, partial folders are removed and the report lists what finished.
@@ -32,6 +33,7 @@ from ..output_folders import check_output_folder, prepare_output_folder
 from .fingerprint import fingerprint, is_complete, read_stamp, write_stamp
 from .kinds import BatchInput, JobKind, JobOutput, RunFn
 from .report import REPORT_NAME, JobResult, exit_code, write_report
+from .workers import warm_workers
 
 
 @dataclass(frozen=True)
@@ -195,10 +197,12 @@ def _sigint_ignored() -> Iterator[None]:
 
 
 @contextlib.contextmanager
-def dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
+def dask_client(workers: int, scheduler: str | None,
+                preload: Sequence[str] = ()) -> Iterator[Any]:
     """A Dask client: on ``scheduler`` when given, else on a local cluster of ``workers``.
 
-    The local cluster has one single-threaded worker process per ``workers``, listens on the
+    The local cluster has one single-threaded worker process per ``workers``, forked from a
+    server that imported ``preload`` once (:func:`.workers.warm_workers`), listens on the
     loopback interface only and has no dashboard. Closing it stops the workers (and their tasks).
     """
     from distributed import Client, LocalCluster
@@ -220,22 +224,23 @@ def dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
     # The workers' own log stays quiet: a task's error comes back with its future (and goes
     # into batch_report.csv), a worker that dies is reported by the runner, and what is left
     # are connection errors while the cluster stops, which say nothing to a user.
-    with _sigint_ignored():  # Ctrl-C reaches the client only; it stops the workers itself
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               host="127.0.0.1", dashboard_address=":0",  # any free port
-                               silence_logs=logging.CRITICAL)
-    try:
-        client = Client(cluster)
+    with warm_workers(preload):
+        with _sigint_ignored():  # Ctrl-C reaches the client only; it stops the workers itself
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                   host="127.0.0.1", dashboard_address=":0",  # any free port
+                                   silence_logs=logging.CRITICAL)
         try:
-            yield client
-        except KeyboardInterrupt:
-            # the workers' connections break while the cluster stops: expected, not news
-            logging.getLogger("distributed").setLevel(logging.CRITICAL)
-            raise
+            client = Client(cluster)
+            try:
+                yield client
+            except KeyboardInterrupt:
+                # the workers' connections break while the cluster stops: expected, not news
+                logging.getLogger("distributed").setLevel(logging.CRITICAL)
+                raise
+            finally:
+                client.close()
         finally:
-            client.close()
-    finally:
-        cluster.close()
+            cluster.close()
 
 
 class _Progress:
@@ -273,22 +278,41 @@ def _finished_unseen(job: PlannedJob, out_dir: Path) -> JobResult:
                      float(stamp.get("seconds", 0.0)))
 
 
+def input_bytes(job: PlannedJob) -> int:
+    """The size of an input's files [bytes] (0 for those that are gone): its work, roughly."""
+    total = 0
+    for path in job.item.files:
+        with contextlib.suppress(OSError):
+            total += path.stat().st_size
+    return total
+
+
+def largest_first(jobs: Sequence[PlannedJob]) -> list[PlannedJob]:
+    """``jobs`` ordered by the size of their files, largest first (ties keep their order).
+
+    Started first, the longest inputs do not finish alone at the end while the other workers
+    idle; the small ones fill the gaps.
+    """
+    return sorted(jobs, key=lambda job: -input_bytes(job))
+
+
 def _run_on_dask(client: Any, kind: JobKind, jobs: Sequence[PlannedJob], out_dir: Path,
                  options: Mapping[str, Any], version: str, progress: _Progress,
                  done: dict[str, JobResult],
                  on_result: Callable[[JobResult], None] | None, force: bool = False) -> None:
-    """Submit ``jobs`` and collect results into ``done`` (keyed by name) as they finish.
+    """Submit ``jobs`` (largest first) and collect results into ``done`` (keyed by name).
 
     On KeyboardInterrupt the pending futures are cancelled before it propagates.
     """
     from distributed import as_completed
 
+    order = largest_first(jobs)
     futures = [client.submit(process_input, kind.run, kind.name, job, str(out_dir), dict(options),
                              version, force,
                              key=f"ikfusion-batch-{job.name}-{job.fingerprint[:16]}",
-                             pure=False)
-               for job in jobs]
-    by_key = {f.key: job for f, job in zip(futures, jobs)}
+                             pure=False, priority=len(order) - rank)
+               for rank, job in enumerate(order)]
+    by_key = {f.key: job for f, job in zip(futures, order)}
     try:
         for future in as_completed(futures):
             job = by_key[future.key]
@@ -363,7 +387,7 @@ def run_batch(kind: JobKind, inputs: Sequence[str], out_dir: str | Path,
     interrupted: KeyboardInterrupt | None = None
     try:
         if todo:
-            with dask_client(workers, scheduler) as client:
+            with dask_client(workers, scheduler, [kind.run.__module__]) as client:
                 _run_on_dask(client, kind, todo, out, options, __version__, bar, done,
                              on_result, force)
     except KeyboardInterrupt as stop:  # Ctrl-C, or SIGTERM as the command line raises it

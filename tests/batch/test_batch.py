@@ -159,6 +159,22 @@ def test_a_new_job_kind_plugs_in(tmp_path: Path) -> None:
     assert sorted(p.name for p in out.iterdir()) == [MARKER_NAME, "batch_report.csv", "one"]
 
 
+def test_the_largest_inputs_go_first(tmp_path: Path) -> None:
+    """One worker takes the inputs largest first, whatever their order on the command line."""
+    from probe_kind import PROBE
+
+    sizes = {"a_small": 10, "b_large": 5000, "c_medium": 800, "d_tiny": 1, "e_big": 3000}
+    (tmp_path / "in").mkdir()
+    for name, size in sizes.items():
+        (tmp_path / "in" / f"{name}.txt").write_text("x" * size)
+    log = tmp_path / "order.txt"
+    outcome = run_batch(PROBE, [str(tmp_path / "in" / "*.txt")], tmp_path / "out",
+                        {"log": str(log)}, workers=1, progress=False)
+    assert outcome.exit_code == 0
+    assert [r.input for r in outcome.results] == sorted(str(p) for p in (tmp_path / "in").iterdir())
+    assert log.read_text().split() == sorted(sizes, key=lambda name: -sizes[name])
+
+
 def test_bad_input_is_reported_and_the_others_run(capture: Path, tmp_path: Path,
                                                   capsys) -> None:
     make_inputs(capture, tmp_path / "in", 20, corrupt=7)
