@@ -203,6 +203,40 @@ def test_frame_targets_follow_the_segments_each_frame_holds(human: HumanModel) -
         solver.targets.load(Frame(0.0, {"Pelvis": R["Pelvis"], "Tail": R["Head"]}), None)
 
 
+def test_frame_weighting_is_kept_while_the_segments_stay(human: HumanModel) -> None:
+    """Frames with the same tracked segments share one weighting (row weights, posture
+    weights, sensed joints: worked out once); a sensor that drops out or comes back gets what a
+    fresh loader works out for that frame, and the chain tasks follow it."""
+    from ikfusion.ik import Frame, Solver
+
+    rng = np.random.default_rng(17)
+    solver = Solver(human, contacts=False)
+    every = ["Pelvis", "LeftUpperLeg", "LeftLowerLeg", "LeftFoot", "T8", "Head"]
+    dropped = [n for n in every if n != "LeftLowerLeg"]
+
+    def frame(t: float, names: list[str]) -> Frame:
+        return Frame(t, dict(zip(names, random_rotations(len(names), rng))))
+
+    first = solver.targets.load(frame(0.0, every), None)
+    second = solver.targets.load(frame(0.01, every), None)
+    assert second.row_weights[0] is first.row_weights[0]  # not worked out again
+    assert second.row_weights[1] is first.row_weights[1]
+    assert second.sensed_joints is first.sensed_joints
+    for t, names in ((0.02, dropped), (0.03, every), (0.04, dropped)):
+        loaded = frame(t, names)
+        got = solver.targets.load(loaded, None)
+        fresh_solver = Solver(human, contacts=False)
+        fresh = fresh_solver.targets.load(loaded, None)
+        assert np.array_equal(got.tracked, fresh.tracked)
+        assert np.array_equal(got.sensed_joints, fresh.sensed_joints)
+        for mine, theirs in zip(got.row_weights, fresh.row_weights):
+            assert np.array_equal(mine, theirs)
+        assert np.array_equal(solver.tasks.posture.weights, fresh_solver.tasks.posture.weights)
+        for task in ("even_chain", "chain_share"):
+            assert np.array_equal(getattr(solver.tasks, task).active,
+                                  getattr(fresh_solver.tasks, task).active)
+
+
 def test_even_chain_objective_is_the_dense_sum_of_its_rows(human: HumanModel) -> None:
     """The even-chain task sums only its active pairs' rows, each joint rotation taken once:
     the numbers of the plain ``J^T W J`` and ``J^T W e`` of its error and Jacobian."""
