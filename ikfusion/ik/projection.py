@@ -53,7 +53,7 @@ def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: 
             if above_floor(P, floor.floor_z, tolerance):
                 return False
             break
-        A, b = contact.equality(conf)
+        A, b = contact.equality(conf, P)
         conf.update(conf.integrate(minimum_norm_step(A, b)))
     conf.update(q_start)
     relaxed = False

@@ -12,7 +12,7 @@ import pinocchio as pin
 import pytest
 
 from ikfusion.ik import Configuration, SolverSettings
-from ikfusion.ik.fast_math import any_true, mean_rows, row_norms, true_indices
+from ikfusion.ik.fast_math import any_true, mean_rows, min_of, row_norms, true_indices
 from ikfusion.ik.limits import ContactConstraint
 from ikfusion.ik.tasks import PositionTask
 from ikfusion.ik.tasks.position import add_products
@@ -40,6 +40,8 @@ def test_any_true_and_true_indices_are_numpys_answers() -> None:
     cases += [c[::2] for c in list(cases)]
     for values in cases:
         assert any_true(values) is bool(np.any(values))
+        if values.size:
+            assert np.array_equal(min_of(values), values.min(), equal_nan=True)
         if values.ndim == 1:
             assert np.array_equal(true_indices(values), np.flatnonzero(values))
 
@@ -51,6 +53,23 @@ def test_row_norms_and_mean_rows_are_numpys_numbers(shape: tuple[int, int]) -> N
     for x in (v, np.hstack([v, v])[:, ::2]):  # contiguous and strided rows
         assert np.array_equal(row_norms(x), np.linalg.norm(x, axis=1))
         assert np.array_equal(mean_rows(x), np.mean(x, axis=0))
+
+
+def test_other_foot_is_the_masked_any_of_the_layout(human: HumanModel) -> None:
+    """The boolean product over the points of the other foot answers what the plain mask
+    formula answers, for every mask of the feet's points."""
+    from ikfusion.ik.foot_pairs import other_foot
+    from ikfusion.model.topology import BodyTopology
+
+    layout = BodyTopology.of(human).foot_layout(human.sites_of_kind("contact"))
+    k = len(layout.same_foot)
+    rng = np.random.default_rng(11)
+    masks = [np.zeros(k, dtype=bool), np.ones(k, dtype=bool), *np.eye(k, dtype=bool)]
+    for mask in masks + [rng.random(k) < 0.4 for _ in range(50)]:
+        expected = (~layout.same_foot & mask[None, :]).any(axis=1)
+        got = other_foot(layout, mask)
+        assert got.dtype == bool
+        assert np.array_equal(got, expected)
 
 
 def test_position_rows_are_the_dense_sums(human: HumanModel) -> None:
@@ -99,6 +118,10 @@ def test_planted_slide_is_slide_m_without_the_free_points(human: HumanModel) -> 
     assert np.array_equal(contact.planted_slide_m(P), slide[np.isfinite(slide)])
     rows = contact.rows(P, conf.linear_jacobians(contact.frame_ids))
     assert rows.A.shape[0] == 3 + 2 + 3  # the rising point (free_z) is held horizontally only
+    # the projection hands its positions to the rows: the same rows as from the kinematics
+    for given, fresh in zip(contact.equality(conf, P),
+                            contact.equality(Configuration(human.model, conf.q))):
+        assert np.array_equal(given, fresh)
 
 
 def test_qp_settings_are_made_once() -> None:

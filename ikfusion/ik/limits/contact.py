@@ -8,7 +8,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..configuration import Configuration
-from ..fast_math import any_true, row_norms
+from ..fast_math import any_true, row_norms, true_indices
 from .base import Equality, Inequality
 from .shared_segment import shared_segment_rows
 
@@ -67,17 +67,22 @@ class ContactConstraint:
             return vectors
         return np.einsum("kij,kj...->ki...", self._basis[on], vectors)
 
-    def equality(self, configuration: Configuration) -> Equality:
-        """Linearised rows ``J_i dq = anchor_i - p_i`` for the active points."""
+    def equality(self, configuration: Configuration,
+                 p_world: np.ndarray | None = None) -> Equality:
+        """Linearised rows ``J_i dq = anchor_i - p_i`` for the active points.
+
+        ``p_world`` (k, 3) [m] are every point's positions at ``configuration`` when the
+        caller has them (the projection does).
+        """
         nv = configuration.model.nv
         on = self.active
         if not any_true(on):
             return Equality(np.zeros((0, nv)), np.zeros(0))
-        planted = [f for f, a in zip(self.frame_ids, on) if a]  # Jacobians of these only
+        planted = [self.frame_ids[i] for i in true_indices(on)]  # Jacobians of these only
         held = self._held[on]
         J = self._along_held(configuration.linear_jacobians(planted), on)
-        return Equality(J[held], self._along_held(self.anchors[on]
-                                                  - configuration.positions(planted), on)[held])
+        p_planted = configuration.positions(planted) if p_world is None else p_world[on]
+        return Equality(J[held], self._along_held(self.anchors[on] - p_planted, on)[held])
 
     def rows(self, p_world: np.ndarray, J_linear: np.ndarray) -> Equality:
         """Rows from every point's position (k, 3) [m] and linear Jacobian (k, 3, nv)."""
