@@ -39,6 +39,8 @@ class ContactConstraint:
         self._held = np.zeros((len(self.frame_ids), 3), dtype=bool)
         # (k, 3, 3) the directions held of each point, when points share a segment
         self._basis: np.ndarray | None = None
+        # (active, free_z) of the rows held now when they are along the world axes
+        self._world_axes_key: tuple[bytes, bytes] | None = None
 
     def set_anchors(self, active: npt.ArrayLike, anchors: npt.ArrayLike,
                     free_z: npt.ArrayLike | None = None) -> None:
@@ -53,13 +55,18 @@ class ContactConstraint:
         self.anchors = np.asarray(anchors, dtype=float).reshape(-1, 3).copy()
         self.free_z = (np.zeros_like(self.active) if free_z is None
                        else np.asarray(free_z, dtype=bool) & self.active)
+        key = (self.active.tobytes(), self.free_z.tobytes())
+        if key == self._world_axes_key:  # the same points held along the world axes as before
+            return
         shared = shared_segment_rows(self.segments, self.active, self.anchors, self.free_z)
         if shared is None:  # the usual case: the world axes
             held = np.repeat(self.active[:, None], 3, axis=1)
             held[:, 2] &= ~self.free_z
             self._basis, self._held = None, held  # (k, 3) the coordinates held, one row each
+            self._world_axes_key = key
         else:
             self._basis, self._held = shared
+            self._world_axes_key = None
 
     def _along_held(self, vectors: np.ndarray, on: np.ndarray | slice) -> np.ndarray:
         """Per point ``on``, ``vectors`` (m, 3, ...) in its held directions' frame."""
@@ -98,6 +105,8 @@ class ContactConstraint:
         for points sharing a segment, what the segment's shape fixes).
         """
         on = self.active
+        if self._basis is None:  # the usual case: every point at once, no row selected twice
+            return row_norms(np.where(self._held, p_world - self.anchors, 0.0))[on]
         d = self._along_held(p_world[on] - self.anchors[on], on)
         return row_norms(np.where(self._held[on], d, 0.0))
 
