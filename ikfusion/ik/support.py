@@ -283,7 +283,7 @@ class SupportFollower:
         """
         out = np.zeros((len(active), 3))
         planted = self._planted(active)
-        if planted.sum() >= 2:
+        if np.count_nonzero(planted) >= 2:
             # a foot that touched down since the last frame is still swinging here (its
             # landing is settled when the body follows): it is the youngest
             landing = planted & self._swinging
