@@ -12,6 +12,7 @@ back on the ground plants the points that reach the floor where they are (no pop
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
@@ -22,7 +23,7 @@ from ..model.human_model import HumanModel
 from ..model.layout import TRUNK_CONTACT_SITES
 from ..model.topology import BodyTopology
 from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
-from .fast_math import any_true, true_indices
+from .fast_math import any_true, min_of, true_indices
 from .frame import Frame
 from .release import ReleaseEasing
 from .settings import SolverSettings
@@ -138,7 +139,7 @@ class ContactTracker:
         self._p_sensed = a * self._p_sensed + (1.0 - a) * p_sensed
         self._pitch = a * self._pitch + (1.0 - a) * pitch
         z = self._p_sensed[:, 2]
-        self.far_from_floor = self._needs_rest & (z > z.min() + FAR_FROM_FLOOR)
+        self.far_from_floor = self._needs_rest & (z > min_of(z) + FAR_FROM_FLOOR)
         still, moving = self._imu_evidence(frame)
         self._evidence = (frame, still, moving)  # touch_down() of the same frame reuses it
         self.state = release_contacts(self.state, self._p_sensed, self.thresholds,
@@ -149,7 +150,7 @@ class ContactTracker:
                                       needs_rest=self._needs_rest)
         # a planted heel whose foot already rolls toe-down may rise (it still cannot slip),
         # unless its IMU says the foot stands still
-        rising = self.layout.on_foot & (pitch > np.radians(self.settings.heel_rise_deg))
+        rising = self.layout.on_foot & (pitch > math.radians(self.settings.heel_rise_deg))
         if still is not None:
             rising &= still != 1.0
         return np.asarray(rising)

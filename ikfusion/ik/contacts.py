@@ -24,13 +24,14 @@ in a cartwheel), not a foot swung overhead.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
 
 import numpy as np
 
 from ..model.topology import FootLayout
-from .fast_math import any_true, mean_rows, row_norms, true_indices
+from .fast_math import any_true, mean_rows, min_of, row_norms, true_indices
 from .foot_pairs import drift_from_other_foot, landing_anchors, other_foot
 
 
@@ -142,8 +143,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     """
     th = thresholds
     active = state.active.copy()
-    height_rel = p_sensed[:, 2] - p_sensed[:, 2].min()
-    tilted = _tilted(layout, foot_pitch, np.radians(th.tilt_deg))
+    height_rel = p_sensed[:, 2] - min_of(p_sensed[:, 2])
+    tilted = _tilted(layout, foot_pitch, math.radians(th.tilt_deg))
     still = np.zeros(len(active), dtype=bool)
     handed_over = np.zeros(len(active), dtype=bool)
     plant = np.zeros(len(active), dtype=bool)
@@ -297,10 +298,10 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     th = thresholds
     active = state.active.copy()
     anchors = state.anchors.copy()
-    height_rel = p_sensed[:, 2] - p_sensed[:, 2].min()
+    height_rel = p_sensed[:, 2] - min_of(p_sensed[:, 2])
     speed = (row_norms(p_solved - p_solved_previous) / dt
              if dt > 0 else np.zeros(len(active)))
-    tilted = _tilted(layout, foot_pitch, np.radians(th.tilt_deg))
+    tilted = _tilted(layout, foot_pitch, math.radians(th.tilt_deg))
     released = np.where(active, state.released, state.released + max(dt, 0.0))
     moving_point, settled = _point_motion(points_moving, len(active))
     # a point that just let go (toe-off) does not come back down at once while it is low,
@@ -311,8 +312,8 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     # the solved speed says nothing while the IMUs say every planted point moves (a body held
     # on a toe that lifts): the sensed pose decides then, a point taking the body once it is
     # as low as the planted points.
-    support_moving = (_support_moving(active, moving_point)
-                      & (height_rel <= np.min(height_rel[active], initial=np.inf)))
+    support_moving = (height_rel <= np.min(height_rel[active], initial=np.inf)
+                      if _support_moving(active, moving_point) else False)
     enter = (~active & (p_solved[:, 2] < th.floor_z + th.enter_height)
              & ((speed < th.enter_speed) | settled | support_moving)
              & (height_rel < th.enter_relative)
@@ -366,5 +367,6 @@ def _tilted(layout: FootLayout, foot_pitch: np.ndarray | None, limit: float) -> 
     if foot_pitch is None:
         return np.zeros(len(layout.on_foot), dtype=bool)
     heel, toe = layout.on_foot, layout.below_foot
-    pitch = np.asarray(foot_pitch, dtype=float)  # NaN (unknown) compares False: not tilted
+    pitch = foot_pitch if isinstance(foot_pitch, np.ndarray) \
+        else np.asarray(foot_pitch, dtype=float)  # NaN (unknown) compares False: not tilted
     return (heel & (pitch > limit)) | (toe & (pitch < -limit))

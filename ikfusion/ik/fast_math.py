@@ -20,6 +20,11 @@ def mean_rows(v: np.ndarray) -> np.ndarray:
     return np.add.reduce(v, axis=0) / len(v)
 
 
+def min_of(values: np.ndarray) -> float:
+    """The smallest entry of ``values`` (NaN if any; at least one entry): ``values.min()``."""
+    return np.minimum.reduce(values, axis=None)
+
+
 def any_true(values: np.ndarray) -> bool:
     """Whether any entry of ``values`` is non-zero (True, NaN): ``bool(np.any(values))``."""
     return bool(np.count_nonzero(values))

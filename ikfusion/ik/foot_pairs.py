@@ -12,9 +12,11 @@ from .fast_math import any_true, mean_rows, row_norms, true_indices
 
 
 def other_foot(layout: FootLayout, mask: np.ndarray) -> np.ndarray:
-    """Per point: does the *other* foot have a point in ``mask``?"""
-    same = layout.same_foot
-    return np.asarray((~same & mask[None, :]).any(axis=1))
+    """Per point: does the *other* foot have a point in ``mask`` (k,) bool?
+
+    A boolean matrix product: ``any_j(other_foot[i, j] and mask[j])``.
+    """
+    return np.asarray(layout.other_foot @ mask)
 
 
 def landing_anchors(layout: FootLayout, active: np.ndarray, anchors: np.ndarray,
@@ -44,8 +46,8 @@ def drift_from_other_foot(layout: FootLayout, active: np.ndarray, anchors: np.nd
     the other foot has no planted point). Also returns the longest contact age of the other
     foot's planted points [s] (+inf when none).
     """
-    same = layout.same_foot
-    others = active[:, None] & active[None, :] & ~same  # row i: the other foot's planted points
+    # row i: the other foot's planted points
+    others = active[:, None] & active[None, :] & layout.other_foot
     if not any_true(others):  # the usual case: at most one foot planted
         return np.zeros(len(active)), np.full(len(active), np.inf)
     count = others.sum(axis=1)

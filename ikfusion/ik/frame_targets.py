@@ -37,6 +37,25 @@ class FrameTargets:
     row_weights: tuple[np.ndarray, np.ndarray]
 
 
+@dataclass(frozen=True)
+class _Weighting:
+    """What a frame's orientation weights decide (kept while they stay the same).
+
+    Attributes:
+        weights: (n,) the orientation task's per-segment weights.
+        tracked: (n,) segments with a target.
+        sensed_joints: Tangent columns of the joints between two tracked segments.
+        posture_weights: (joints,) the posture task's weights (0 on those joints).
+        row_weights: Per-row weights of the orientation task and the posture task.
+    """
+
+    weights: np.ndarray
+    tracked: np.ndarray
+    sensed_joints: np.ndarray
+    posture_weights: np.ndarray
+    row_weights: tuple[np.ndarray, np.ndarray]
+
+
 class TargetLoader:
     """Sets the tasks' targets from frames (see the module docstring).
 
@@ -61,6 +80,7 @@ class TargetLoader:
         self._identities = np.tile(np.eye(3), (len(segments), 1, 1))
         self._rows: dict[tuple[str, ...], np.ndarray] = {}  # tracked names -> rows
         self._positions_set = True  # the position task starts without targets: clear it once
+        self._last_weighting: _Weighting | None = None
 
     def load(self, frame: Frame, R_heading: np.ndarray | None) -> FrameTargets:
         """Set the tasks' targets from ``frame``, orientations turned by ``R_heading``."""
@@ -83,17 +103,38 @@ class TargetLoader:
             for i, R_assumed in self.assumed.targets(R, w > 0):
                 R[i], w[i] = R_assumed, self.assumed_weight
         tasks.orientation.set_targets(R, w)
-        tracked = tasks.orientation.weights > 0
-        tasks.even_chain.set_tracked(tracked)
-        tasks.chain_share.set_tracked(tracked)
         if frame.positions or self._positions_set:
             self._load_positions(frame)
         self._positions_set = bool(frame.positions)
+        weighting = self._weighting(tasks.orientation.weights)
+        tasks.posture.weights = weighting.posture_weights
+        return FrameTargets(tasks.orientation.targets, weighting.tracked,
+                            weighting.sensed_joints, weighting.row_weights)
+
+    def _weighting(self, weights: np.ndarray) -> _Weighting:
+        """What the orientation weights (n,) of a frame decide; set on the chain tasks.
+
+        Worked out again only when the weights differ from the last frame's (a sensor that
+        drops out or comes back): the arrays are the same from frame to frame (read-only).
+        """
+        last = self._last_weighting
+        if last is not None and np.array_equal(weights, last.weights):
+            return last
+        tasks = self.tasks
+        tracked = weights > 0
+        tasks.even_chain.set_tracked(tracked)
+        tasks.chain_share.set_tracked(tracked)
         both = self.sensed.both_tracked(tracked)
-        tasks.posture.weights = np.where(both, 0.0, self._posture_weights)
-        return FrameTargets(tasks.orientation.targets, tracked,
-                            self.sensed.joint_v_cols[both].ravel(),
-                            (tasks.orientation.row_weights(), tasks.posture.row_weights()))
+        posture_weights = np.where(both, 0.0, self._posture_weights)
+        tasks.posture.weights = posture_weights
+        weighting = _Weighting(weights.copy(), tracked, self.sensed.joint_v_cols[both].ravel(),
+                               posture_weights,
+                               (tasks.orientation.row_weights(), tasks.posture.row_weights()))
+        for array in (weighting.weights, tracked, weighting.sensed_joints, posture_weights,
+                      *weighting.row_weights):
+            array.setflags(write=False)
+        self._last_weighting = weighting
+        return weighting
 
     def _load_positions(self, frame: Frame) -> None:
         """Load a frame's site position targets (sites without one get zero information)."""

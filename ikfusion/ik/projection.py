@@ -45,15 +45,14 @@ def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: 
     """
     if not contact_frames:
         return False
-    nv = conf.model.nv
-    q_start = conf.q.copy()
+    q_start = conf.q  # read-only: update() replaces it
     for _ in range(max_steps):  # the residual is second order: minimum-norm steps suffice
         P = conf.positions(contact_frames)
         if not any_true(contact.planted_slide_m(P) > tolerance):
             if above_floor(P, floor.floor_z, tolerance):
                 return False
             break
-        A, b = contact.equality(conf)
+        A, b = contact.equality(conf, P)
         conf.update(conf.integrate(minimum_norm_step(A, b)))
     conf.update(q_start)
     relaxed = False
@@ -62,7 +61,7 @@ def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: 
             break
         problem = build_qp(conf, [], [ranges.inequality(conf), floor.inequality(conf)],
                            [contact.equality(conf)], None, 0.0)
-        problem.H = np.eye(nv)
+        problem.H = np.eye(conf.model.nv)
         try:
             solution = solve_qp(problem, backend, qp)
         except SolverError:

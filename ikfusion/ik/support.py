@@ -193,8 +193,8 @@ class SupportFollower:
         return next((f for f, g in enumerate(self._feet) if any_true(points & g)), 0)
 
     def _planted(self, points: np.ndarray) -> np.ndarray:
-        """(groups,) does each group (foot, knee, palm) have one of ``points`` (k,)?"""
-        return np.asarray((self._foot_rows & points).any(axis=1))
+        """(groups,) does each group (foot, knee, palm) have one of ``points`` (k,) bool?"""
+        return np.asarray(self._foot_rows @ points)  # a boolean product: any of the group's
 
     def _reference(self, active: np.ndarray, planted: np.ndarray) -> np.ndarray:
         """The planted points of the foot planted longest (both feet when they landed together).
@@ -204,11 +204,8 @@ class SupportFollower:
         other foot lets go, so the leg that leaves the floor carries no strain that would snap.
         """
         age = self._planted_for
-        oldest = planted & (age == age[planted].max())
-        reference = np.zeros(len(active), dtype=bool)
-        for f in true_indices(oldest):
-            reference |= self._feet[f]
-        return reference & active
+        oldest = planted & (age == np.maximum.reduce(age[planted]))
+        return (oldest @ self._foot_rows) & active  # the points of the oldest groups
 
     def lose_support(self) -> None:
         """No point is planted (flight): the ballistic path takes over; nothing lags."""
@@ -286,7 +283,7 @@ class SupportFollower:
         """
         out = np.zeros((len(active), 3))
         planted = self._planted(active)
-        if planted.sum() >= 2:
+        if np.count_nonzero(planted) >= 2:
             # a foot that touched down since the last frame is still swinging here (its
             # landing is settled when the body follows): it is the youngest
             landing = planted & self._swinging

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -59,6 +60,13 @@ class FootLayout:
     feet: np.ndarray
     stepping: np.ndarray
     same_segment: np.ndarray
+
+    @cached_property
+    def other_foot(self) -> np.ndarray:
+        """(k, k) point i and point j are not on one foot (``~same_foot``, worked out once)."""
+        other = ~np.asarray(self.same_foot, dtype=bool)
+        other.setflags(write=False)
+        return other
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ import pinocchio as pin
 import pytest
 
 from ikfusion.ik import Configuration, SolverSettings
-from ikfusion.ik.fast_math import any_true, mean_rows, row_norms, true_indices
+from ikfusion.ik.fast_math import any_true, mean_rows, min_of, row_norms, true_indices
 from ikfusion.ik.limits import ContactConstraint
 from ikfusion.ik.tasks import PositionTask
 from ikfusion.ik.tasks.position import add_products
@@ -40,6 +40,8 @@ def test_any_true_and_true_indices_are_numpys_answers() -> None:
     cases += [c[::2] for c in list(cases)]
     for values in cases:
         assert any_true(values) is bool(np.any(values))
+        if values.size:
+            assert np.array_equal(min_of(values), values.min(), equal_nan=True)
         if values.ndim == 1:
             assert np.array_equal(true_indices(values), np.flatnonzero(values))
 
@@ -51,6 +53,23 @@ def test_row_norms_and_mean_rows_are_numpys_numbers(shape: tuple[int, int]) -> N
     for x in (v, np.hstack([v, v])[:, ::2]):  # contiguous and strided rows
         assert np.array_equal(row_norms(x), np.linalg.norm(x, axis=1))
         assert np.array_equal(mean_rows(x), np.mean(x, axis=0))
+
+
+def test_other_foot_is_the_masked_any_of_the_layout(human: HumanModel) -> None:
+    """The boolean product over the points of the other foot answers what the plain mask
+    formula answers, for every mask of the feet's points."""
+    from ikfusion.ik.foot_pairs import other_foot
+    from ikfusion.model.topology import BodyTopology
+
+    layout = BodyTopology.of(human).foot_layout(human.sites_of_kind("contact"))
+    k = len(layout.same_foot)
+    rng = np.random.default_rng(11)
+    masks = [np.zeros(k, dtype=bool), np.ones(k, dtype=bool), *np.eye(k, dtype=bool)]
+    for mask in masks + [rng.random(k) < 0.4 for _ in range(50)]:
+        expected = (~layout.same_foot & mask[None, :]).any(axis=1)
+        got = other_foot(layout, mask)
+        assert got.dtype == bool
+        assert np.array_equal(got, expected)
 
 
 def test_position_rows_are_the_dense_sums(human: HumanModel) -> None:
@@ -99,6 +118,10 @@ def test_planted_slide_is_slide_m_without_the_free_points(human: HumanModel) -> 
     assert np.array_equal(contact.planted_slide_m(P), slide[np.isfinite(slide)])
     rows = contact.rows(P, conf.linear_jacobians(contact.frame_ids))
     assert rows.A.shape[0] == 3 + 2 + 3  # the rising point (free_z) is held horizontally only
+    # the projection hands its positions to the rows: the same rows as from the kinematics
+    for given, fresh in zip(contact.equality(conf, P),
+                            contact.equality(Configuration(human.model, conf.q))):
+        assert np.array_equal(given, fresh)
 
 
 def test_qp_settings_are_made_once() -> None:
@@ -201,6 +224,40 @@ def test_frame_targets_follow_the_segments_each_frame_holds(human: HumanModel) -
         assert solver.tasks.orientation.weights[index[names[1]]] == (names[1] in held)
     with pytest.raises(NameNotFound, match="Pelvis"):  # the message lists the valid names
         solver.targets.load(Frame(0.0, {"Pelvis": R["Pelvis"], "Tail": R["Head"]}), None)
+
+
+def test_frame_weighting_is_kept_while_the_segments_stay(human: HumanModel) -> None:
+    """Frames with the same tracked segments share one weighting (row weights, posture
+    weights, sensed joints: worked out once); a sensor that drops out or comes back gets what a
+    fresh loader works out for that frame, and the chain tasks follow it."""
+    from ikfusion.ik import Frame, Solver
+
+    rng = np.random.default_rng(17)
+    solver = Solver(human, contacts=False)
+    every = ["Pelvis", "LeftUpperLeg", "LeftLowerLeg", "LeftFoot", "T8", "Head"]
+    dropped = [n for n in every if n != "LeftLowerLeg"]
+
+    def frame(t: float, names: list[str]) -> Frame:
+        return Frame(t, dict(zip(names, random_rotations(len(names), rng))))
+
+    first = solver.targets.load(frame(0.0, every), None)
+    second = solver.targets.load(frame(0.01, every), None)
+    assert second.row_weights[0] is first.row_weights[0]  # not worked out again
+    assert second.row_weights[1] is first.row_weights[1]
+    assert second.sensed_joints is first.sensed_joints
+    for t, names in ((0.02, dropped), (0.03, every), (0.04, dropped)):
+        loaded = frame(t, names)
+        got = solver.targets.load(loaded, None)
+        fresh_solver = Solver(human, contacts=False)
+        fresh = fresh_solver.targets.load(loaded, None)
+        assert np.array_equal(got.tracked, fresh.tracked)
+        assert np.array_equal(got.sensed_joints, fresh.sensed_joints)
+        for mine, theirs in zip(got.row_weights, fresh.row_weights):
+            assert np.array_equal(mine, theirs)
+        assert np.array_equal(solver.tasks.posture.weights, fresh_solver.tasks.posture.weights)
+        for task in ("even_chain", "chain_share"):
+            assert np.array_equal(getattr(solver.tasks, task).active,
+                                  getattr(fresh_solver.tasks, task).active)
 
 
 def test_even_chain_objective_is_the_dense_sum_of_its_rows(human: HumanModel) -> None:

@@ -165,3 +165,32 @@ def test_planted_points_of_one_segment_settle_together(human: HumanModel) -> Non
     # the chest (not planted) and the sacrum (alone on the pelvis) settle on their own
     np.testing.assert_allclose(z[2:], [0.05 - drop, 0.02 - drop], atol=1e-12)
     assert np.array_equal(state.anchors[:, :2], p[:, :2])
+
+
+def test_rows_follow_the_planted_points_from_call_to_call(human: HumanModel) -> None:
+    """One constraint set again and again (the solver's, frame after frame; the world-axes
+    rows are kept while the same points are planted) holds what a fresh constraint holds:
+    the same rows and slides when the points stay, when a heel rises, when a second point of
+    a segment is planted (shared rows) and when it lets go (the world axes again)."""
+    rng = np.random.default_rng(23)
+    conf = Configuration(human.model, human.neutral())
+    P = conf.positions([human.site_frame_id(n) for n in BACK])
+    k = len(BACK)
+    heel = BACK.index("LeftHeel")
+    blades = [BACK.index("LeftShoulderBlade"), BACK.index("RightShoulderBlade")]
+    steps = [([heel], []), ([heel], []), ([heel], [heel]), ([heel], []),
+             ([heel, *blades], []), ([heel, *blades], []), ([heel], []), ([heel], [heel])]
+    reused = constraint(human, BACK)
+    for planted, rising in steps:
+        active, free_z = np.zeros(k, dtype=bool), np.zeros(k, dtype=bool)
+        active[planted], free_z[rising] = True, True
+        anchors = P + 0.01 * rng.normal(size=P.shape)
+        fresh = constraint(human, BACK)
+        for c in (reused, fresh):
+            c.set_anchors(active, anchors, free_z)
+        assert np.array_equal(reused.planted_slide_m(P), fresh.planted_slide_m(P))
+        for mine, theirs in zip(reused.equality(conf), fresh.equality(conf)):
+            assert np.array_equal(mine, theirs)
+        # the second blade on T8 is held across the line from the first only (two rows)
+        assert len(reused.equality(conf).b) == 3 * len(planted) - len(rising) - (
+            1 if len(planted) == 3 else 0)

@@ -8,7 +8,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..configuration import Configuration
-from ..fast_math import any_true, row_norms
+from ..fast_math import any_true, row_norms, true_indices
 from .base import Equality, Inequality
 from .shared_segment import shared_segment_rows
 
@@ -39,6 +39,8 @@ class ContactConstraint:
         self._held = np.zeros((len(self.frame_ids), 3), dtype=bool)
         # (k, 3, 3) the directions held of each point, when points share a segment
         self._basis: np.ndarray | None = None
+        # (active, free_z) of the rows held now when they are along the world axes
+        self._world_axes_key: tuple[bytes, bytes] | None = None
 
     def set_anchors(self, active: npt.ArrayLike, anchors: npt.ArrayLike,
                     free_z: npt.ArrayLike | None = None) -> None:
@@ -53,13 +55,18 @@ class ContactConstraint:
         self.anchors = np.asarray(anchors, dtype=float).reshape(-1, 3).copy()
         self.free_z = (np.zeros_like(self.active) if free_z is None
                        else np.asarray(free_z, dtype=bool) & self.active)
+        key = (self.active.tobytes(), self.free_z.tobytes())
+        if key == self._world_axes_key:  # the same points held along the world axes as before
+            return
         shared = shared_segment_rows(self.segments, self.active, self.anchors, self.free_z)
         if shared is None:  # the usual case: the world axes
             held = np.repeat(self.active[:, None], 3, axis=1)
             held[:, 2] &= ~self.free_z
             self._basis, self._held = None, held  # (k, 3) the coordinates held, one row each
+            self._world_axes_key = key
         else:
             self._basis, self._held = shared
+            self._world_axes_key = None
 
     def _along_held(self, vectors: np.ndarray, on: np.ndarray | slice) -> np.ndarray:
         """Per point ``on``, ``vectors`` (m, 3, ...) in its held directions' frame."""
@@ -67,17 +74,22 @@ class ContactConstraint:
             return vectors
         return np.einsum("kij,kj...->ki...", self._basis[on], vectors)
 
-    def equality(self, configuration: Configuration) -> Equality:
-        """Linearised rows ``J_i dq = anchor_i - p_i`` for the active points."""
+    def equality(self, configuration: Configuration,
+                 p_world: np.ndarray | None = None) -> Equality:
+        """Linearised rows ``J_i dq = anchor_i - p_i`` for the active points.
+
+        ``p_world`` (k, 3) [m] are every point's positions at ``configuration`` when the
+        caller has them (the projection does).
+        """
         nv = configuration.model.nv
         on = self.active
         if not any_true(on):
             return Equality(np.zeros((0, nv)), np.zeros(0))
-        planted = [f for f, a in zip(self.frame_ids, on) if a]  # Jacobians of these only
+        planted = [self.frame_ids[i] for i in true_indices(on)]  # Jacobians of these only
         held = self._held[on]
         J = self._along_held(configuration.linear_jacobians(planted), on)
-        return Equality(J[held], self._along_held(self.anchors[on]
-                                                  - configuration.positions(planted), on)[held])
+        p_planted = configuration.positions(planted) if p_world is None else p_world[on]
+        return Equality(J[held], self._along_held(self.anchors[on] - p_planted, on)[held])
 
     def rows(self, p_world: np.ndarray, J_linear: np.ndarray) -> Equality:
         """Rows from every point's position (k, 3) [m] and linear Jacobian (k, 3, nv)."""
@@ -93,6 +105,8 @@ class ContactConstraint:
         for points sharing a segment, what the segment's shape fixes).
         """
         on = self.active
+        if self._basis is None:  # the usual case: every point at once, no row selected twice
+            return row_norms(np.where(self._held, p_world - self.anchors, 0.0))[on]
         d = self._along_held(p_world[on] - self.anchors[on], on)
         return row_norms(np.where(self._held[on], d, 0.0))
 
