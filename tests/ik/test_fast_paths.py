@@ -181,6 +181,44 @@ def test_compiled_and_numpy_steps_agree_with_contacts_and_limits(human: HumanMod
     np.testing.assert_allclose(fast_motion.q, plain.q, atol=1e-6)
 
 
+def test_the_compiled_step_sums_the_chain_share_and_the_persistence_itself(
+        human: HumanModel, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue #20: the chain-share and persistence tasks cost a compiled step no NumPy work
+    (their objectives are in the step function), and the walk is solved as with the NumPy
+    tasks. Before, each step summed them in NumPy (the chain share took a quarter of the QP
+    build)."""
+    from ikfusion.ik import Solver
+    from ikfusion.ik.tasks import ChainShareTask
+    from ikfusion.model import SENSOR_SEGMENTS
+    from ikfusion.sim.gait import GaitParameters, generate_gait
+    from ikfusion.sim.truth import orientation_frames
+
+    truth = generate_gait(human, GaitParameters(duration=1.5, stand=0.3), rate=60.0)
+    frames = orientation_frames(human, truth.q, truth.time, SENSOR_SEGMENTS)
+    plain = Solver(human, contacts=True, compiled=False).solve(frames)
+    fast = Solver(human, contacts=True)
+    assert fast.compiled is not None
+    held: list[float] = []
+    original = ChainShareTask.set_previous
+
+    def set_previous(task: ChainShareTask, q_previous: np.ndarray | None) -> None:
+        original(task, q_previous)
+        held.append(float(task.row_weights().max()))
+
+    def numpy_objective(*_: object, **__: object) -> None:
+        raise AssertionError("a task summed in NumPy on the compiled path")
+
+    monkeypatch.setattr(ChainShareTask, "set_previous", set_previous)
+    monkeypatch.setattr(ChainShareTask, "add_objective", numpy_objective)
+    monkeypatch.setattr(ChainShareTask, "_logs", numpy_objective)
+    monkeypatch.setattr(fast.persistence.task, "add_objective", numpy_objective)
+    monkeypatch.setattr(fast.persistence.task, "compute_error", numpy_objective)
+    motion = fast.solve(frames)
+    assert max(held) == fast.settings.chain_share > 0.0  # the share was on
+    assert fast.persistence.weight > 0.0
+    np.testing.assert_allclose(motion.q, plain.q, atol=1e-6)
+
+
 def test_frame_targets_follow_the_segments_each_frame_holds(human: HumanModel) -> None:
     """The rows of a set of segments are kept from frame to frame: a sensor that drops out or
     comes back, a heading turn and an unknown segment name are still read right."""
