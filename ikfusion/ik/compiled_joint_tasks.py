@@ -11,8 +11,8 @@ step needs no NumPy work for them:
   ``c += J^T (W_chain e + W_share (e - d))`` with ``d`` the difference at ``q_previous``;
 * the persistence task (:class:`.sensed_pose.Persistence`, a :class:`.tasks.DampingTask`):
   ``H += diag(w_persist)`` and ``c += w_persist (q ⊖ q_persist)``, the difference taken per
-  joint as Pinocchio's ``difference`` (``log(R_persist^T R)`` for a spherical joint, the change
-  of angle for a revolute one); the free-flyer's columns are not covered
+  joint as Pinocchio's ``difference`` (``log(R_persist^T R)`` for a spherical joint, of the
+  quaternions, the change of angle for a revolute one); the free-flyer's columns are not covered
   (:func:`joint_columns`): their weights must be zero here.
 """
 
@@ -25,6 +25,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..model.ball_joints import BallJoint
+from ..rotations import SMALL_ANGLE
 from ..rotations_casadi import log_so3, quat_xyzw_to_matrix, right_jacobian_inverse
 
 _REVOLUTE = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
@@ -33,6 +34,31 @@ _REVOLUTE = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevolute
 def _joint_log(q: ca.SX, joint: BallJoint) -> tuple[ca.SX, ca.SX]:
     """Rotation vector (3,) [rad] of a ball joint at ``q`` and its angle."""
     return log_so3(quat_xyzw_to_matrix(q[joint.idx_q:joint.idx_q + 4]))
+
+
+def quaternion_log(quat: ca.SX) -> ca.SX:
+    """Rotation vector (3,) [rad] of a unit quaternion (x, y, z, w), its angle in [0, pi].
+
+    The rotation's shorter way, as Pinocchio's ``difference`` of spherical joints and
+    :func:`ikfusion.rotations.log_so3` of its matrix (to rounding), for a fraction of the
+    operations: ``2 atan2(|v|, |w|) / |v|`` times ``v`` (signed as ``w``), its series
+    ``2 / |w| (1 - x^2 / 3)``, ``x = |v| / |w|``, below ``x = SMALL_ANGLE``.
+    """
+    v, w = quat[0:3], quat[3]
+    sign = ca.if_else(w < 0.0, -1.0, 1.0)
+    n, w_abs = ca.norm_2(v), sign * w
+    small = n < SMALL_ANGLE * w_abs
+    x = n / ca.if_else(small, w_abs, 1.0)
+    scale = ca.if_else(small, 2.0 * (1.0 - x * x / 3.0) / ca.if_else(small, w_abs, 1.0),
+                       2.0 * ca.atan2(n, w_abs) / ca.if_else(small, 1.0, n))
+    return sign * scale * v
+
+
+def _quaternion_between(first: ca.SX, second: ca.SX) -> ca.SX:
+    """The quaternion (x, y, z, w) of ``R_first^T R_second`` of unit quaternions (x, y, z, w)."""
+    a, aw = -first[0:3], first[3]  # the conjugate of the first
+    b, bw = second[0:3], second[3]
+    return ca.vertcat(aw * b + bw * a + ca.cross(a, b), aw * bw - ca.dot(a, b))
 
 
 def chain_objective(q: ca.SX, q_previous: ca.SX, pairs: Sequence[tuple[BallJoint, BallJoint]],
@@ -58,7 +84,8 @@ def chain_objective(q: ca.SX, q_previous: ca.SX, pairs: Sequence[tuple[BallJoint
             block[:, joint.idx_v:joint.idx_v + 3] = sign * right_jacobian_inverse(e, theta)
         rows.append(block)
         errors.append(logs[0][0] - logs[1][0])
-        wanted.append(_joint_log(q_previous, first)[0] - _joint_log(q_previous, second)[0])
+        wanted.append(quaternion_log(q_previous[first.idx_q:first.idx_q + 4])
+                      - quaternion_log(q_previous[second.idx_q:second.idx_q + 4]))
     J, e, d = ca.vertcat(*rows), ca.vertcat(*errors), ca.vertcat(*wanted)
     WJ = ca.diag(w_chain + w_share) @ J
     return J.T @ WJ, J.T @ (w_chain * e + w_share * (e - d))
@@ -85,9 +112,7 @@ def persistence_objective(model: pin.Model, q: ca.SX, q_persist: ca.SX, w_persis
         kind = model.joints[j].shortname()
         iq, iv = model.idx_qs[j], model.idx_vs[j]
         if kind == "JointModelSpherical":
-            R = quat_xyzw_to_matrix(q[iq:iq + 4])
-            R_persist = quat_xyzw_to_matrix(q_persist[iq:iq + 4])
-            e = log_so3(R_persist.T @ R)[0]
+            e = quaternion_log(_quaternion_between(q_persist[iq:iq + 4], q[iq:iq + 4]))
         elif kind in _REVOLUTE:
             e = q[iq] - q_persist[iq]
         else:

@@ -116,6 +116,26 @@ def test_compiled_residuals_equal_reference(rng, height: float, case: str) -> No
                                    atol=1e-12)
 
 
+def test_quaternion_log_is_the_log_of_the_matrix(rng) -> None:
+    """The compiled step's quaternion log (:mod:`ikfusion.ik.compiled_joint_tasks`) equals
+    :func:`ikfusion.rotations.log_so3` of the quaternion's matrix, either sign of the
+    quaternion, at angles from 1e-9 rad (its series) to nearly a half turn."""
+    from ikfusion.ik.compiled_joint_tasks import quaternion_log
+    from ikfusion.rotations import log_so3, quat_wxyz_to_matrix
+
+    symbol = ca.SX.sym("q", 4)
+    log = ca.Function("log", [symbol], [quaternion_log(symbol)])
+    axes = rng.normal(size=(60, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    angles = np.concatenate([np.logspace(-9, 0, 30), rng.uniform(1.0, np.pi - 1e-6, 30)])
+    for axis, angle in zip(axes, angles):
+        xyzw = np.append(np.sin(angle / 2) * axis, np.cos(angle / 2))
+        expected = log_so3(quat_wxyz_to_matrix(np.roll(xyzw, 1)))
+        for sign in (1.0, -1.0):  # q and -q are one rotation
+            got = np.asarray(log(sign * xyzw)).ravel()
+            np.testing.assert_allclose(got, expected, atol=1e-14, rtol=1e-12)
+
+
 def test_compiled_ranges_measure_on_the_triple_nearest_the_range(human: HumanModel,
                                                                  rng) -> None:
     """Joints turned anywhere (many beyond their range, on the other Euler branch): the
