@@ -219,6 +219,42 @@ def test_the_compiled_step_sums_the_chain_share_and_the_persistence_itself(
     np.testing.assert_allclose(motion.q, plain.q, atol=1e-6)
 
 
+def test_a_persistence_weighing_the_root_is_summed_in_numpy(human: HumanModel,
+                                                            monkeypatch: pytest.MonkeyPatch
+                                                            ) -> None:
+    """The compiled persistence covers the joints only: weights on the root's columns send the
+    task to NumPy, and the compiled solve still equals the NumPy one."""
+    from ikfusion.ik import Solver
+    from ikfusion.ik.sensed_pose import Persistence
+    from ikfusion.model import SENSOR_SEGMENTS
+    from ikfusion.sim.gait import GaitParameters, generate_gait
+    from ikfusion.sim.truth import orientation_frames
+
+    hold = Persistence.hold
+
+    def hold_the_root_too(self: Persistence, q_warm: np.ndarray, sensed_joints: np.ndarray,
+                          bent: np.ndarray | None) -> None:
+        hold(self, q_warm, sensed_joints, None if bent is None else bent + 0.01)
+        self.task.weights[:6] = 5.0
+
+    monkeypatch.setattr(Persistence, "hold", hold_the_root_too)
+    truth = generate_gait(human, GaitParameters(duration=0.5, stand=0.2), rate=60.0)
+    frames = orientation_frames(human, truth.q, truth.time, SENSOR_SEGMENTS)
+    fast = Solver(human, contacts=False)
+    calls: list[int] = []
+    numpy_objective = fast.persistence.task.add_objective
+
+    def counted(*args: object) -> None:
+        calls.append(1)
+        numpy_objective(*args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(fast.persistence.task, "add_objective", counted)
+    motion = fast.solve(frames)
+    assert calls  # summed in NumPy
+    plain = Solver(human, contacts=False, compiled=False).solve(frames)
+    np.testing.assert_allclose(motion.q, plain.q, atol=1e-7)
+
+
 def test_frame_targets_follow_the_segments_each_frame_holds(human: HumanModel) -> None:
     """The rows of a set of segments are kept from frame to frame: a sensor that drops out or
     comes back, a heading turn and an unknown segment name are still read right."""
