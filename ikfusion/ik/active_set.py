@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .equality_qp import ClosedFormHint
 from .fast_math import any_true
 from .limits import Inequality
 from .limits.joint_range import LinearisedRanges
@@ -38,7 +39,8 @@ class LimitRows:
 
 
 def solve_with_active_set(problem: QpProblem, rows: LimitRows, backend: str,
-                          settings: QpSettings, tolerance: float, resolves: int) -> QpSolution:
+                          settings: QpSettings, tolerance: float, resolves: int,
+                          hint: ClosedFormHint | None = None) -> QpSolution:
     """Solve a step's QP, adding the rows it left out only when the step needs them.
 
     Args:
@@ -49,11 +51,13 @@ def solve_with_active_set(problem: QpProblem, rows: LimitRows, backend: str,
         settings: QP settings.
         tolerance: A limit or bound is crossed when the step passes it by more [rad or m].
         resolves: At most this many solves again.
+        hint: Whether to skip the closed-form try (:class:`.equality_qp.ClosedFormHint`, kept
+            from step to step by the caller); None: always tried.
 
     Raises:
         SolverError: No backend could solve the QP.
     """
-    solution = solve_qp(problem, backend, settings)
+    solution = solve_qp(problem, backend, settings, hint)
     lb, ub = rows.bounds if rows.bounds is not None else (None, None)
     for _ in range(resolves):
         if solution.relaxed:
@@ -73,7 +77,7 @@ def solve_with_active_set(problem: QpProblem, rows: LimitRows, backend: str,
         if outside or solution.relaxed:
             problem.lb, problem.ub = lb, ub
         relaxed_before = solution.relaxed
-        solution = solve_qp(problem, backend, settings)
+        solution = solve_qp(problem, backend, settings, hint)
         if relaxed_before:
             return solution
     return solution

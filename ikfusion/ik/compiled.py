@@ -12,22 +12,27 @@ at ``dq = 0`` are needed, so the graph uses the first-order forms ``R (I + [w]x)
 same value and Jacobian there.
 
 Inputs besides ``q``, the targets and the geometry: per-row weights of the orientation
-residuals ``w_orient`` (3k), of the posture residuals ``w_posture`` (3j) and of the even-chain
-pairs ``w_chain`` (3 per pair) [1/rad^2], and the posture task's reference joint rotations
-``R_reference`` (j, 3, 3). The SO(3) maps (log, ``Jl^-1``, quaternions, Euler angles) are
-those of :mod:`ikfusion.rotations_casadi`, the twin of :mod:`ikfusion.rotations` that the NumPy
-tasks use, with one epsilon policy. Outputs (``k`` tracked segments, ``j`` ball joints, ``m``
-sites), all in the world frame:
+residuals ``w_orient`` (3k), of the posture residuals ``w_posture`` (3j), of the even-chain
+pairs ``w_chain`` and of the chain-share pairs ``w_share`` (3 per pair) [1/rad^2] with the
+configuration ``q_previous`` whose differences the share holds, the persistence task's weights
+``w_persist`` (nv) and reference ``q_persist`` (nq) (:mod:`.compiled_joint_tasks`), and the
+posture task's reference joint rotations ``R_reference`` (j, 3, 3). The SO(3) maps (log,
+``Jl^-1``, quaternions, Euler angles) are those of :mod:`ikfusion.rotations_casadi`, the twin of
+:mod:`ikfusion.rotations` that the NumPy tasks use, with one epsilon policy. Outputs (``k``
+tracked segments, ``j`` ball joints, ``m`` sites), all in the world frame:
 
 * ``H`` (nv, nv) and ``c`` (nv): the Gauss-Newton objective ``1/2 dq^T H dq + c^T dq`` of the
-  orientation, posture and even-chain tasks, ``H = sum J^T W J`` and ``c = sum J^T W e``, with
-  ``e_orient = log(R_world_segment R_world_target^T)``, ``J_orient = Jl^-1(e) J_angular``,
-  ``e_posture = log(R_reference^T R_parent_child)`` and ``J_posture`` = ``Jr^-1(e)`` on each
-  joint's columns (as :class:`ikfusion.ik.tasks.PostureTask`), ``e_chain = log(R_i) - log(R_j)``
-  per pair of neighbouring joints with ``[Jr^-1(e_i), -Jr^-1(e_j)]`` on their columns (as
-  :class:`ikfusion.ik.tasks.EvenChainTask`); the orientation part is summed along the
-  kinematic tree (:func:`.casadi_kinematics.angular_objective`), and the upper triangle of
-  ``H`` mirrors the lower one (the same numbers, to rounding, for far fewer operations);
+  orientation, posture, even-chain, chain-share and persistence tasks, ``H = sum J^T W J`` and
+  ``c = sum J^T W e``, with ``e_orient = log(R_world_segment R_world_target^T)``,
+  ``J_orient = Jl^-1(e) J_angular``, ``e_posture = log(R_reference^T R_parent_child)`` and
+  ``J_posture`` = ``Jr^-1(e)`` on each joint's columns (as
+  :class:`ikfusion.ik.tasks.PostureTask`), ``e_chain = log(R_i) - log(R_j)`` per pair of
+  neighbouring joints with ``[Jr^-1(e_i), -Jr^-1(e_j)]`` on their columns (as
+  :class:`ikfusion.ik.tasks.EvenChainTask`; the chain-share pairs want the difference of
+  ``q_previous``), and the persistence's ``w_persist (q ⊖ q_persist)`` on the diagonal; the
+  orientation part is summed along the kinematic tree
+  (:func:`.casadi_kinematics.angular_objective`), and the upper triangle of ``H`` mirrors the
+  lower one (the same numbers, to rounding, for far fewer operations);
 * ``e_orient`` (3k) [rad];
 * ``angles`` (3j): anatomical angles [rad] in sequence order; ``E_inv`` (3j, 3): their rates
   per unit joint tangent step;
@@ -68,6 +73,7 @@ from .casadi_kinematics import (
     jacobian,
     symbolic_placements,
 )
+from .compiled_joint_tasks import chain_objective, joint_columns, persistence_objective
 from .compiled_ranges import range_rows
 from .compiled_sensed import SensedPoseSpec, sensed_pose_function
 from .native import BoundFunction, cached_functions, column_major, native_functions
@@ -108,6 +114,10 @@ class CompiledKinematics:
                         | set(sensed.points if sensed else ()))
         self._geometry_frames = frames
         self._no_chain = np.zeros(3 * len(chain_pairs))
+        self._no_persist = np.zeros(model.nv)
+        #: The tangent columns the persistence twin leaves out (the root's): its weights there
+        #: must be zero.
+        self.persistence_excluded = np.flatnonzero(~joint_columns(model))
         if loaded is not None:
             self.function = loaded[0]
             self.sensed_function = loaded[1] if sensed is not None else None
@@ -152,15 +162,6 @@ class CompiledKinematics:
             angles.append(ca.substitute(a, w, ca.DM.zeros(3)))
             E_inv.append(ca.substitute(ca.jacobian(a, w), w, ca.DM.zeros(3)))
 
-        e_chain, J_chain = [], []
-        for pair in chain_pairs:  # e = log(R_i) - log(R_j), J = [Jr^-1(e_i), -Jr^-1(e_j)]
-            block = ca.SX(3, model.nv)
-            logs = [log_so3(quat_xyzw_to_matrix(q[j.idx_q:j.idx_q + 4])) for j in pair]
-            for (e, theta), joint, sign in zip(logs, pair, (1.0, -1.0)):
-                block[:, joint.idx_v:joint.idx_v + 3] = sign * right_jacobian_inverse(e, theta)
-            e_chain.append(logs[0][0] - logs[1][0])
-            J_chain.append(block)
-
         p_sites, J_sites = [], []
         for fid in site_frames:
             _, p = frame_pose(model, fid, rotations, translations, placements)
@@ -176,23 +177,32 @@ class CompiledKinematics:
             [j.spec.axis_coupling for j in ball_joints], lower, upper, model.nv)
         w_posture = ca.SX.sym("w_posture", 3 * len(ball_joints))
         w_chain = ca.SX.sym("w_chain", 3 * len(chain_pairs))
+        w_share = ca.SX.sym("w_share", 3 * len(chain_pairs))
+        q_previous = ca.SX.sym("q_previous", model.nq)
+        w_persist = ca.SX.sym("w_persist", model.nv)
+        q_persist = ca.SX.sym("q_persist", model.nq)
         H, c = angular_objective(K_orient, g_orient, dofs, axes, model.nv)
-        for e_all, J_all, weights in ((stack(e_post, 1), stack(J_post, model.nv), w_posture),
-                                      (stack(e_chain, 1), stack(J_chain, model.nv), w_chain)):
-            WJ = ca.diag(weights) @ J_all
-            H += J_all.T @ WJ
-            c += WJ.T @ e_all
+        e_post_all, J_post_all = stack(e_post, 1), stack(J_post, model.nv)
+        WJ = ca.diag(w_posture) @ J_post_all
+        H += J_post_all.T @ WJ
+        c += WJ.T @ e_post_all
+        H_chain, c_chain = chain_objective(q, q_previous, chain_pairs, w_chain, w_share,
+                                           model.nv)
+        H_persist, c_persist = persistence_objective(model, q, q_persist, w_persist)
+        H += H_chain + ca.diag(H_persist)
+        c += c_chain + c_persist
         # H is symmetric: its upper triangle mirrors the lower one (the graph of a product
         # holds both, each its own sums)
         H = ca.tril(H) + ca.tril(H, False).T
 
         self.function = ca.Function(
             self.FUNCTION_NAMES[0],
-            [q, targets, geometry, w_orient, w_posture, references, lower, upper, w_chain],
+            [q, targets, geometry, w_orient, w_posture, references, lower, upper, w_chain,
+             w_share, q_previous, w_persist, q_persist],
             [H, c, stack(e_orient, 1), stack(angles, 1), stack(E_inv, 3), stack(p_sites, 1),
              stack(J_sites, model.nv), G_ranges, room_up, room_down],
             ["q", "R_world_target", "geometry", "w_orient", "w_posture", "R_reference",
-             "lower", "upper", "w_chain"],
+             "lower", "upper", "w_chain", "w_share", "q_previous", "w_persist", "q_persist"],
             ["H", "c", "e_orient", "angles", "E_inv", "p_sites", "J_sites", "G_ranges",
              "room_up", "room_down"],
         )
@@ -207,7 +217,9 @@ class CompiledKinematics:
     def __call__(self, q: np.ndarray, R_world_target: np.ndarray, geometry: np.ndarray,
                  w_orient: np.ndarray, w_posture: np.ndarray, R_reference: np.ndarray,
                  limits: tuple[np.ndarray, np.ndarray] | None = None,
-                 w_chain: np.ndarray | None = None) -> list[np.ndarray]:
+                 w_chain: np.ndarray | None = None,
+                 share: tuple[np.ndarray, np.ndarray] | None = None,
+                 persist: tuple[np.ndarray, np.ndarray] | None = None) -> list[np.ndarray]:
         """Evaluate the step function at ``q``.
 
         Args:
@@ -222,6 +234,12 @@ class CompiledKinematics:
                 ranges when omitted).
             w_chain: Per-row weights of the even-chain pairs (3 pairs,) [1/rad^2] (zero when
                 omitted).
+            share: The chain-share task (:class:`.tasks.ChainShareTask`): its per-row weights
+                (3 pairs,) [1/rad^2] and the configuration whose differences it holds (nq,);
+                off when omitted.
+            persist: The persistence task: its weights (nv,) [1/rad^2], zero on
+                :attr:`persistence_excluded`, and its reference configuration (nq,); off when
+                omitted.
 
         Returns:
             The outputs as dense arrays, overwritten by the next call (copy to keep them).
@@ -230,9 +248,12 @@ class CompiledKinematics:
             self._step = BoundFunction(self.function)
         none = np.zeros(len(w_posture))
         lower, upper = (none, none) if limits is None else (limits[0].ravel(), limits[1].ravel())
+        w_share, q_previous = (self._no_chain, q) if share is None else share
+        w_persist, q_persist = (self._no_persist, q) if persist is None else persist
         return self._step(q, column_major(R_world_target), geometry, w_orient, w_posture,
                           column_major(R_reference), lower, upper,
-                          self._no_chain if w_chain is None else w_chain)
+                          self._no_chain if w_chain is None else w_chain, w_share, q_previous,
+                          w_persist, q_persist)
 
     def sensed_pose(self, q: np.ndarray, R_world_target: np.ndarray, geometry: np.ndarray,
                     tracked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -257,7 +278,7 @@ def structure_key(model: pin.Model, segment_frames: Sequence[int],
                   chain_pairs: Sequence[tuple[BallJoint, BallJoint]] = ()) -> str:
     """A string identifying the compiled structure (not the geometry) of a step function."""
     parts = [
-        "objective-v8",
+        "objective-v9",
         ",".join(f"{a.idx_q}:{b.idx_q}" for a, b in chain_pairs),
         repr(sensed),
         ",".join(model.joints[j].shortname() for j in range(1, model.njoints)),

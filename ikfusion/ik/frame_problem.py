@@ -18,6 +18,7 @@ from .active_set import LimitRows
 from .compiled import CompiledKinematics, compiled_kinematics
 from .compiled_sensed import SensedPoseSpec
 from .configuration import Configuration
+from .fast_math import any_true
 from .limits import ContactConstraint, FloorLimit, JointRangeLimit, VelocityLimit
 from .limits.joint_range import LinearisedRanges
 from .qp import QpProblem, build_qp
@@ -171,9 +172,18 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
                       [tasks.contact.equality(conf)], None, levenberg_marquardt)
         return FrameProblem(qp, LimitRows(ranges, up, down, floor, bounds))
     chain = tasks.even_chain.row_weights() if tasks.even_chain in active else None
+    held = tasks.chain_share.q_previous
+    share = (tasks.chain_share.row_weights(), held) \
+        if held is not None and tasks.chain_share in active else None
+    persistence, persist = tasks.persistence, None
+    # the root's columns are beyond the compiled step: a task weighing them is summed in NumPy
+    numpy_persistence = persistence in active and persistence.q_reference is not None and \
+        any_true(persistence.weights[compiled.kinematics.persistence_excluded])
+    if persistence in active and persistence.q_reference is not None and not numpy_persistence:
+        persist = (persistence.weights, persistence.q_reference)
     H, c, _, _, _, p_sites, J_sites, G_ranges, room_up, room_down = compiled.kinematics(
         conf.q, tasks.orientation.targets, compiled.geometry, *row_weights,
-        tasks.posture.R_reference, (limits.lower, limits.upper), chain)
+        tasks.posture.R_reference, (limits.lower, limits.upper), chain, share, persist)
     H, c = H.copy(), c[:, 0].copy()
     P = p_sites.reshape(-1, 3)
     J = J_sites.reshape(-1, 3, nv)
@@ -182,9 +192,8 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
         tasks.root.add_rows(P[-1:], J[-1:], H, c)
     same = tasks.damping.q_reference is previous
     tasks.damping.add_objective(conf, H, c, moved if same else None)
-    tasks.persistence.add_objective(conf, H, c)
-    if tasks.chain_share in active:
-        tasks.chain_share.add_objective(conf, H, c)
+    if numpy_persistence:
+        persistence.add_objective(conf, H, c)
     Pc, Jc = P[tasks.contact_rows], J[tasks.contact_rows]
     if tasks.swing in active:
         tasks.swing.add_rows(Pc, Jc, H, c)

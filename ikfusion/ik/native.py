@@ -95,21 +95,22 @@ def compiler_identity(compiler: str) -> str:
 def generator_fingerprint() -> str:
     """SHA-256 of the source that generates the step functions and builds them.
 
-    That is :mod:`.compiled`, :mod:`.compiled_sensed`, :mod:`.casadi_kinematics` and
-    :mod:`.compiled_ranges` (the expressions), this module (the build), the CasADi rotation
-    twin and the NumPy module holding their shared epsilon policy.
+    That is :mod:`.compiled`, :mod:`.compiled_sensed`, :mod:`.casadi_kinematics`,
+    :mod:`.compiled_ranges` and :mod:`.compiled_joint_tasks` (the expressions), this module (the
+    build), the CasADi rotation twin and the NumPy module holding their shared epsilon policy.
     """
     from . import (  # imported late: no cycle
         casadi_kinematics,
         compiled,
+        compiled_joint_tasks,
         compiled_ranges,
         compiled_sensed,
     )
 
     digest = hashlib.sha256()
     for module in (compiled.__file__, compiled_sensed.__file__, casadi_kinematics.__file__,
-                   compiled_ranges.__file__, __file__, rotations_casadi.__file__,
-                   numpy_rotations.__file__):
+                   compiled_ranges.__file__, compiled_joint_tasks.__file__, __file__,
+                   rotations_casadi.__file__, numpy_rotations.__file__):
         digest.update(Path(str(module)).read_bytes())
     return digest.hexdigest()
 

@@ -20,9 +20,9 @@ import numpy as np
 
 from ..errors import SolverError
 from .configuration import Configuration
-from .equality_qp import equality_optimum, satisfies
+from .equality_qp import ClosedFormHint, equality_optimum, satisfies
 from .limits.base import Equality, Inequality
-from .qp_backends import installed, qpsolvers_module, solver_options
+from .qp_backends import call_daqp, installed, qpsolvers_module, solver_options
 from .tasks.base import Task
 
 
@@ -167,18 +167,23 @@ def _stacked_rows(packed: np.ndarray, start: int, m: int, nv: int,
 
 def _call(backend: str, settings: QpSettings, H: np.ndarray, c: np.ndarray,
           G: np.ndarray | None, h: np.ndarray | None, A: np.ndarray | None,
-          b: np.ndarray | None, lb: np.ndarray | None,
-          ub: np.ndarray | None) -> np.ndarray | None:
+          b: np.ndarray | None, lb: np.ndarray | None, ub: np.ndarray | None,
+          hint: ClosedFormHint | None = None) -> np.ndarray | None:
+    """The step by ``backend`` (DAQP: in closed form first unless ``hint`` says skip)."""
     if not installed(backend):
         raise SolverError(
             f"QP backend {backend!r} is not installed; available: "
             f"{', '.join(qpsolvers_module().available_solvers)}")
     if backend == "daqp":
         # most steps touch no limit: their optimum in closed form, DAQP when one binds
-        x = equality_optimum(H, c, A, b)
-        if x is not None and satisfies(x, G, h, lb, ub):
-            return x
-        return _call_daqp(settings.max_iterations, H, c, G, h, A, b, lb, ub)
+        if hint is None or not hint.skip:
+            x = equality_optimum(H, c, A, b)
+            if x is not None and satisfies(x, G, h, lb, ub):
+                return x
+        x, binding = call_daqp(settings.max_iterations, H, c, G, h, A, b, lb, ub)
+        if hint is not None:
+            hint.skip = binding
+        return x
     qpsolvers = qpsolvers_module()
     try:
         x = qpsolvers.solve_qp(H, c, G, h, A, b, lb, ub, solver=backend,
@@ -190,49 +195,12 @@ def _call(backend: str, settings: QpSettings, H: np.ndarray, c: np.ndarray,
     return np.asarray(x)
 
 
-def _call_daqp(max_iterations: int, H: np.ndarray, c: np.ndarray, G: np.ndarray | None,
-               h: np.ndarray | None, A: np.ndarray | None, b: np.ndarray | None,
-               lb: np.ndarray | None, ub: np.ndarray | None) -> np.ndarray | None:
-    """DAQP called directly (the same problem qpsolvers would pass, without its checks).
-
-    DAQP takes simple bounds as the first rows of ``blower <= (dq, A_rows dq) <= bupper`` and
-    marks equality rows with sense 5.
-    """
-    import daqp  # the default backend; imported here so that the others work without it
-
-    nv = len(c)
-    n_box = nv if lb is not None or ub is not None else 0
-    n_in = 0 if h is None else len(h)
-    n_eq = 0 if b is None else len(b)
-    end_in = n_box + n_in
-    upper = np.empty(end_in + n_eq)
-    lower = np.empty(end_in + n_eq)
-    if n_box:
-        upper[:nv] = 1e30 if ub is None else ub
-        lower[:nv] = -1e30 if lb is None else lb
-    if n_in:
-        upper[n_box:end_in] = h
-        lower[n_box:end_in] = -1e30
-    if n_eq:
-        upper[end_in:] = b
-        lower[end_in:] = b
-    rows = [m for m in (G, A) if m is not None]
-    A_all = np.vstack(rows) if rows else np.zeros((0, nv))  # a copy: DAQP may scale its rows
-    sense = np.zeros(len(upper), dtype=np.intc)
-    sense[end_in:] = 5
-    x, _, exitflag, _ = daqp.solve(H, c, A_all, upper, lower, sense,
-                                   iter_limit=max_iterations)
-    if exitflag <= 0 or not np.isfinite(x).all():
-        return None
-    return np.asarray(x)
-
-
 #: Backends that solve these small dense QPs exactly (OSQP is approximate at its defaults).
 _EXACT_BACKENDS = ("daqp", "proxqp")
 
 
-def solve_unrelaxed(problem: QpProblem, backend: str, settings: QpSettings
-                    ) -> QpSolution | None:
+def solve_unrelaxed(problem: QpProblem, backend: str, settings: QpSettings,
+                    hint: ClosedFormHint | None = None) -> QpSolution | None:
     """The step with every constraint held, or None when no exact backend finds one.
 
     :func:`solve_qp` without its relaxation: for a caller that, when the constraints cannot
@@ -247,7 +215,7 @@ def solve_unrelaxed(problem: QpProblem, backend: str, settings: QpSettings
     h = p.h if len(p.h) else None
     A = p.A if len(p.b) else None
     b = p.b if len(p.b) else None
-    x = _call(backend, settings, p.H, p.c, G, h, A, b, p.lb, p.ub)
+    x = _call(backend, settings, p.H, p.c, G, h, A, b, p.lb, p.ub, hint)
     if x is not None:
         return QpSolution(x)
     # A numerical failure on a degenerate but feasible step (a limit active exactly where a
@@ -260,13 +228,16 @@ def solve_unrelaxed(problem: QpProblem, backend: str, settings: QpSettings
     return None
 
 
-def solve_qp(problem: QpProblem, backend: str, settings: QpSettings) -> QpSolution:
+def solve_qp(problem: QpProblem, backend: str, settings: QpSettings,
+             hint: ClosedFormHint | None = None) -> QpSolution:
     """Solve the step; fall back to the penalised-slack relaxation when it is infeasible.
 
     Args:
         problem: The step's QP.
         backend: The QP backend (qpsolvers name) tried first.
         settings: Iteration limits, tolerances and the slack penalties.
+        hint: Whether DAQP's closed-form try is skipped (:class:`.equality_qp.ClosedFormHint`,
+            updated by this step); None: always tried.
 
     Raises:
         SolverError: A problem holding NaN or infinite numbers (a target or the pose is not
@@ -275,7 +246,7 @@ def solve_qp(problem: QpProblem, backend: str, settings: QpSettings) -> QpSoluti
             and says so).
     """
     p = problem
-    solution = solve_unrelaxed(p, backend, settings)
+    solution = solve_unrelaxed(p, backend, settings, hint)
     if solution is not None:
         return solution
     # Infeasible (or a numerical failure): relax, with a milder penalty and another backend

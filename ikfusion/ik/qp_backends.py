@@ -1,4 +1,4 @@
-"""The QP backends beside DAQP: whether one is installed, and its options (:mod:`.qp`).
+"""The QP backends: DAQP called directly, the others through qpsolvers (:mod:`.qp`).
 
 qpsolvers is imported on first use only: DAQP, the default, is called directly.
 """
@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from functools import cache
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 if TYPE_CHECKING:
     from .qp import QpSettings
@@ -39,3 +41,44 @@ def qpsolvers_module() -> Any:
     import qpsolvers
 
     return qpsolvers
+
+
+def call_daqp(max_iterations: int, H: np.ndarray, c: np.ndarray, G: np.ndarray | None,
+              h: np.ndarray | None, A: np.ndarray | None, b: np.ndarray | None,
+              lb: np.ndarray | None, ub: np.ndarray | None) -> tuple[np.ndarray | None, bool]:
+    """DAQP called directly (the same problem qpsolvers would pass, without its checks).
+
+    DAQP takes simple bounds as the first rows of ``blower <= (dq, A_rows dq) <= bupper`` and
+    marks equality rows with sense 5.
+
+    Returns:
+        The step (None when DAQP fails) and whether an inequality row or a bound binds at it
+        (a non-zero multiplier; False when DAQP fails).
+    """
+    import daqp  # the default backend; imported here so that the others work without it
+
+    nv = len(c)
+    n_box = nv if lb is not None or ub is not None else 0
+    n_in = 0 if h is None else len(h)
+    n_eq = 0 if b is None else len(b)
+    end_in = n_box + n_in
+    upper = np.empty(end_in + n_eq)
+    lower = np.empty(end_in + n_eq)
+    if n_box:
+        upper[:nv] = 1e30 if ub is None else ub
+        lower[:nv] = -1e30 if lb is None else lb
+    if n_in:
+        upper[n_box:end_in] = h
+        lower[n_box:end_in] = -1e30
+    if n_eq:
+        upper[end_in:] = b
+        lower[end_in:] = b
+    rows = [m for m in (G, A) if m is not None]
+    A_all = np.vstack(rows) if rows else np.zeros((0, nv))  # a copy: DAQP may scale its rows
+    sense = np.zeros(len(upper), dtype=np.intc)
+    sense[end_in:] = 5
+    x, _, exitflag, info = daqp.solve(H, c, A_all, upper, lower, sense,
+                                      iter_limit=max_iterations)
+    if exitflag <= 0 or not np.isfinite(x).all():
+        return None, False
+    return np.asarray(x), bool(np.count_nonzero(info["lam"][:end_in]))

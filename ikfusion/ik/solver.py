@@ -39,6 +39,7 @@ from .active_set import solve_with_active_set
 from .ballistic import BallisticRoot
 from .configuration import Configuration
 from .contact_tracker import ContactTracker
+from .equality_qp import ClosedFormHint
 from .frame import Frame
 from .frame_problem import FrameTasks, build_frame_problem, compiled_step
 from .frame_targets import FrameTargets, TargetLoader
@@ -108,6 +109,7 @@ class Solver:
         self._q_start = None if q is None else np.asarray(q, dtype=float).copy()
         self._last: SolvedFrame | None = None
         self._failures: list[str] = []
+        self._closed_form = ClosedFormHint()
         self.contacts.reset()
         self.world.reset()
         self.ballistic.reset()
@@ -247,7 +249,8 @@ class Solver:
                                           self.compiled, s.levenberg_marquardt)
             try:
                 solution = solve_with_active_set(problem.qp, problem.rows, s.backend, s.qp,
-                                                 s.limit_crossing_tolerance, s.limit_resolves)
+                                                 s.limit_crossing_tolerance, s.limit_resolves,
+                                                 self._closed_form)
             except SolverError as err:
                 self._failures.append(f"t = {frame.time:.3f} s: {err}; kept the last step")
                 relaxed = True

@@ -15,7 +15,13 @@ from motions import smooth_motion
 from ikfusion.ik import Configuration, Frame, Solver, SolverSettings, compiled, native
 from ikfusion.ik.compiled import CompiledKinematics
 from ikfusion.ik.limits import JointRangeLimit
-from ikfusion.ik.tasks import EvenChainTask, OrientationTask, PostureTask
+from ikfusion.ik.tasks import (
+    ChainShareTask,
+    DampingTask,
+    EvenChainTask,
+    OrientationTask,
+    PostureTask,
+)
 from ikfusion.model import SENSOR_SEGMENTS, Body, HumanModel
 from ikfusion.model.angle_continuity import nearest_to_ranges
 from ikfusion.rotations import exp_so3, random_rotations
@@ -35,7 +41,9 @@ def test_compiled_residuals_equal_reference(rng, height: float, case: str) -> No
 
     The posture references are random (not the identity); in the "near pi" case every
     orientation error and every posture error is a rotation by pi - 1e-6 or more. The even-chain
-    pairs are summed into the objective too, a random subset of them active.
+    and the chain-share pairs (each a random subset active, the share holding a random last
+    frame) and the persistence task (random weights on the joints, a random reference) are
+    summed into the objective too.
     """
     model = HumanModel.from_body(Body.from_height(height))
     segments = list(SENSOR_SEGMENTS)
@@ -43,9 +51,13 @@ def test_compiled_residuals_equal_reference(rng, height: float, case: str) -> No
     sites = [model.site_frame_id(s) for s in model.site_names]
     chain = EvenChainTask(model.ball_joints, SolverSettings.load().even_chains, 1.5,
                           model.segment_names)
+    share = ChainShareTask(model.ball_joints, SolverSettings.load().even_chains, 4.0,
+                           model.segment_names)
+    persistence = DampingTask(np.zeros(model.model.nv))
     kin = CompiledKinematics(model.model, frames, list(model.ball_joints.values()), sites,
                              chain_pairs=chain.pairs)
     geometry = kin.geometry(model.model)
+    np.testing.assert_array_equal(kin.persistence_excluded, np.arange(6))  # the free-flyer
     orientation = OrientationTask(frames, segments)
     posture = PostureTask.from_joints(model.ball_joints, {}, 1.0)
     limits = JointRangeLimit(model.ball_joints, margin_deg=25.0)
@@ -66,9 +78,16 @@ def test_compiled_residuals_equal_reference(rng, height: float, case: str) -> No
         posture.axis_weights = rng.uniform(0.0, 2.0, (n_joints, 3))  # per-row weights
         w_or, w_post = orientation.row_weights(), posture.row_weights()
         chain.active = rng.random(len(chain.pairs)) < 0.7
+        share.active = rng.random(len(share.pairs)) < 0.7
+        share.set_previous(model.random_configuration(rng))
+        persistence.weights = rng.uniform(0.0, 3.0, model.model.nv)
+        persistence.weights[kin.persistence_excluded] = 0.0  # the root's columns
+        persistence.set_reference(model.random_configuration(rng))
+        assert share.q_previous is not None and persistence.q_reference is not None
         H, c, e_or, angles, E_inv, p, J, G_ranges, room_up, room_down = kin(
             q, T, geometry, w_or, w_post, R_ref, (limits.lower, limits.upper),
-            chain.row_weights())
+            chain.row_weights(), (share.row_weights(), share.q_previous),
+            (persistence.weights, persistence.q_reference))
         e_or_ref = orientation.compute_error(conf)
         if case == "near pi":
             e_post = posture.compute_error(conf).reshape(-1, 3)
@@ -80,6 +99,8 @@ def test_compiled_residuals_equal_reference(rng, height: float, case: str) -> No
         orientation.add_objective(conf, H_ref, c_ref)
         posture.add_objective(conf, H_ref, c_ref)
         chain.add_objective(conf, H_ref, c_ref)
+        share.add_objective(conf, H_ref, c_ref)
+        persistence.add_objective(conf, H_ref, c_ref)
         assert np.array_equal(H, H.T)  # one number per pair of columns (the lower triangle)
         np.testing.assert_allclose(H, H_ref, atol=1e-8 * np.abs(H_ref).max())
         np.testing.assert_allclose(c[:, 0], c_ref, atol=1e-8 * np.abs(c_ref).max())
@@ -93,6 +114,26 @@ def test_compiled_residuals_equal_reference(rng, height: float, case: str) -> No
         np.testing.assert_allclose(p.reshape(-1, 3), conf.positions(sites), atol=1e-12)
         np.testing.assert_allclose(J.reshape(-1, 3, model.model.nv), conf.linear_jacobians(sites),
                                    atol=1e-12)
+
+
+def test_quaternion_log_is_the_log_of_the_matrix(rng) -> None:
+    """The compiled step's quaternion log (:mod:`ikfusion.ik.compiled_joint_tasks`) equals
+    :func:`ikfusion.rotations.log_so3` of the quaternion's matrix, either sign of the
+    quaternion, at angles from 1e-9 rad (its series) to nearly a half turn."""
+    from ikfusion.ik.compiled_joint_tasks import quaternion_log
+    from ikfusion.rotations import log_so3, quat_wxyz_to_matrix
+
+    symbol = ca.SX.sym("q", 4)
+    log = ca.Function("log", [symbol], [quaternion_log(symbol)])
+    axes = rng.normal(size=(60, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    angles = np.concatenate([np.logspace(-9, 0, 30), rng.uniform(1.0, np.pi - 1e-6, 30)])
+    for axis, angle in zip(axes, angles):
+        xyzw = np.append(np.sin(angle / 2) * axis, np.cos(angle / 2))
+        expected = log_so3(quat_wxyz_to_matrix(np.roll(xyzw, 1)))
+        for sign in (1.0, -1.0):  # q and -q are one rotation
+            got = np.asarray(log(sign * xyzw)).ravel()
+            np.testing.assert_allclose(got, expected, atol=1e-14, rtol=1e-12)
 
 
 def test_compiled_ranges_measure_on_the_triple_nearest_the_range(human: HumanModel,

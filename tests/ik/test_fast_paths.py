@@ -204,6 +204,80 @@ def test_compiled_and_numpy_steps_agree_with_contacts_and_limits(human: HumanMod
     np.testing.assert_allclose(fast_motion.q, plain.q, atol=1e-6)
 
 
+def test_the_compiled_step_sums_the_chain_share_and_the_persistence_itself(
+        human: HumanModel, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue #20: the chain-share and persistence tasks cost a compiled step no NumPy work
+    (their objectives are in the step function), and the walk is solved as with the NumPy
+    tasks. Before, each step summed them in NumPy (the chain share took a quarter of the QP
+    build)."""
+    from ikfusion.ik import Solver
+    from ikfusion.ik.tasks import ChainShareTask
+    from ikfusion.model import SENSOR_SEGMENTS
+    from ikfusion.sim.gait import GaitParameters, generate_gait
+    from ikfusion.sim.truth import orientation_frames
+
+    truth = generate_gait(human, GaitParameters(duration=1.5, stand=0.3), rate=60.0)
+    frames = orientation_frames(human, truth.q, truth.time, SENSOR_SEGMENTS)
+    plain = Solver(human, contacts=True, compiled=False).solve(frames)
+    fast = Solver(human, contacts=True)
+    assert fast.compiled is not None
+    held: list[float] = []
+    original = ChainShareTask.set_previous
+
+    def set_previous(task: ChainShareTask, q_previous: np.ndarray | None) -> None:
+        original(task, q_previous)
+        held.append(float(task.row_weights().max()))
+
+    def numpy_objective(*_: object, **__: object) -> None:
+        raise AssertionError("a task summed in NumPy on the compiled path")
+
+    monkeypatch.setattr(ChainShareTask, "set_previous", set_previous)
+    monkeypatch.setattr(ChainShareTask, "add_objective", numpy_objective)
+    monkeypatch.setattr(ChainShareTask, "_logs", numpy_objective)
+    monkeypatch.setattr(fast.persistence.task, "add_objective", numpy_objective)
+    monkeypatch.setattr(fast.persistence.task, "compute_error", numpy_objective)
+    motion = fast.solve(frames)
+    assert max(held) == fast.settings.chain_share > 0.0  # the share was on
+    assert fast.persistence.weight > 0.0
+    np.testing.assert_allclose(motion.q, plain.q, atol=1e-6)
+
+
+def test_a_persistence_weighing_the_root_is_summed_in_numpy(human: HumanModel,
+                                                            monkeypatch: pytest.MonkeyPatch
+                                                            ) -> None:
+    """The compiled persistence covers the joints only: weights on the root's columns send the
+    task to NumPy, and the compiled solve still equals the NumPy one."""
+    from ikfusion.ik import Solver
+    from ikfusion.ik.sensed_pose import Persistence
+    from ikfusion.model import SENSOR_SEGMENTS
+    from ikfusion.sim.gait import GaitParameters, generate_gait
+    from ikfusion.sim.truth import orientation_frames
+
+    hold = Persistence.hold
+
+    def hold_the_root_too(self: Persistence, q_warm: np.ndarray, sensed_joints: np.ndarray,
+                          bent: np.ndarray | None) -> None:
+        hold(self, q_warm, sensed_joints, None if bent is None else bent + 0.01)
+        self.task.weights[:6] = 5.0
+
+    monkeypatch.setattr(Persistence, "hold", hold_the_root_too)
+    truth = generate_gait(human, GaitParameters(duration=0.5, stand=0.2), rate=60.0)
+    frames = orientation_frames(human, truth.q, truth.time, SENSOR_SEGMENTS)
+    fast = Solver(human, contacts=False)
+    calls: list[int] = []
+    numpy_objective = fast.persistence.task.add_objective
+
+    def counted(*args: object) -> None:
+        calls.append(1)
+        numpy_objective(*args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(fast.persistence.task, "add_objective", counted)
+    motion = fast.solve(frames)
+    assert calls  # summed in NumPy
+    plain = Solver(human, contacts=False, compiled=False).solve(frames)
+    np.testing.assert_allclose(motion.q, plain.q, atol=1e-7)
+
+
 def test_frame_targets_follow_the_segments_each_frame_holds(human: HumanModel) -> None:
     """The rows of a set of segments are kept from frame to frame: a sensor that drops out or
     comes back, a heading turn and an unknown segment name are still read right."""

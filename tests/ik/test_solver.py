@@ -115,11 +115,11 @@ def test_a_failing_qp_never_crashes_the_solve(human: HumanModel, rng, monkeypatc
     real = solver_module.solve_qp
     calls = {"n": 0}
 
-    def flaky(problem, backend, settings):
+    def flaky(problem, backend, settings, *hint):
         calls["n"] += 1
         if calls["n"] == 20:
             raise SolverError("no backend could solve it")
-        return real(problem, backend, settings)
+        return real(problem, backend, settings, *hint)
 
     monkeypatch.setattr(solver_module, "solve_qp", flaky)
     motion = Solver(human, contacts=False).solve(frames)

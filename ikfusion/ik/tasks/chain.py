@@ -145,24 +145,41 @@ class ChainShareTask(EvenChainTask):
     def __init__(self, joints: Mapping[str, BallJoint], chains: Sequence[Sequence[str]],
                  weight: float, segments: Sequence[str]) -> None:
         super().__init__(joints, chains, weight, segments)
-        self._on = False
+        #: The last solved frame whose differences are held; None: off.
+        self.q_previous: np.ndarray | None = None
+        self._stale = False  # reference not yet taken of q_previous
 
     def set_previous(self, q_previous: np.ndarray | None) -> None:
-        """Hold the differences of ``q_previous`` (the last solved frame); None: off."""
-        if q_previous is None or not len(self.pairs):
+        """Hold the differences of ``q_previous`` (the last solved frame); None: off.
+
+        The differences are taken when the NumPy objective needs them (the compiled step takes
+        them of :attr:`q_previous` itself).
+        """
+        self.q_previous = None if q_previous is None or not len(self.pairs) \
+            else np.array(q_previous, dtype=float)
+        self._stale = self.q_previous is not None
+        if self.q_previous is None:
             self.reference = np.zeros((len(self.pairs), 3))
-            self._on = False
-            return
-        logs = self._logs(q_previous)
-        self.reference = logs[:, 0] - logs[:, 1]
-        self._on = True
+
+    def _held(self) -> None:
+        """Take :attr:`reference` of :attr:`q_previous` when it is not yet."""
+        if self._stale and self.q_previous is not None:
+            logs = self._logs(self.q_previous)
+            self.reference = logs[:, 0] - logs[:, 1]
+            self._stale = False
 
     def row_weights(self) -> np.ndarray:
         """Three rows per active pair: ``weight`` once a last frame is held, 0 before."""
-        return super().row_weights() if self._on \
+        return super().row_weights() if self.q_previous is not None \
             else np.zeros(3 * len(self.pairs))
+
+    def compute_error(self, configuration: Configuration) -> np.ndarray:
+        """``log(R_i) - log(R_j) - d_ij`` per pair (3 pairs,) [rad]."""
+        self._held()
+        return super().compute_error(configuration)
 
     def add_objective(self, configuration: Configuration, H: np.ndarray, c: np.ndarray) -> None:
         """Accumulate the active pairs' objective (none before a last frame is held)."""
-        if self._on:
+        if self.q_previous is not None:
+            self._held()
             super().add_objective(configuration, H, c)
