@@ -62,15 +62,18 @@ def test_held_points_do_not_move_in_truth(tmp_path: Path, walk: str, causal: boo
     assert ev.head_position_rms_m <= 0.05
 
 
-@pytest.mark.parametrize("clip", ["cmu_02_02_walk", "cmu_07_01_or_08_02_walk_amp"])
+@pytest.mark.parametrize("clip", ["cmu_02_02_walk", "cmu_02_01_walk",
+                                  "cmu_07_01_or_08_02_walk_amp"])
 def test_brisk_mocap_walks_do_not_hold_dragging_toes(tmp_path: Path, clip: str) -> None:
-    """Issue #19: in two brisk CMU walks (the library's cmu-02-02-walk and amp-walk, simulated as
-    ``benchmarks/bench_motions.py`` does, IMU only) the feet roll through every stance without
-    standing still, so the IMU said nothing about the heels and toes: push-off toes that drag in
-    the truth were held, and the landing heel could not touch down (the body, riding on the
-    dragging toe, carried it along). The true points moved 37-38 mm while held, and the walks
-    drifted 10 % of the distance; now 15-20 mm (the truth's toes still slide a little at
-    push-off) and 2-6 %."""
+    """Issue #19: in three brisk CMU walks (the library's cmu-02-02-walk, cmu-02-01-walk and
+    amp-walk, simulated as ``benchmarks/bench_motions.py`` does, IMU only) the feet roll through
+    every stance without standing still, so the IMU said nothing about the heels and toes:
+    push-off toes that drag in the truth were held, and the landing heel could not touch down
+    (the body, riding on the dragging toe, carried it along). The true points moved 37-38 mm
+    while held, and the walks drifted 10 % of the distance. With the point speeds anchored in
+    rolling stances the true points move 10-20 mm while held and the walks drifted 5.6, 3.7 and
+    1.1 %; a landing heel still travelling 1.5-2 cm now carries its anchor at the velocity its
+    foot IMU gives: 4.4, 2.7 and 0.5 %."""
     room = load_constellation(shipped_config("constellations", "room_6x8.yaml"))
     motion = Path(__file__).resolve().parents[1] / "benchmarks" / "motions" / f"{clip}.bvh.gz"
     truth, _ = place_in_area(truth_motion(str(motion), 30.0, 60.0), capture_area(room),
@@ -82,4 +85,4 @@ def test_brisk_mocap_walks_do_not_hold_dragging_toes(tmp_path: Path, clip: str) 
                  "--body", str(capture / "body.yaml"), "--out", str(out), "--quiet"]) == 0
     ev = evaluate(out, capture / "truth.npz")
     assert ev.held_truth_slide_mm <= 25.0
-    assert ev.drift_percent is not None and ev.drift_percent <= 7.0
+    assert ev.drift_percent is not None and ev.drift_percent <= 5.0

@@ -23,7 +23,7 @@ from ..ik.assumed import coverage_warning
 from ..imu.bridging import BridgedSegments, BridgingSettings, bridge_segments
 from ..imu.calibration import Calibration, calibrate_recording
 from ..imu.flight import FlightPhases, FlightThresholds, detect_flight, world_acceleration
-from ..imu.point_speed import foot_point_offsets, points_moving
+from ..imu.point_speed import faster_than, foot_point_offsets, foot_point_velocities
 from ..imu.resting import RESTING_SEGMENTS, segment_resting
 from ..imu.stance import StanceThresholds, foot_still, stance_thresholds, velocity_anchors
 from ..io.recording import ImuRecording, SensorStream
@@ -74,7 +74,8 @@ def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str]
                           bridged: BridgedSegments | None = None,
                           flight: FlightThresholds | None = None,
                           foot_points: Mapping[str, Mapping[str, np.ndarray]] | None = None,
-                          release_speed: float = np.inf) -> list[Frame]:
+                          release_speed: float = np.inf,
+                          carry_anchors: bool = False) -> list[Frame]:
     """One frame per sample: calibrated segment orientations (measured or bridged).
 
     Without ``bridged`` only the valid samples are tracked. The feet's stance from their IMUs
@@ -84,7 +85,9 @@ def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str]
     offset from its sensor in the segment frame [m], :func:`foot_point_offsets`) of feet
     with accelerometers and gyroscopes, whether each point moves faster than ``release_speed``
     [m/s] (:func:`points_moving`); the flight phases from the pelvis and feet accelerometers
-    (:func:`flight_phases`) and the pelvis acceleration in the world frame.
+    (:func:`flight_phases`) and the pelvis acceleration in the world frame. With
+    ``carry_anchors`` (IMU only) the points' velocities come along too (``Frame.points_velocity``:
+    a planted point the IMU says moves carries its anchor along).
     """
     streams = recording.segment_streams(sensor_map)
     if bridged is None:
@@ -95,7 +98,7 @@ def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str]
         R_segment = bridged.R_world_segment
     tracked = {s: np.isfinite(R).all(axis=(1, 2)) for s, R in R_segment.items()}
     still = {}
-    moving: dict[str, np.ndarray] = {}
+    velocity: dict[str, np.ndarray] = {}
     for s, st in streams.items():
         if s in ("LeftFoot", "RightFoot"):
             R = np.where(st.valid[:, None, None], st.R_world_sensor, np.nan)
@@ -105,13 +108,14 @@ def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str]
             if (foot_points and s in foot_points and gyr is not None and acc is not None
                     and s in calibration.R_sensor_segment):
                 anchors = velocity_anchors(R, still[s] == 1.0, recording.rate, gyr, stance, acc)
-                moving.update(points_moving(R, acc, gyr, anchors, recording.rate,
-                                            calibration.R_sensor_segment[s],
-                                            dict(foot_points[s]), release_speed))
+                velocity.update(foot_point_velocities(R, acc, gyr, anchors, recording.rate,
+                                                      calibration.R_sensor_segment[s],
+                                                      dict(foot_points[s])))
         elif s in RESTING_SEGMENTS and st.acc is not None:
             a = world_acceleration(st.R_world_sensor, st.acc)
             a[~st.valid] = np.nan
             still[s] = segment_resting(a, recording.rate)
+    moving = faster_than(velocity, release_speed)
     airborne = flight_phases(recording, streams, flight).airborne.tolist()
     pelvis = streams.get("Pelvis")
     a_pelvis = None
@@ -125,6 +129,9 @@ def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str]
     still_rows = {s: (v != 0).tolist() for s, v in still.items()}
     moving_known = {p: np.isfinite(v).tolist() for p, v in moving.items()}
     moving_rows = {p: (v == 1.0).tolist() for p, v in moving.items()}
+    velocity_known = {p: np.isfinite(v).all(axis=1).tolist() if carry_anchors else []
+                      for p, v in velocity.items()}
+    velocity_rows = {p: list(v) for p, v in velocity.items()} if carry_anchors else {}
     frames = []
     for k, t in enumerate(recording.time.tolist()):
         frames.append(Frame(t, {s: R[k] for s, R in rows.items() if tracked_rows[s][k]},
@@ -132,6 +139,8 @@ def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str]
                                         if known[s][k]},
                             points_moving={p: v[k] for p, v in moving_rows.items()
                                            if moving_known[p][k]},
+                            points_velocity={p: v[k] for p, v in velocity_rows.items()
+                                             if velocity_known[p][k]},
                             airborne=airborne[k],
                             root_acceleration=_finite_or_none(a_pelvis, k)))
     return frames
@@ -227,7 +236,8 @@ def solve_recording(recording: ImuRecording, sensor_map: Mapping[str, str], mode
     warnings += bridged.warnings
     frames = frames_from_recording(recording, sensor_map, cal, stance_thresholds(st), bridged,
                                    foot_points=foot_point_offsets(model),
-                                   release_speed=st.release_speed)
+                                   release_speed=st.release_speed,
+                                   carry_anchors=correction is None)
     motion = solver.solve(correction.frames(frames) if correction else frames,
                           progress=progress, total=len(frames),
                           after_step=correction.after_frame if correction else None)

@@ -100,6 +100,54 @@ class ContactTracker:
         self._history = deque(((t, p + delta) for t, p in self._history),
                               maxlen=self._history.maxlen)
 
+    def carry(self, frame: Frame, dt: float, R_heading: np.ndarray | None,
+              v_body: np.ndarray) -> None:
+        """A foot whose every planted point slides by its IMU carries them along horizontally.
+
+        A held heel whose foot IMU says it moves (landing while it still travels, as the heels
+        of brisk mocap walks do) would otherwise hold the body back by as much as it moves;
+        without absolute positions the IMU is the only witness. Per foot, when each of its
+        planted points is on the foot itself (a heel: the IMU's velocity of a toe is its
+        ball's, which moves while the toe stands when the foot pivots on its toes) and slides
+        by its ``frame.points_velocity`` (faster than ``release_speed`` horizontally, and more
+        horizontally than vertically: a point still landing or already lifting does not slide
+        on the floor), they all move by the slowest one's horizontal velocity times ``dt``.
+        A shift against the body's travel is left out: a loaded foot is not dragged backwards
+        by the body going forward, that is the velocity's integration error (a foot wrongly
+        found still in the swing of a skip).
+
+        Args:
+            frame: The frame (its ``points_velocity``, world frame of the sensors [m/s]).
+            dt: Time since the last frame [s].
+            R_heading: The solver world's heading correction (applied to the velocities),
+                None for none.
+            v_body: (3,) the pelvis's velocity in the last frame [m/s].
+        """
+        if not frame.points_velocity or dt <= 0 or not any_true(self.state.active):
+            return
+        active, anchors = self.state.active, None
+        for points in self._points_of_foot.values():
+            held = points[active[points]]
+            velocities = [frame.points_velocity.get(self.names[i]) for i in held]
+            if (not len(held) or any(v is None for v in velocities)
+                    or self.layout.below_foot[held].any()):
+                continue
+            v_world = np.array([np.asarray(v, dtype=float) for v in velocities])
+            horizontal = v_world[:, :2]
+            speeds = np.linalg.norm(horizontal, axis=1)
+            if (speeds.min() <= self.settings.release_speed
+                    or (np.abs(v_world[:, 2]) >= speeds).any()):
+                continue
+            shift = horizontal[int(np.argmin(speeds))] * dt
+            if R_heading is not None:
+                shift = R_heading[:2, :2] @ shift
+            if float(shift @ v_body[:2]) < 0.0:
+                continue
+            anchors = self.state.anchors.copy() if anchors is None else anchors
+            anchors[held, :2] += shift
+        if anchors is not None:
+            self.state = replace(self.state, anchors=anchors)
+
     # ------------------------------------------------------------------ per frame
     def foot_pitch(self, q: np.ndarray, R_world_sensed: np.ndarray,
                    tracked: np.ndarray) -> np.ndarray:

@@ -34,6 +34,11 @@ class Frame:
         points_moving: Contact point name -> its foot's IMU says the point moves (faster than
             ``release_speed``, :func:`ikfusion.imu.point_speed.points_moving`); absent when
             unknown. A planted point that moves lets go.
+        points_velocity: Contact point name -> ``v_world_point`` (3,) [m/s], its velocity by
+            its foot's IMU (:func:`ikfusion.imu.point_speed.foot_point_velocities`), when known
+            and wanted (IMU only: without absolute positions this is the only word on whether
+            a held point truly stands). A planted point carries its anchor along horizontally
+            at this velocity: a push-off toe that drags, a heel that lands still travelling.
         airborne: The body is in the air (:func:`ikfusion.imu.flight.detect_flight`): no point
             is planted and none touches down; the pelvis flies on the ballistic path from its
             take-off velocity. A contact hint takes precedence for its own point.
@@ -53,5 +58,6 @@ class Frame:
     root_position_weight: float = 1.0
     feet_still: Mapping[str, bool] = field(default_factory=dict)
     points_moving: Mapping[str, bool] = field(default_factory=dict)
+    points_velocity: Mapping[str, np.ndarray] = field(default_factory=dict)
     airborne: bool = False
     root_acceleration: np.ndarray | None = None

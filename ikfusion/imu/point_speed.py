@@ -73,16 +73,22 @@ def sensor_velocity(a_world: np.ndarray, still: np.ndarray, rate: float,
     return v
 
 
-def point_speeds(v_world_sensor: np.ndarray, omega_world: np.ndarray,
-                 r_world: np.ndarray) -> np.ndarray:
-    """Horizontal speeds (N, k) [m/s] of points rigidly on the foot.
+def point_velocities(v_world_sensor: np.ndarray, omega_world: np.ndarray,
+                     r_world: np.ndarray) -> np.ndarray:
+    """Velocities ``v_world_point`` (N, k, 3) [m/s] of points rigidly on the foot.
 
     Args:
         v_world_sensor: (N, 3) the sensor's velocity [m/s].
         omega_world: (N, 3) the foot's angular velocity in the world frame [rad/s].
         r_world: (N, k, 3) each point's offset from the sensor, world frame [m].
     """
-    v = v_world_sensor[:, None, :] + np.cross(omega_world[:, None, :], r_world)
+    return np.asarray(v_world_sensor[:, None, :] + np.cross(omega_world[:, None, :], r_world))
+
+
+def point_speeds(v_world_sensor: np.ndarray, omega_world: np.ndarray,
+                 r_world: np.ndarray) -> np.ndarray:
+    """Horizontal speeds (N, k) [m/s] of points rigidly on the foot (:func:`point_velocities`)."""
+    v = point_velocities(v_world_sensor, omega_world, r_world)
     return np.asarray(np.linalg.norm(v[..., :2], axis=-1))
 
 
@@ -111,10 +117,10 @@ def foot_point_offsets(model: HumanModel) -> dict[str, dict[str, np.ndarray]]:
             and any(topology.site_segment[n] == foot for n in points)}
 
 
-def points_moving(R_world_sensor: np.ndarray, acc: np.ndarray, gyr: np.ndarray,
-                  still: np.ndarray, rate: float, R_sensor_segment: np.ndarray,
-                  offsets: dict[str, np.ndarray], max_speed: float) -> dict[str, np.ndarray]:
-    """Where each point of a foot moves faster than ``max_speed`` [m/s] by the foot's IMU.
+def foot_point_velocities(R_world_sensor: np.ndarray, acc: np.ndarray, gyr: np.ndarray,
+                          still: np.ndarray, rate: float, R_sensor_segment: np.ndarray,
+                          offsets: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Each point's velocity ``v_world_point`` (N, 3) [m/s] by the foot's IMU, NaN unknown.
 
     Args:
         R_world_sensor: (N, 3, 3) the foot sensor's orientations (NaN where missing).
@@ -127,16 +133,47 @@ def points_moving(R_world_sensor: np.ndarray, acc: np.ndarray, gyr: np.ndarray,
         R_sensor_segment: (3, 3) the sensor's mounting on the foot segment.
         offsets: Point name -> offset (3,) from the sensor, foot segment frame [m]
             (:func:`foot_point_offsets`).
-        max_speed: Horizontal speed above which a point moves [m/s].
 
     Returns:
-        Point name -> (N,) 1.0 moving, 0.0 not, NaN unknown.
+        Point name -> (N, 3) world velocity [m/s] (:func:`sensor_velocity` plus the turn of
+        the foot about the sensor), NaN where the sensor's velocity is unknown.
     """
     v = sensor_velocity(world_acceleration(R_world_sensor, acc), still, rate)
     omega = np.einsum("nij,nj->ni", R_world_sensor, gyr)
     names = list(offsets)
     r_segment = np.stack([offsets[n] for n in names])  # (k, 3)
     r_world = np.einsum("nij,kj->nki", R_world_sensor @ R_sensor_segment, r_segment)
-    speed = point_speeds(v, omega, r_world)
-    moving = np.where(np.isfinite(speed), (speed > max_speed).astype(float), np.nan)
-    return {n: moving[:, i] for i, n in enumerate(names)}
+    velocity = point_velocities(v, omega, r_world)
+    return {n: velocity[:, i] for i, n in enumerate(names)}
+
+
+def faster_than(velocities: dict[str, np.ndarray], max_speed: float) -> dict[str, np.ndarray]:
+    """Where each point moves horizontally faster than ``max_speed`` [m/s].
+
+    Args:
+        velocities: Point name -> (N, 3) velocity [m/s], NaN unknown
+            (:func:`foot_point_velocities`).
+        max_speed: Horizontal speed above which a point moves [m/s].
+
+    Returns:
+        Point name -> (N,) 1.0 moving, 0.0 not, NaN unknown.
+    """
+    out = {}
+    for name, v in velocities.items():
+        speed = np.linalg.norm(v[:, :2], axis=1)
+        out[name] = np.where(np.isfinite(speed), (speed > max_speed).astype(float), np.nan)
+    return out
+
+
+def points_moving(R_world_sensor: np.ndarray, acc: np.ndarray, gyr: np.ndarray,
+                  still: np.ndarray, rate: float, R_sensor_segment: np.ndarray,
+                  offsets: dict[str, np.ndarray], max_speed: float) -> dict[str, np.ndarray]:
+    """Where each point of a foot moves faster than ``max_speed`` [m/s] by the foot's IMU.
+
+    :func:`faster_than` of :func:`foot_point_velocities` (arguments as there).
+
+    Returns:
+        Point name -> (N,) 1.0 moving, 0.0 not, NaN unknown.
+    """
+    return faster_than(foot_point_velocities(R_world_sensor, acc, gyr, still, rate,
+                                             R_sensor_segment, offsets), max_speed)
