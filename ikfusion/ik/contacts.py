@@ -31,6 +31,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 
 from ..model.topology import FootLayout
+from .anchor_settling import settled_heights
 from .fast_math import any_true, mean_rows, min_of, row_norms, true_indices
 from .foot_pairs import drift_from_other_foot, landing_anchors, other_foot
 
@@ -293,7 +294,7 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
 
     Returns:
         A new state; anchors above the floor settle toward it at ``settle_speed``
-        (:func:`settled_heights`: the planted points of one segment together).
+        (:func:`.anchor_settling.settled_heights`: the planted points of one segment together).
     """
     th = thresholds
     active = state.active.copy()
@@ -336,30 +337,6 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     if landing:
         age[enter] = 0.0
     return ContactState(state.names, active, anchors, age, released)
-
-
-def settled_heights(z: np.ndarray, active: np.ndarray, same_segment: np.ndarray, drop: float,
-                    floor_z: float) -> np.ndarray:
-    """Anchor heights (k,) [m] lowered by at most ``drop`` [m] toward the floor ``floor_z`` [m].
-
-    A point settles straight down until it reaches the floor. Planted points that share a
-    rigid segment (``same_segment`` (k, k), e.g. both shoulder blades of a lying body) settle
-    together by the least room above the floor among them: the segment translates down and its
-    anchors keep its shape. One settling alone next to another on the floor would tilt the
-    segment about that one, and its point would slide sideways by ``dz^2 / (2 d)`` (a shoulder
-    blade planted 24 mm up, 17 cm from the other: 1.8 mm).
-
-    Args:
-        z: (k,) anchor heights [m].
-        active: (k,) planted points.
-        same_segment: (k, k) points on one rigid segment.
-        drop: How far an anchor settles at most this frame [m].
-        floor_z: Floor height [m].
-    """
-    own = np.clip(z - floor_z, 0.0, drop)
-    together = same_segment & active[:, None] & active[None, :]
-    shared = np.where(together, own[None, :], np.inf).min(axis=1)  # inf: no planted partner
-    return np.maximum(z - np.minimum(own, shared), floor_z)
 
 
 def _tilted(layout: FootLayout, foot_pitch: np.ndarray | None, limit: float) -> np.ndarray:

@@ -8,7 +8,7 @@ anchors are not exactly where the segment's shape puts them (anchors settled apa
 linearisation of a turning segment: second-order residuals), such dependent rows are
 inconsistent and the step's QP is infeasible (a lying body planted on both shoulder blades
 needed relaxed constraints frame after frame). The anchors of one segment
-settle toward the floor together (:func:`ikfusion.ik.contacts.settled_heights`) and a point
+settle toward the floor together (:func:`ikfusion.ik.anchor_settling.settled_heights`) and a point
 that lands beside planted ones is anchored with their offset
 (:func:`ikfusion.ik.foot_pairs.landing_anchors`), so they keep its shape.
 
