@@ -70,10 +70,10 @@ from .casadi_kinematics import (
     forward,
     frame_pose,
     geometry_vector,
-    jacobian,
     symbolic_placements,
 )
 from .compiled_joint_tasks import chain_objective, joint_columns, persistence_objective
+from .compiled_points import point_kinematics, points_function
 from .compiled_ranges import range_rows
 from .compiled_sensed import SensedPoseSpec, sensed_pose_function
 from .native import BoundFunction, cached_functions, column_major, native_functions
@@ -91,36 +91,41 @@ class CompiledKinematics:
             points there).
         chain_pairs: The neighbouring joints of :class:`.tasks.EvenChainTask` (its
             ``pairs``), whose objective joins ``H`` and ``c`` weighted by the input ``w_chain``.
-        loaded: The functions already built (:attr:`FUNCTION_NAMES`, loaded from a cached
-            library): the graph is then not built again.
+        points: Frame ids of :attr:`points_function` (their positions and linear Jacobians,
+            :mod:`.compiled_points`); none when empty.
+        loaded: The functions already built (as :meth:`functions` lists them, loaded from a
+            cached library): the graph is then not built again.
 
     Raises:
         NotImplementedError: For joint types the graph does not cover.
     """
 
-    #: The names of the step function and of the sensed-pose function.
-    FUNCTION_NAMES = ("ik_step_objective", "ik_sensed_pose")
+    #: The names of the step function, the sensed-pose function and the points function.
+    FUNCTION_NAMES = ("ik_step_objective", "ik_sensed_pose", "ik_points")
 
     def __init__(self, model: pin.Model, segment_frames: Sequence[int],
                  ball_joints: Sequence[BallJoint], site_frames: Sequence[int],
                  sensed: SensedPoseSpec | None = None,
                  loaded: Sequence[ca.Function] | None = None,
-                 chain_pairs: Sequence[tuple[BallJoint, BallJoint]] = ()) -> None:
+                 chain_pairs: Sequence[tuple[BallJoint, BallJoint]] = (),
+                 points: Sequence[int] = ()) -> None:
         self.nv = model.nv
         self.warnings: list[str] = []  # e.g. a failed native compile (see compiled_kinematics)
         self.segment_frames = list(segment_frames)
         self.site_frames = list(site_frames)
+        self.point_frames = list(points)
         frames = sorted(set(self.segment_frames) | set(self.site_frames)
-                        | set(sensed.points if sensed else ()))
+                        | set(sensed.points if sensed else ()) | set(self.point_frames))
         self._geometry_frames = frames
         self._no_chain = np.zeros(3 * len(chain_pairs))
         self._no_persist = np.zeros(model.nv)
         #: The tangent columns the persistence twin leaves out (the root's): its weights there
         #: must be zero.
         self.persistence_excluded = np.flatnonzero(~joint_columns(model))
+        self.sensed_function: ca.Function | None = None
+        self.points_function: ca.Function | None = None
         if loaded is not None:
-            self.function = loaded[0]
-            self.sensed_function = loaded[1] if sensed is not None else None
+            self.use_functions(loaded)
             return
         q = ca.SX.sym("q", model.nq)
         targets = ca.SX.sym("R_world_target", 9 * len(segment_frames))
@@ -130,6 +135,10 @@ class CompiledKinematics:
         self.sensed_function = (None if sensed is None else
                                 sensed_pose_function(model, sensed, self.FUNCTION_NAMES[1], q,
                                                      targets, geometry, placements))
+        self.points_function = (None if not self.point_frames else
+                                points_function(model, self.point_frames, self.FUNCTION_NAMES[2],
+                                                q, geometry, placements, rotations,
+                                                translations, axes))
 
         w_orient = ca.SX.sym("w_orient", 3 * len(segment_frames))
         e_orient, K_orient, g_orient, dofs = [], [], [], []
@@ -162,11 +171,8 @@ class CompiledKinematics:
             angles.append(ca.substitute(a, w, ca.DM.zeros(3)))
             E_inv.append(ca.substitute(ca.jacobian(a, w), w, ca.DM.zeros(3)))
 
-        p_sites, J_sites = [], []
-        for fid in site_frames:
-            _, p = frame_pose(model, fid, rotations, translations, placements)
-            p_sites.append(p)
-            J_sites.append(jacobian(model, fid, axes, translations, p)[:3, :])
+        p_sites, J_sites = point_kinematics(model, site_frames, rotations, translations,
+                                            placements, axes)
 
         def stack(parts: list[ca.SX], cols: int) -> ca.SX:
             return ca.vertcat(*parts) if parts else ca.SX(0, cols)
@@ -206,6 +212,18 @@ class CompiledKinematics:
             ["H", "c", "e_orient", "angles", "E_inv", "p_sites", "J_sites", "G_ranges",
              "room_up", "room_down"],
         )
+
+    def functions(self) -> list[ca.Function]:
+        """The functions built, in :attr:`FUNCTION_NAMES` order."""
+        return [f for f in (self.function, self.sensed_function, self.points_function)
+                if f is not None]
+
+    def use_functions(self, functions: Sequence[ca.Function]) -> None:
+        """Evaluate with ``functions`` (e.g. natively compiled), matched by name."""
+        by_name = {f.name(): f for f in functions}
+        self.function = by_name[self.FUNCTION_NAMES[0]]
+        self.sensed_function = by_name.get(self.FUNCTION_NAMES[1])
+        self.points_function = by_name.get(self.FUNCTION_NAMES[2])
 
     def geometry(self, model: pin.Model) -> np.ndarray:
         """The geometry input of ``model`` (joint and frame placements; column-major R, then p).
@@ -275,11 +293,13 @@ class CompiledKinematics:
 def structure_key(model: pin.Model, segment_frames: Sequence[int],
                   ball_joints: Sequence[BallJoint], site_frames: Sequence[int],
                   sensed: SensedPoseSpec | None = None,
-                  chain_pairs: Sequence[tuple[BallJoint, BallJoint]] = ()) -> str:
+                  chain_pairs: Sequence[tuple[BallJoint, BallJoint]] = (),
+                  points: Sequence[int] = ()) -> str:
     """A string identifying the compiled structure (not the geometry) of a step function."""
     parts = [
-        "objective-v9",
+        "objective-v10",
         ",".join(f"{a.idx_q}:{b.idx_q}" for a, b in chain_pairs),
+        ",".join(f"{f}:{model.frames[f].parentJoint}" for f in points),
         repr(sensed),
         ",".join(model.joints[j].shortname() for j in range(1, model.njoints)),
         ",".join(str(p) for p in model.parents),
@@ -299,33 +319,31 @@ _BUILT: dict[str, CompiledKinematics] = {}
 def compiled_kinematics(model: pin.Model, segment_frames: Sequence[int],
                         ball_joints: Sequence[BallJoint], site_frames: Sequence[int],
                         sensed: SensedPoseSpec | None = None,
-                        chain_pairs: Sequence[tuple[BallJoint, BallJoint]] = ()
-                        ) -> CompiledKinematics:
+                        chain_pairs: Sequence[tuple[BallJoint, BallJoint]] = (),
+                        points: Sequence[int] = ()) -> CompiledKinematics:
     """A (cached) :class:`CompiledKinematics`, natively compiled when a C compiler exists.
 
     A library already built and verified is loaded without building the CasADi graphs again
     (that takes longer than loading). A failed compile leaves CasADi's virtual machine in place
     and says so in :attr:`CompiledKinematics.warnings` (and on stderr).
     """
-    key = structure_key(model, segment_frames, ball_joints, site_frames, sensed, chain_pairs)
+    key = structure_key(model, segment_frames, ball_joints, site_frames, sensed, chain_pairs,
+                        points)
     built = _BUILT.get(key)
     if built is None:
-        names = CompiledKinematics.FUNCTION_NAMES[:2 if sensed is not None else 1]
+        names = [n for n, wanted in zip(CompiledKinematics.FUNCTION_NAMES,
+                                        (True, sensed is not None, len(points) > 0)) if wanted]
         cached = cached_functions(key, names)
         if cached is not None:
             built = _BUILT[key] = CompiledKinematics(model, segment_frames, ball_joints,
-                                                     site_frames, sensed, cached, chain_pairs)
+                                                     site_frames, sensed, cached, chain_pairs,
+                                                     points)
             return built
         built = CompiledKinematics(model, segment_frames, ball_joints, site_frames, sensed,
-                                   chain_pairs=chain_pairs)
-        functions = [built.function]
-        if built.sensed_function is not None:
-            functions.append(built.sensed_function)
-        native, problem = native_functions(functions, key)
+                                   chain_pairs=chain_pairs, points=points)
+        native, problem = native_functions(built.functions(), key)
         if native is not None:
-            built.function = native[0]
-            if built.sensed_function is not None:
-                built.sensed_function = native[1]
+            built.use_functions(native)
         if problem is not None:
             built.warnings.append(problem)
         _BUILT[key] = built

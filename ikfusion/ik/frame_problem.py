@@ -21,6 +21,7 @@ from .configuration import Configuration
 from .fast_math import any_true
 from .limits import ContactConstraint, FloorLimit, JointRangeLimit, VelocityLimit
 from .limits.joint_range import LinearisedRanges
+from .points_configuration import PointsConfiguration
 from .qp import QpProblem, build_qp
 from .settings import SolverSettings
 from .tasks import (
@@ -139,10 +140,25 @@ def compiled_step(model: HumanModel, tasks: FrameTasks,
     try:
         kinematics = compiled_kinematics(model.model, tasks.orientation.frame_ids,
                                          list(model.ball_joints.values()), tasks.site_frames(),
-                                         sensed, tasks.even_chain.pairs)
+                                         sensed, tasks.even_chain.pairs,
+                                         tasks.contact.frame_ids)
         return CompiledStep(kinematics, kinematics.geometry(model.model))
     except NotImplementedError:
         return None
+
+
+def step_configuration(model: HumanModel, tasks: FrameTasks,
+                       compiled: CompiledStep | None) -> Configuration:
+    """The configuration the solver steps, at the neutral pose.
+
+    Its contact points come from the compiled points function (all of them in one call per
+    configuration, :class:`.points_configuration.PointsConfiguration`) when there is one.
+    """
+    points = None if compiled is None else compiled.kinematics.points_function
+    if compiled is None or points is None:
+        return Configuration(model.model, model.neutral())
+    return PointsConfiguration(model.model, model.neutral(), tasks.contact.frame_ids, points,
+                               compiled.geometry)
 
 
 def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Task],

@@ -43,7 +43,8 @@ class BoundFunction:
         for i, arr in enumerate(self._inputs):
             self._buffer.set_arg(i, memoryview(arr))  # type: ignore[arg-type,call-arg]
         self._dense: list[np.ndarray] = []
-        self._scattered: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        # output -> (its dense array flattened, where its nonzeros go, the nonzeros)
+        self._scattered: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         for i in range(function.n_out()):
             sp = function.sparsity_out(i)
             dense = np.zeros((sp.size1(), sp.size2()))
@@ -54,17 +55,36 @@ class BoundFunction:
                 nz = np.zeros(sp.nnz())
                 self._buffer.set_res(i, memoryview(nz))  # type: ignore[arg-type,call-arg]
                 rows, cols = (np.array(v, dtype=int) for v in sp.get_triplet())
-                self._scattered.append((dense.reshape(-1), rows * sp.size2() + cols, nz))
+                self._scattered[i] = (dense.reshape(-1), rows * sp.size2() + cols, nz)
             self._dense.append(dense)
 
     def __call__(self, *inputs: np.ndarray) -> list[np.ndarray]:
         """The outputs as dense arrays, overwritten by the next call."""
+        self.evaluate(*inputs)
+        for flat_dense, flat, nz in self._scattered.values():
+            flat_dense[flat] = nz
+        return self._dense
+
+    def set_input(self, i: int, value: np.ndarray) -> None:
+        """Set input ``i``; it keeps this value while calls pass fewer inputs."""
+        self._inputs[i][:] = value
+
+    def evaluate(self, *inputs: np.ndarray) -> None:
+        """Evaluate at the first ``len(inputs)`` inputs (the others keep their last values).
+
+        Read the outputs with :meth:`output`, each made dense only when asked for.
+        """
         for buffer, value in zip(self._inputs, inputs):
             buffer[:] = value
         self._evaluate()
-        for flat_dense, flat, nz in self._scattered:
+
+    def output(self, i: int) -> np.ndarray:
+        """Output ``i`` of the last :meth:`evaluate` as a dense array, overwritten by the next."""
+        scattered = self._scattered.get(i)
+        if scattered is not None:
+            flat_dense, flat, nz = scattered
             flat_dense[flat] = nz
-        return self._dense
+        return self._dense[i]
 
 
 def cache_dir() -> Path:
@@ -95,22 +115,25 @@ def compiler_identity(compiler: str) -> str:
 def generator_fingerprint() -> str:
     """SHA-256 of the source that generates the step functions and builds them.
 
-    That is :mod:`.compiled`, :mod:`.compiled_sensed`, :mod:`.casadi_kinematics`,
-    :mod:`.compiled_ranges` and :mod:`.compiled_joint_tasks` (the expressions), this module (the
-    build), the CasADi rotation twin and the NumPy module holding their shared epsilon policy.
+    That is :mod:`.compiled`, :mod:`.compiled_sensed`, :mod:`.compiled_points`,
+    :mod:`.casadi_kinematics`, :mod:`.compiled_ranges` and :mod:`.compiled_joint_tasks` (the
+    expressions), this module (the build), the CasADi rotation twin and the NumPy module holding
+    their shared epsilon policy.
     """
     from . import (  # imported late: no cycle
         casadi_kinematics,
         compiled,
         compiled_joint_tasks,
+        compiled_points,
         compiled_ranges,
         compiled_sensed,
     )
 
     digest = hashlib.sha256()
-    for module in (compiled.__file__, compiled_sensed.__file__, casadi_kinematics.__file__,
-                   compiled_ranges.__file__, compiled_joint_tasks.__file__, __file__,
-                   rotations_casadi.__file__, numpy_rotations.__file__):
+    for module in (compiled.__file__, compiled_sensed.__file__, compiled_points.__file__,
+                   casadi_kinematics.__file__, compiled_ranges.__file__,
+                   compiled_joint_tasks.__file__, __file__, rotations_casadi.__file__,
+                   numpy_rotations.__file__):
         digest.update(Path(str(module)).read_bytes())
     return digest.hexdigest()
 

@@ -37,11 +37,10 @@ from ..model.human_model import HumanModel
 from ..model.topology import BodyTopology
 from .active_set import solve_with_active_set
 from .ballistic import BallisticRoot
-from .configuration import Configuration
 from .contact_tracker import ContactTracker
 from .equality_qp import ClosedFormHint
 from .frame import Frame
-from .frame_problem import FrameTasks, build_frame_problem, compiled_step
+from .frame_problem import FrameTasks, build_frame_problem, compiled_step, step_configuration
 from .frame_targets import FrameTargets, TargetLoader
 from .pose import Motion, Pose
 from .projection import place_on_floor, project_on_contacts
@@ -101,7 +100,7 @@ class Solver:
         self.contacts = ContactTracker(model, self.topology, self.contact_names, s)
         self.world = WorldOffset(self.contacts.support)
         self.ballistic = BallisticRoot(s.takeoff_velocity_tau)
-        self._configuration = Configuration(model.model, model.neutral())
+        self._configuration = step_configuration(model, self.tasks, self.compiled)
         self.reset()
 
     def reset(self, q: np.ndarray | None = None) -> None:

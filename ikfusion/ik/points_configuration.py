@@ -1,0 +1,92 @@
+"""A :class:`Configuration` whose contact points come from one compiled call per configuration.
+
+The projection onto the contacts, the touch-down and the floor ask for the contact points'
+positions and linear Jacobians several times per frame. Pinocchio answers one point per Python
+call (about 1 us each, 14 points); the compiled points function (:mod:`.compiled_points`)
+answers all of them at once, and its answer is kept until the next :meth:`update`. The numbers
+are Pinocchio's to rounding (the tests compare them).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import casadi as ca
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from .configuration import Configuration
+from .native import BoundFunction
+
+
+class PointsConfiguration(Configuration):
+    """:class:`Configuration` with the points of ``points_function`` from one call per ``q``.
+
+    Args:
+        model: The Pinocchio model.
+        q: Configuration, size ``model.nq``.
+        frame_ids: The frames of ``points_function`` (its output rows, in order).
+        points_function: ``(q, geometry) -> (p_points (3n) [m], J_points (3n, nv))``
+            (:func:`.compiled_points.points_function`).
+        geometry: Its geometry input (:meth:`.compiled.CompiledKinematics.geometry`).
+    """
+
+    def __init__(self, model: pin.Model, q: npt.ArrayLike, frame_ids: Sequence[int],
+                 points_function: ca.Function, geometry: np.ndarray) -> None:
+        self._row = {f: i for i, f in enumerate(frame_ids)}
+        self._all = tuple(frame_ids)
+        self._call = BoundFunction(points_function)
+        self._call.set_input(1, geometry)  # kept: calls pass q only
+        self._P: np.ndarray | None = None
+        self._J: np.ndarray | None = None
+        super().__init__(model, q)
+
+    def update(self, q: npt.ArrayLike) -> None:
+        """Set ``q``; the points are computed once, when first asked for."""
+        super().update(q)
+        self._P = self._J = None
+
+    def _point_positions(self) -> np.ndarray:
+        """Every point's ``p_world_point`` (n, 3) [m], read-only."""
+        if self._P is None:
+            self._call.evaluate(self._q)
+            self._J = None  # scattered from this evaluation when asked for
+            P = self._call.output(0).reshape(-1, 3).copy()
+            P.setflags(write=False)
+            self._P = P
+        return self._P
+
+    def _point_jacobians(self) -> np.ndarray:
+        """Every point's world linear-velocity Jacobian (n, 3, nv), a view of the output buffer.
+
+        Only :meth:`_point_positions` evaluates, once per :meth:`update`: the buffer holds this
+        configuration's Jacobians until the next one (callers get copies by row selection).
+        """
+        if self._J is None:
+            self._point_positions()
+            self._J = self._call.output(1).reshape(-1, 3, self.model.nv)
+        return self._J
+
+    def _rows(self, frame_ids: Sequence[int]) -> list[int] | None:
+        """The rows of ``frame_ids`` among the points, None when one is not a point."""
+        rows = [self._row.get(f) for f in frame_ids]
+        return None if None in rows else rows  # type: ignore[return-value]
+
+    def positions(self, frame_ids: Sequence[int]) -> np.ndarray:
+        """``p_world_frame`` [m] of several frames, shape (k, 3), read-only."""
+        if tuple(frame_ids) == self._all:
+            return self._point_positions()
+        rows = self._rows(frame_ids)
+        if rows is None:
+            return super().positions(frame_ids)
+        P = self._point_positions()[rows]
+        P.setflags(write=False)
+        return P
+
+    def linear_jacobians(self, frame_ids: Sequence[int]) -> np.ndarray:
+        """World linear-velocity Jacobians of frame origins, shape (k, 3, nv)."""
+        rows = self._rows(frame_ids)
+        if rows is None:
+            return super().linear_jacobians(frame_ids)
+        return self._point_jacobians()[rows]
