@@ -33,7 +33,13 @@ from .layout import (
     TAG_SITES,
     TRUNK_CONTACT_SITES,
 )
-from .model_cache import TABLE_ATTRIBUTES, entry_folder, load_entry, store_entry
+from .model_cache import (
+    HUMAN_MODEL_FILES,
+    TABLE_ATTRIBUTES,
+    entry_folder,
+    load_entry,
+    store_entry,
+)
 from .motion_kinematics import frame_placements
 from .urdf import SITE_SUFFIX, body_to_urdf, write_urdf
 
@@ -415,11 +421,12 @@ def _model_of_body(body: Body) -> HumanModel:
     text = body_to_urdf(body)
     folder = entry_folder(text)
     cached = load_entry(folder)
-    if cached is not None and cached[2]["body"] == body:
-        model, revolute, tables = cached
+    tables = None if cached is None else cached[1]
+    if cached is not None and tables is not None and tables["body"] == body:
+        model, revolute = cached[0]
         return HumanModel._from_parts(model, revolute, tables)
     built = HumanModel._from_urdf_text(text, body)
-    store_entry(folder, built.model, built.revolute_model,
+    store_entry(folder, dict(zip(HUMAN_MODEL_FILES, (built.model, built.revolute_model))),
                 {name: getattr(built, name) for name in TABLE_ATTRIBUTES})
     return built
 

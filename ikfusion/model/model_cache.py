@@ -1,4 +1,4 @@
-"""Human models built once per URDF and kept on disk, so a fresh process loads instead of building.
+"""Models built once per URDF and kept on disk, so a fresh process loads instead of building.
 
 Building the model of a body (parsing its URDF, merging the revolute triplets into ball joints,
 finding segments, sites and the N-pose) takes about 10 ms; loading it back takes about 1 ms. A
@@ -12,6 +12,9 @@ serialisation, exact to the bit) and ``tables.pickle`` (ball joints, name tables
 and ``sha256``, the hash of the three recorded when it was written. It is loaded only when the
 files match that record; anything else (a missing, partial or damaged entry, an unwritable cache)
 builds the model from the URDF as before, so the cache never changes a result.
+
+:func:`cached_model` does the same for any Pinocchio model built from files (a retarget robot's
+reduced model under ``robot_models/``), keyed by what it is built from.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ import os
 import pickle
 import shutil
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -30,8 +34,10 @@ from .. import rotations
 from ..atomic import temporary_name
 from ..paths import user_cache_dir
 
-#: Files of a cache entry, in the order their bytes are hashed.
-_FILES = ("model.bin", "revolute.bin", "tables.pickle")
+#: The Pinocchio models of a human model's entry (the ball-joint model, the revolute one) ...
+HUMAN_MODEL_FILES = ("model.bin", "revolute.bin")
+#: ... and its pickled tables.
+TABLES_FILE = "tables.pickle"
 
 #: ``HumanModel`` attributes kept in ``tables.pickle`` (the Pinocchio models are stored apart).
 TABLE_ATTRIBUTES = ("body", "ball_joints", "joint_map", "_frames", "_segments", "_sites",
@@ -50,7 +56,7 @@ def code_fingerprint() -> str:
 
 
 def entry_folder(urdf_text: str) -> Path:
-    """The cache folder of the model of ``urdf_text`` (whether or not it exists yet)."""
+    """The cache folder of the human model of ``urdf_text`` (whether or not it exists yet)."""
     key = hashlib.sha256(urdf_text.encode() + b"\0" + code_fingerprint().encode()).hexdigest()
     return user_cache_dir() / "human_models" / key[:32]
 
@@ -62,32 +68,42 @@ def _digest(contents: list[bytes]) -> str:
     return digest.hexdigest()
 
 
-def load_entry(folder: Path) -> tuple[pin.Model, pin.Model, dict[str, Any]] | None:
-    """The converted model, the revolute model and the tables of an entry; None when unusable.
+def load_entry(folder: Path, model_files: tuple[str, ...] = HUMAN_MODEL_FILES,
+               tables_file: str | None = TABLES_FILE
+               ) -> tuple[list[pin.Model], dict[str, Any] | None] | None:
+    """The Pinocchio models (and the tables) of an entry; None when it is missing or unusable.
 
-    The tables are unpickled from the very bytes checked against the entry's record.
+    The files are checked against the entry's record first; the tables are unpickled from
+    the very bytes checked.
     """
+    files = (*model_files, *(() if tables_file is None else (tables_file,)))
     try:
-        contents = [(folder / name).read_bytes() for name in _FILES]
+        contents = [(folder / name).read_bytes() for name in files]
         if _digest(contents) != (folder / "sha256").read_text().strip():
             return None
         models = []
-        for name in _FILES[:2]:
+        for name in model_files:
             model = pin.Model()
             model.loadFromBinary(str(folder / name))
             models.append(model)
-        tables = pickle.loads(contents[2])
+        tables = None if tables_file is None else pickle.loads(contents[-1])
     except (OSError, RuntimeError, ValueError, EOFError, pickle.UnpicklingError, AttributeError,
             ImportError):
         return None
-    if not isinstance(tables, dict) or set(tables) != set(TABLE_ATTRIBUTES):
+    if tables_file is not None and (not isinstance(tables, dict)
+                                    or set(tables) != set(TABLE_ATTRIBUTES)):
         return None
-    return models[0], models[1], tables
+    return models, tables
 
 
-def store_entry(folder: Path, model: pin.Model, revolute: pin.Model,
-                tables: dict[str, Any]) -> bool:
+def store_entry(folder: Path, models: dict[str, pin.Model],
+                tables: dict[str, Any] | None = None) -> bool:
     """Write an entry whole (a temporary folder renamed into place); False when it cannot.
+
+    Args:
+        folder: The entry.
+        models: File name -> Pinocchio model (binary serialisation).
+        tables: Pickled to :data:`TABLES_FILE` when given.
 
     A concurrent writer of the same entry may win the rename: its entry is as good as ours.
     """
@@ -96,10 +112,14 @@ def store_entry(folder: Path, model: pin.Model, revolute: pin.Model,
         folder.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
         partial = temporary_name(folder)
         partial.mkdir(mode=0o700)
-        model.saveToBinary(str(partial / _FILES[0]))
-        revolute.saveToBinary(str(partial / _FILES[1]))
-        (partial / _FILES[2]).write_bytes(pickle.dumps(tables, protocol=pickle.HIGHEST_PROTOCOL))
-        contents = [(partial / name).read_bytes() for name in _FILES]
+        for name, model in models.items():
+            model.saveToBinary(str(partial / name))
+        files = list(models)
+        if tables is not None:
+            (partial / TABLES_FILE).write_bytes(
+                pickle.dumps(tables, protocol=pickle.HIGHEST_PROTOCOL))
+            files.append(TABLES_FILE)
+        contents = [(partial / name).read_bytes() for name in files]
         (partial / "sha256").write_text(_digest(contents) + "\n")
         if folder.exists():  # a damaged entry (a good one would have been loaded)
             shutil.rmtree(folder, ignore_errors=True)
@@ -110,3 +130,22 @@ def store_entry(folder: Path, model: pin.Model, revolute: pin.Model,
     finally:
         if partial is not None and partial.exists():
             shutil.rmtree(partial, ignore_errors=True)
+
+
+def cached_model(kind: str, key: str, build: Callable[[], pin.Model]) -> pin.Model:
+    """The Pinocchio model ``build`` returns, loaded from the cache when built before.
+
+    Args:
+        kind: The cache's subfolder (``"robot_models"``).
+        key: Everything the model depends on (the URDF's bytes, options), hashed here with
+            the Pinocchio version.
+        build: Builds the model (its errors propagate; a failed build is never cached).
+    """
+    digest = hashlib.sha256(f"{key}\0pinocchio {pin.__version__}".encode()).hexdigest()
+    folder = user_cache_dir() / kind / digest[:32]
+    loaded = load_entry(folder, ("model.bin",), None)
+    if loaded is not None:
+        return loaded[0][0]
+    model = build()
+    store_entry(folder, {"model.bin": model})
+    return model
