@@ -11,7 +11,8 @@ A cache entry is a folder of three files, ``model.bin`` and ``revolute.bin`` (Pi
 serialisation, exact to the bit) and ``tables.pickle`` (ball joints, name tables, the N-pose),
 and ``sha256``, the hash of the three recorded when it was written. It is loaded only when the
 files match that record; anything else (a missing, partial or damaged entry, an unwritable cache)
-builds the model from the URDF as before, so the cache never changes a result.
+builds the model from the URDF as before, so the cache never changes a result. At most
+:data:`MAX_ENTRIES` entries are kept, the least recently used removed first.
 
 :func:`cached_model` does the same for any Pinocchio model built from files (a retarget robot's
 reduced model under ``robot_models/``), keyed by what it is built from.
@@ -19,6 +20,7 @@ reduced model under ``robot_models/``), keyed by what it is built from.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import pickle
@@ -31,13 +33,16 @@ from typing import Any
 import pinocchio as pin
 
 from .. import rotations
-from ..atomic import temporary_name
+from ..atomic import is_leftover_name, temporary_name
 from ..paths import user_cache_dir
 
 #: The Pinocchio models of a human model's entry (the ball-joint model, the revolute one) ...
 HUMAN_MODEL_FILES = ("model.bin", "revolute.bin")
 #: ... and its pickled tables.
 TABLES_FILE = "tables.pickle"
+
+#: Entries kept per kind (about 160 kB each for a human model); the least recently used go first.
+MAX_ENTRIES = 200
 
 #: ``HumanModel`` attributes kept in ``tables.pickle`` (the Pinocchio models are stored apart).
 TABLE_ATTRIBUTES = ("body", "ball_joints", "joint_map", "_frames", "_segments", "_sites",
@@ -93,6 +98,8 @@ def load_entry(folder: Path, model_files: tuple[str, ...] = HUMAN_MODEL_FILES,
     if tables_file is not None and (not isinstance(tables, dict)
                                     or set(tables) != set(TABLE_ATTRIBUTES)):
         return None
+    with contextlib.suppress(OSError):  # used now: pruned last (a read-only cache still loads)
+        os.utime(folder)
     return models, tables
 
 
@@ -124,12 +131,26 @@ def store_entry(folder: Path, models: dict[str, pin.Model],
         if folder.exists():  # a damaged entry (a good one would have been loaded)
             shutil.rmtree(folder, ignore_errors=True)
         os.replace(partial, folder)
-        return True
     except (OSError, RuntimeError, pickle.PicklingError):
         return False
     finally:
         if partial is not None and partial.exists():
             shutil.rmtree(partial, ignore_errors=True)
+    with contextlib.suppress(OSError):
+        _prune(folder.parent, MAX_ENTRIES)
+    return True
+
+
+def _prune(kind: Path, keep: int) -> None:
+    """Remove all but the ``keep`` entries of ``kind`` used last (a cache never grows unbounded)."""
+    entries = []
+    for entry in kind.iterdir():
+        if entry.is_dir() and not is_leftover_name(entry.name):
+            with contextlib.suppress(OSError):
+                entries.append((entry.stat().st_mtime_ns, entry))
+    entries.sort(reverse=True)
+    for _, entry in entries[keep:]:
+        shutil.rmtree(entry, ignore_errors=True)
 
 
 def cached_model(kind: str, key: str, build: Callable[[], pin.Model]) -> pin.Model:

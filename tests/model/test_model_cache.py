@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -103,3 +104,20 @@ def test_an_unwritable_cache_only_costs_time(tmp_path: Path,
     assert pin.neutral(model.model).shape == q.shape
     assert min(model.site_position(q, n)[2] for n in ("LeftHeel", "RightToe")) == \
         pytest.approx(0.0, abs=1e-9)
+
+
+def test_the_least_recently_used_entries_go_first(cache: Path,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    from ikfusion.model import model_cache
+
+    monkeypatch.setattr(model_cache, "MAX_ENTRIES", 2)
+    bodies = [Body.from_height(h) for h in (1.6, 1.7, 1.8)]
+    folders = [entry_folder(body_to_urdf(b)) for b in bodies]
+    for body in bodies[:2]:
+        HumanModel.from_body(body)
+    for i, folder in enumerate(folders[:2]):  # the first one built, the second used later
+        os.utime(folder, ns=(10**18 + i, 10**18 + i))
+    human_model._model_of_body.cache_clear()
+    HumanModel.from_body(bodies[0])  # loaded: now the most recently used
+    HumanModel.from_body(bodies[2])  # a third entry: the one used least recently goes
+    assert [f.is_dir() for f in folders] == [True, False, True]
