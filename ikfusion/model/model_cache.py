@@ -33,7 +33,7 @@ from typing import Any
 import pinocchio as pin
 
 from .. import rotations
-from ..atomic import is_leftover_name, temporary_name
+from ..atomic import is_leftover_name, remove_leftovers, temporary_name
 from ..paths import user_cache_dir
 
 #: The Pinocchio models of a human model's entry (the ball-joint model, the revolute one) ...
@@ -142,7 +142,11 @@ def store_entry(folder: Path, models: dict[str, pin.Model],
 
 
 def _prune(kind: Path, keep: int) -> None:
-    """Remove all but the ``keep`` entries of ``kind`` used last (a cache never grows unbounded)."""
+    """Remove all but the ``keep`` entries of ``kind`` used last (a cache never grows unbounded).
+
+    Partial entries that killed writers left are removed too.
+    """
+    remove_leftovers(kind)
     entries = []
     for entry in kind.iterdir():
         if entry.is_dir() and not is_leftover_name(entry.name):
