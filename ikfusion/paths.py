@@ -1,7 +1,8 @@
-"""Where the shipped files live: ``configs/`` and ``robots/`` beside the package."""
+"""Where the shipped files live (``configs/`` and ``robots/`` beside the package) and the cache."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from .errors import ConfigError
@@ -31,3 +32,15 @@ def shipped_config(*parts: str) -> Path:
             f"shipped configuration {'/'.join(parts)!r} not found under {configs_dir()}"
         )
     return path
+
+
+def user_cache_dir() -> Path:
+    """Folder of what ikfusion builds once and reuses (compiled step functions, human models).
+
+    ``$IKFUSION_CACHE``, else ``$XDG_CACHE_HOME/ikfusion``, else ``~/.cache/ikfusion``.
+    """
+    base = os.environ.get("IKFUSION_CACHE")
+    if base:
+        return Path(base)
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return (Path(xdg) if xdg else Path.home() / ".cache") / "ikfusion"

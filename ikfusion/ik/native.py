@@ -27,6 +27,7 @@ import numpy as np
 from .. import rotations as numpy_rotations
 from .. import rotations_casadi
 from ..atomic import atomic_path, atomic_write_text
+from ..paths import user_cache_dir
 
 
 def column_major(R: np.ndarray) -> np.ndarray:
@@ -88,12 +89,8 @@ class BoundFunction:
 
 
 def cache_dir() -> Path:
-    """Folder of compiled step functions."""
-    base = os.environ.get("IKFUSION_CACHE")
-    if base:
-        return Path(base)
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    return (Path(xdg) if xdg else Path.home() / ".cache") / "ikfusion"
+    """Folder of compiled step functions (:func:`~ikfusion.paths.user_cache_dir`)."""
+    return user_cache_dir()
 
 
 def find_compiler() -> str | None:

@@ -13,6 +13,7 @@ import numpy as np
 from scipy.linalg import solve_banded
 
 from ..model.human_model import HumanModel
+from ..model.motion_kinematics import JointRotations
 from .model_motion import contact_phases_from_points, site_positions
 
 #: How quickly the root correction's velocity may change [s]: a touchdown's correction is
@@ -42,6 +43,8 @@ def planted_velocity_correction(P: np.ndarray, time: np.ndarray, planted: np.nda
         planted: (N, k) contact phases; a point counts in a step when planted at both ends
             and in the steps before and after (not in a phase's first and last step).
         blend_s: Time over which the correction's velocity may change [s].
+        rotations: The joints' rotations along ``q`` kept between queries
+            (:class:`~ikfusion.model.motion_kinematics.JointRotations`; the same result without).
         relax: Pull of the correction toward zero (relative weight per step) ...
         relax_free: ... and in steps without a planted point.
 
@@ -74,7 +77,8 @@ def planted_velocity_correction(P: np.ndarray, time: np.ndarray, planted: np.nda
 def lock_planted_points(model: HumanModel, q: np.ndarray, time: np.ndarray,
                         names: list[str], height: float = 0.03,
                         speed: float = 0.3,
-                        blend_s: float = LOCK_BLEND_S) -> tuple[np.ndarray, np.ndarray]:
+                        blend_s: float = LOCK_BLEND_S, rotations: JointRotations | None = None
+                        ) -> tuple[np.ndarray, np.ndarray]:
     """Configurations whose planted contact points do not slide horizontally.
 
     The contact phases are labelled (:func:`~ikfusion.mocap.model_motion.contact_phases`,
@@ -93,6 +97,8 @@ def lock_planted_points(model: HumanModel, q: np.ndarray, time: np.ndarray,
         height: A contact point below this is near the floor [m] ...
         speed: ... and planted when slower than this [m/s].
         blend_s: Time over which the correction's velocity may change [s].
+        rotations: The joints' rotations along ``q`` kept between queries
+            (:class:`~ikfusion.model.motion_kinematics.JointRotations`; the same result without).
 
     Returns:
         The corrected configurations (N, nq) and the root offset added (N, 2) [m] (zero at
@@ -100,7 +106,7 @@ def lock_planted_points(model: HumanModel, q: np.ndarray, time: np.ndarray,
     """
     if len(time) < 3 or not names:
         return q.copy(), np.zeros((len(time), 2))
-    P = site_positions(model, q, names)
+    P = site_positions(model, q, names, rotations)
     offset = np.zeros((len(time), 2))
     for _ in range(LOCK_PASSES):
         moved = P.copy()

@@ -26,6 +26,7 @@ from ..ik.solver import Solver
 from ..io.bvh import read_bvh
 from ..model.body import Body
 from ..model.human_model import HumanModel
+from ..model.motion_kinematics import JointRotations
 from ..rotations import angle_between
 from .direct_pose import configurations_from_orientations
 from .foot_lock import lock_planted_points
@@ -235,14 +236,16 @@ def _bvh_motion(path: str | Path, rate: float, progress: bool, lock_contacts: bo
     contacts = model.sites_of_kind("contact")  # all labelled, the floor from the limbs'
     limbs = limb_contact_sites(model)
     q = level_on_floor(q, site_positions(model, q, limbs), time)
+    # from here on only the root's position moves: its joints' rotations are computed once
+    rotations = JointRotations()
     offset = np.zeros((len(time), 2))
     if lock_contacts:  # before the lift: the clip's standing points, not those it lifted
-        q, offset = lock_planted_points(model, q, time, limbs)
-    lift = floor_lift(site_positions(model, q, limbs), time)
+        q, offset = lock_planted_points(model, q, time, limbs, rotations=rotations)
+    lift = floor_lift(site_positions(model, q, limbs, rotations), time)
     q[:, 2] += lift
     segment_ids = [model.segment_frame_id(s) for s in model.segment_names] if segments else []
     p, R = frame_poses(model.model, q, [*(model.site_frame_id(n) for n in contacts),
-                                        *segment_ids])
+                                        *segment_ids], rotations)
     phases = contact_phases_from_points(p[:, :len(contacts)], time)
     truth = TruthMotion(model, time, q, contacts, phases, str(path), {
         "bvh_rate": bvh.frame_rate, "step": step, "missing_segments": list(mapped.missing),

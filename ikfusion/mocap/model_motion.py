@@ -14,7 +14,7 @@ import pinocchio as pin
 
 from ..model.human_model import HumanModel
 from ..model.layout import TRUNK_CONTACT_SITES
-from ..model.motion_kinematics import frame_placements
+from ..model.motion_kinematics import JointRotations, frame_placements
 
 
 @dataclass
@@ -88,15 +88,17 @@ def contact_phases_from_points(P: np.ndarray, time: np.ndarray, height: float = 
     return (P[..., 2] < height) & (v < speed)
 
 
-def frame_poses(model: pin.Model, q: np.ndarray,
-                frame_ids: list[int]) -> tuple[np.ndarray, np.ndarray]:
+def frame_poses(model: pin.Model, q: np.ndarray, frame_ids: list[int],
+                rotations: JointRotations | None = None) -> tuple[np.ndarray, np.ndarray]:
     """World origins (N, F, 3) [m] and rotations (N, F, 3, 3) of frames along ``q`` (N, nq).
 
     ``R_world_frame`` and ``p_world_frame`` of the Pinocchio frames ``frame_ids``, in that
     order; each joint is composed for all configurations at once
-    (:func:`~ikfusion.model.motion_kinematics.frame_placements`, Pinocchio's results to rounding).
+    (:func:`~ikfusion.model.motion_kinematics.frame_placements`, Pinocchio's results to rounding;
+    ``rotations`` keeps the joints' rotations between queries of one motion moved by its root's
+    translation only).
     """
-    return frame_placements(model, q, frame_ids)
+    return frame_placements(model, q, frame_ids, rotations)
 
 
 def segment_poses(model: HumanModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -107,6 +109,7 @@ def segment_poses(model: HumanModel, q: np.ndarray) -> tuple[np.ndarray, np.ndar
     return frame_poses(model.model, q, [model.segment_frame_id(s) for s in model.segment_names])
 
 
-def site_positions(model: HumanModel, q: np.ndarray, names: list[str]) -> np.ndarray:
-    """World positions (N, k, 3) [m] of sites along configurations (N, nq)."""
-    return frame_poses(model.model, q, [model.site_frame_id(n) for n in names])[0]
+def site_positions(model: HumanModel, q: np.ndarray, names: list[str],
+                   rotations: JointRotations | None = None) -> np.ndarray:
+    """World positions (N, k, 3) [m] of sites along configurations (N, nq) (:func:`frame_poses`)."""
+    return frame_poses(model.model, q, [model.site_frame_id(n) for n in names], rotations)[0]

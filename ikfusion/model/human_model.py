@@ -33,6 +33,13 @@ from .layout import (
     TAG_SITES,
     TRUNK_CONTACT_SITES,
 )
+from .model_cache import (
+    HUMAN_MODEL_FILES,
+    TABLE_ATTRIBUTES,
+    entry_folder,
+    load_entry,
+    store_entry,
+)
 from .motion_kinematics import frame_placements
 from .urdf import SITE_SUFFIX, body_to_urdf, write_urdf
 
@@ -139,6 +146,18 @@ class HumanModel:
         model.urdf_path = None
         model._set_up(pin.buildModelFromXML(text, pin.JointModelFreeFlyer()), body, True)
         return model
+
+    @classmethod
+    def _from_parts(cls, model: pin.Model, revolute: pin.Model,
+                    tables: Mapping[str, object]) -> HumanModel:
+        """A generated model (``urdf_path`` None) from its cached parts (:mod:`.model_cache`)."""
+        out = cls.__new__(cls)
+        out.urdf_path = None
+        out.model, out.revolute_model = model, revolute
+        for name, value in tables.items():
+            setattr(out, name, value)
+        out._data = None
+        return out
 
     def _shared_copy(self) -> HumanModel:
         """A copy sharing the Pinocchio models and name tables, with its own ``data``."""
@@ -393,11 +412,23 @@ class HumanModel:
 
 @lru_cache(maxsize=16)
 def _model_of_body(body: Body) -> HumanModel:
-    """The model of ``body`` built from its URDF text in memory, kept for equal bodies.
+    """The model of ``body`` from its URDF text, kept for equal bodies.
 
-    A few per process: a batch's clips of one subject share one.
+    A few per process (a batch's clips of one subject share one), and on disk keyed by the
+    URDF text (:mod:`~ikfusion.model.model_cache`): a fresh process loads it instead of
+    building it, with the same result to the bit.
     """
-    return HumanModel._from_urdf_text(body_to_urdf(body), body)
+    text = body_to_urdf(body)
+    folder = entry_folder(text)
+    cached = load_entry(folder)
+    tables = None if cached is None else cached[1]
+    if cached is not None and tables is not None and tables["body"] == body:
+        model, revolute = cached[0]
+        return HumanModel._from_parts(model, revolute, tables)
+    built = HumanModel._from_urdf_text(text, body)
+    store_entry(folder, dict(zip(HUMAN_MODEL_FILES, (built.model, built.revolute_model))),
+                {name: getattr(built, name) for name in TABLE_ATTRIBUTES})
+    return built
 
 
 def _in_spec_order(ball_joints: dict[str, BallJoint]) -> dict[str, BallJoint]:

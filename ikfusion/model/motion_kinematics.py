@@ -14,6 +14,7 @@ other joint type falls back to Pinocchio frame by frame.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 
 import numpy as np
 import pinocchio as pin
@@ -74,24 +75,61 @@ _REVOLUTE = {"JointModelRX": 0, "JointModelRY": 1, "JointModelRZ": 2}
 _SUPPORTED = {"JointModelFreeFlyer", "JointModelSpherical", *_REVOLUTE}
 
 
-def _joint_motion(joint: pin.JointModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-    """The joint's own rotation (N, 3, 3) and translation (N, 3) or None, along ``q``."""
+def _joint_rotation(joint: pin.JointModel, q: np.ndarray) -> np.ndarray:
+    """The joint's own rotation (N, 3, 3) along ``q``."""
     kind, i = joint.shortname(), joint.idx_q
     if kind == "JointModelFreeFlyer":
-        return quat_xyzw_matrix(q[:, i + 3:i + 7]), q[:, i:i + 3]
+        return quat_xyzw_matrix(q[:, i + 3:i + 7])
     if kind == "JointModelSpherical":
-        return quat_xyzw_matrix(q[:, i:i + 4]), None
-    return _axis_rotation(_REVOLUTE[kind], q[:, i]), None
+        return quat_xyzw_matrix(q[:, i:i + 4])
+    return _axis_rotation(_REVOLUTE[kind], q[:, i])
 
 
-def frame_placements(model: pin.Model, q: np.ndarray,
-                     frame_ids: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+def _joint_translation(joint: pin.JointModel, q: np.ndarray) -> np.ndarray | None:
+    """The joint's own translation (N, 3) along ``q``, None for a rotation only."""
+    i = joint.idx_q
+    return q[:, i:i + 3] if joint.shortname() == "JointModelFreeFlyer" else None
+
+
+@dataclass
+class JointRotations:
+    """The joints' world rotations of one model along one motion, kept between queries.
+
+    A motion moved about by its root's translation only (levelled, locked, lifted: every
+    coordinate but ``q[:, :3]`` unchanged) has the same rotations in every query:
+    :func:`frame_placements` given this computes each joint's once and the positions anew, with
+    the very values it computes without it. Rotations kept for other coordinates are dropped
+    (compared exactly), so a query of another motion is never wrong, only not faster.
+
+    Attributes:
+        model: The model they belong to.
+        coordinates: ``q[:, 3:]`` of the motion they belong to.
+        R_world_joint: Joint index -> (N, 3, 3).
+    """
+
+    model: pin.Model | None = None
+    coordinates: np.ndarray | None = None
+    R_world_joint: dict[int, np.ndarray] = field(default_factory=dict)
+
+    def of(self, model: pin.Model, Q: np.ndarray) -> dict[int, np.ndarray]:
+        """The rotations kept for ``model`` along ``Q`` (emptied when they are another's)."""
+        if self.model is not model or self.coordinates is None \
+                or not np.array_equal(self.coordinates, Q[:, 3:]):
+            self.model, self.coordinates = model, Q[:, 3:].copy()
+            self.R_world_joint = {}
+        return self.R_world_joint
+
+
+def frame_placements(model: pin.Model, q: np.ndarray, frame_ids: Sequence[int],
+                     rotations: JointRotations | None = None) -> tuple[np.ndarray, np.ndarray]:
     """World positions (N, F, 3) [m] and rotations ``R_world_frame`` (N, F, 3, 3) of frames.
 
     Args:
         model: The Pinocchio model.
         q: Configurations (N, nq) (Pinocchio's layout: quaternions stored x, y, z, w).
         frame_ids: The frames wanted, in order.
+        rotations: The joints' rotations kept from an earlier query of this motion (updated
+            here); the results are the same with or without.
     """
     Q = np.asarray(q, dtype=float).reshape(-1, model.nq)
     n, ids = len(Q), list(frame_ids)
@@ -109,22 +147,30 @@ def frame_placements(model: pin.Model, q: np.ndarray,
         while j > 0:
             j = model.parents[j]
             needed.add(j)
+    kept = {} if rotations is None else rotations.of(model, Q)
     R_joint: dict[int, np.ndarray] = {0: np.broadcast_to(np.eye(3), (n, 3, 3))}
     p_joint: dict[int, np.ndarray] = {0: np.zeros((n, 3))}
     for j in sorted(needed - {0}):  # Pinocchio numbers a parent before its children
         placement = model.jointPlacements[j]
-        R_motion, p_motion = _joint_motion(model.joints[j], Q)
+        joint = model.joints[j]
+        p_motion = _joint_translation(joint, Q)
         turned = not _is_identity(placement.rotation)
-        # liMi = jointPlacement * joint(q)
-        R_local = _rot_rot(placement.rotation, R_motion) if turned else R_motion
+        parent = model.parents[j]
+        if j in kept:
+            R_joint[j] = kept[j]
+        else:
+            R_motion = _joint_rotation(joint, Q)
+            # liMi = jointPlacement * joint(q)
+            R_local = _rot_rot(placement.rotation, R_motion) if turned else R_motion
+            # the world frame: oMi = liMi; else oMi = oMparent * liMi
+            R_joint[j] = kept[j] = R_local if parent == 0 else \
+                _rot_rot(R_joint[parent], R_local)
         p_local = np.broadcast_to(placement.translation, (n, 3)) if p_motion is None else \
             placement.translation + (_rot_vec(placement.rotation, p_motion) if turned
                                      else p_motion)
-        parent = model.parents[j]
-        if parent == 0:  # the world frame: oMi = liMi
-            R_joint[j], p_joint[j] = R_local, np.array(p_local)
+        if parent == 0:
+            p_joint[j] = np.array(p_local)
             continue
-        R_joint[j] = _rot_rot(R_joint[parent], R_local)  # oMi = oMparent * liMi
         p_joint[j] = p_joint[parent] + _rot_vec(R_joint[parent], p_local)
     for i, f in enumerate(ids):
         frame = model.frames[f]

@@ -7,12 +7,14 @@ Frames: world Z up, floor at z = 0; the free-flyer is the URDF's root link. Conf
 
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
 from ..errors import ConfigError
+from ..model.model_cache import cached_model
 from .robot_config import RetargetConfig
 
 
@@ -136,6 +138,22 @@ class RobotModel:
 
 
 def _reduced_model(config: RetargetConfig) -> pin.Model:
+    """The URDF on a free-flyer with the locked joints removed, built once per content.
+
+    Kept in the user cache (:func:`~ikfusion.model.model_cache.cached_model`) keyed by the
+    URDF's bytes and the locked joints' values: a fresh process loads it instead of parsing.
+    """
+    path = Path(config.urdf)
+    try:
+        urdf = path.read_bytes()
+    except OSError as err:
+        raise ConfigError(f"cannot read the URDF: {err}", path=path) from err
+    locked = sorted((joint, float(value)) for joint, value in config.locked_joints.items())
+    key = f"{hashlib.sha256(urdf).hexdigest()} free-flyer, locked {locked!r}"
+    return cached_model("robot_models", key, lambda: _build_reduced_model(config))
+
+
+def _build_reduced_model(config: RetargetConfig) -> pin.Model:
     path = Path(config.urdf)
     try:
         full = pin.buildModelFromUrdf(str(path), pin.JointModelFreeFlyer())

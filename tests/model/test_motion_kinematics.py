@@ -101,3 +101,36 @@ def test_identity_placements_cost_no_rotation_product(human: HumanModel, rng,
     p_ref, R_ref = pinocchio_frames(human.model, q, ids)
     np.testing.assert_allclose(p, p_ref, rtol=0, atol=1e-12)
     np.testing.assert_allclose(R, R_ref, rtol=0, atol=1e-12)
+
+
+def test_rotations_kept_while_only_the_root_moves(human: HumanModel, rng,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    # A BVH source is levelled, locked and lifted (only q[:, :3] changes) between three
+    # queries of its kinematics (issue #20): the joints' rotations are computed once, and every
+    # result is bit for bit the one computed without them.
+    import ikfusion.model.motion_kinematics as kinematics
+    from ikfusion.model.motion_kinematics import JointRotations
+
+    q = np.array([human.random_configuration(rng, p_world_pelvis=rng.normal(size=3))
+                  for _ in range(30)])
+    ids = list(range(human.model.nframes))
+    kept = JointRotations()
+    first = frame_placements(human.model, q, ids, kept)
+    shifted = q.copy()
+    shifted[:, :3] += rng.normal(size=(30, 3))
+    expected = frame_placements(human.model, shifted, ids)
+    calls = []
+    rotation = kinematics._joint_rotation
+    monkeypatch.setattr(kinematics, "_joint_rotation",
+                        lambda *a: calls.append(1) or rotation(*a))
+    again = frame_placements(human.model, shifted, ids, kept)
+    assert not calls  # no joint rotation computed again
+    for a, b in zip(again, expected):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(again[1], first[1])
+    turned = shifted.copy()  # another motion: its own rotations, the kept ones dropped
+    turned[:, 3:7] = turned[::-1, 3:7]
+    other = frame_placements(human.model, turned, ids, kept)
+    assert calls
+    for a, b in zip(other, frame_placements(human.model, turned, ids)):
+        np.testing.assert_array_equal(a, b)
