@@ -62,7 +62,6 @@ class SolverSettings(ShippedSettings):
     ease_speed_deg: float
     persistence: float
     joint_range_margin_deg: float
-    joint_range_approach: float
     max_joint_velocity: float
     max_root_velocity: float
     max_root_angular_velocity: float

@@ -15,19 +15,6 @@ near a limit) is measured on the Euler triple that the smallest turn of the join
 the range (:func:`~ikfusion.model.angle_continuity.nearest_to_ranges`), so it is pulled back to
 the limit it crossed: not thrown to the opposite corner across the +-180 deg wrap of the
 principal decomposition, nor through gimbal lock onto the other Euler branch.
-
-With ``approach`` below 1 (solver setting ``joint_range_approach``; 1, hard stops, is shipped)
-a joint slows down into a limit instead of hitting it: in one frame an angle may cover only the
-fraction ``approach`` of the room its previous frame left it,
-
-    a <= upper - (1 - approach) max(upper - a_previous, 0)   (and the same at the lower limit),
-
-so it comes to rest over a few frames. A hard stop at full speed is a pop: an estimate a few
-degrees off (a foot sensor's heading error) reaches the limit frames before the true joint and
-stops dead while the true joint still turns into the same limit at full speed (gen-backwards'
-ankle: 3.6 deg of error change in one frame). Slowing down spreads that change over a few frames
-but cannot remove it (the limit sheds the whole offset while the true joint covers its last
-degrees), and it lags a joint that exact targets drive fast into a limit (up to 1 deg at 0.5).
 """
 
 from __future__ import annotations
@@ -37,7 +24,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...errors import ConfigError
 from ...model.angle_continuity import nearest_to_ranges
 from ...model.ball_joints import BallJoint
 from ...rotations import exp_so3, quat_wxyz_to_matrix, xyzw_to_wxyz
@@ -46,8 +32,6 @@ from ..fast_math import any_true
 from .base import Inequality
 
 _UNIT = np.eye(3)
-_GIMBAL_FREE = np.radians(60.0)  # [rad] a joint whose middle angle is further is near gimbal lock
-_SAME_TRIPLE = np.radians(60.0)  # [rad] an angle further from its previous one changed triple
 
 
 class JointRangeLimit:
@@ -57,18 +41,9 @@ class JointRangeLimit:
         joints: ``HumanModel.ball_joints``.
         margin_deg: Only angles within this distance of a limit produce rows (the others
             cannot reach it in one step); keeps the QP small.
-        approach: The fraction of the room to a limit (left by the previous frame, see
-            :meth:`set_previous`) an angle may cover in one frame, in (0, 1]; 1: a hard stop.
-
-    Raises:
-        ConfigError: ``approach`` outside (0, 1] (the solver setting ``joint_range_approach``).
     """
 
-    def __init__(self, joints: Mapping[str, BallJoint], margin_deg: float,
-                 approach: float = 1.0) -> None:
-        if not 0.0 < approach <= 1.0:
-            raise ConfigError(f"expected a fraction in (0, 1], found {approach!r}",
-                              field="joint_range_approach")
+    def __init__(self, joints: Mapping[str, BallJoint], margin_deg: float) -> None:
         specs = [j.spec for j in joints.values()]
         self.names = list(joints)
         self.idx_q = np.array([j.idx_q for j in joints.values()])
@@ -82,8 +57,6 @@ class JointRangeLimit:
         self.parity = np.where((j - i) % 3 == 1, 1.0, -1.0)
         self.coupling = np.array([s.axis_coupling for s in specs])
         self.margin = np.radians(margin_deg)
-        self.approach = float(approach)
-        self._reserve: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._q_cols = self.idx_q[:, None] + np.arange(4)
         n = len(self.idx_v)  # where each E^-1 entry goes in the rows of all angles
         self._rows = np.repeat(np.arange(3 * n), 3)
@@ -100,43 +73,6 @@ class JointRangeLimit:
         first = np.arctan2(-p * R[n, j, k], R[n, k, k])
         last = np.arctan2(-p * R[n, i, j], R[n, i, i])
         return np.stack([first, middle, last], axis=1) * self.signs
-
-    def set_previous(self, q_previous: np.ndarray | None) -> None:
-        """Hold back the limits from the previous frame's configuration (None: hard limits).
-
-        Kept per angle: the previous angle [rad] and the room held back below the upper and
-        above the lower limit, ``(1 - approach)`` times the room it had. A joint near gimbal
-        lock (middle angle beyond 60 deg) keeps its hard limits: there a small turn moves the
-        first and third angles by tens of degrees, so their rates are not the joint's, and a
-        middle angle held back short of the lock walls off a cone around it that the solve
-        slides along and crosses at once (a shoulder's pop).
-        """
-        if q_previous is None or self.approach >= 1.0:
-            self._reserve = None
-            return
-        a, _ = nearest_to_ranges(self.angles(q_previous), self.lower, self.upper,
-                                 self.coupling)
-        keep = 1.0 - self.approach
-        up = keep * np.maximum(self.upper - a, 0.0)
-        down = keep * np.maximum(a - self.lower, 0.0)
-        locked = np.abs(a[:, 1]) > _GIMBAL_FREE
-        up[locked] = 0.0
-        down[locked] = 0.0
-        self._reserve = (a, up, down)
-
-    def held_back(self, ranges: LinearisedRanges) -> LinearisedRanges:
-        """``ranges`` with the room each angle may use this frame (:meth:`set_previous`).
-
-        An angle measured on another triple than its previous one (more than
-        :data:`_SAME_TRIPLE` away: the other Euler branch, or a wrap) keeps its hard limits.
-        """
-        if self._reserve is None:
-            return ranges
-        previous, up, down = self._reserve
-        a = self.upper - ranges.room_up.reshape(self.upper.shape)
-        same = np.abs(a - previous) < _SAME_TRIPLE
-        return LinearisedRanges(ranges.G, ranges.room_up - np.where(same, up, 0.0).reshape(-1),
-                                ranges.room_down - np.where(same, down, 0.0).reshape(-1))
 
     def rate_matrices(self, angles: np.ndarray) -> np.ndarray:
         """``E^-1`` per joint (joints, 3, 3): anatomical angle rates from the tangent step."""
