@@ -25,6 +25,11 @@ def min_of(values: np.ndarray) -> float:
     return np.minimum.reduce(values, axis=None)
 
 
+def sum_of(values: np.ndarray) -> float:
+    """The sum of every entry of ``values`` (NaN or inf if any): ``values.sum()``."""
+    return float(np.add.reduce(values, axis=None))
+
+
 def any_true(values: np.ndarray) -> bool:
     """Whether any entry of ``values`` is non-zero (True, NaN): ``bool(np.any(values))``."""
     return bool(np.count_nonzero(values))
