@@ -18,7 +18,7 @@ from .active_set import LimitRows
 from .compiled import CompiledKinematics, compiled_kinematics
 from .compiled_sensed import SensedPoseSpec
 from .configuration import Configuration
-from .fast_math import any_true
+from .fast_math import add_to_diagonal, any_true
 from .limits import ContactConstraint, FloorLimit, JointRangeLimit, VelocityLimit
 from .limits.joint_range import LinearisedRanges
 from .points_configuration import PointsConfiguration
@@ -220,7 +220,7 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     floor = tasks.floor.rows(Pc, Jc)
     contact = tasks.contact.rows(Pc, Jc)
     # what assemble_qp makes of these blocks, stacked at once (a step is built every frame)
-    H.flat[::nv + 1] += levenberg_marquardt  # the diagonal
+    add_to_diagonal(H, levenberg_marquardt)
     G = np.concatenate([ranges.G[up], -ranges.G[down], floor.G])
     h = np.concatenate([ranges.room_up[up], ranges.room_down[down], floor.h])
     qp = QpProblem(H, c, G, h, contact.A, contact.b)

@@ -428,3 +428,22 @@ def test_a_step_copies_its_inputs_at_once_and_reads_only_its_outputs(
         ["H", "c", "p_sites", "J_sites", "G_ranges", "room_up", "room_down"])
     assert one_by_one == []
     np.testing.assert_allclose(motion.q, plain.q, atol=1e-6)
+
+
+def test_add_to_diagonal_is_the_flat_sum() -> None:
+    """Contiguous, transposed and strided matrices, vector and scalar values: the numbers of
+    ``H.flat[::n + 1] += values``, in place (a view's base changes too)."""
+    from ikfusion.ik.fast_math import add_to_diagonal
+
+    rng = np.random.default_rng(14)
+    base = rng.normal(size=(6, 12))
+    for values in (rng.normal(size=6), 0.3):
+        for make in (lambda: base[:, :6].copy(), lambda: base[:, :6].T.copy().T,
+                     lambda: base.copy()[:, ::2]):
+            H, expected = make(), make()
+            add_to_diagonal(H, values)
+            expected.flat[::7] += values
+            assert np.array_equal(H, expected)
+    big = base.copy()
+    add_to_diagonal(big[:, ::2], 1.0)  # a strided view: its base is changed
+    assert np.array_equal(np.diagonal(big[:, ::2]), np.diagonal(base[:, ::2]) + 1.0)
