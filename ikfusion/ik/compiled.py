@@ -1,15 +1,13 @@
 """Kinematics and task residuals of one Gauss-Newton step as a single CasADi function.
 
-Building the QP from many small NumPy operations costs milliseconds per step in Python; here
-the forward kinematics of the Pinocchio model and every residual with its Jacobian are written
-once as a CasADi ``SX`` graph and evaluated in one call (CasADi's virtual machine), so a step
-costs about a tenth of a millisecond. The graph follows the Pinocchio model exactly (same joint
-placements and joint types); the tests compare it with Pinocchio's own kinematics.
+The forward kinematics of the Pinocchio model and every residual with its Jacobian, written
+once as a CasADi ``SX`` graph evaluated in one call (from many small NumPy operations, a step
+would cost milliseconds). The graph follows the Pinocchio model exactly (same joint placements
+and joint types); the tests compare it with Pinocchio's own kinematics.
 
-Tangent steps follow Pinocchio: a free-flyer moves by ``M exp(v)`` in its local frame, a
-spherical joint by ``R exp(w)``, a revolute joint by adding to its angle. Only first derivatives
-at ``dq = 0`` are needed, so the graph uses the first-order forms ``R (I + [w]x)``, which have the
-same value and Jacobian there.
+Tangent steps follow Pinocchio (a free-flyer moves by ``M exp(v)`` in its local frame, a
+spherical joint by ``R exp(w)``, a revolute joint adds to its angle); only first derivatives at
+``dq = 0`` are needed, so the graph uses ``R (I + [w]x)`` (the same value and Jacobian there).
 
 Inputs besides ``q``, the targets and the geometry: per-row weights of the orientation
 residuals ``w_orient`` (3k), of the posture residuals ``w_posture`` (3j), of the even-chain
@@ -41,16 +39,16 @@ tracked segments, ``j`` ball joints, ``m`` sites), all in the world frame:
   ``lower``, ``upper``) linearised (:mod:`.compiled_ranges`).
 
 The graph holds the model's *structure* only (:mod:`.casadi_kinematics`); joint and frame
-placements are an input, so bodies of every size share one function. When a C compiler is on the
-machine the function is compiled once (:mod:`.native`) and evaluates about ten times faster than
-CasADi's virtual machine, which is the fallback. The first build says so on stderr; a failed
-build too, and it becomes a warning of the solve.
+placements are an input, so bodies of every size share one function. With a C compiler it is
+compiled once (:mod:`.native`), ten times faster than CasADi's virtual machine (the fallback; a
+failed build says so on stderr and becomes a warning of the solve).
 """
 
 from __future__ import annotations
 
 import hashlib
 from collections.abc import Sequence
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -65,6 +63,7 @@ from ..rotations_casadi import (
     right_jacobian_inverse,
     skew,
 )
+from .bound_function import BoundFunction, column_major
 from .casadi_kinematics import (
     angular_objective,
     forward,
@@ -76,7 +75,7 @@ from .compiled_joint_tasks import chain_objective, joint_columns, persistence_ob
 from .compiled_points import point_kinematics, points_function
 from .compiled_ranges import range_rows
 from .compiled_sensed import SensedPoseSpec, sensed_pose_function
-from .native import BoundFunction, cached_functions, column_major, native_functions
+from .native import cached_functions, native_functions
 
 
 class CompiledKinematics:
@@ -119,8 +118,7 @@ class CompiledKinematics:
         self._geometry_frames = frames
         self._no_chain = np.zeros(3 * len(chain_pairs))
         self._no_persist = np.zeros(model.nv)
-        #: The tangent columns the persistence twin leaves out (the root's): its weights there
-        #: must be zero.
+        #: Tangent columns the persistence twin leaves out (the root's): its weights must be 0.
         self.persistence_excluded = np.flatnonzero(~joint_columns(model))
         self.sensed_function: ca.Function | None = None
         self.points_function: ca.Function | None = None
@@ -232,13 +230,18 @@ class CompiledKinematics:
         """
         return geometry_vector(model, self._geometry_frames)
 
-    def __call__(self, q: np.ndarray, R_world_target: np.ndarray, geometry: np.ndarray,
+    def __call__(self, *inputs: Any, **options: Any) -> list[np.ndarray]:
+        """Every output of :meth:`evaluate` (same arguments), dense, overwritten by the next."""
+        step = self.evaluate(*inputs, **options)
+        return [step.output(i) for i in range(self.function.n_out())]
+
+    def evaluate(self, q: np.ndarray, R_world_target: np.ndarray, geometry: np.ndarray,
                  w_orient: np.ndarray, w_posture: np.ndarray, R_reference: np.ndarray,
                  limits: tuple[np.ndarray, np.ndarray] | None = None,
                  w_chain: np.ndarray | None = None,
                  share: tuple[np.ndarray, np.ndarray] | None = None,
-                 persist: tuple[np.ndarray, np.ndarray] | None = None) -> list[np.ndarray]:
-        """Evaluate the step function at ``q``.
+                 persist: tuple[np.ndarray, np.ndarray] | None = None) -> BoundFunction:
+        """Evaluate the step function at ``q`` (one call, 1-D inputs copied at once).
 
         Args:
             q: Configuration (nq,).
@@ -247,31 +250,28 @@ class CompiledKinematics:
             w_orient: Per-row orientation weights (3k,) [1/rad^2].
             w_posture: Per-row posture weights (3j,) [1/rad^2].
             R_reference: The posture task's reference joint rotations (j, 3, 3).
-            limits: The ranges of motion (lower, upper) (j, 3) [rad] for the outputs
-                ``G_ranges``, ``room_up`` and ``room_down`` (:mod:`.compiled_ranges`; zero
-                ranges when omitted).
-            w_chain: Per-row weights of the even-chain pairs (3 pairs,) [1/rad^2] (zero when
-                omitted).
-            share: The chain-share task (:class:`.tasks.ChainShareTask`): its per-row weights
-                (3 pairs,) [1/rad^2] and the configuration whose differences it holds (nq,);
-                off when omitted.
-            persist: The persistence task: its weights (nv,) [1/rad^2], zero on
-                :attr:`persistence_excluded`, and its reference configuration (nq,); off when
-                omitted.
+            limits: Ranges of motion (lower, upper) (j, 3) [rad]; zero ranges when omitted.
+            w_chain: Even-chain per-row weights (3 pairs,) [1/rad^2] (zero when omitted).
+            share: The chain-share task's per-row weights (3 pairs,) [1/rad^2] and the
+                configuration whose differences it holds (nq,); off when omitted.
+            persist: Persistence weights (nv,) [1/rad^2] (0 on :attr:`persistence_excluded`)
+                and reference (nq,); off when omitted.
 
         Returns:
-            The outputs as dense arrays, overwritten by the next call (copy to keep them).
+            The evaluated function: ``output(i)`` in the module docstring's order, overwritten
+            by the next evaluation (only the outputs read are made dense).
         """
         if not hasattr(self, "_step"):
             self._step = BoundFunction(self.function)
-        none = np.zeros(len(w_posture))
-        lower, upper = (none, none) if limits is None else (limits[0].ravel(), limits[1].ravel())
+        lower, upper = limits if limits is not None else (np.zeros(len(w_posture)),) * 2
         w_share, q_previous = (self._no_chain, q) if share is None else share
         w_persist, q_persist = (self._no_persist, q) if persist is None else persist
-        return self._step(q, column_major(R_world_target), geometry, w_orient, w_posture,
-                          column_major(R_reference), lower, upper,
-                          self._no_chain if w_chain is None else w_chain, w_share, q_previous,
-                          w_persist, q_persist)
+        # the rotations' transposes flattened in C order: their column-major vectors
+        self._step.evaluate(q, np.swapaxes(R_world_target, 1, 2), geometry, w_orient, w_posture,
+                            np.swapaxes(R_reference, 1, 2), lower, upper,
+                            self._no_chain if w_chain is None else w_chain, w_share, q_previous,
+                            w_persist, q_persist)
+        return self._step
 
     def sensed_pose(self, q: np.ndarray, R_world_target: np.ndarray, geometry: np.ndarray,
                     tracked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -25,6 +25,23 @@ def min_of(values: np.ndarray) -> float:
     return np.minimum.reduce(values, axis=None)
 
 
+def sum_of(values: np.ndarray) -> float:
+    """The sum of every entry of ``values`` (NaN or inf if any): ``values.sum()``."""
+    return float(np.add.reduce(values, axis=None))
+
+
+def add_to_diagonal(H: np.ndarray, values: np.ndarray | float) -> None:
+    """``H[i, i] += values[i]`` (or a scalar) in place on a square ``H``.
+
+    ``H.flat[::n + 1] += values``: the same sums, through a strided view when ``H`` is
+    C-contiguous (without NumPy's flat iterator).
+    """
+    if H.flags.c_contiguous:
+        H.reshape(-1)[::H.shape[0] + 1] += values
+    else:
+        H.flat[::H.shape[0] + 1] += values
+
+
 def any_true(values: np.ndarray) -> bool:
     """Whether any entry of ``values`` is non-zero (True, NaN): ``bool(np.any(values))``."""
     return bool(np.count_nonzero(values))

@@ -18,7 +18,7 @@ from .active_set import LimitRows
 from .compiled import CompiledKinematics, compiled_kinematics
 from .compiled_sensed import SensedPoseSpec
 from .configuration import Configuration
-from .fast_math import any_true
+from .fast_math import add_to_diagonal, any_true
 from .limits import ContactConstraint, FloorLimit, JointRangeLimit, VelocityLimit
 from .limits.joint_range import LinearisedRanges
 from .points_configuration import PointsConfiguration
@@ -197,12 +197,14 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
         any_true(persistence.weights[compiled.kinematics.persistence_excluded])
     if persistence in active and persistence.q_reference is not None and not numpy_persistence:
         persist = (persistence.weights, persistence.q_reference)
-    H, c, _, _, _, p_sites, J_sites, G_ranges, room_up, room_down = compiled.kinematics(
+    step = compiled.kinematics.evaluate(
         conf.q, tasks.orientation.targets, compiled.geometry, *row_weights,
         tasks.posture.R_reference, (limits.lower, limits.upper), chain, share, persist)
-    H, c = H.copy(), c[:, 0].copy()
-    P = p_sites.reshape(-1, 3)
-    J = J_sites.reshape(-1, 3, nv)
+    # the outputs (:mod:`.compiled`) this step reads: H, c, the sites and the ranges
+    H, c = step.output(0).copy(), step.output(1)[:, 0].copy()
+    P = step.output(5).reshape(-1, 3)
+    J = step.output(6).reshape(-1, 3, nv)
+    G_ranges, room_up, room_down = step.output(7), step.output(8), step.output(9)
     tasks.position.add_rows(P[:-1], J[:-1], H, c)
     if tasks.root in active:
         tasks.root.add_rows(P[-1:], J[-1:], H, c)
@@ -218,7 +220,7 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     floor = tasks.floor.rows(Pc, Jc)
     contact = tasks.contact.rows(Pc, Jc)
     # what assemble_qp makes of these blocks, stacked at once (a step is built every frame)
-    H.flat[::nv + 1] += levenberg_marquardt  # the diagonal
+    add_to_diagonal(H, levenberg_marquardt)
     G = np.concatenate([ranges.G[up], -ranges.G[down], floor.G])
     h = np.concatenate([ranges.room_up[up], ranges.room_down[down], floor.h])
     qp = QpProblem(H, c, G, h, contact.A, contact.b)

@@ -7,7 +7,7 @@ library's name holds a hash of the generating source (:func:`generator_fingerpri
 version and the compiler's identity; its content hash is recorded beside it when it is built and
 checked before every load (a mismatch is rebuilt, never loaded).
 
-:class:`BoundFunction` evaluates a function on preallocated NumPy buffers.
+:class:`.bound_function.BoundFunction` evaluates a function on preallocated NumPy buffers.
 """
 
 from __future__ import annotations
@@ -22,70 +22,13 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import casadi as ca
-import numpy as np
 
 from .. import rotations as numpy_rotations
 from .. import rotations_casadi
 from ..atomic import atomic_path, atomic_write_text
 from ..paths import user_cache_dir
-
-
-def column_major(R: np.ndarray) -> np.ndarray:
-    """Stacked rotations (k, 3, 3) as CasADi's column-major vector (9k,)."""
-    return np.swapaxes(R, 1, 2).reshape(-1)
-
-
-class BoundFunction:
-    """A CasADi function evaluated on preallocated NumPy buffers (no per-call allocation)."""
-
-    def __init__(self, function: ca.Function) -> None:
-        self._buffer, self._evaluate = function.buffer()
-        self._inputs = [np.zeros(function.nnz_in(i)) for i in range(function.n_in())]
-        for i, arr in enumerate(self._inputs):
-            self._buffer.set_arg(i, memoryview(arr))  # type: ignore[arg-type,call-arg]
-        self._dense: list[np.ndarray] = []
-        # output -> (its dense array flattened, where its nonzeros go, the nonzeros)
-        self._scattered: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
-        for i in range(function.n_out()):
-            sp = function.sparsity_out(i)
-            dense = np.zeros((sp.size1(), sp.size2()))
-            if sp.is_dense() and min(sp.size1(), sp.size2()) == 1:
-                # a dense vector: CasADi's column-major nonzeros are the array itself
-                self._buffer.set_res(i, memoryview(dense))  # type: ignore[arg-type,call-arg]
-            else:
-                nz = np.zeros(sp.nnz())
-                self._buffer.set_res(i, memoryview(nz))  # type: ignore[arg-type,call-arg]
-                rows, cols = (np.array(v, dtype=int) for v in sp.get_triplet())
-                self._scattered[i] = (dense.reshape(-1), rows * sp.size2() + cols, nz)
-            self._dense.append(dense)
-
-    def __call__(self, *inputs: np.ndarray) -> list[np.ndarray]:
-        """The outputs as dense arrays, overwritten by the next call."""
-        self.evaluate(*inputs)
-        for flat_dense, flat, nz in self._scattered.values():
-            flat_dense[flat] = nz
-        return self._dense
-
-    def set_input(self, i: int, value: np.ndarray) -> None:
-        """Set input ``i``; it keeps this value while calls pass fewer inputs."""
-        self._inputs[i][:] = value
-
-    def evaluate(self, *inputs: np.ndarray) -> None:
-        """Evaluate at the first ``len(inputs)`` inputs (the others keep their last values).
-
-        Read the outputs with :meth:`output`, each made dense only when asked for.
-        """
-        for buffer, value in zip(self._inputs, inputs):
-            buffer[:] = value
-        self._evaluate()
-
-    def output(self, i: int) -> np.ndarray:
-        """Output ``i`` of the last :meth:`evaluate` as a dense array, overwritten by the next."""
-        scattered = self._scattered.get(i)
-        if scattered is not None:
-            flat_dense, flat, nz = scattered
-            flat_dense[flat] = nz
-        return self._dense[i]
+from .bound_function import BoundFunction as BoundFunction  # re-exported (retarget uses them)
+from .bound_function import column_major as column_major
 
 
 def cache_dir() -> Path:

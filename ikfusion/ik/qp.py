@@ -21,6 +21,7 @@ import numpy as np
 from ..errors import SolverError
 from .configuration import Configuration
 from .equality_qp import ClosedFormHint, equality_optimum, satisfies
+from .fast_math import sum_of
 from .limits.base import Equality, Inequality
 from .qp_backends import call_daqp, installed, qpsolvers_module, solver_options
 from .tasks.base import Task
@@ -270,8 +271,8 @@ def _check_finite(p: QpProblem) -> None:
     # One sum per array (or one for a packed problem) is finite when every entry is (and when
     # it is not, the slow path below names the culprits; absurd finite values overflowing the
     # sum land there too).
-    total = p.packed.sum() if p.packed is not None else (
-        p.H.sum() + p.c.sum() + p.h.sum() + p.b.sum() + p.G.sum() + p.A.sum())
+    total = sum_of(p.packed) if p.packed is not None else (
+        sum_of(p.H) + sum_of(p.c) + sum_of(p.h) + sum_of(p.b) + sum_of(p.G) + sum_of(p.A))
     if np.isfinite(total) and not (p.lb is not None and np.isnan(p.lb.sum())) \
             and not (p.ub is not None and np.isnan(p.ub.sum())):
         return

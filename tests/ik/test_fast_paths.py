@@ -356,3 +356,94 @@ def test_even_chain_objective_is_the_dense_sum_of_its_rows(human: HumanModel) ->
     H, c = np.zeros((nv, nv)), np.zeros(nv)
     task.add_objective(Configuration(human.model, human.neutral()), H, c)
     assert not H.any() and not c.any()
+
+
+def test_one_scalar_weighted_frame_is_summed_as_the_selected_rows(human: HumanModel) -> None:
+    """The root (one frame, a scalar weight) skips the row selection: bit for bit the numbers
+    of the same frame selected among others, and to rounding those of the plain formula."""
+    rng = np.random.default_rng(13)
+    nv = human.model.nv
+    conf = Configuration(human.model, random_configuration(human, rng))
+    sites = ["HeadTop", "LeftHeel"]
+    ids = [human.site_frame_id(s) for s in sites]
+    P, J = conf.positions(ids), conf.linear_jacobians(ids)
+    target = rng.normal(size=(1, 3))
+    H0, c0 = rng.normal(size=(nv, nv)), rng.normal(size=nv)
+    one = PositionTask(ids[:1], sites[:1], weight=2.0)
+    one.set_targets(target, [1.5])
+    H1, c1 = H0.copy(), c0.copy()
+    one.add_rows(P[:1], J[:1], H1, c1)
+    among = PositionTask(ids, sites, weight=2.0)  # the same frame, the other one off
+    among.set_targets(np.vstack([target, rng.normal(size=(1, 3))]), [1.5, 0.0])
+    H2, c2 = H0.copy(), c0.copy()
+    among.add_rows(P, J, H2, c2)
+    assert np.array_equal(H1, H2) and np.array_equal(c1, c2)
+    WJ = 3.0 * J[0]
+    np.testing.assert_allclose(H1, H0 + J[0].T @ WJ, rtol=1e-13, atol=1e-12)
+    np.testing.assert_allclose(c1, c0 + WJ.T @ (P[0] - target[0]), rtol=1e-13, atol=1e-12)
+    off = PositionTask(ids[:1], sites[:1])  # a lost target: nothing added
+    off.set_targets(np.full((1, 3), np.nan), [1.5])
+    H3, c3 = H0.copy(), c0.copy()
+    off.add_rows(P[:1], J[:1], H3, c3)
+    assert np.array_equal(H3, H0) and np.array_equal(c3, c0)
+
+
+def test_a_step_copies_its_inputs_at_once_and_reads_only_its_outputs(
+        human: HumanModel, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue #20: a Gauss-Newton step hands the step function its dozen inputs in one copy
+    and makes dense only the outputs its QP needs (H, c, the sites, the ranges), not the
+    orientation errors, angles and angle rates; the walk is solved as with the NumPy tasks.
+    Before, each input was copied by its own NumPy call and every output scattered."""
+    from ikfusion.ik import Solver
+    from ikfusion.ik.bound_function import BoundFunction
+    from ikfusion.model import SENSOR_SEGMENTS
+    from ikfusion.sim.gait import GaitParameters, generate_gait
+    from ikfusion.sim.truth import orientation_frames
+
+    truth = generate_gait(human, GaitParameters(duration=1.0, stand=0.3), rate=60.0)
+    frames = orientation_frames(human, truth.q, truth.time, SENSOR_SEGMENTS)
+    plain = Solver(human, contacts=True, compiled=False).solve(frames)
+    fast = Solver(human, contacts=True)
+    assert fast.compiled is not None
+    kinematics = fast.compiled.kinematics
+    read: set[int] = set()
+    one_by_one: list[int] = []
+    output, set_each = BoundFunction.output, BoundFunction._set_each
+
+    def counted_output(call: BoundFunction, i: int) -> np.ndarray:
+        if call is getattr(kinematics, "_step", None):
+            read.add(i)
+        return output(call, i)
+
+    def counted_set_each(call: BoundFunction, inputs: tuple[np.ndarray, ...]) -> None:
+        if call is getattr(kinematics, "_step", None):
+            one_by_one.append(len(inputs))
+        set_each(call, inputs)
+
+    monkeypatch.setattr(BoundFunction, "output", counted_output)
+    monkeypatch.setattr(BoundFunction, "_set_each", counted_set_each)
+    motion = fast.solve(frames)
+    names = kinematics.function.name_out()
+    assert sorted(names[i] for i in read) == sorted(
+        ["H", "c", "p_sites", "J_sites", "G_ranges", "room_up", "room_down"])
+    assert one_by_one == []
+    np.testing.assert_allclose(motion.q, plain.q, atol=1e-6)
+
+
+def test_add_to_diagonal_is_the_flat_sum() -> None:
+    """Contiguous, transposed and strided matrices, vector and scalar values: the numbers of
+    ``H.flat[::n + 1] += values``, in place (a view's base changes too)."""
+    from ikfusion.ik.fast_math import add_to_diagonal
+
+    rng = np.random.default_rng(14)
+    base = rng.normal(size=(6, 12))
+    for values in (rng.normal(size=6), 0.3):
+        for make in (lambda: base[:, :6].copy(), lambda: base[:, :6].T.copy().T,
+                     lambda: base.copy()[:, ::2]):
+            H, expected = make(), make()
+            add_to_diagonal(H, values)
+            expected.flat[::7] += values
+            assert np.array_equal(H, expected)
+    big = base.copy()
+    add_to_diagonal(big[:, ::2], 1.0)  # a strided view: its base is changed
+    assert np.array_equal(np.diagonal(big[:, ::2]), np.diagonal(base[:, ::2]) + 1.0)

@@ -6,6 +6,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..configuration import Configuration
+from ..fast_math import add_to_diagonal
 from .base import Task
 
 
@@ -45,5 +46,5 @@ class DampingTask(Task):
         """Diagonal assembly; ``error`` is ``q ⊖ q_ref`` when the caller has it already."""
         if self.q_reference is None:
             return
-        H.flat[::H.shape[0] + 1] += self.weights  # the diagonal
+        add_to_diagonal(H, self.weights)
         c += self.weights * (self.compute_error(configuration) if error is None else error)

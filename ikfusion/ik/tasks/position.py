@@ -91,6 +91,12 @@ class PositionTask(Task):
         active = self._active
         if not any_true(active):
             return
+        if self._scalar is not None and self.reach is None and len(active) == 1:
+            # one frame (the root), scalar weight: the same numbers without selecting rows
+            WJ = (self.weight * self._scalar)[:, None, None] * J_linear
+            add_products(J_linear.reshape(-1, H.shape[0]), WJ.reshape(-1, H.shape[0]),
+                         (p_world - self.targets).reshape(-1), H, c)
+            return
         J = J_linear[active]
         e = p_world[active] - self.targets[active]
         if self.reach is not None:  # the length over the axes the information weighs

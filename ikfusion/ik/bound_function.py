@@ -1,0 +1,89 @@
+"""A CasADi function evaluated on preallocated NumPy buffers (no per-call allocation).
+
+Kept apart from :mod:`.native` (the build): this wrapper does not change the generated code, so
+editing it does not invalidate the compiled libraries cached on disk.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+
+def column_major(R: np.ndarray) -> np.ndarray:
+    """Stacked rotations (k, 3, 3) as CasADi's column-major vector (9k,)."""
+    return np.swapaxes(R, 1, 2).reshape(-1)
+
+
+class BoundFunction:
+    """A CasADi function evaluated on preallocated NumPy buffers (no per-call allocation).
+
+    Every input is a view of one packed array, so a call that sets them all copies them in one
+    ``np.concatenate`` (one NumPy call instead of one per input: a step function has a dozen);
+    an input of the wrong size is refused (ValueError), never shifted into its neighbours.
+    """
+
+    def __init__(self, function: ca.Function) -> None:
+        self._buffer, self._evaluate = function.buffer()
+        sizes = [function.nnz_in(i) for i in range(function.n_in())]
+        self._sizes = tuple(sizes)
+        self._packed = np.zeros(sum(sizes))
+        ends = np.cumsum(sizes)
+        self._inputs = [self._packed[end - size:end] for size, end in zip(sizes, ends)]
+        for i, arr in enumerate(self._inputs):
+            self._buffer.set_arg(i, memoryview(arr))  # type: ignore[arg-type,call-arg]
+        self._dense: list[np.ndarray] = []
+        # output -> (its dense array flattened, where its nonzeros go, the nonzeros)
+        self._scattered: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        for i in range(function.n_out()):
+            sp = function.sparsity_out(i)
+            dense = np.zeros((sp.size1(), sp.size2()))
+            if sp.is_dense() and min(sp.size1(), sp.size2()) == 1:
+                # a dense vector: CasADi's column-major nonzeros are the array itself
+                self._buffer.set_res(i, memoryview(dense))  # type: ignore[arg-type,call-arg]
+            else:
+                nz = np.zeros(sp.nnz())
+                self._buffer.set_res(i, memoryview(nz))  # type: ignore[arg-type,call-arg]
+                rows, cols = (np.array(v, dtype=int) for v in sp.get_triplet())
+                self._scattered[i] = (dense.reshape(-1), rows * sp.size2() + cols, nz)
+            self._dense.append(dense)
+
+    def __call__(self, *inputs: np.ndarray) -> list[np.ndarray]:
+        """The outputs as dense arrays, overwritten by the next call."""
+        self.evaluate(*inputs)
+        for flat_dense, flat, nz in self._scattered.values():
+            flat_dense[flat] = nz
+        return self._dense
+
+    def set_input(self, i: int, value: np.ndarray) -> None:
+        """Set input ``i``; it keeps this value while calls pass fewer inputs."""
+        self._inputs[i][:] = value
+
+    def evaluate(self, *inputs: np.ndarray) -> None:
+        """Evaluate at the first ``len(inputs)`` inputs (the others keep their last values).
+
+        Each input is read flattened in C order (so ``np.swapaxes(R, 1, 2)`` of stacked
+        rotations (k, 3, 3) is their column-major vector, without a copy). Read the outputs
+        with :meth:`output`, each made dense only when asked for.
+        """
+        try:  # every input at once into the packed array, each flattened in C order
+            packed = tuple([value.size for value in inputs]) == self._sizes
+            if packed:
+                np.concatenate(inputs, axis=None, out=self._packed)
+        except (AttributeError, TypeError, ValueError):
+            packed = False
+        if not packed:
+            self._set_each(inputs)  # fewer inputs, or one that does not fit (says which)
+        self._evaluate()
+
+    def _set_each(self, inputs: tuple[np.ndarray, ...]) -> None:
+        for buffer, value in zip(self._inputs, inputs):
+            buffer[:] = np.ravel(value)
+
+    def output(self, i: int) -> np.ndarray:
+        """Output ``i`` of the last :meth:`evaluate` as a dense array, overwritten by the next."""
+        scattered = self._scattered.get(i)
+        if scattered is not None:
+            flat_dense, flat, nz = scattered
+            flat_dense[flat] = nz
+        return self._dense[i]
