@@ -349,7 +349,7 @@ class DriftCorrection:
         p_fix = np.array([f.p_world[k] for f in self.fixes])
         cov = np.array([f.cov[k] for f in self.fixes])
         hints = self._hints(frame)
-        if self._body_pull is None:
+        if self._body_pull is None or self._shape_pull is None:
             self._body_pull = BodyPull(s.tag_body_onset)
             self._shape_pull = BodyPull(s.tag_body_onset)
         p_body, cov_body = self._body_pull.held(p_fix, cov)
@@ -368,7 +368,8 @@ class DriftCorrection:
             self._body_pull.drop()
             return replace(frame, contacts=hints)
         positions, weights = tag_targets(
-            self._feet, p_fix, cov, last, planted, self._anchors, tag_settings, self._swing.swung, self._swing.landing)
+            self._feet, p_fix, cov, last, planted, self._anchors, tag_settings,
+            self._swing.swung, self._swing.landing)
         body, body_weights = body_targets(
             [f.site for f in self.fixes], self._feet, p_body, cov_body, last.forward,
             self._body_pull.update(has_fix, dt)

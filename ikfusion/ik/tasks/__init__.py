@@ -8,5 +8,5 @@ from .orientation import OrientationTask
 from .position import PositionTask
 from .posture import PostureTask
 
-__all__ = ["ChainShareTask", "ColumnShapeTask", "DampingTask", "EvenChainTask", "Objective", "OrientationTask",
-           "PositionTask", "PostureTask", "Task"]
+__all__ = ["ChainShareTask", "ColumnShapeTask", "DampingTask", "EvenChainTask", "Objective",
+           "OrientationTask", "PositionTask", "PostureTask", "Task"]
