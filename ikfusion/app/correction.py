@@ -58,6 +58,7 @@ from .tag_tasks import (
     bend_scale,
     body_targets,
     column_bend,
+    feet_drift,
     flight_pull,
     horizontal_forward,
     planted_feet,
@@ -179,6 +180,7 @@ class DriftCorrection:
     _body_release: list[BodyRelease | None] = field(default_factory=list)  # per fix on the body
     _swing: SwingClock = field(default_factory=SwingClock)  # each foot's time off the floor
     _body_pull: BodyPull | None = None  # the head's task faded in and out on the floor
+    _shape_pull: BodyPull | None = None  # the head's shaping of the trunk, faded in and out
     _stance: set[str] = field(default_factory=set)  # feet planted since the placement
 
     def __post_init__(self) -> None:
@@ -347,18 +349,27 @@ class DriftCorrection:
         p_fix = np.array([f.p_world[k] for f in self.fixes])
         cov = np.array([f.cov[k] for f in self.fixes])
         hints = self._hints(frame)
-        if self._body_pull is None:
+        if self._body_pull is None or self._shape_pull is None:
             self._body_pull = BodyPull(s.tag_body_onset)
-        if last.flight:  # the legs are left to their sensors; the tags move the body's path
-            self._body_pull.drop()
-            return replace(frame, contacts=hints)
-        positions, weights = tag_targets(
-            self._feet, p_fix, cov, last, planted_feet(last.contacts, self._foot_of_point),
-            self._anchors, tag_settings, self._swing.swung, self._swing.landing)
+            self._shape_pull = BodyPull(s.tag_body_onset)
         p_body, cov_body = self._body_pull.held(p_fix, cov)
         # not while the body still stands where it was placed: its fixes are still settling
         has_fix = not self._stance and any(
             np.isfinite(p).all() for p, b in zip(p_fix, self._body) if b)
+        planted = planted_feet(last.contacts, self._foot_of_point)
+        drift = feet_drift(self._feet, p_fix, last.p_sites)
+        shape, shape_weights = body_targets(
+            [f.site for f in self.fixes], self._feet,
+            p_body - (0.0 if drift is None else drift), cov_body, last.forward,
+            self._shape_pull.update(has_fix and drift is not None, dt), tag_settings)
+        frame = replace(frame, shape_positions=shape, shape_weights=shape_weights,
+                        shape_reach=s.tag_speed * dt)
+        if last.flight:  # the legs are left to their sensors; the tags move the body's path
+            self._body_pull.drop()
+            return replace(frame, contacts=hints)
+        positions, weights = tag_targets(
+            self._feet, p_fix, cov, last, planted, self._anchors, tag_settings,
+            self._swing.swung, self._swing.landing)
         body, body_weights = body_targets(
             [f.site for f in self.fixes], self._feet, p_body, cov_body, last.forward,
             self._body_pull.update(has_fix, dt)

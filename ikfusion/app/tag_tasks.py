@@ -209,6 +209,36 @@ def body_targets(sites: Sequence[str], feet: Sequence[str | None], p_fix: np.nda
     return positions, weights
 
 
+def feet_drift(feet: Sequence[str | None], p_fix: np.ndarray, p_sites: np.ndarray
+               ) -> np.ndarray | None:
+    """How far the body stands from where its feet's tags put it (3,) [m].
+
+    The mean over the feet's tags with a fix of fix minus solved tag site, horizontally (the
+    vertical 0: heights come from the floor and the legs). The legs' sensors place the feet
+    under the pelvis; what the feet's tags add is the whole body's drift (planted feet alone,
+    with the last drift held in flight, left the body's drift to the trunk's shape at every
+    touch-down: the feet fell 10-20 cm behind their tags). A body tag's fix
+    minus this is where that tag is over the body as it stands: the part of its gap the
+    trunk's shape explains (:class:`ikfusion.ik.tasks.ColumnShapeTask`), the drift being the
+    feet's business.
+
+    Args:
+        feet: Per tag, the foot carrying it (None: on the body).
+        p_fix: (n, 3) the tags' fixes [m] (NaN: none).
+        p_sites: (n, 3) the last solved tag sites [m].
+
+    Returns:
+        The drift (3,) [m], None when no foot's tag has a fix.
+    """
+    gaps = [p - p_site for foot, p, p_site in zip(feet, p_fix, p_sites)
+            if foot is not BODY and np.isfinite(p).all()]
+    if not gaps:
+        return None
+    drift = np.mean(gaps, axis=0)
+    drift[2] = 0.0
+    return np.asarray(drift)
+
+
 def onset_scale(swung: float, onset: float) -> float:
     """Weight factor in [0, 1] of a foot's task ``swung`` [s] into its swing (or before landing).
 

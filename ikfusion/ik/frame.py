@@ -23,6 +23,12 @@ class Frame:
         position_weights: Site name -> scalar weight [1/m^2] or (3, 3) information matrix.
         position_reach: Optional bound [m] on how far a site target pulls in one step: a
             farther target acts as if it were this far (a correction at a bounded rate).
+        shape_positions: Site name -> ``p_world_site`` (3,) [m] reached only by how the
+            unsensed columns (spine, neck) share their bend (:class:`ikfusion.ik.tasks.
+            ColumnShapeTask`: a head's tag shaping the trunk), with ...
+        shape_weights: ... site name -> (3, 3) information matrix [1/m^2] (or a scalar) ...
+        shape_reach: ... and an optional bound [m] on how far such a target pulls in one step
+            (as ``position_reach``).
         root_position: Optional target for the pelvis origin ``p_world_pelvis`` [m] (a planner's
             or a ballistic path), with weight ``root_position_weight`` [1/m^2].
         feet_still: Segment carrying contact points -> its IMU says they stand still: a foot
@@ -54,6 +60,9 @@ class Frame:
     orientation_weights: Mapping[str, float] = field(default_factory=dict)
     position_weights: Mapping[str, float | np.ndarray] = field(default_factory=dict)
     position_reach: float | None = None
+    shape_positions: Mapping[str, np.ndarray] = field(default_factory=dict)
+    shape_weights: Mapping[str, float | np.ndarray] = field(default_factory=dict)
+    shape_reach: float | None = None
     root_position: np.ndarray | None = None
     root_position_weight: float = 1.0
     feet_still: Mapping[str, bool] = field(default_factory=dict)

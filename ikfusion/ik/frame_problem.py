@@ -26,6 +26,7 @@ from .qp import QpProblem, build_qp
 from .settings import SolverSettings
 from .tasks import (
     ChainShareTask,
+    ColumnShapeTask,
     DampingTask,
     EvenChainTask,
     OrientationTask,
@@ -61,6 +62,7 @@ class FrameTasks:
         posture: The prior on joints the sensors leave open.
         even_chain: Unsensed columns (spine, neck) bend evenly.
         chain_share: ... and keep the last frame's share of their bend.
+        shape: Site targets reached by the columns' share only (a head's tag).
         damping: Smoothness toward the previous frame.
         persistence: The bend of sensed joints kept (:class:`.sensed_pose.Persistence`).
         root: The pelvis position (aiding, flight, support).
@@ -77,6 +79,7 @@ class FrameTasks:
     posture: PostureTask
     even_chain: EvenChainTask
     chain_share: ChainShareTask
+    shape: ColumnShapeTask
     damping: DampingTask
     persistence: DampingTask
     root: PositionTask
@@ -103,6 +106,8 @@ class FrameTasks:
                                             s.posture_axes),
             even_chain=EvenChainTask(model.ball_joints, s.even_chains, s.even_chain, segments),
             chain_share=ChainShareTask(model.ball_joints, s.even_chains, s.chain_share, segments),
+            shape=ColumnShapeTask([model.site_frame_id(n) for n in sites], sites,
+                                  model.ball_joints, s.even_chains, nv, s.position),
             damping=DampingTask(tangent_vector(nv, s.smoothness_root_translation,
                                                s.smoothness_root_rotation, s.smoothness_joints)),
             persistence=persistence,
@@ -206,6 +211,8 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     J = step.output(6).reshape(-1, 3, nv)
     G_ranges, room_up, room_down = step.output(7), step.output(8), step.output(9)
     tasks.position.add_rows(P[:-1], J[:-1], H, c)
+    if tasks.shape in active:
+        tasks.shape.add_rows(P[:-1], J[:-1], H, c)
     if tasks.root in active:
         tasks.root.add_rows(P[-1:], J[-1:], H, c)
     same = tasks.damping.q_reference is previous

@@ -7,6 +7,7 @@ switched off on the joints between two sensed segments.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,6 +18,7 @@ from .frame import Frame
 from .frame_problem import FrameTasks
 from .sensed_pose import SensedPose
 from .settings import SolverSettings
+from .tasks import PositionTask
 
 
 @dataclass(frozen=True)
@@ -80,6 +82,7 @@ class TargetLoader:
         self._identities = np.tile(np.eye(3), (len(segments), 1, 1))
         self._rows: dict[tuple[str, ...], np.ndarray] = {}  # tracked names -> rows
         self._positions_set = True  # the position task starts without targets: clear it once
+        self._shape_set = True  # ... and the shape task
         self._last_weighting: _Weighting | None = None
 
     def load(self, frame: Frame, R_heading: np.ndarray | None) -> FrameTargets:
@@ -104,8 +107,13 @@ class TargetLoader:
                 R[i], w[i] = R_assumed, self.assumed_weight
         tasks.orientation.set_targets(R, w)
         if frame.positions or self._positions_set:
-            self._load_positions(frame)
+            self._load_sites(self.tasks.position, frame.positions, frame.position_weights)
+            self.tasks.position.reach = frame.position_reach
         self._positions_set = bool(frame.positions)
+        if frame.shape_positions or self._shape_set:
+            self._load_sites(self.tasks.shape, frame.shape_positions, frame.shape_weights)
+            self.tasks.shape.reach = frame.shape_reach
+        self._shape_set = bool(frame.shape_positions)
         weighting = self._weighting(tasks.orientation.weights)
         tasks.posture.weights = weighting.posture_weights
         return FrameTargets(tasks.orientation.targets, weighting.tracked,
@@ -136,17 +144,17 @@ class TargetLoader:
         self._last_weighting = weighting
         return weighting
 
-    def _load_positions(self, frame: Frame) -> None:
-        """Load a frame's site position targets (sites without one get zero information)."""
+    def _load_sites(self, task: PositionTask, positions: Mapping[str, np.ndarray],
+                    weights: Mapping[str, float | np.ndarray]) -> None:
+        """Load site targets into ``task`` (sites without one get zero information)."""
         m = len(self._site_index)
         p = np.zeros((m, 3))
         info = np.zeros((m, 3, 3))
-        for name, p_target in frame.positions.items():
+        for name, p_target in positions.items():
             if name not in self._site_index:
                 self.model.site_frame_id(name)
             i = self._site_index[name]
             p[i] = p_target
-            weight = np.asarray(frame.position_weights.get(name, 1.0), dtype=float)
+            weight = np.asarray(weights.get(name, 1.0), dtype=float)
             info[i] = weight * np.eye(3) if weight.ndim == 0 else weight
-        self.tasks.position.set_targets(p, info)
-        self.tasks.position.reach = frame.position_reach
+        task.set_targets(p, info)

@@ -226,7 +226,7 @@ class Solver:
     def _base_tasks(self, frame: Frame) -> list[Task]:
         """The tasks of every frame, with the pelvis at its aiding position when it has one."""
         t = self.tasks
-        active: list[Task] = [t.orientation, t.position, t.posture, t.even_chain,
+        active: list[Task] = [t.orientation, t.position, t.shape, t.posture, t.even_chain,
                               t.chain_share, t.damping, t.persistence]
         if frame.root_position is not None:
             t.root.set_targets(np.asarray(frame.root_position, dtype=float)[None],

@@ -2,10 +2,11 @@
 
 from .base import Objective, Task
 from .chain import ChainShareTask, EvenChainTask
+from .column_shape import ColumnShapeTask
 from .damping import DampingTask
 from .orientation import OrientationTask
 from .position import PositionTask
 from .posture import PostureTask
 
-__all__ = ["ChainShareTask", "DampingTask", "EvenChainTask", "Objective", "OrientationTask",
-           "PositionTask", "PostureTask", "Task"]
+__all__ = ["ChainShareTask", "ColumnShapeTask", "DampingTask", "EvenChainTask", "Objective",
+           "OrientationTask", "PositionTask", "PostureTask", "Task"]
