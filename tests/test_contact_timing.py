@@ -73,7 +73,11 @@ def test_brisk_mocap_walks_do_not_hold_dragging_toes(tmp_path: Path, clip: str) 
     while held, and the walks drifted 10 % of the distance. With the point speeds anchored in
     rolling stances the true points move 10-20 mm while held and the walks drifted 5.6, 3.7 and
     1.1 %; a landing heel still travelling 1.5-2 cm now carries its anchor at the velocity its
-    foot IMU gives: 4.4, 2.7 and 0.5 %."""
+    foot IMU gives: 4.4, 2.7 and 0.5 %. The truth's push-off toes slide 2-3 cm forward at every
+    step while the heel rises (the clip's forefoot rolls forward with toes that hardly bend),
+    and the solver held them where they stood: a toe held alone now slides by its ball's
+    velocity along the toe (what its hinge cannot take up): 2.7, 2.7 and 0.4 % (with perfect
+    sensors 4.0 -> 2.4, 1.5 -> 1.2 and 0.9 -> 0.7 %)."""
     room = load_constellation(shipped_config("constellations", "room_6x8.yaml"))
     motion = Path(__file__).resolve().parents[1] / "benchmarks" / "motions" / f"{clip}.bvh.gz"
     truth, _ = place_in_area(truth_motion(str(motion), 30.0, 60.0), capture_area(room),
@@ -85,4 +89,4 @@ def test_brisk_mocap_walks_do_not_hold_dragging_toes(tmp_path: Path, clip: str) 
                  "--body", str(capture / "body.yaml"), "--out", str(out), "--quiet"]) == 0
     ev = evaluate(out, capture / "truth.npz")
     assert ev.held_truth_slide_mm <= 25.0
-    assert ev.drift_percent is not None and ev.drift_percent <= 5.0
+    assert ev.drift_percent is not None and ev.drift_percent <= 3.5

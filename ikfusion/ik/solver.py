@@ -138,7 +138,7 @@ class Solver:
         tasks.chain_share.set_previous(last.q)
         q_warm = q.copy()
         self.persistence.hold(q_warm, targets.sensed_joints, last.bent)
-        contacts.carry(frame, dt, self.world.R_heading, last.root_velocity)
+        contacts.carry(frame, dt, self.world.R_heading, last.root_velocity, last.q)
         rising = contacts.release(
             frame, p_sensed, contacts.foot_pitch(last.q, targets.R_sensed, targets.tracked))
         eased = contacts.ease(tasks.contact.active,

@@ -85,6 +85,28 @@ def point_velocities(v_world_sensor: np.ndarray, omega_world: np.ndarray,
     return np.asarray(v_world_sensor[:, None, :] + np.cross(omega_world[:, None, :], r_world))
 
 
+def hinged_tip_slide(v_world_ball: np.ndarray, p_world_ball: np.ndarray,
+                     p_world_tip: np.ndarray) -> np.ndarray:
+    """The least velocity (3,) [m/s] of a toe tip whose ball moves at ``v_world_ball``.
+
+    The toes are a rigid segment hinged at the ball: turning about the ball they move their
+    tip across the line ball -> tip, never along it. So whatever the toes' unsensed turn, the
+    tip moves along that line exactly as the ball does: ``(v_ball . u) u`` with ``u`` the unit
+    vector from ball to tip. A foot rolling over flat toes (its ball still) or pivoting on the
+    tips of bent toes (the ball swinging about the tip, kneeling down) gives no slide; a ball
+    pushed towards the tip drags the tip along the floor.
+
+    Args:
+        v_world_ball: (3,) the ball's velocity [m/s] (its foot IMU's,
+            :func:`foot_point_velocities`).
+        p_world_ball: (3,) the ball's position [m].
+        p_world_tip: (3,) the toe tip's position [m].
+    """
+    u = np.asarray(p_world_tip, dtype=float) - np.asarray(p_world_ball, dtype=float)
+    u /= np.linalg.norm(u)
+    return np.asarray(float(np.dot(v_world_ball, u)) * u)
+
+
 def point_speeds(v_world_sensor: np.ndarray, omega_world: np.ndarray,
                  r_world: np.ndarray) -> np.ndarray:
     """Horizontal speeds (N, k) [m/s] of points rigidly on the foot (:func:`point_velocities`)."""

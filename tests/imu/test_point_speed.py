@@ -10,6 +10,7 @@ import pytest
 from ikfusion.imu.flight import world_acceleration
 from ikfusion.imu.point_speed import (
     foot_point_offsets,
+    hinged_tip_slide,
     point_speeds,
     points_moving,
     sensor_velocity,
@@ -64,6 +65,43 @@ def test_pivot_point_does_not_move_while_the_heel_does() -> None:
     speeds = point_speeds(v_sensor, omega, r)[0]
     assert speeds[0] == pytest.approx(0.0, abs=1e-12)
     assert speeds[1] == pytest.approx(3.0 * 0.2, rel=1e-6)
+
+
+def _toe_pose(pitch: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A toe 7 cm long pitched ``pitch`` [rad] nose down: ball (3,), tip (3,) [m], and the
+    rotation axis (3,) about which it pitches (the toe's y)."""
+    ball = np.array([0.3, 0.1, 0.02 + 0.07 * np.sin(pitch)])
+    tip = ball + 0.07 * np.array([np.cos(pitch), 0.0, -np.sin(pitch)])
+    return ball, tip, np.array([0.0, 1.0, 0.0])
+
+
+@pytest.mark.parametrize("pitch", [0.0, 0.4, 1.2])
+def test_a_toe_turning_about_its_tip_does_not_slide(pitch: float) -> None:
+    """Toes bent under a foot that pivots on them (kneeling down: the ball swings about the
+    planted tip, in pitch or about the vertical) slide by nothing, however fast the ball."""
+    ball, tip, y = _toe_pose(pitch)
+    for omega in (3.0 * y, np.array([0.0, 0.0, 2.0]), np.array([1.0, -2.0, 0.5])):
+        v_ball = np.cross(omega, ball - tip)  # a rigid turn about the tip
+        np.testing.assert_allclose(hinged_tip_slide(v_ball, ball, tip), 0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("pitch", [0.0, 0.4, 1.2])
+def test_a_tip_slides_as_its_ball_moves_along_the_toe(pitch: float) -> None:
+    """Every rigid motion of the toe (translation and turn about the ball): the tip's velocity
+    along the toe is the ball's; a forefoot sliding bodily forward at 0.3 m/s (a mocap truth's
+    push-off) gives its tip that slide's part along the toe."""
+    ball, tip, _ = _toe_pose(pitch)
+    u = (tip - ball) / np.linalg.norm(tip - ball)
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        v_ball, omega = rng.normal(size=3), rng.normal(size=3)
+        v_tip = v_ball + np.cross(omega, tip - ball)
+        slide = hinged_tip_slide(v_ball, ball, tip)
+        assert float(slide @ u) == pytest.approx(float(v_tip @ u), abs=1e-12)
+        np.testing.assert_allclose(np.cross(slide, u), 0.0, atol=1e-12)
+    forward = np.array([0.3, 0.0, 0.0])
+    np.testing.assert_allclose(hinged_tip_slide(forward, ball, tip), 0.3 * np.cos(pitch) * u,
+                               atol=1e-12)
 
 
 @pytest.fixture(scope="module")

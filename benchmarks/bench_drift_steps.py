@@ -1,0 +1,101 @@
+"""Where an IMU-only solve loses distance: the pelvis's along-track error, step by step.
+
+Run: ``PYTHONPATH=. .venv/bin/python benchmarks/bench_drift_steps.py CAPTURE RESULT``
+
+``CAPTURE`` is a simulated capture folder (its ``truth.npz``), ``RESULT`` the ``solve`` result of
+it, e.g. ``DIR/perfect/cmu-02-02-walk/capture`` and ``.../imu-only`` of ``bench_motions.py
+--acceptance --out DIR``. The solve is shifted to the true start (as ``evaluate`` does IMU only).
+With perfect joint angles the pelvis can only fall behind the truth through the points the
+solver holds: a held point whose true counterpart moves shifts the body by as much. Two tables:
+
+* per set of points the solver holds (heel/toe of each foot; ``truth:`` their true contact
+  states, ``1`` planted): frames, the pelvis's along-track error gained [mm] and the true
+  held points' own motion along the track meanwhile [mm] (mean over the held points);
+* per step (from one true heel strike to the next): the true and solved pelvis travel [mm],
+  their difference, and per held point the true point's motion while held (``*``: the truth
+  no longer labels it planted).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+FEET = ["LeftHeel", "LeftToe", "RightHeel", "RightToe"]
+
+
+def _rows(path: Path, key: str, name: str, columns: list[str]) -> np.ndarray:
+    """The rows of one segment or site (N, len(columns)) of a result CSV."""
+    with path.open() as f:
+        return np.array([[float(r[c]) for c in columns] for r in csv.DictReader(f)
+                         if r[key] == name])
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Print both tables; returns the exit code."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("capture", type=Path, help="capture folder (truth.npz)")
+    parser.add_argument("result", type=Path, help="IMU-only solve result folder")
+    args = parser.parse_args(argv)
+    truth = np.load(args.capture / "truth.npz", allow_pickle=True)
+    t = truth["time"]
+    segments, sites = list(truth["segment_names"]), list(truth["site_names"])
+    contact_names = list(truth["contact_names"])
+    p_true = truth["p_world_segment"][:, segments.index("Pelvis"), :2]
+    p_est = _rows(args.result / "segments.csv", "segment", "Pelvis", ["px", "py"])
+    p_est = p_est + (p_true[0] - p_est[0])
+    err = p_est - p_true
+    planted_true = truth["contacts"][:, [contact_names.index(n) for n in FEET]].astype(bool)
+    with (args.result / "contacts.csv").open() as f:
+        held = np.array([[float(r[n]) > 0.5 for n in FEET] for r in csv.DictReader(f)])
+    points = np.stack([truth["p_world_site"][:, sites.index(n), :2] for n in FEET], axis=1)
+
+    by_set: dict[str, list[float]] = {}
+    for k in range(len(t) - 1):
+        step = p_true[k + 1] - p_true[k]
+        if np.linalg.norm(step) < 1e-6:
+            continue
+        u = step / np.linalg.norm(step)
+        gained = float((err[k + 1] - err[k]) @ u)
+        both = held[k] & held[k + 1]
+        moved = float(((points[k + 1] - points[k]) @ u)[both].mean()) if both.any() else 0.0
+        key = ("+".join(n for n, h in zip(FEET, both, strict=True) if h) or "none") + (
+            " (truth:" + "".join("1" if planted_true[k, i] else "0"
+                                 for i in np.flatnonzero(both)) + ")")
+        entry = by_set.setdefault(key, [0.0, 0.0, 0.0])
+        entry[0] += 1
+        entry[1] += gained
+        entry[2] += moved
+    travelled = float(np.linalg.norm(np.diff(p_true, axis=0), axis=1).sum())
+    print(f"end error {1000 * np.linalg.norm(err[-1]):.1f} mm over {travelled:.2f} m")
+    print(f"{'held points':<42s} {'frames':>6s} {'pelvis mm':>9s} {'true held mm':>12s}")
+    for key, (frames, gained, moved) in sorted(by_set.items(), key=lambda kv: kv[1][1]):
+        print(f"{key:<42s} {int(frames):6d} {1000 * gained:9.1f} {1000 * moved:12.1f}")
+
+    strikes = sorted(k for i in (0, 2) for k in range(1, len(t))
+                     if planted_true[k, i] and not planted_true[k - 1, i])
+    print(f"\n{'step [s]':<13s} {'true mm':>8s} {'solved mm':>9s} {'diff mm':>8s}  held points")
+    for a, b in zip(strikes[:-1], strikes[1:], strict=True):
+        step = p_true[b] - p_true[a]
+        u = step / max(float(np.linalg.norm(step)), 1e-9)
+        solved = float((p_est[b] - p_est[a]) @ u)
+        moved: dict[str, float] = {}
+        for k in range(a, b):
+            both = held[k] & held[k + 1]
+            for i in np.flatnonzero(both):
+                name = FEET[i] + ("" if planted_true[k, i] else "*")
+                moved[name] = moved.get(name, 0.0) + float(
+                    (points[k + 1, i] - points[k, i]) @ u) / both.sum()
+        print(f"{t[a]:5.2f}-{t[b]:5.2f} {1000 * np.linalg.norm(step):8.1f} {1000 * solved:9.1f} "
+              f"{1000 * (solved - np.linalg.norm(step)):8.1f}  "
+              + " ".join(f"{n}:{1000 * v:.1f}" for n, v in moved.items()))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
