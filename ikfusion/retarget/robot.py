@@ -239,6 +239,7 @@ class RobotRetargeter:
         self._rest_feet = [T.rotation for T in rest_feet]
         self._rest_feet_z = [float(T.translation[2]) for T in rest_feet]
         self._configuration = Configuration(model, robot.rest)
+        self._cost_data = model.createData()  # for :meth:`_cost`
         self._qp_buffer = QpBuffer(model.nv)
         self._no_plants = Equality(np.zeros((0, model.nv)), np.zeros(0))
         self._ones = np.ones(len(self.segments)), np.ones(len(self.feet))
@@ -296,6 +297,7 @@ class RobotRetargeter:
         """
         model = self.robot.model
         frames = [*self._foot_ids, *self.position_task.frame_ids]
+        self._foot_rows: list[int] = []
         try:
             step = robot_step(model, [*self.orientation_task.frame_ids,
                                       *self.flat_task.frame_ids],
@@ -303,10 +305,12 @@ class RobotRetargeter:
                               self.capsules, self._foot_ids)
         except NotImplementedError:
             return Configuration(model, self.robot.rest), []
-        return CompiledConfiguration(model, self.robot.rest, step,
+        conf = CompiledConfiguration(model, self.robot.rest, step,
                                      [self.orientation_task, self.flat_task],
                                      self.position_task, self.capsules,
-                                     np.array([f.corners for f in self.feet])), list(step.warnings)
+                                     np.array([f.corners for f in self.feet]))
+        self._foot_rows = [conf.frame_row(fid) for fid in self._foot_ids]
+        return conf, list(step.warnings)
 
     def _tracking_objective(self, conf: Configuration) -> tuple[np.ndarray, np.ndarray]:
         """``H`` and ``c`` of the orientation, flat-foot and position tasks at ``conf``."""
@@ -364,14 +368,26 @@ class RobotRetargeter:
         return np.array(sorted(model.joints[j].idx_q - 7 for j in hands - trunk), dtype=int)
 
     def _cost(self, q: np.ndarray) -> float:
-        """The tracking objective at ``q`` (orientations and positions)."""
-        conf = self._configuration
-        conf.update(q)
+        """The tracking objective at ``q`` (orientations and positions).
+
+        From Pinocchio's frame placements alone (no Jacobian, no compiled step: only the
+        screening of first-frame starts compares these values).
+        """
+        model, data = self.robot.model, self._cost_data
+        pin.framesForwardKinematics(model, data, q)
         total = 0.0
-        for task in (self.orientation_task, self.flat_task, self.position_task):
-            if task.is_active():
-                e = task.compute_error(conf)
-                total += float(np.sum(task.row_weights() * e * e))
+        for task in (self.orientation_task, self.flat_task):
+            weights = task.row_weights()
+            if weights.any():
+                R = np.array([data.oMf[f].rotation for f in task.frame_ids])
+                e = log_so3(R @ np.swapaxes(task.targets, 1, 2)).reshape(-1)
+                total += float(np.sum(weights * e * e))
+        position = self.position_task
+        weights = position.row_weights()
+        if weights.any():
+            p = np.array([data.oMf[f].translation for f in position.frame_ids])
+            e = (p - position.targets).reshape(-1)
+            total += float(np.sum(weights * e * e))
         return total
 
     def _extrapolate(self, q_before: np.ndarray, q_last: np.ndarray) -> np.ndarray:
@@ -489,11 +505,10 @@ class RobotRetargeter:
         """
         if isinstance(conf, CompiledConfiguration):  # no Jacobians needed
             p, witnesses, z = conf.constraint_values()
-            feet = [p[conf.frame_row(fid)] for fid in self._foot_ids]
+            feet = [p[row] for row in self._foot_rows]
             floor = z[self._air_corners(anchors)]
-            gaps = witnesses.reshape(-1, 5).min(axis=1) if capsules and len(witnesses) \
-                else np.zeros(0)
-        else:
+            # the closest witness: the smallest of the pairs' distances
+            gaps = witnesses if capsules else self._none
             feet = [conf.placement(fid).translation for fid in self._foot_ids]
             floor = self._floor_rows(conf, anchors).h
             gaps = self.capsules.distances(conf) if capsules else np.zeros(0)
@@ -530,9 +545,11 @@ class RobotRetargeter:
             ub[trusted] = np.minimum(ub[trusted], step)
         if moved is not None and dt > 0:
             span = self._max_velocity * dt
-            lb = np.maximum(lb, -span - moved)
-            ub = np.minimum(ub, span - moved)
-        return np.minimum(lb, 0.0), np.maximum(ub, 0.0)
+            np.maximum(lb, -span - moved, out=lb)
+            np.minimum(ub, span - moved, out=ub)
+        np.minimum(lb, 0.0, out=lb)
+        np.maximum(ub, 0.0, out=ub)
+        return lb, ub
 
     def _floor_rows(self, conf: Configuration, anchors: list[_Anchor | None]) -> Inequality:
         """Sole corners of feet in the air stay above the floor: ``-J_z dq <= z``.
