@@ -509,6 +509,7 @@ class RobotRetargeter:
             floor = z[self._air_corners(anchors)]
             # the closest witness: the smallest of the pairs' distances
             gaps = witnesses if capsules else self._none
+        else:
             feet = [conf.placement(fid).translation for fid in self._foot_ids]
             floor = self._floor_rows(conf, anchors).h
             gaps = self.capsules.distances(conf) if capsules else np.zeros(0)
