@@ -30,6 +30,7 @@ import pinocchio as pin
 from tqdm import tqdm
 
 from ..ik.configuration import Configuration
+from ..ik.equality_qp import ClosedFormHint
 from ..ik.limits.base import Equality, Inequality
 from ..ik.qp import QpBuffer, QpSettings, solve_qp, solve_unrelaxed
 from ..ik.tasks import DampingTask, OrientationTask, PositionTask
@@ -241,6 +242,8 @@ class RobotRetargeter:
         self._configuration = Configuration(model, robot.rest)
         self._cost_data = model.createData()  # for :meth:`_cost`
         self._qp_buffer = QpBuffer(model.nv)
+        # DAQP at once after a step where a limit bound (the closed-form try would fail)
+        self._closed_form = ClosedFormHint()
         self._no_plants = Equality(np.zeros((0, model.nv)), np.zeros(0))
         self._ones = np.ones(len(self.segments)), np.ones(len(self.feet))
         self._stacked = np.zeros((0, len(self.segments), 3, 3)), np.zeros((0, 0, 3))
@@ -269,6 +272,7 @@ class RobotRetargeter:
         waited = np.zeros(2)
         self._stacked = targets.stacked(self.segments, tracked)
         self._flat_off = False
+        self._closed_form.skip = False
         q = self._initial(targets)
         for k in tqdm(range(N), disable=not progress, desc="retarget", unit="frame"):
             self._set_targets(targets, k, anchors)
@@ -456,14 +460,15 @@ class RobotRetargeter:
             problem = assemble(H, c, *rows, box, s.levenberg_marquardt)
             # within the trust region, the constraints held or nothing (its relaxation would
             # be thrown away): when they cannot all hold, the region was too tight
-            trusted = solve_unrelaxed(problem, self.backend, self._qp) if len(moving) else None
+            trusted = solve_unrelaxed(problem, self.backend, self._qp, self._closed_form) \
+                if len(moving) else None
             if trusted is not None:
                 solution = trusted
             else:
                 if len(moving):
                     box = self._box(q, moved, dt)
                     problem = assemble(H, c, *rows, box, s.levenberg_marquardt)
-                solution = solve_qp(problem, self.backend, self._qp)
+                solution = solve_qp(problem, self.backend, self._qp, self._closed_form)
             relaxed |= solution.relaxed
             factor = self._damped(solution.dq, previous, factor)
             # The box holds to the QP's tolerance; clipped, limits hold exactly.
