@@ -200,6 +200,16 @@ def _position_link(config: RetargetConfig, segment: str) -> str | None:
     return config.links.get(segment)
 
 
+def _selection(mask: np.ndarray) -> slice | np.ndarray:
+    """``mask`` as a slice when its true entries are consecutive (indexing makes a view)."""
+    where = np.flatnonzero(mask)
+    if not len(where):
+        return slice(0, 0)
+    if where[-1] - where[0] + 1 == len(where):
+        return slice(int(where[0]), int(where[-1]) + 1)
+    return mask
+
+
 def _heading(R: np.ndarray) -> float:
     """Yaw of a world rotation [rad] (its x axis's direction on the floor)."""
     return float(np.arctan2(R[1, 0], R[0, 0]))
@@ -251,7 +261,7 @@ class RobotRetargeter:
         self._no_flat = np.full((len(self.feet), 3, 3), np.nan)
         self._flat_off = False  # whether the flat-foot task is set to no foot
         # Sole corners (4 per foot) of the feet in the air, by which feet are planted.
-        self._air = {planted: np.repeat(np.logical_not(planted), 4)
+        self._air = {planted: _selection(np.repeat(np.logical_not(planted), 4))
                      for planted in itertools.product((False, True), repeat=len(self.feet))}
 
     def solve(self, source: HumanMotion, progress: bool = False) -> RobotTrajectory:
@@ -578,8 +588,11 @@ class RobotRetargeter:
             h.append(T.translation[2] + r[:, 2])
         return Inequality(np.vstack(G), np.concatenate(h))
 
-    def _air_corners(self, anchors: list[_Anchor | None]) -> np.ndarray:
-        """Mask of the sole corners (4 per foot, feet in order) of the feet not planted."""
+    def _air_corners(self, anchors: list[_Anchor | None]) -> slice | np.ndarray:
+        """The sole corners (4 per foot, feet in order) of the feet not planted.
+
+        A slice when they are consecutive (with two feet always), else a mask.
+        """
         return self._air[tuple(anchor is not None for anchor in anchors)]
 
     def _plant_rows(self, conf: Configuration, anchors: list[_Anchor | None]) -> Equality:
