@@ -189,8 +189,7 @@ def write_robot_motion(out_dir: str | Path, robot: RobotMotion, summary: dict[st
         header = robot.csv_header()
         table = np.column_stack([np.arange(n), np.arange(n) / robot.fps, robot.root_pos,
                                  robot.root_quat_wxyz, robot.dof_pos, robot.contacts])
-        np.savetxt(tmp / "robot_motion.csv", table, delimiter=",", fmt="%.6f",
-                   header=",".join(header), comments="")
+        (tmp / "robot_motion.csv").write_text(_csv_text(header, table))
         if robot.human is not None:
             write_motion_bvh(tmp / "motion.bvh", robot.human.model, robot.human.q,
                              1.0 / robot.fps, up=bvh_up)
@@ -201,3 +200,13 @@ def write_robot_motion(out_dir: str | Path, robot: RobotMotion, summary: dict[st
                              "dof_pos": robot.dof_pos}, f)
         (tmp / "summary.json").write_text(json.dumps(summary, indent=2))
     return Path(out_dir)
+
+
+def _csv_text(header: list[str], table: np.ndarray) -> str:
+    """``header`` and ``table`` (N, len(header)) as CSV, six decimals, in one formatting pass.
+
+    The same text as ``np.savetxt(..., delimiter=",", fmt="%.6f", comments="")``, which
+    formats and writes row by row.
+    """
+    row = ",".join(["%.6f"] * table.shape[1]) + "\n"
+    return ",".join(header) + "\n" + (row * len(table)) % tuple(table.ravel().tolist())

@@ -30,6 +30,7 @@ import pinocchio as pin
 from tqdm import tqdm
 
 from ..ik.configuration import Configuration
+from ..ik.equality_qp import ClosedFormHint
 from ..ik.limits.base import Equality, Inequality
 from ..ik.qp import QpBuffer, QpSettings, solve_qp, solve_unrelaxed
 from ..ik.tasks import DampingTask, OrientationTask, PositionTask
@@ -199,6 +200,16 @@ def _position_link(config: RetargetConfig, segment: str) -> str | None:
     return config.links.get(segment)
 
 
+def _selection(mask: np.ndarray) -> slice | np.ndarray:
+    """``mask`` as a slice when its true entries are consecutive (indexing makes a view)."""
+    where = np.flatnonzero(mask)
+    if not len(where):
+        return slice(0, 0)
+    if where[-1] - where[0] + 1 == len(where):
+        return slice(int(where[0]), int(where[-1]) + 1)
+    return mask
+
+
 def _heading(R: np.ndarray) -> float:
     """Yaw of a world rotation [rad] (its x axis's direction on the floor)."""
     return float(np.arctan2(R[1, 0], R[0, 0]))
@@ -239,7 +250,10 @@ class RobotRetargeter:
         self._rest_feet = [T.rotation for T in rest_feet]
         self._rest_feet_z = [float(T.translation[2]) for T in rest_feet]
         self._configuration = Configuration(model, robot.rest)
+        self._cost_data = model.createData()  # for :meth:`_cost`
         self._qp_buffer = QpBuffer(model.nv)
+        # DAQP at once after a step where a limit bound (the closed-form try would fail)
+        self._closed_form = ClosedFormHint()
         self._no_plants = Equality(np.zeros((0, model.nv)), np.zeros(0))
         self._ones = np.ones(len(self.segments)), np.ones(len(self.feet))
         self._stacked = np.zeros((0, len(self.segments), 3, 3)), np.zeros((0, 0, 3))
@@ -247,7 +261,7 @@ class RobotRetargeter:
         self._no_flat = np.full((len(self.feet), 3, 3), np.nan)
         self._flat_off = False  # whether the flat-foot task is set to no foot
         # Sole corners (4 per foot) of the feet in the air, by which feet are planted.
-        self._air = {planted: np.repeat(np.logical_not(planted), 4)
+        self._air = {planted: _selection(np.repeat(np.logical_not(planted), 4))
                      for planted in itertools.product((False, True), repeat=len(self.feet))}
 
     def solve(self, source: HumanMotion, progress: bool = False) -> RobotTrajectory:
@@ -268,6 +282,7 @@ class RobotRetargeter:
         waited = np.zeros(2)
         self._stacked = targets.stacked(self.segments, tracked)
         self._flat_off = False
+        self._closed_form.skip = False
         q = self._initial(targets)
         for k in tqdm(range(N), disable=not progress, desc="retarget", unit="frame"):
             self._set_targets(targets, k, anchors)
@@ -296,6 +311,7 @@ class RobotRetargeter:
         """
         model = self.robot.model
         frames = [*self._foot_ids, *self.position_task.frame_ids]
+        self._foot_rows: list[int] = []
         try:
             step = robot_step(model, [*self.orientation_task.frame_ids,
                                       *self.flat_task.frame_ids],
@@ -303,10 +319,12 @@ class RobotRetargeter:
                               self.capsules, self._foot_ids)
         except NotImplementedError:
             return Configuration(model, self.robot.rest), []
-        return CompiledConfiguration(model, self.robot.rest, step,
+        conf = CompiledConfiguration(model, self.robot.rest, step,
                                      [self.orientation_task, self.flat_task],
                                      self.position_task, self.capsules,
-                                     np.array([f.corners for f in self.feet])), list(step.warnings)
+                                     np.array([f.corners for f in self.feet]))
+        self._foot_rows = [conf.frame_row(fid) for fid in self._foot_ids]
+        return conf, list(step.warnings)
 
     def _tracking_objective(self, conf: Configuration) -> tuple[np.ndarray, np.ndarray]:
         """``H`` and ``c`` of the orientation, flat-foot and position tasks at ``conf``."""
@@ -364,14 +382,26 @@ class RobotRetargeter:
         return np.array(sorted(model.joints[j].idx_q - 7 for j in hands - trunk), dtype=int)
 
     def _cost(self, q: np.ndarray) -> float:
-        """The tracking objective at ``q`` (orientations and positions)."""
-        conf = self._configuration
-        conf.update(q)
+        """The tracking objective at ``q`` (orientations and positions).
+
+        From Pinocchio's frame placements alone (no Jacobian, no compiled step: only the
+        screening of first-frame starts compares these values).
+        """
+        model, data = self.robot.model, self._cost_data
+        pin.framesForwardKinematics(model, data, q)
         total = 0.0
-        for task in (self.orientation_task, self.flat_task, self.position_task):
-            if task.is_active():
-                e = task.compute_error(conf)
-                total += float(np.sum(task.row_weights() * e * e))
+        for task in (self.orientation_task, self.flat_task):
+            weights = task.row_weights()
+            if weights.any():
+                R = np.array([data.oMf[f].rotation for f in task.frame_ids])
+                e = log_so3(R @ np.swapaxes(task.targets, 1, 2)).reshape(-1)
+                total += float(np.sum(weights * e * e))
+        position = self.position_task
+        weights = position.row_weights()
+        if weights.any():
+            p = np.array([data.oMf[f].translation for f in position.frame_ids])
+            e = (p - position.targets).reshape(-1)
+            total += float(np.sum(weights * e * e))
         return total
 
     def _extrapolate(self, q_before: np.ndarray, q_last: np.ndarray) -> np.ndarray:
@@ -440,14 +470,15 @@ class RobotRetargeter:
             problem = assemble(H, c, *rows, box, s.levenberg_marquardt)
             # within the trust region, the constraints held or nothing (its relaxation would
             # be thrown away): when they cannot all hold, the region was too tight
-            trusted = solve_unrelaxed(problem, self.backend, self._qp) if len(moving) else None
+            trusted = solve_unrelaxed(problem, self.backend, self._qp, self._closed_form) \
+                if len(moving) else None
             if trusted is not None:
                 solution = trusted
             else:
                 if len(moving):
                     box = self._box(q, moved, dt)
                     problem = assemble(H, c, *rows, box, s.levenberg_marquardt)
-                solution = solve_qp(problem, self.backend, self._qp)
+                solution = solve_qp(problem, self.backend, self._qp, self._closed_form)
             relaxed |= solution.relaxed
             factor = self._damped(solution.dq, previous, factor)
             # The box holds to the QP's tolerance; clipped, limits hold exactly.
@@ -489,10 +520,10 @@ class RobotRetargeter:
         """
         if isinstance(conf, CompiledConfiguration):  # no Jacobians needed
             p, witnesses, z = conf.constraint_values()
-            feet = [p[conf.frame_row(fid)] for fid in self._foot_ids]
+            feet = [p[row] for row in self._foot_rows]
             floor = z[self._air_corners(anchors)]
-            gaps = witnesses.reshape(-1, 5).min(axis=1) if capsules and len(witnesses) \
-                else np.zeros(0)
+            # the closest witness: the smallest of the pairs' distances
+            gaps = witnesses if capsules else self._none
         else:
             feet = [conf.placement(fid).translation for fid in self._foot_ids]
             floor = self._floor_rows(conf, anchors).h
@@ -530,9 +561,11 @@ class RobotRetargeter:
             ub[trusted] = np.minimum(ub[trusted], step)
         if moved is not None and dt > 0:
             span = self._max_velocity * dt
-            lb = np.maximum(lb, -span - moved)
-            ub = np.minimum(ub, span - moved)
-        return np.minimum(lb, 0.0), np.maximum(ub, 0.0)
+            np.maximum(lb, -span - moved, out=lb)
+            np.minimum(ub, span - moved, out=ub)
+        np.minimum(lb, 0.0, out=lb)
+        np.maximum(ub, 0.0, out=ub)
+        return lb, ub
 
     def _floor_rows(self, conf: Configuration, anchors: list[_Anchor | None]) -> Inequality:
         """Sole corners of feet in the air stay above the floor: ``-J_z dq <= z``.
@@ -555,8 +588,11 @@ class RobotRetargeter:
             h.append(T.translation[2] + r[:, 2])
         return Inequality(np.vstack(G), np.concatenate(h))
 
-    def _air_corners(self, anchors: list[_Anchor | None]) -> np.ndarray:
-        """Mask of the sole corners (4 per foot, feet in order) of the feet not planted."""
+    def _air_corners(self, anchors: list[_Anchor | None]) -> slice | np.ndarray:
+        """The sole corners (4 per foot, feet in order) of the feet not planted.
+
+        A slice when they are consecutive (with two feet always), else a mask.
+        """
         return self._air[tuple(anchor is not None for anchor in anchors)]
 
     def _plant_rows(self, conf: Configuration, anchors: list[_Anchor | None]) -> Equality:

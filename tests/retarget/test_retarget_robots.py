@@ -114,3 +114,25 @@ def test_unknown_robots_and_urdfs_without_config_are_refused(tmp_path: Path) -> 
         load_retarget_config("asimo")
     with pytest.raises(ConfigError, match="--config"):
         load_retarget_config(robots_dir() / "human.urdf")
+
+
+def test_robot_motion_csv_is_what_savetxt_writes(tmp_path: Path) -> None:
+    # robot_motion.csv is formatted in one pass (issue #20: the row-by-row writer was ~1 ms
+    # of a short clip's command); its text must stay exactly the six-decimal CSV it was.
+    from ikfusion.retarget.output import RobotMotion, write_robot_motion
+
+    rng = np.random.default_rng(3)
+    n = 57
+    quat = rng.normal(size=(n, 4))
+    motion = RobotMotion(30.0, rng.normal(size=(n, 3)),
+                         quat / np.linalg.norm(quat, axis=1, keepdims=True),
+                         rng.normal(scale=2.0, size=(n, 5)) * [1, 1e-7, -1e-7, 1e6, 0],
+                         ["a", "b", "c", "d", "e"], rng.random((n, 2)) < 0.5,
+                         ["left_foot", "right_foot"], dof_units=["rad", "rad", "m", "rad", "rad"])
+    out = write_robot_motion(tmp_path / "out", motion, {"frames": n})
+    table = np.column_stack([np.arange(n), np.arange(n) / motion.fps, motion.root_pos,
+                             motion.root_quat_wxyz, motion.dof_pos, motion.contacts])
+    expected = tmp_path / "expected.csv"
+    np.savetxt(expected, table, delimiter=",", fmt="%.6f",
+               header=",".join(motion.csv_header()), comments="")
+    assert (out / "robot_motion.csv").read_text() == expected.read_text()

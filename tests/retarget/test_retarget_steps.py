@@ -82,3 +82,76 @@ def test_the_first_frame_screens_its_starts_and_finds_the_exhaustive_searchs_bas
     assert screened[0] < 0.6 * exhaustive[0]
     assert screened[1] == pytest.approx(exhaustive[1], rel=1e-3)
     np.testing.assert_allclose(screened[2], exhaustive[2], atol=0.01)  # [rad, m]: one basin
+
+
+def test_screening_costs_evaluate_no_compiled_step_and_equal_the_tasks_objective(
+        shared_data: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # Each of the first frame's 14 screened solves was ranked by a cost that ran the whole
+    # compiled step (objective, Jacobians, capsule witnesses) plus Pinocchio's Jacobians:
+    # ~0.3 ms each, ~4 ms of a short clip's command (issue #20). The cost needs placements
+    # only; it must still be the tasks' weighted squared residuals.
+    from ikfusion.ik.configuration import Configuration
+    from ikfusion.retarget.compiled_step import RobotStep
+
+    calls = {"step": 0}
+    ranked: list[tuple[float, float]] = []
+    step_call, cost = RobotStep.__call__, robot_module.RobotRetargeter._cost
+
+    def counting_call(self: RobotStep, *args: np.ndarray) -> list[np.ndarray]:
+        calls["step"] += 1
+        return step_call(self, *args)
+
+    def checked_cost(self: robot_module.RobotRetargeter, q: np.ndarray) -> float:
+        before = calls["step"]
+        value = cost(self, q)
+        assert calls["step"] == before, "the screening cost ran the compiled step"
+        plain = Configuration(self.robot.model, q)  # Pinocchio only: independent of the step
+        truth = 0.0
+        for task in (self.orientation_task, self.flat_task, self.position_task):
+            if task.is_active():
+                e = task.compute_error(plain)
+                truth += float(np.sum(task.row_weights() * e * e))
+        ranked.append((value, truth))
+        return value
+
+    monkeypatch.setattr(RobotStep, "__call__", counting_call)
+    monkeypatch.setattr(robot_module.RobotRetargeter, "_cost", checked_cost)
+    retarget(load_source(shared_data / "mocap" / "sfu_0005_Walking001.bvh"), "g1")
+    assert len(ranked) == 14  # 8 starts, then 4, then 2
+    values, truths = np.array(ranked).T
+    np.testing.assert_allclose(values, truths, rtol=1e-12, atol=1e-15)
+
+
+def test_a_step_after_one_where_a_limit_bound_goes_to_daqp_at_once(
+        shared_data: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # Most retargeting steps have a binding limit (joint range, velocity box, floor, capsule),
+    # so the closed-form try before DAQP failed in ~70 % of the steps, and a limit that binds
+    # in one step mostly binds in the next (issue #20: ~10 % of a clip's solve). After a DAQP
+    # solve with a binding limit the next step skips the try (ClosedFormHint). Relaxed
+    # problems (slack variables: more than nv) are solved without the hint, as before.
+    import ikfusion.ik.qp as qp_module
+
+    events: list[str] = []
+    optimum, daqp = qp_module.equality_optimum, qp_module.call_daqp
+    nv = RobotModel(load_retarget_config("g1", None)).model.nv
+
+    def recording_optimum(H: np.ndarray, *args: object) -> np.ndarray | None:
+        if len(H) == nv:
+            events.append("closed form")
+        return optimum(H, *args)  # type: ignore[arg-type]
+
+    def recording_daqp(iterations: int, H: np.ndarray,
+                       *args: object) -> tuple[np.ndarray | None, bool]:
+        x, binding = daqp(iterations, H, *args)  # type: ignore[arg-type]
+        if len(H) == nv:
+            events.append("daqp binding" if binding else "daqp")
+        return x, binding
+
+    monkeypatch.setattr(qp_module, "equality_optimum", recording_optimum)
+    monkeypatch.setattr(qp_module, "call_daqp", recording_daqp)
+    _, metrics = retarget(load_source(shared_data / "mocap" / "sfu_0005_Walking001.bvh"), "g1")
+    assert metrics["joint_limit_violations"] == 0 and metrics["relaxed_frames"] == 0
+    assert events.count("daqp binding") > 10  # the case this is about happens on this clip
+    after_binding = [b for a, b in zip(events, events[1:]) if a == "daqp binding"]
+    assert "closed form" not in after_binding, (
+        f"{after_binding.count('closed form')} closed-form tries right after a binding step")
