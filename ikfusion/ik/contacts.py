@@ -158,16 +158,17 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     plant = np.zeros(len(active), dtype=bool)
     moving_point, settled = point_motion(points_moving, len(active))
     if foot_still is not None:
-        still = np.asarray(foot_still, dtype=float) == 1.0
-        moving = np.asarray(foot_still, dtype=float) == 0.0
+        evidence = np.asarray(foot_still, dtype=float)
+        still = evidence == 1.0
         # A moving foot lets go once the other foot stands planted and still; a still foot
         # low in the sensed pose is planted while the other foot holds the body (after a
         # flight the usual touch-down, near the floor and slow, plants the landing feet).
-        handed_over = active & moving & other_foot(layout, active & still)
-        plant = (~active & still & (height_rel < _plant_height(th, needs_rest)) & ~tilted
-                 & other_foot(layout, active))
-        handed_over |= active & moving & other_foot(layout, plant)
-        handed_over &= ~settled
+        plant = ~active & still & (height_rel < _plant_height(th, needs_rest)) & ~tilted
+        if any_true(plant):
+            plant &= other_foot(layout, active)
+        moving = active & (evidence == 0.0)
+        if any_true(moving):  # ... handed over to the other foot, planted still or planted now
+            handed_over = moving & other_foot(layout, (active & still) | plant) & ~settled
     staying = active & ~handed_over
     held = state.anchors if placed is None else state.anchors - placed
     drift, other_age = drift_from_other_foot(layout, staying, held, p_sensed, state.age)

@@ -92,6 +92,7 @@ class SupportFollower:
         self._swinging = [False] * n
         self._height_trust = np.ones(n)  # how far a swing heel is held at its sensed height
         self._goal = np.zeros((n, 3))
+        self._has_goal = [False] * n  # any_true(self._goal[f]), kept with it
         self.swing = np.zeros((n, 3))
         self._landed_swing = np.zeros((n, 3))
         self._base: np.ndarray | None = None
@@ -249,6 +250,7 @@ class SupportFollower:
                     self.landed -= self._landed_swing[f]  # not counted; its goal is kept
                 else:
                     self._goal[f] = _clip_norm(self._step - self.pending, self._max_step)
+                    self._has_goal[f] = any_true(self._goal[f])
                 # the heel leaves the floor where it is, not where the sensed leg puts it (nor
                 # where it was led before a short touch-down: the body moved under it since)
                 self.swing[f] = mean_rows(self._deviation[points & self._led])
@@ -289,7 +291,7 @@ class SupportFollower:
             landing = planted & self._swinging
             young = int(np.argmin(np.where(planted, np.where(landing, -1.0, self._planted_for),
                                            np.inf)))
-            if not np.any(self._goal[young]):  # not led: only its swing (a resumed one)
+            if not self._has_goal[young]:  # not led: only its swing (a resumed one)
                 out[self._feet[young]] = (self.swing[young] if landing[young]
                                           else self._landed_swing[young])
                 return out
@@ -299,6 +301,17 @@ class SupportFollower:
                       else self._placed_by[young])
             out[self._feet[young]] = placed - self._placed_by[self._reference_feet].mean(axis=0)
         return out
+
+    def leads(self) -> bool:
+        """Whether a swinging foot is led now (:meth:`swing_targets` gives it information)."""
+        return any(s and g for s, g in zip(self._swinging, self._has_goal))
+
+    def keep_base(self, p_points: np.ndarray) -> None:
+        """Where the contact points (k, 3) [m] are led this frame, for :meth:`record`.
+
+        For a frame that does not ask :meth:`swing_targets` (no foot :meth:`leads`).
+        """
+        self._base = p_points
 
     def swing_targets(self, p_points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Targets (k, 3) [m] and information (k, 3, 3) for the heels of swing feet.
@@ -317,7 +330,7 @@ class SupportFollower:
         targets = p_points.copy()
         info = np.zeros((len(p_points), 3, 3))
         for f, points in enumerate(self._feet):
-            if self._swinging[f] and any_true(self._goal[f]):
+            if self._swinging[f] and self._has_goal[f]:
                 targets[points] += self.swing[f]
                 sunk = self.floor_z - float(targets[points, 2].min())
                 height = min(_band_share(-sunk), self._height_trust[f])

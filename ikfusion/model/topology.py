@@ -70,8 +70,7 @@ class FootLayout:
 
     @cached_property
     def shares_segment(self) -> np.ndarray:
-        """(k,) points with another point on their rigid segment (``same_segment``, off the
-        diagonal; worked out once)."""
+        """(k,) points sharing their rigid segment with another point (worked out once)."""
         shares = np.count_nonzero(np.asarray(self.same_segment, dtype=bool), axis=1) > 1
         shares.setflags(write=False)
         return shares
