@@ -277,15 +277,16 @@ class SupportFollower:
         self._off_target = p_pelvis - self._target if self._target is not None else np.zeros(3)
         self._base = self._target = None
 
-    def placed_offsets(self, active: np.ndarray) -> np.ndarray:
+    def placed_offsets(self, active: np.ndarray) -> np.ndarray | None:
         """(k, 3) [m]: how far each planted point was placed from where the sensed legs put it.
 
         While two feet (or knees, palms) are planted, the youngest was led by its swing offset:
         they disagree by that much on purpose, which must not read as drift between them.
+        None (none placed) while fewer than two are planted.
         """
-        out = np.zeros((len(active), 3))
         planted = self._planted(active)
         if np.count_nonzero(planted) >= 2:
+            out = np.zeros((len(active), 3))
             # a foot that touched down since the last frame is still swinging here (its
             # landing is settled when the body follows): it is the youngest
             landing = planted & self._swinging
@@ -300,7 +301,8 @@ class SupportFollower:
             placed = (self.displacement + self.swing[young] if landing[young]
                       else self._placed_by[young])
             out[self._feet[young]] = placed - self._placed_by[self._reference_feet].mean(axis=0)
-        return out
+            return out
+        return None
 
     def leads(self) -> bool:
         """Whether a swinging foot is led now (:meth:`swing_targets` gives it information)."""
