@@ -150,11 +150,11 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         anchors for the points planted by stance.
     """
     th = thresholds
-    active = state.active.copy()
+    active = state.active  # read only: the new state's is built at the end
     height_rel = p_sensed[:, 2] - min_of(p_sensed[:, 2])
     tilted = tilted_points(layout, foot_pitch, math.radians(th.tilt_deg))
     still = np.zeros(len(active), dtype=bool)
-    handed_over = np.zeros(len(active), dtype=bool)
+    handed_over: np.ndarray | None = None
     plant = np.zeros(len(active), dtype=bool)
     moving_point, settled = point_motion(points_moving, len(active))
     if foot_still is not None:
@@ -169,7 +169,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         moving = active & (evidence == 0.0)
         if any_true(moving):  # ... handed over to the other foot, planted still or planted now
             handed_over = moving & other_foot(layout, (active & still) | plant) & ~settled
-    staying = active & ~handed_over
+    staying = active if handed_over is None else active & ~handed_over
     held = state.anchors if placed is None else state.anchors - placed
     drift, other_age = drift_from_other_foot(layout, staying, held, p_sensed, state.age)
     # Two planted feet that disagree: the foot planted earlier lets go (toe-off), even a
@@ -178,7 +178,9 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     # a resting knee or palm (calm accelerometer) is weaker evidence than a still foot: the
     # sensed pose may still lift it
     lifted = ((height_rel > th.leave_relative) | tilted) & ~(still & layout.stepping)
-    leave = handed_over | (staying & (lifted | pulled))
+    leave = staying & (lifted | pulled)
+    if handed_over is not None:
+        leave |= handed_over
     if points_moving is not None:  # while a still point of the other foot holds the body
         leave |= staying & moving_point & other_foot(layout, staying & ~moving_point)
     for i, hinted in hinted_points(state.names, hints):

@@ -195,7 +195,8 @@ class SupportFollower:
 
     def _planted(self, points: np.ndarray) -> np.ndarray:
         """(groups,) does each group (foot, knee, palm) have one of ``points`` (k,) bool?"""
-        return np.asarray(self._foot_rows @ points)  # a boolean product: any of the group's
+        planted: np.ndarray = self._foot_rows @ points  # a boolean product: any of the group's
+        return planted
 
     def _reference(self, active: np.ndarray, planted: np.ndarray) -> np.ndarray:
         """The planted points of the foot planted longest (both feet when they landed together).
