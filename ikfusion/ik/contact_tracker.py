@@ -159,7 +159,8 @@ class ContactTracker:
         """
         if not len(self._feet):  # no contact points
             return np.zeros(0)
-        forward = R_world_sensed[self._foot_rows, :, 0]  # (points with a foot, 3)
+        # (points with a foot, 3) the forward axes, by index (a copy)
+        forward = R_world_sensed[:, :, 0].take(self._foot_rows, axis=0)
         for row in self._untracked_feet(tracked):  # a foot without sensor
             name = self.model.segment_names[self._foot_rows[row]]
             forward[row] = self.model.segment_rotation(q, name)[:, 0]
