@@ -25,9 +25,8 @@ the ankle, which springs back when the toe rises (a pop). It lets it go for the 
 the heel left the floor away from the sensed leg's height (by ``_UNDER_FLOOR_BAND`` or more): a
 sensed leg that disagreed with the floor in height would pull the body up after lift-off and
 down before landing (a run's legs, with feet the sensors put centimetres under the floor).
-Meanwhile the pelvis leans toward the
-correction by at most ``lean_max``; the lean passes into the lag when the body is handed to a
-foot that was placed leaning.
+Meanwhile the pelvis leans toward the correction by at most ``lean_max``; the lean passes into
+the lag when the body is handed to a foot that was placed leaning.
 """
 
 from __future__ import annotations
@@ -195,8 +194,7 @@ class SupportFollower:
 
     def _planted(self, points: np.ndarray) -> np.ndarray:
         """(groups,) does each group (foot, knee, palm) have one of ``points`` (k,) bool?"""
-        planted: np.ndarray = self._foot_rows @ points  # a boolean product: any of the group's
-        return planted
+        return np.asarray(self._foot_rows @ points)  # a boolean product: any of the group's
 
     def _reference(self, active: np.ndarray, planted: np.ndarray) -> np.ndarray:
         """The planted points of the foot planted longest (both feet when they landed together).
@@ -282,38 +280,33 @@ class SupportFollower:
         """(k, 3) [m]: how far each planted point was placed from where the sensed legs put it.
 
         While two feet (or knees, palms) are planted, the youngest was led by its swing offset:
-        they disagree by that much on purpose, which must not read as drift between them.
-        None (none placed) while fewer than two are planted.
+        they disagree by that much on purpose, not drift. None while fewer are planted.
         """
         planted = self._planted(active)
-        if np.count_nonzero(planted) >= 2:
-            out = np.zeros((len(active), 3))
-            # a foot that touched down since the last frame is still swinging here (its
-            # landing is settled when the body follows): it is the youngest
-            landing = planted & self._swinging
-            young = int(np.argmin(np.where(planted, np.where(landing, -1.0, self._planted_for),
-                                           np.inf)))
-            if not self._has_goal[young]:  # not led: only its swing (a resumed one)
-                out[self._feet[young]] = (self.swing[young] if landing[young]
-                                          else self._landed_swing[young])
-                return out
-            # led from the pelvis (lag and lean on the foot the body stands on) plus its
-            # swing: the same placement :meth:`_settle_landings` records
-            placed = (self.displacement + self.swing[young] if landing[young]
-                      else self._placed_by[young])
-            out[self._feet[young]] = placed - self._placed_by[self._reference_feet].mean(axis=0)
+        if np.count_nonzero(planted) < 2:
+            return None
+        out = np.zeros((len(active), 3))
+        # a foot that touched down since the last frame is still swinging here (its
+        # landing is settled when the body follows): it is the youngest
+        fresh = planted & self._swinging
+        young = int(np.argmin(np.where(planted, np.where(fresh, -1.0, self._planted_for), np.inf)))
+        if not self._has_goal[young]:  # not led: only its swing (a resumed one)
+            out[self._feet[young]] = (self.swing[young] if fresh[young]
+                                      else self._landed_swing[young])
             return out
-        return None
+        # led from the pelvis (lag and lean on the foot the body stands on) plus its
+        # swing: the same placement :meth:`_settle_landings` records
+        placed = (self.displacement + self.swing[young] if fresh[young]
+                  else self._placed_by[young])
+        out[self._feet[young]] = placed - self._placed_by[self._reference_feet].mean(axis=0)
+        return out
 
     def leads(self) -> bool:
         """Whether a swinging foot is led now (:meth:`swing_targets` gives it information)."""
         return any(s and g for s, g in zip(self._swinging, self._has_goal))
 
     def keep_base(self, p_points: np.ndarray) -> None:
-        """Where the contact points (k, 3) [m] are led this frame, for :meth:`record`.
-
-        For a frame that does not ask :meth:`swing_targets` (no foot :meth:`leads`).
-        """
+        """Keep the contact points (k, 3) [m] led this frame for :meth:`record` (no swing)."""
         self._base = p_points
 
     def swing_targets(self, p_points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
