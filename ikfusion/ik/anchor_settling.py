@@ -7,9 +7,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from .fast_math import any_true
+
 
 def settled_heights(z: np.ndarray, active: np.ndarray, same_segment: np.ndarray, drop: float,
-                    floor_z: float) -> np.ndarray:
+                    floor_z: float, shares_segment: np.ndarray | None = None) -> np.ndarray:
     """Anchor heights (k,) [m] lowered by at most ``drop`` [m] toward the floor ``floor_z`` [m].
 
     A point settles straight down until it reaches the floor. Planted points that share a
@@ -25,8 +27,13 @@ def settled_heights(z: np.ndarray, active: np.ndarray, same_segment: np.ndarray,
         same_segment: (k, k) points on one rigid segment.
         drop: How far an anchor settles at most this frame [m].
         floor_z: Floor height [m].
+        shares_segment: (k,) points with another point on their segment
+            (:attr:`FootLayout.shares_segment`), when the caller has it: while none of them
+            is planted every point settles alone (the usual case, feet only).
     """
-    own = np.clip(z - floor_z, 0.0, drop)
+    own = np.minimum(np.maximum(z - floor_z, 0.0), drop)  # np.clip's result, without its wrapper
+    if shares_segment is not None and not any_true(active & shares_segment):
+        return np.maximum(z - own, floor_z)  # each point its own segment's least room
     together = same_segment & active[:, None] & active[None, :]
     shared = np.where(together, own[None, :], np.inf).min(axis=1)  # inf: no planted partner
     return np.maximum(z - np.minimum(own, shared), floor_z)

@@ -69,6 +69,8 @@ class ContactTracker:
         self._points_of_foot = {f: np.array([i for i, g in enumerate(self._foot_names) if g == f])
                                 for f in dict.fromkeys(self._foot_names) if f is not None}
         self._foot_rows = self._feet[self._has_foot]  # the segment of each point with a foot
+        self._tracked: np.ndarray | None = None  # the last foot_pitch's tracked segments ...
+        self._untracked = np.zeros(0, dtype=int)  # ... and its rows without a target
         self.support = SupportFollower(self.layout, s.lag_speed, s.lag_max, s.swing_speed,
                                        s.lean_max, s.lean_speed, s.touchdown_confirm,
                                        self.thresholds.floor_z)
@@ -184,12 +186,26 @@ class ContactTracker:
         """
         if not len(self._feet):  # no contact points
             return np.zeros(0)
-        forward = np.full((len(self._feet), 3), np.nan)
-        forward[self._has_foot] = R_world_sensed[self._foot_rows, :, 0]
-        for i in true_indices(self._has_foot & ~tracked[self._feet]):  # a foot without sensor
-            name = self.model.segment_names[self._feet[i]]
-            forward[i] = self.model.segment_rotation(q, name)[:, 0]
-        return np.arctan2(-forward[:, 2], np.hypot(forward[:, 0], forward[:, 1]))
+        # (points with a foot, 3) the forward axes, by index (a copy)
+        forward = R_world_sensed[:, :, 0].take(self._foot_rows, axis=0)
+        for row in self._untracked_feet(tracked):  # a foot without sensor
+            name = self.model.segment_names[self._foot_rows[row]]
+            forward[row] = self.model.segment_rotation(q, name)[:, 0]
+        pitch = np.full(len(self._feet), np.nan)
+        pitch[self._has_foot] = np.arctan2(-forward[:, 2],
+                                           np.hypot(forward[:, 0], forward[:, 1]))
+        return pitch
+
+    def _untracked_feet(self, tracked: np.ndarray) -> np.ndarray:
+        """Rows of ``_foot_rows`` whose foot has no target in ``tracked`` (n,) bool.
+
+        Kept while the caller passes the same read-only array (the targets' weighting is the
+        same from frame to frame until a sensor drops out or comes back).
+        """
+        if tracked is not self._tracked or tracked.flags.writeable:
+            self._tracked = tracked
+            self._untracked = true_indices(~tracked[self._foot_rows])
+        return self._untracked
 
     def start(self, p_sensed: np.ndarray, pitch: np.ndarray) -> None:
         """The first frame's sensed contact points (c, 3) [m] and foot pitches (c,) [rad]."""
@@ -272,7 +288,11 @@ class ContactTracker:
         if weight > 0 and (any_true(support.lag) or any_true(support.lean)):
             root.set_targets(target[None], [weight])
             tasks.append(root)
-        targets, weights = support.swing_targets(p_warm + support.lag + support.lean)
+        p_led = p_warm + support.lag + support.lean
+        if not support.leads():  # the usual frame: no swing foot led
+            support.keep_base(p_led)
+            return tasks
+        targets, weights = support.swing_targets(p_led)
         if any_true(weights):
             swing.set_targets(targets, weights)
             tasks.append(swing)
@@ -322,11 +342,9 @@ class ContactTracker:
 
     def _feet_still(self, frame: Frame) -> np.ndarray | None:
         """1 where each point's foot stands still by its IMU, 0 moving, NaN unknown."""
-        if not frame.feet_still:
+        known = frame.feet_still
+        if not known:
             return None
-        out = np.full(len(self.names), np.nan)
-        for foot, points in self._points_of_foot.items():  # per foot: fewer lookups
-            still = frame.feet_still.get(foot)
-            if still is not None:
-                out[points] = float(still)
-        return out
+        nan = math.nan
+        return np.array([nan if f is None or (still := known.get(f)) is None else float(still)
+                         for f in self._foot_names])

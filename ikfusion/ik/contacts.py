@@ -34,6 +34,13 @@ from ..model.topology import FootLayout
 from .anchor_settling import settled_heights
 from .fast_math import any_true, mean_rows, min_of, row_norms, true_indices
 from .foot_pairs import drift_from_other_foot, landing_anchors, other_foot
+from .point_evidence import (
+    all_planted_moving,
+    hinted_points,
+    moving_rest_points,
+    point_motion,
+    tilted_points,
+)
 
 
 @dataclass
@@ -143,25 +150,26 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         anchors for the points planted by stance.
     """
     th = thresholds
-    active = state.active.copy()
+    active = state.active  # read only: the new state's is built at the end
     height_rel = p_sensed[:, 2] - min_of(p_sensed[:, 2])
-    tilted = _tilted(layout, foot_pitch, math.radians(th.tilt_deg))
+    tilted = tilted_points(layout, foot_pitch, math.radians(th.tilt_deg))
     still = np.zeros(len(active), dtype=bool)
-    handed_over = np.zeros(len(active), dtype=bool)
+    handed_over: np.ndarray | None = None
     plant = np.zeros(len(active), dtype=bool)
-    moving_point, settled = _point_motion(points_moving, len(active))
+    moving_point, settled = point_motion(points_moving, len(active))
     if foot_still is not None:
-        still = np.asarray(foot_still, dtype=float) == 1.0
-        moving = np.asarray(foot_still, dtype=float) == 0.0
+        evidence = np.asarray(foot_still, dtype=float)
+        still = evidence == 1.0
         # A moving foot lets go once the other foot stands planted and still; a still foot
         # low in the sensed pose is planted while the other foot holds the body (after a
         # flight the usual touch-down, near the floor and slow, plants the landing feet).
-        handed_over = active & moving & other_foot(layout, active & still)
-        plant = (~active & still & (height_rel < _plant_height(th, needs_rest)) & ~tilted
-                 & other_foot(layout, active))
-        handed_over |= active & moving & other_foot(layout, plant)
-        handed_over &= ~settled
-    staying = active & ~handed_over
+        plant = ~active & still & (height_rel < _plant_height(th, needs_rest)) & ~tilted
+        if any_true(plant):
+            plant &= other_foot(layout, active)
+        moving = active & (evidence == 0.0)
+        if any_true(moving):  # ... handed over to the other foot, planted still or planted now
+            handed_over = moving & other_foot(layout, (active & still) | plant) & ~settled
+    staying = active if handed_over is None else active & ~handed_over
     held = state.anchors if placed is None else state.anchors - placed
     drift, other_age = drift_from_other_foot(layout, staying, held, p_sensed, state.age)
     # Two planted feet that disagree: the foot planted earlier lets go (toe-off), even a
@@ -170,10 +178,12 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     # a resting knee or palm (calm accelerometer) is weaker evidence than a still foot: the
     # sensed pose may still lift it
     lifted = ((height_rel > th.leave_relative) | tilted) & ~(still & layout.stepping)
-    leave = handed_over | (staying & (lifted | pulled))
+    leave = staying & (lifted | pulled)
+    if handed_over is not None:
+        leave |= handed_over
     if points_moving is not None:  # while a still point of the other foot holds the body
         leave |= staying & moving_point & other_foot(layout, staying & ~moving_point)
-    for i, hinted in _hinted(state.names, hints):
+    for i, hinted in hinted_points(state.names, hints):
         leave[i] = active[i] and not hinted
         plant[i] = not active[i] and hinted and plant[i]
     handover = False
@@ -184,7 +194,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         # (a trunk point whose segment's IMU says it moves takes nothing: a body rolling or
         # rising swings it low through the air)
         kept = int(np.argmin(np.where(active, p_sensed[:, 2], np.inf)))
-        takers = ~_moving_rest_points(needs_rest, foot_still, len(active))
+        takers = ~moving_rest_points(needs_rest, foot_still, len(active))
         lowest = int(np.argmin(np.where(takers, p_sensed[:, 2], np.inf)))
         handover = bool(takers[lowest] and not active[lowest] and not tilted[lowest]
                         and (not layout.stepping[lowest]
@@ -216,39 +226,11 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     return ContactState(state.names, (active & ~leave) | plant, anchors, age, released)
 
 
-def _hinted(names: Sequence[str], hints: Mapping[str, bool] | None) -> list[tuple[int, bool]]:
-    """(index, in contact) of the points ``hints`` names; none without hints (the usual case)."""
-    if not hints:
-        return []
-    return [(i, bool(hints[n])) for i, n in enumerate(names) if n in hints]
-
-
-def _moving_rest_points(needs_rest: np.ndarray | None, foot_still: np.ndarray | None,
-                        k: int) -> np.ndarray:
-    """(k,) ``needs_rest`` points whose segment's IMU says it moves (``foot_still`` 0)."""
-    if needs_rest is None or foot_still is None:
-        return np.zeros(k, dtype=bool)
-    return np.asarray(needs_rest, dtype=bool) & (np.asarray(foot_still, dtype=float) == 0.0)
-
-
 def _plant_height(th: ContactThresholds, needs_rest: np.ndarray | None) -> np.ndarray | float:
     """How far above the lowest point [m] a still point is planted at once, per point."""
     if needs_rest is None:
         return th.still_relative
     return np.where(np.asarray(needs_rest, dtype=bool), th.enter_relative, th.still_relative)
-
-
-def _point_motion(points_moving: np.ndarray | None, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per point (k,): its IMU says it moves; its IMU says it does not (both False: unknown)."""
-    if points_moving is None:
-        return np.zeros(k, dtype=bool), np.zeros(k, dtype=bool)
-    value = np.asarray(points_moving, dtype=float)  # NaN compares False both ways
-    return value == 1.0, value == 0.0
-
-
-def _support_moving(active: np.ndarray, moving_point: np.ndarray) -> bool:
-    """Some point is planted and the IMUs say every planted point moves."""
-    return any_true(active) and not any_true(active & ~moving_point)
 
 
 def _sensed_offset(p_sensed: np.ndarray, anchors: np.ndarray, reference: np.ndarray
@@ -297,14 +279,50 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
         (:func:`.anchor_settling.settled_heights`: the planted points of one segment together).
     """
     th = thresholds
-    active = state.active.copy()
-    anchors = state.anchors.copy()
+    was = state.active
+    step = max(dt, 0.0)
     height_rel = p_sensed[:, 2] - min_of(p_sensed[:, 2])
-    speed = (row_norms(p_solved - p_solved_previous) / dt
-             if dt > 0 else np.zeros(len(active)))
-    tilted = _tilted(layout, foot_pitch, math.radians(th.tilt_deg))
-    released = np.where(active, state.released, state.released + max(dt, 0.0))
-    moving_point, settled = _point_motion(points_moving, len(active))
+    released = np.where(was, state.released, state.released + step)
+    # near the floor and among the lowest points: the candidates (few frames have any)
+    enter = (~was & (p_solved[:, 2] < th.floor_z + th.enter_height)
+             & (height_rel < th.enter_relative))
+    if any_true(enter):
+        enter &= _may_enter(was, p_solved, p_solved_previous, dt, height_rel, released, th,
+                            foot_pitch, layout, points_moving, foot_still, needs_rest)
+    for i, hinted in hinted_points(state.names, hints):
+        enter[i] = (not was[i]) and hinted
+    if not any_true(was) and not any_true(enter) and not hints:
+        enter[int(np.argmin(p_sensed[:, 2]))] = True
+    anchors = state.anchors.copy()
+    landing = any_true(enter)
+    if landing:
+        anchors[enter] = landing_anchors(layout, was, anchors, p_solved, enter)
+        active = was | enter
+        anchors[enter, 2] = np.maximum(anchors[enter, 2], th.floor_z)
+    else:
+        active = was.copy()
+    anchors[:, 2] = settled_heights(anchors[:, 2], active, layout.same_segment,
+                                    th.settle_speed * step, th.floor_z, layout.shares_segment)
+    age = np.where(active, state.age + step, 0.0)
+    if landing:
+        age[enter] = 0.0
+    return ContactState(state.names, active, anchors, age, released)
+
+
+def _may_enter(active: np.ndarray, p_solved: np.ndarray, p_solved_previous: np.ndarray,
+               dt: float, height_rel: np.ndarray, released: np.ndarray,
+               th: ContactThresholds, foot_pitch: np.ndarray | None, layout: FootLayout,
+               points_moving: np.ndarray | None, foot_still: np.ndarray | None,
+               needs_rest: np.ndarray | None) -> np.ndarray:
+    """(k,) the points :func:`touch_down` lets land, its other rules than height.
+
+    Slow (or known not to move, or as low as a support that moves), not ruled out by the foot
+    pitch, not let go just now (toe-off), not a moving point while a point of the other foot
+    that does not move holds the body, not a trunk point whose segment moves.
+    """
+    k = len(active)
+    moving_point, settled = point_motion(points_moving, k)
+    speed = row_norms(p_solved - p_solved_previous) / dt if dt > 0 else np.zeros(k)
     # a point that just let go (toe-off) does not come back down at once while it is low,
     # unless its foot IMU says it no longer moves (a landing heel let go while it skidded).
     # A point its foot IMU says does not move is slow whatever its solved speed: that speed
@@ -314,36 +332,10 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     # on a toe that lifts): the sensed pose decides then, a point taking the body once it is
     # as low as the planted points.
     support_moving = (height_rel <= np.min(height_rel[active], initial=np.inf)
-                      if _support_moving(active, moving_point) else False)
-    enter = (~active & (p_solved[:, 2] < th.floor_z + th.enter_height)
-             & ((speed < th.enter_speed) | settled | support_moving)
-             & (height_rel < th.enter_relative)
-             & ~tilted & ((released >= th.reenter_delay) | settled))
+                      if all_planted_moving(active, moving_point) else False)
+    ok = (((speed < th.enter_speed) | settled | support_moving)
+          & ~tilted_points(layout, foot_pitch, math.radians(th.tilt_deg))
+          & ((released >= th.reenter_delay) | settled))
     if points_moving is not None:  # see release_contacts
-        enter &= ~(moving_point & other_foot(layout, active & ~moving_point))
-    enter &= ~_moving_rest_points(needs_rest, foot_still, len(active))  # NaN: unknown
-    for i, hinted in _hinted(state.names, hints):
-        enter[i] = (not active[i]) and hinted
-    if not any_true(active) and not any_true(enter) and not hints:
-        enter[int(np.argmin(p_sensed[:, 2]))] = True
-    landing = any_true(enter)
-    if landing:
-        anchors[enter] = landing_anchors(layout, active, anchors, p_solved, enter)
-        active |= enter
-        anchors[enter, 2] = np.maximum(anchors[enter, 2], th.floor_z)
-    anchors[:, 2] = settled_heights(anchors[:, 2], active, layout.same_segment,
-                                    th.settle_speed * max(dt, 0.0), th.floor_z)
-    age = np.where(active, state.age + max(dt, 0.0), 0.0)
-    if landing:
-        age[enter] = 0.0
-    return ContactState(state.names, active, anchors, age, released)
-
-
-def _tilted(layout: FootLayout, foot_pitch: np.ndarray | None, limit: float) -> np.ndarray:
-    """Points whose foot pitch rules them out: heels when toe-down, toes when toe-up."""
-    if foot_pitch is None:
-        return np.zeros(len(layout.on_foot), dtype=bool)
-    heel, toe = layout.on_foot, layout.below_foot
-    pitch = foot_pitch if isinstance(foot_pitch, np.ndarray) \
-        else np.asarray(foot_pitch, dtype=float)  # NaN (unknown) compares False: not tilted
-    return (heel & (pitch > limit)) | (toe & (pitch < -limit))
+        ok &= ~(moving_point & other_foot(layout, active & ~moving_point))
+    return ok & ~moving_rest_points(needs_rest, foot_still, k)  # NaN: unknown

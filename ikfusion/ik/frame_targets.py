@@ -84,6 +84,7 @@ class TargetLoader:
         self._positions_set = True  # the position task starts without targets: clear it once
         self._shape_set = True  # ... and the shape task
         self._last_weighting: _Weighting | None = None
+        self._last_key = b""  # the bytes of its weights
 
     def load(self, frame: Frame, R_heading: np.ndarray | None) -> FrameTargets:
         """Set the tasks' targets from ``frame``, orientations turned by ``R_heading``."""
@@ -126,7 +127,8 @@ class TargetLoader:
         drops out or comes back): the arrays are the same from frame to frame (read-only).
         """
         last = self._last_weighting
-        if last is not None and np.array_equal(weights, last.weights):
+        key = weights.tobytes()  # the same bytes: the same weights (np.array_equal, cheaper)
+        if last is not None and key == self._last_key:
             return last
         tasks = self.tasks
         tracked = weights > 0
@@ -141,7 +143,7 @@ class TargetLoader:
         for array in (weighting.weights, tracked, weighting.sensed_joints, posture_weights,
                       *weighting.row_weights):
             array.setflags(write=False)
-        self._last_weighting = weighting
+        self._last_weighting, self._last_key = weighting, key
         return weighting
 
     def _load_sites(self, task: PositionTask, positions: Mapping[str, np.ndarray],

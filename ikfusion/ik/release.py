@@ -41,6 +41,7 @@ class ReleaseEasing:
     def reset(self) -> None:
         """No offsets."""
         self.offsets = np.zeros((self._n, 3))
+        self._easing = False  # whether an offset may be non-zero (False: all are zero)
 
     def release(self, released: np.ndarray,
                 bend: Callable[[np.ndarray], np.ndarray]) -> None:
@@ -56,16 +57,18 @@ class ReleaseEasing:
         legs = np.unique(np.concatenate([self._legs[k] for k in true_indices(released)]))
         if len(legs):
             self.offsets[legs] = bend(legs)
+            self._easing = True
 
     def apply(self, R_world_sensed: np.ndarray, dt: float) -> np.ndarray | None:
         """Shrink the offsets by ``speed * dt``; the offset targets (n, 3, 3), None if none."""
-        if not any_true(self.offsets):  # the usual case: no leg eases
+        if not self._easing:  # the usual case: no leg eases
             return None
         norm = np.linalg.norm(self.offsets, axis=1)
         keep = np.maximum(0.0, 1.0 - self.speed * dt / np.where(norm > 0, norm, 1.0))
         self.offsets *= np.where(norm > 0, keep, 0.0)[:, None]
         moving = np.flatnonzero(np.any(self.offsets != 0.0, axis=1))
         if len(moving) == 0:
+            self._easing = False
             return None
         R = R_world_sensed.copy()
         R[moving] = R[moving] @ exp_so3(self.offsets[moving])

@@ -164,8 +164,8 @@ class Solver:
         q, iterations, relaxed = self._solve(frame, targets, q, active,
                                              self.settings.max_iterations)
         # a rising heel is held against slipping but no longer stands on the floor
-        contacts_now = {n: bool(a and not r) for n, a, r in zip(
-            self.contact_names, tasks.contact.active, tasks.contact.free_z)}
+        contacts_now = dict(zip(self.contact_names,
+                                (tasks.contact.active & ~tasks.contact.free_z).tolist()))
         contacts.touch_down(frame, self._configuration.positions(self._contact_frames), q[:3])
         velocity = (q[:3] - last.q[:3]) / dt if dt > 0 else last.root_velocity
         self.ballistic.update(velocity, dt, a_root, offset is not None)

@@ -25,9 +25,8 @@ the ankle, which springs back when the toe rises (a pop). It lets it go for the 
 the heel left the floor away from the sensed leg's height (by ``_UNDER_FLOOR_BAND`` or more): a
 sensed leg that disagreed with the floor in height would pull the body up after lift-off and
 down before landing (a run's legs, with feet the sensors put centimetres under the floor).
-Meanwhile the pelvis leans toward the
-correction by at most ``lean_max``; the lean passes into the lag when the body is handed to a
-foot that was placed leaning.
+Meanwhile the pelvis leans toward the correction by at most ``lean_max``; the lean passes into
+the lag when the body is handed to a foot that was placed leaning.
 """
 
 from __future__ import annotations
@@ -92,6 +91,7 @@ class SupportFollower:
         self._swinging = [False] * n
         self._height_trust = np.ones(n)  # how far a swing heel is held at its sensed height
         self._goal = np.zeros((n, 3))
+        self._has_goal = [False] * n  # any_true(self._goal[f]), kept with it
         self.swing = np.zeros((n, 3))
         self._landed_swing = np.zeros((n, 3))
         self._base: np.ndarray | None = None
@@ -249,6 +249,7 @@ class SupportFollower:
                     self.landed -= self._landed_swing[f]  # not counted; its goal is kept
                 else:
                     self._goal[f] = _clip_norm(self._step - self.pending, self._max_step)
+                    self._has_goal[f] = any_true(self._goal[f])
                 # the heel leaves the floor where it is, not where the sensed leg puts it (nor
                 # where it was led before a short touch-down: the body moved under it since)
                 self.swing[f] = mean_rows(self._deviation[points & self._led])
@@ -275,30 +276,38 @@ class SupportFollower:
         self._off_target = p_pelvis - self._target if self._target is not None else np.zeros(3)
         self._base = self._target = None
 
-    def placed_offsets(self, active: np.ndarray) -> np.ndarray:
+    def placed_offsets(self, active: np.ndarray) -> np.ndarray | None:
         """(k, 3) [m]: how far each planted point was placed from where the sensed legs put it.
 
         While two feet (or knees, palms) are planted, the youngest was led by its swing offset:
-        they disagree by that much on purpose, which must not read as drift between them.
+        they disagree by that much on purpose, not drift. None while fewer are planted.
         """
-        out = np.zeros((len(active), 3))
         planted = self._planted(active)
-        if np.count_nonzero(planted) >= 2:
-            # a foot that touched down since the last frame is still swinging here (its
-            # landing is settled when the body follows): it is the youngest
-            landing = planted & self._swinging
-            young = int(np.argmin(np.where(planted, np.where(landing, -1.0, self._planted_for),
-                                           np.inf)))
-            if not np.any(self._goal[young]):  # not led: only its swing (a resumed one)
-                out[self._feet[young]] = (self.swing[young] if landing[young]
-                                          else self._landed_swing[young])
-                return out
-            # led from the pelvis (lag and lean on the foot the body stands on) plus its
-            # swing: the same placement :meth:`_settle_landings` records
-            placed = (self.displacement + self.swing[young] if landing[young]
-                      else self._placed_by[young])
-            out[self._feet[young]] = placed - self._placed_by[self._reference_feet].mean(axis=0)
+        if np.count_nonzero(planted) < 2:
+            return None
+        out = np.zeros((len(active), 3))
+        # a foot that touched down since the last frame is still swinging here (its
+        # landing is settled when the body follows): it is the youngest
+        fresh = planted & self._swinging
+        young = int(np.argmin(np.where(planted, np.where(fresh, -1.0, self._planted_for), np.inf)))
+        if not self._has_goal[young]:  # not led: only its swing (a resumed one)
+            out[self._feet[young]] = (self.swing[young] if fresh[young]
+                                      else self._landed_swing[young])
+            return out
+        # led from the pelvis (lag and lean on the foot the body stands on) plus its
+        # swing: the same placement :meth:`_settle_landings` records
+        placed = (self.displacement + self.swing[young] if fresh[young]
+                  else self._placed_by[young])
+        out[self._feet[young]] = placed - self._placed_by[self._reference_feet].mean(axis=0)
         return out
+
+    def leads(self) -> bool:
+        """Whether a swinging foot is led now (:meth:`swing_targets` gives it information)."""
+        return any(s and g for s, g in zip(self._swinging, self._has_goal))
+
+    def keep_base(self, p_points: np.ndarray) -> None:
+        """Keep the contact points (k, 3) [m] led this frame for :meth:`record` (no swing)."""
+        self._base = p_points
 
     def swing_targets(self, p_points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Targets (k, 3) [m] and information (k, 3, 3) for the heels of swing feet.
@@ -317,7 +326,7 @@ class SupportFollower:
         targets = p_points.copy()
         info = np.zeros((len(p_points), 3, 3))
         for f, points in enumerate(self._feet):
-            if self._swinging[f] and any_true(self._goal[f]):
+            if self._swinging[f] and self._has_goal[f]:
                 targets[points] += self.swing[f]
                 sunk = self.floor_z - float(targets[points, 2].min())
                 height = min(_band_share(-sunk), self._height_trust[f])

@@ -68,6 +68,13 @@ class FootLayout:
         other.setflags(write=False)
         return other
 
+    @cached_property
+    def shares_segment(self) -> np.ndarray:
+        """(k,) points sharing their rigid segment with another point (worked out once)."""
+        shares = np.count_nonzero(np.asarray(self.same_segment, dtype=bool), axis=1) > 1
+        shares.setflags(write=False)
+        return shares
+
 
 @dataclass(frozen=True)
 class BodyTopology:

@@ -37,6 +37,7 @@ class ContactConstraint:
         self.anchors = np.zeros((len(self.frame_ids), 3))
         self.free_z = np.zeros(len(self.frame_ids), dtype=bool)
         self._held = np.zeros((len(self.frame_ids), 3), dtype=bool)
+        self._held_rows = np.zeros(0, dtype=int)  # flat indices of ``_held`` (k * 3 + axis)
         # (k, 3, 3) the directions held of each point, when points share a segment
         self._basis: np.ndarray | None = None
         # (active, free_z) of the rows held now when they are along the world axes
@@ -67,6 +68,7 @@ class ContactConstraint:
         else:
             self._basis, self._held = shared
             self._world_axes_key = None
+        self._held_rows = self._held.ravel().nonzero()[0]
 
     def _along_held(self, vectors: np.ndarray, on: np.ndarray | slice) -> np.ndarray:
         """Per point ``on``, ``vectors`` (m, 3, ...) in its held directions' frame."""
@@ -89,10 +91,18 @@ class ContactConstraint:
         held = self._held[on]
         J = self._along_held(configuration.linear_jacobians(planted), on)
         p_planted = configuration.positions(planted) if p_world is None else p_world[on]
+        if self._basis is None:  # the usual case: world axes, rows taken by index (faster)
+            rows = held.ravel().nonzero()[0]
+            return Equality(J.reshape(-1, nv).take(rows, axis=0),
+                            (self.anchors[on] - p_planted).reshape(-1).take(rows))
         return Equality(J[held], self._along_held(self.anchors[on] - p_planted, on)[held])
 
     def rows(self, p_world: np.ndarray, J_linear: np.ndarray) -> Equality:
         """Rows from every point's position (k, 3) [m] and linear Jacobian (k, 3, nv)."""
+        if self._basis is None:  # the usual case: world axes, rows taken by index (faster)
+            rows = self._held_rows
+            return Equality(J_linear.reshape(-1, J_linear.shape[2]).take(rows, axis=0),
+                            (self.anchors - p_world).reshape(-1).take(rows))
         held, every = self._held, slice(None)
         return Equality(self._along_held(J_linear, every)[held],
                         self._along_held(self.anchors - p_world, every)[held])
@@ -146,5 +156,6 @@ class FloorLimit:
 
     def rows(self, p_world: np.ndarray, J_linear: np.ndarray) -> Inequality:
         """Rows from every point's position (k, 3) [m] and linear Jacobian (k, 3, nv)."""
-        on = self.enabled
-        return Inequality(-J_linear[on, 2, :], p_world[on, 2] - self.floor_z)
+        rows = true_indices(self.enabled) * 3 + 2  # the z rows of the enabled points
+        return Inequality(-J_linear.reshape(-1, J_linear.shape[2]).take(rows, axis=0),
+                          p_world.reshape(-1).take(rows) - self.floor_z)
