@@ -48,14 +48,14 @@ def largest_error_change_deg(human: HumanModel, truth: np.ndarray, solved: np.nd
 
 
 @pytest.mark.parametrize(("heading_error_deg", "pop_deg", "largest_deg"),
-                         [(4.0, 1.0, 0.5), (10.0, 2.5, 1.25)])
+                         [(4.0, 1.0, 0.5), (10.0, 2.5, 1.0)])
 def test_a_joint_degrees_ahead_of_the_truth_does_not_stop_dead_at_its_limit(
         human: HumanModel, heading_error_deg: float, pop_deg: float, largest_deg: float) -> None:
     """gen-backwards: a foot sensor's heading error puts the ankle's rotation degrees ahead of
     the truth (4 deg at 13.7 s of its first 15 s), which turns into its limit at up to 4 deg a
     frame. A hard limit stops the estimate dead while the true ankle still turns: the error
     changes by the truth's speed in one frame (1.5 deg with 4 deg ahead, 3.0 with 10). The soft
-    wall lets the ankle sink past the limit and eases it back (0.3 and 1.1 deg)."""
+    wall lets the ankle sink past the limit and eases it back (0.2 and 0.5 deg)."""
     truth = ankle_running_into_its_limit(human)
     hard = solve(human, truth, heading_error_deg, joint_range_overshoot_deg=0.0)
     assert largest_error_change_deg(human, truth, hard) > pop_deg  # the pop
@@ -63,7 +63,7 @@ def test_a_joint_degrees_ahead_of_the_truth_does_not_stop_dead_at_its_limit(
     assert largest_error_change_deg(human, truth, soft) < largest_deg
     limits = JointRangeLimit(human.ball_joints, margin_deg=0.0)
     past = np.array([limits.violation_deg(q).max() for q in soft])
-    assert past.max() <= 5.0 + 1e-6  # joint_range_overshoot_deg
+    assert past.max() <= 8.0 + 1e-6  # joint_range_overshoot_deg
     assert past[-1] < 0.01  # eased back into the range within the clip's 0.6 s at rest
 
 

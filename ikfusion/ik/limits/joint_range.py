@@ -57,7 +57,7 @@ class JointRangeLimit:
     """
 
     def __init__(self, joints: Mapping[str, BallJoint], margin_deg: float,
-                 overshoot_deg: float = 0.0, settle_s: float = 0.05) -> None:
+                 overshoot_deg: float = 0.0, settle_s: float = 0.08) -> None:
         if overshoot_deg < 0.0:
             raise ConfigError(f"expected a depth >= 0 [deg], found {overshoot_deg!r}",
                               field="joint_range_overshoot_deg")
