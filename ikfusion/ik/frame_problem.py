@@ -116,7 +116,8 @@ class FrameTasks:
             contact=ContactConstraint(contact_ids, contact_names,
                                       [model.sites[n].segment for n in contact_names]),
             floor=FloorLimit(contact_ids, s.floor_z),
-            joint_range=JointRangeLimit(model.ball_joints, s.joint_range_margin_deg),
+            joint_range=JointRangeLimit(model.ball_joints, s.joint_range_margin_deg,
+                                        s.joint_range_overshoot_deg, s.joint_range_settle_s),
             velocity=VelocityLimit(tangent_vector(nv, s.max_root_velocity,
                                                   s.max_root_angular_velocity,
                                                   s.max_joint_velocity)),
@@ -186,7 +187,7 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     nv = conf.model.nv
     limits = tasks.joint_range
     if compiled is None:
-        ranges = limits.linearise(limits.angles(conf.q), None, nv)
+        ranges = limits.softened(limits.linearise(limits.angles(conf.q), None, nv))
         up, down = ranges.near(limits.margin)
         floor = tasks.floor.inequality(conf)
         qp = build_qp(conf, active, [ranges.inequality(up, down), floor],
@@ -222,7 +223,8 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     Pc, Jc = P[tasks.contact_rows], J[tasks.contact_rows]
     if tasks.swing in active:
         tasks.swing.add_rows(Pc, Jc, H, c)
-    ranges = LinearisedRanges(G_ranges.copy(), room_up[:, 0].copy(), room_down[:, 0].copy())
+    ranges = limits.softened(
+        LinearisedRanges(G_ranges.copy(), room_up[:, 0].copy(), room_down[:, 0].copy()))
     up, down = ranges.near(limits.margin)
     floor = tasks.floor.rows(Pc, Jc)
     contact = tasks.contact.rows(Pc, Jc)

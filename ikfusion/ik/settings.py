@@ -62,6 +62,8 @@ class SolverSettings(ShippedSettings):
     ease_speed_deg: float
     persistence: float
     joint_range_margin_deg: float
+    joint_range_overshoot_deg: float
+    joint_range_settle_s: float
     max_joint_velocity: float
     max_root_velocity: float
     max_root_angular_velocity: float

@@ -135,6 +135,7 @@ class Solver:
         q, p_sensed = self.sensed.pose(last.q, targets.R_sensed, targets.tracked)
         tasks.damping.set_reference(last.q)
         tasks.velocity.set_previous(last.q, dt)
+        tasks.joint_range.next_frame(dt)
         tasks.chain_share.set_previous(last.q)
         q_warm = q.copy()
         self.persistence.hold(q_warm, targets.sensed_joints, last.bent)
@@ -183,6 +184,7 @@ class Solver:
         q = self.sensed.configuration(q_start, targets.R_sensed, targets.tracked)
         tasks.damping.set_reference(None)
         tasks.velocity.set_previous(None, 0.0)
+        tasks.joint_range.next_frame(None)
         tasks.chain_share.set_previous(None)
         q_warm = q.copy()
         self.persistence.hold(q_warm, targets.sensed_joints, None)
@@ -257,6 +259,7 @@ class Solver:
                 break
             relaxed = relaxed or solution.relaxed
             conf.update(conf.integrate(solution.dq))
+            self.tasks.joint_range.took_step(solution.dq)
             if np.abs(solution.dq).max() < s.step_tolerance:
                 break  # planted points are then held exactly by the projection below
         t = self.tasks

@@ -259,7 +259,8 @@ def _bvh_motion(path: str | Path, rate: float, progress: bool, lock_contacts: bo
 def _solved_configurations(model: HumanModel, mapped: MappedMotion, time: np.ndarray,
                            progress: bool) -> np.ndarray:
     """Configurations (N, nq) solved frame by frame from the mapped orientations and root."""
-    solver = Solver(model, contacts=False, max_iterations=8, step_tolerance=1e-3)
+    solver = Solver(model, contacts=False, max_iterations=8, step_tolerance=1e-3,
+                    joint_range_overshoot_deg=0.0)  # a truth stays inside its ranges
     qs = []
     for k in tqdm(range(len(time)), disable=not progress, unit="frame", desc="mocap"):
         targets = {s: R[k] for s, R in mapped.R_world_segment.items()}

@@ -72,4 +72,6 @@ def retarget_human(source: HumanMotion, height: float, progress: bool = False) -
         root = None if pelvis is None else scale * source.p_world_segment[k, pelvis]
         frames.append(Frame(float(t), {s: source.R_world_segment[k, index[s]] for s in segments},
                             contacts=hints, root_position=root, root_position_weight=ROOT_WEIGHT))
-    return Solver(model).solve(frames, progress=progress, total=len(frames))
+    # hard limits: a retargeted motion stays inside the target's ranges
+    return Solver(model, joint_range_overshoot_deg=0.0).solve(frames, progress=progress,
+                                                              total=len(frames))

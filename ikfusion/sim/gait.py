@@ -456,8 +456,9 @@ def generate_gait(model: HumanModel, parameters: GaitParameters | None = None,
 
         planner = BouncePlanner(model, p)
     # Converged truth; knees that move like the hinges they nearly are (ball joints otherwise
-    # take up the foot placement with knee rotation and valgus no real knee shows).
-    solver = Solver(model, max_iterations=8, step_tolerance=1e-3,
+    # take up the foot placement with knee rotation and valgus no real knee shows); hard
+    # limits: a truth stays inside its ranges.
+    solver = Solver(model, max_iterations=8, step_tolerance=1e-3, joint_range_overshoot_deg=0.0,
                     posture_axes={f"j{s}Knee": [100.0, 1.0, 100.0] for s in ("Left", "Right")})
     times = np.arange(0.0, p.duration, 1.0 / rate)
     qs, contacts = [], []

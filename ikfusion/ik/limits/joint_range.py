@@ -15,6 +15,11 @@ near a limit) is measured on the Euler triple that the smallest turn of the join
 the range (:func:`~ikfusion.model.angle_continuity.nearest_to_ranges`), so it is pulled back to
 the limit it crossed: not thrown to the opposite corner across the +-180 deg wrap of the
 principal decomposition, nor through gimbal lock onto the other Euler branch.
+
+The limits are hard unless ``overshoot_deg`` is set (solver settings
+``joint_range_overshoot_deg``, ``joint_range_settle_s``): then a joint that arrives at a limit
+at speed, its targets pulling past it, may sink past it a little and is eased back into the
+range (:mod:`.soft_wall`) instead of stopping dead while the true joint still turns.
 """
 
 from __future__ import annotations
@@ -24,12 +29,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...errors import ConfigError
 from ...model.angle_continuity import nearest_to_ranges
 from ...model.ball_joints import BallJoint
 from ...rotations import exp_so3, quat_wxyz_to_matrix, xyzw_to_wxyz
 from ..configuration import Configuration
 from ..fast_math import any_true
 from .base import Inequality
+from .soft_wall import SoftWall
 
 _UNIT = np.eye(3)
 
@@ -41,9 +48,22 @@ class JointRangeLimit:
         joints: ``HumanModel.ball_joints``.
         margin_deg: Only angles within this distance of a limit produce rows (the others
             cannot reach it in one step); keeps the QP small.
+        overshoot_deg: How far past a limit a joint that arrives at speed may sink [deg]
+            (:mod:`.soft_wall`, fed by :meth:`next_frame`); 0: hard limits.
+        settle_s: The time constant of that soft wall [s].
+
+    Raises:
+        ConfigError: A negative ``overshoot_deg`` or a ``settle_s`` not above 0.
     """
 
-    def __init__(self, joints: Mapping[str, BallJoint], margin_deg: float) -> None:
+    def __init__(self, joints: Mapping[str, BallJoint], margin_deg: float,
+                 overshoot_deg: float = 0.0, settle_s: float = 0.08) -> None:
+        if overshoot_deg < 0.0:
+            raise ConfigError(f"expected a depth >= 0 [deg], found {overshoot_deg!r}",
+                              field="joint_range_overshoot_deg")
+        if settle_s <= 0.0:
+            raise ConfigError(f"expected a time constant > 0 [s], found {settle_s!r}",
+                              field="joint_range_settle_s")
         specs = [j.spec for j in joints.values()]
         self.names = list(joints)
         self.idx_q = np.array([j.idx_q for j in joints.values()])
@@ -57,6 +77,9 @@ class JointRangeLimit:
         self.parity = np.where((j - i) % 3 == 1, 1.0, -1.0)
         self.coupling = np.array([s.axis_coupling for s in specs])
         self.margin = np.radians(margin_deg)
+        self.wall = SoftWall(self.lower, self.upper, float(np.radians(overshoot_deg)), settle_s)
+        self._linearised: tuple[np.ndarray, np.ndarray] | None = None  # angles, G
+        self._solved: np.ndarray | None = None  # (joints, 3) [rad] where this frame stands
         self._q_cols = self.idx_q[:, None] + np.arange(4)
         n = len(self.idx_v)  # where each E^-1 entry goes in the rows of all angles
         self._rows = np.repeat(np.arange(3 * n), 3)
@@ -73,6 +96,46 @@ class JointRangeLimit:
         first = np.arctan2(-p * R[n, j, k], R[n, k, k])
         last = np.arctan2(-p * R[n, i, j], R[n, i, i])
         return np.stack([first, middle, last], axis=1) * self.signs
+
+    def next_frame(self, dt: float | None) -> None:
+        """A new frame, ``dt`` [s] after the last one solved (None: the first frame).
+
+        The soft wall takes the angles the last frame was solved at (:meth:`took_step`) and
+        gives each angle its room past its limits from them and the frame before (hard limits
+        until two frames are known).
+        """
+        if dt is None:
+            self.wall.reset()
+        elif self._solved is not None:
+            self.wall.update(self._solved, dt)
+        self._solved = None
+
+    def softened(self, ranges: LinearisedRanges) -> LinearisedRanges:
+        """``ranges`` (hard) widened by the soft wall's room past each limit (:meth:`next_frame`).
+
+        The angles they were linearised at are kept as where the frame stands until
+        :meth:`took_step`. An angle measured on another triple than the previous frame's (the
+        other Euler branch, a wrap) keeps its hard limits.
+        """
+        a = self.upper - ranges.room_up.reshape(self.upper.shape)
+        if self.wall.enabled:
+            self._linearised = (a, ranges.G)
+            self._solved = a
+        room = self.wall.room(a)
+        if room is None:
+            return ranges
+        up, down = room
+        return LinearisedRanges(ranges.G, ranges.room_up + up.reshape(-1),
+                                ranges.room_down + down.reshape(-1))
+
+    def took_step(self, dq: np.ndarray) -> None:
+        """Take the step ``dq`` (nv,) made from the last linearisation (:meth:`softened`).
+
+        The frame's angles move by their rates, to first order (no kinematics per frame).
+        """
+        if self._linearised is not None:
+            a, G = self._linearised
+            self._solved = a + (G @ dq).reshape(a.shape)
 
     def rate_matrices(self, angles: np.ndarray) -> np.ndarray:
         """``E^-1`` per joint (joints, 3, 3): anatomical angle rates from the tangent step."""
@@ -93,7 +156,8 @@ class JointRangeLimit:
     def inequality(self, configuration: Configuration) -> Inequality:
         """Rows ``G dq <= h`` for the angles near or beyond a limit."""
         a = self.angles(configuration.q)
-        return self.rows(a, None, configuration.model.nv)
+        linear = self.softened(self.linearise(a, None, configuration.model.nv))
+        return linear.inequality(*linear.near(self.margin))
 
     def rows(self, angles: np.ndarray, rate_matrices: np.ndarray | None, nv: int) -> Inequality:
         """Rows ``G dq <= h`` for the angles (joints, 3) [rad] within the margin of a limit.
