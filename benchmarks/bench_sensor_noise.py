@@ -16,8 +16,7 @@ autocorrelation of that residual 0.1 s apart (near 1: a slow error; near 0: whit
 simulated. A last line gives the medians over the files.
 
 Run: PYTHONPATH=. .venv/bin/python benchmarks/bench_sensor_noise.py [--noise default|none]
-[--still 2] [--slow 30] [--seed 1]; with PYTHONPATH of another checkout it measures that one's
-simulator (only public names are used).
+[--still 2] [--slow 30] [--seed 1].
 """
 
 from __future__ import annotations

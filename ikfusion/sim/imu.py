@@ -41,18 +41,18 @@ class ImuNoise:
     but varies slowly, like the filter's state: the filter turns its orientation as the
     gyroscope says and corrects it a little at every sample (tilt through gravity, within
     about a second; heading through the magnetometer, over ten seconds and more). Measured on
-    every real file with orientations in ``../shared/data`` (``benchmarks/bench_sensor_noise.py``):
-    in still periods (turning slower than 2 deg/s over 0.1 s) the reported orientation turns
-    0.003-0.017 deg per 100 Hz sample (median 0.013 over 26 MTx/MTw/MTw2 sensors: static11,
-    opensense_walk, movingreality_trial007, formats; MVNX sensors 0.017-0.031 deg at 60 Hz),
-    and in any motion a sample's turn differs from the gyroscope's by only 0.0005-0.007 deg
-    (median 0.002, bias removed; treadmill gait of ``movingreality_trial007`` included). So the
-    slow errors are smooth: each is white noise through two first-order lags of the time
-    constant (a critically damped second-order Gauss-Markov process), which turns by about
-    ``rms * dt / tau`` per sample, not the ``rms * sqrt(2 dt / tau)`` of a single lag (0.27 deg
-    per 100 Hz sample with the former 0.1 s tilt lag, 20 times the real files). A little white
-    noise stands for the gyroscope noise the filter integrates, and the heading random walk
-    (about 1 deg per minute) passes the heading lag too.
+    every real file with orientations in ``../shared/data`` (``benchmarks/bench_sensor_noise.py``;
+    26 MTx/MTw/MTw2 sensors of static11, opensense_walk, movingreality_trial007 and formats at
+    100 Hz, 11 MVNX sensors at 60 Hz): standing still (turning slower than 2 deg/s over 0.1 s)
+    the reported orientation turns 0.003-0.017 deg per 100 Hz sample (median 0.013; MVNX
+    0.017-0.031 deg per 60 Hz frame), and in any motion, treadmill gait included, a sample's
+    turn departs from the sensor's own gyroscope by 0.0005-0.007 deg (median 0.002, bias
+    removed). So the slow errors are smooth: each is white noise through two first-order lags
+    of its time constant (a critically damped second-order Gauss-Markov process), which turns
+    by ``rms * dt / tau`` per sample (about 0.005 deg per 100 Hz sample with the defaults)
+    where one lag turns by ``rms * sqrt(2 dt / tau)`` (0.27 deg with the former single 0.1 s
+    tilt lag, 20 times the real files). The white noise is of the size of integrated
+    gyroscope noise; the heading random walk passes the heading lag too.
 
     Attributes:
         tilt_deg: RMS of the slowly varying error about the horizontal axes, both together
