@@ -4,9 +4,10 @@ Per sensor site (SPEC section 2), the sensor is strapped with a mounting rotatio
 ``R_segment_sensor`` (random by default, as real straps are) and reports what an Xsens
 MTw-class unit reports:
 
-* ``R_world_sensor``: the true orientation with white noise (default 0.5 deg in roll and
-  pitch, 1.5 deg in heading) and a slowly wandering heading error (a random walk, default about
-  1 deg per minute), the errors of magnetometer-aided orientation filters indoors;
+* ``R_world_sensor``: the true orientation with smooth, slowly varying errors (default 0.5 deg
+  RMS tilt over about a second, 1.5 deg heading over about ten), a little white noise and a
+  heading random walk (default about 1 deg per minute), the errors of magnetometer-aided
+  orientation filters indoors (see :class:`ImuNoise` for what real files show);
 * ``acc``: specific force ``R_world_sensor^T (a_world - g)`` [m/s^2] in the sensor frame, with
   white noise and a constant bias;
 * ``gyr``: angular rate in the sensor frame [rad/s], with white noise and a constant bias.
@@ -22,6 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
+from scipy.linalg import solve_discrete_lyapunov
+from scipy.signal import lfilter
 
 from ..model.human_model import HumanModel
 from ..rotations import axis_rotation, exp_so3, log_so3, random_rotations
@@ -35,19 +38,29 @@ class ImuNoise:
 
     The orientation a sensor reports comes out of its own fusion filter: its error is of the
     size the datasheets give (Xsens MTw: 0.75 deg roll/pitch, 1.5 deg heading RMS in motion)
-    but varies slowly, like the filter's state. Between two samples the reported orientation
-    moves as the gyroscope says: real MT Manager files standing still turn 0.006-0.04 deg from
-    sample to sample (``../shared/data/xsens/static11``, ``movingreality_trial007``). So the
-    orientation errors are first-order Gauss-Markov processes plus a little white noise, and
-    a heading random walk. Tilt is observable through gravity at every sample, so the filter
-    corrects it fast (short time constant); heading only through the magnetometer, heavily
-    filtered (long time constant).
+    but varies slowly, like the filter's state: the filter turns its orientation as the
+    gyroscope says and corrects it a little at every sample (tilt through gravity, within
+    about a second; heading through the magnetometer, over ten seconds and more). Measured on
+    every real file with orientations in ``../shared/data`` (``benchmarks/bench_sensor_noise.py``;
+    26 MTx/MTw/MTw2 sensors of static11, opensense_walk, movingreality_trial007 and formats at
+    100 Hz, 11 MVNX sensors at 60 Hz): standing still (turning slower than 2 deg/s over 0.1 s)
+    the reported orientation turns 0.003-0.017 deg per 100 Hz sample (median 0.013; MVNX
+    0.017-0.031 deg per 60 Hz frame), and in any motion, treadmill gait included, a sample's
+    turn departs from the sensor's own gyroscope by 0.0005-0.007 deg (median 0.002, bias
+    removed). So the slow errors are smooth: each is white noise through two first-order lags
+    of its time constant (a critically damped second-order Gauss-Markov process), which turns
+    by ``rms * dt / tau`` per sample (about 0.005 deg per 100 Hz sample with the defaults)
+    where one lag turns by ``rms * sqrt(2 dt / tau)`` (0.27 deg with the former single 0.1 s
+    tilt lag, 20 times the real files). The white noise is of the size of integrated
+    gyroscope noise; the heading random walk passes the heading lag too.
 
     Attributes:
-        tilt_deg: RMS of the slowly varying error about the horizontal axes [deg].
+        tilt_deg: RMS of the slowly varying error about the horizontal axes, both together
+            [deg].
         heading_deg: RMS of the slowly varying error about the vertical [deg].
-        tilt_correlation_s: Time constant of the tilt error [s].
-        heading_correlation_s: Time constant of the heading error [s].
+        tilt_correlation_s: Time constant of each of the tilt error's two lags [s] (0: white).
+        heading_correlation_s: Time constant of each of the heading error's two lags, and of
+            the lag the heading walk passes [s] (0: white).
         white_deg: White orientation noise per sample, each axis [deg].
         heading_walk_deg_per_sqrt_s: Heading random walk [deg/sqrt(s)].
         acc: White accelerometer noise [m/s^2].
@@ -58,9 +71,9 @@ class ImuNoise:
 
     tilt_deg: float = 0.5
     heading_deg: float = 1.5
-    tilt_correlation_s: float = 0.1
-    heading_correlation_s: float = 2.0
-    white_deg: float = 0.02
+    tilt_correlation_s: float = 1.0
+    heading_correlation_s: float = 10.0
+    white_deg: float = 0.0005
     heading_walk_deg_per_sqrt_s: float = 0.13
     acc: float = 0.05
     acc_bias: float = 0.05
@@ -155,26 +168,51 @@ def _orientation_errors(R_true: np.ndarray, noise: ImuNoise, dt: float,
                         noise.heading_deg])
     tau = np.array([noise.tilt_correlation_s, noise.tilt_correlation_s,
                     noise.heading_correlation_s])
-    slow = _gauss_markov(rng.normal(size=(s, n, 3)) * sigma, dt, tau)
+    slow = sigma * _smooth_gauss_markov(rng.normal(size=(s, n + 2, 3)), dt, tau)
     white = np.radians(noise.white_deg) * rng.normal(size=(s, n, 3))
     walk = np.radians(noise.heading_walk_deg_per_sqrt_s) * np.sqrt(dt) * np.cumsum(
         rng.normal(size=(s, n)), axis=1)
+    walk = _lag(walk, _lag_factor(noise.heading_correlation_s, dt), walk[:, 0])
     E = exp_so3(slow + white) @ axis_rotation("z", walk)
     return E @ R_true
 
 
-def _gauss_markov(draws: np.ndarray, dt: float, tau: np.ndarray) -> np.ndarray:
-    """First-order Gauss-Markov series along axis 1 with the draws' variance.
+def _lag_factor(tau: float, dt: float) -> float:
+    """Factor ``exp(-dt / tau)`` of a first-order lag sampled every ``dt`` [s] (0 when tau <= 0)."""
+    return float(np.exp(-dt / tau)) if tau > 0 else 0.0
 
-    ``draws`` (s, n, 3) are independent normal samples scaled to the wanted standard
-    deviation, ``tau`` (3,) the time constant of each axis [s] (0: white); the series starts
-    stationary (its first value is the first draw).
+
+def _lag(x: np.ndarray, a: float, start: np.ndarray) -> np.ndarray:
+    """First-order lag along axis 1, ``y_k = a y_(k-1) + (1 - a) x_k`` from ``y_(-1) = start``."""
+    return lfilter([1.0 - a], [1.0, -a], x, axis=1, zi=(a * start)[:, None])[0]
+
+
+def _smooth_gauss_markov(draws: np.ndarray, dt: float, tau: np.ndarray) -> np.ndarray:
+    """Unit-variance critically damped second-order Gauss-Markov series along axis 1.
+
+    White noise passes two first-order lags in a row; the two lag states start from their
+    stationary joint distribution, so the series is stationary from its first sample.
+
+    Args:
+        draws: (s, n + 2, 3) independent standard normal samples: two start each series.
+        dt: Sample period [s].
+        tau: (3,) time constant of the lags of each axis [s]; 0 gives white noise.
+
+    Returns:
+        (s, n, 3) series of unit variance.
     """
-    tau = np.asarray(tau, dtype=float)
-    a = np.where(tau > 0, np.exp(-dt / np.where(tau > 0, tau, 1.0)), 0.0)
-    out = np.empty_like(draws)
-    out[:, 0] = draws[:, 0]
-    gain = np.sqrt(1.0 - a * a)
-    for k in range(1, draws.shape[1]):
-        out[:, k] = a * out[:, k - 1] + gain * draws[:, k]
+    out = np.empty((draws.shape[0], draws.shape[1] - 2, 3))
+    for axis in range(3):
+        a = _lag_factor(float(tau[axis]), dt)
+        if a == 0.0:
+            out[:, :, axis] = draws[:, 2:, axis]
+            continue
+        # state z = (first lag, second lag): z_k = A z_(k-1) + B e_k with e_k of unit variance
+        A = np.array([[a, 0.0], [(1.0 - a) * a, a]])
+        B = np.array([[1.0], [1.0 - a]])
+        P = solve_discrete_lyapunov(A, B @ B.T)
+        start = draws[:, :2, axis] @ np.linalg.cholesky(P).T
+        first = lfilter([1.0], [1.0, -a], draws[:, 2:, axis], axis=1,
+                        zi=a * start[:, :1])[0]
+        out[:, :, axis] = _lag(first, a, start[:, 1]) / np.sqrt(P[1, 1])
     return out

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from ikfusion.model import SENSOR_SEGMENTS, HumanModel
-from ikfusion.rotations import angle_between, axis_rotation
+from ikfusion.rotations import angle_between, axis_rotation, log_so3
 from ikfusion.sim.imu import ImuNoise, simulate_imus
 
 
@@ -50,20 +50,34 @@ def test_steady_turn_gives_its_rate_in_the_sensor_frame(human: HumanModel, rng) 
 
 
 def test_default_noise_has_the_documented_size(human: HumanModel, rng) -> None:
-    t, q = turning(human, 0.0, 600, 60.0)
+    # many short series: the errors start stationary, so 2 s of each tell their size
+    t, q = turning(human, 0.0, 120, 60.0)
     noise = ImuNoise(heading_walk_deg_per_sqrt_s=0.0)
-    imus = simulate_imus(human, t, q, ["Pelvis"] * 100, rng, noise, random_mounting=False)
+    imus = simulate_imus(human, t, q, ["Pelvis"] * 1000, rng, noise, random_mounting=False)
     truth = human.segment_rotation(q[0], "Pelvis")
     errors = np.degrees(angle_between(imus.R_world_sensor, truth))
     expected = np.sqrt(noise.tilt_deg**2 + noise.heading_deg**2 + 3 * noise.white_deg**2)
     assert np.sqrt(np.mean(errors**2)) == pytest.approx(expected, rel=0.1)
-    # ... and varies slowly, as a fusion filter's output does: from one sample to the next an
-    # error with time constant tau moves by sqrt(2 (1 - exp(-dt / tau))) of its size
+    # ... and varies slowly and smoothly, as a fusion filter's output does: white noise through
+    # two lags of time constant tau moves by (its size) * dt / tau from one sample to the next
     steps = np.degrees(angle_between(imus.R_world_sensor[:, 1:], imus.R_world_sensor[:, :-1]))
     dt = 1 / 60.0
     per_axis = [(noise.tilt_deg**2 / 2, noise.tilt_correlation_s)] * 2 + [
         (noise.heading_deg**2, noise.heading_correlation_s)]
-    expected_steps = np.sqrt(sum(2 * var * (1 - np.exp(-dt / tau)) for var, tau in per_axis)
+    expected_steps = np.sqrt(sum(var * (dt / tau) ** 2 for var, tau in per_axis)
                              + 6 * noise.white_deg**2)
     assert np.sqrt(np.mean(steps**2)) == pytest.approx(expected_steps, rel=0.1)
-    assert expected_steps < 0.5 * expected  # far from white noise of the same size
+    assert expected_steps < 0.05 * expected  # far from white noise of the same size
+
+
+def test_zero_time_constants_give_white_errors(human: HumanModel, rng) -> None:
+    t, q = turning(human, 0.0, 300, 60.0)
+    noise = ImuNoise(tilt_correlation_s=0.0, heading_correlation_s=0.0, white_deg=0.0,
+                     heading_walk_deg_per_sqrt_s=0.0)
+    imus = simulate_imus(human, t, q, ["Pelvis"] * 50, rng, noise, random_mounting=False)
+    truth = human.segment_rotation(q[0], "Pelvis")
+    errors = log_so3(imus.R_world_sensor @ truth.T)  # world-frame error vectors [rad]
+    np.testing.assert_allclose(np.degrees(errors.reshape(-1, 3).std(axis=0)),
+                               [noise.tilt_deg / np.sqrt(2)] * 2 + [noise.heading_deg], rtol=0.1)
+    lag1 = np.mean(errors[:, 1:] * errors[:, :-1]) / np.mean(errors**2)
+    assert abs(lag1) < 0.05  # no correlation from one sample to the next
