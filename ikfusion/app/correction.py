@@ -358,10 +358,13 @@ class DriftCorrection:
             np.isfinite(p).all() for p, b in zip(p_fix, self._body) if b)
         planted = planted_feet(last.contacts, self._foot_of_point)
         drift = feet_drift(self._feet, p_fix, last.p_sites)
+        # the trunk's shape is judged only while the body stands near its feet's tags: while a
+        # gap closes, the body moves under the head and the head's fix says nothing of the shape
+        near = drift is not None and float(np.linalg.norm(drift)) < s.far_distance
         shape, shape_weights = body_targets(
             [f.site for f in self.fixes], self._feet,
             p_body - (0.0 if drift is None else drift), cov_body, last.forward,
-            self._shape_pull.update(has_fix and drift is not None, dt), tag_settings)
+            self._shape_pull.update(has_fix and near, dt), tag_settings)
         frame = replace(frame, shape_positions=shape, shape_weights=shape_weights,
                         shape_reach=s.tag_speed * dt)
         if last.flight:  # the legs are left to their sensors; the tags move the body's path
