@@ -19,10 +19,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..imu.point_speed import hinged_tip_slide
 from ..model.human_model import HumanModel
 from ..model.layout import TRUNK_CONTACT_SITES
 from ..model.topology import BodyTopology
+from .anchor_carry import AnchorCarry
 from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
 from .fast_math import any_true, min_of, true_indices
 from .frame import Frame
@@ -57,7 +57,6 @@ class ContactTracker:
         self.settings = s
         segments = model.segment_names
         self._foot_names = [topology.foot_of(n) for n in self.names]
-        self._point_segments = [topology.site_segment[n] for n in self.names]
         # the pitch of a foot proper rules its heel or toe out; knees and palms have none
         # where a lying or sitting body rests (the trunk): planted only with its IMU's rest
         self._needs_rest = np.array([n in TRUNK_CONTACT_SITES for n in self.names], dtype=bool)
@@ -77,6 +76,9 @@ class ContactTracker:
         legs = [np.array([segments.index(g) for g in topology.limb(f)] if f else [], dtype=int)
                 for f in self._foot_names]
         self.easing = ReleaseEasing(legs, len(segments), np.radians(s.ease_speed_deg))
+        self.carrier = AnchorCarry(model, self.names, self.layout,
+                                   [topology.site_segment[n] for n in self.names],
+                                   self._points_of_foot, s.release_speed)
         self.reset()
 
     def reset(self) -> None:
@@ -91,6 +93,7 @@ class ContactTracker:
         self._evidence: tuple[Frame, np.ndarray | None, np.ndarray | None] | None = None
         self.support.reset()
         self.easing.reset()
+        self.carrier.reset()
 
     # ------------------------------------------------------------------ world moves
     def move(self, kind: str, delta: np.ndarray) -> None:
@@ -106,76 +109,13 @@ class ContactTracker:
 
     def carry(self, frame: Frame, dt: float, R_heading: np.ndarray | None,
               v_body: np.ndarray, q: np.ndarray | None = None) -> None:
-        """A foot whose every planted point slides by its IMU carries them along horizontally.
+        """Planted points that slide by their foot IMU carry their anchors along.
 
-        A held heel whose foot IMU says it moves (landing while it still travels, as the heels
-        of brisk mocap walks do) would otherwise hold the body back by as much as it moves;
-        without absolute positions the IMU is the only witness. Per foot, when each of its
-        planted points slides by its ``frame.points_velocity`` (faster than ``release_speed``
-        horizontally, the velocity more horizontal than vertical: a point still landing or
-        already lifting does not slide on the floor), they all move by the slowest one's
-        horizontal velocity times ``dt``. A heel slides at its own velocity. A toe's velocity
-        by the IMU is its ball's, which moves while the toe stands when the foot pivots on its
-        toes (kneeling down): a toe held alone (push-off) slides only by what its hinge cannot
-        explain, the ball's velocity along the toe (:func:`~ikfusion.imu.point_speed.
-        hinged_tip_slide`, from the last solved pose ``q``; without ``q`` toes are not
-        carried), and a foot holding heel and toe is not carried. A shift against the travel
-        of a body that moves (faster than ``release_speed``) is left out: a loaded foot is not
-        dragged backwards by the body going forward, that is the velocity's integration error
-        (a foot wrongly found still in the swing of a skip).
-
-        Args:
-            frame: The frame (its ``points_velocity``, world frame of the sensors [m/s]).
-            dt: Time since the last frame [s].
-            R_heading: The solver world's heading correction (applied to the velocities),
-                None for none.
-            v_body: (3,) the pelvis's velocity in the last frame [m/s].
-            q: The last solved configuration (the toes' hinge geometry), None for none.
+        See :meth:`.anchor_carry.AnchorCarry.carry` (arguments as there, without the state).
         """
-        if not frame.points_velocity or dt <= 0 or not any_true(self.state.active):
-            return
-        active, anchors = self.state.active, None
-        for points in self._points_of_foot.values():
-            held = points[active[points]]
-            velocities = [frame.points_velocity.get(self.names[i]) for i in held]
-            if not len(held) or any(v is None for v in velocities):
-                continue
-            toes = self.layout.below_foot[held]
-            if toes.any() and (not toes.all() or q is None):
-                continue
-            v_world = np.array([np.asarray(v, dtype=float) for v in velocities])
-            if (np.abs(v_world[:, 2]) >= np.linalg.norm(v_world[:, :2], axis=1)).any():
-                continue
-            if toes.all() and q is not None:  # the ball's: what the toe's hinge cannot take up
-                v_world = np.array([self._tip_slide(int(i), v, q, R_heading)
-                                    for i, v in zip(held, v_world)])
-            horizontal = v_world[:, :2]
-            speeds = np.linalg.norm(horizontal, axis=1)
-            if speeds.min() <= self.settings.release_speed:
-                continue
-            shift = horizontal[int(np.argmin(speeds))] * dt
-            if R_heading is not None:
-                shift = R_heading[:2, :2] @ shift
-            if (float(shift @ v_body[:2]) < 0.0
-                    and float(np.hypot(v_body[0], v_body[1])) > self.settings.release_speed):
-                continue
-            anchors = self.state.anchors.copy() if anchors is None else anchors
-            anchors[held, :2] += shift
+        anchors = self.carrier.carry(self.state, frame, dt, R_heading, v_body, q)
         if anchors is not None:
             self.state = replace(self.state, anchors=anchors)
-
-    def _tip_slide(self, i: int, v_world_ball: np.ndarray, q: np.ndarray,
-                   R_heading: np.ndarray | None) -> np.ndarray:
-        """The slide (3,) [m/s] of toe point ``i`` whose ball moves at ``v_world_ball``.
-
-        The hinge geometry is the solved pose ``q``'s (the solver's world, ``R_heading`` from
-        the sensors' world, None for the same); velocities in and out are the sensors' world.
-        """
-        p_ball = self.model.segment_position(q, self._point_segments[i])
-        p_tip = self.model.site_position(q, self.names[i])
-        if R_heading is None:
-            return hinged_tip_slide(v_world_ball, p_ball, p_tip)
-        return np.asarray(R_heading.T @ hinged_tip_slide(R_heading @ v_world_ball, p_ball, p_tip))
 
     # ------------------------------------------------------------------ per frame
     def foot_pitch(self, q: np.ndarray, R_world_sensed: np.ndarray,
@@ -237,7 +177,9 @@ class ContactTracker:
                                       self._hints(frame), self._pitch, still,
                                       self._history[-1][1],
                                       self.support.placed_offsets(self.state.active),
-                                      layout=self.layout, points_moving=moving,
+                                      layout=self.layout,
+                                      points_moving=self.carrier.relative_motion(self.state,
+                                                                                 moving),
                                       needs_rest=self._needs_rest)
         # a planted heel whose foot already rolls toe-down may rise (it still cannot slip),
         # unless its IMU says the foot stands still
