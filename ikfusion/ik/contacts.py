@@ -41,6 +41,7 @@ from .point_evidence import (
     point_motion,
     tilted_points,
 )
+from .trunk_roll import body_takers, pulled_points, roll_on_segment
 
 
 @dataclass
@@ -138,12 +139,13 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
             one foot crossing the stance thresholds a sample before the other must not lift it
             (the ball of a foot that rolls over it stays too, until it moves itself).
         needs_rest: (k,) points where the body rests only while lying or sitting (the
-            trunk): one whose segment's IMU says it moves is never planted, not even as the
-            lowest point taking the body when the planted points let go (a body rolling or
-            rising); it still counts as the lowest point the others are measured
-            from (a trunk sitting up is low while it moves); a resting one is planted only as
-            one of the lowest points (``enter_relative``), not within ``still_relative`` as a
-            foot, knee or palm (None: no such point).
+            trunk): one whose segment's IMU says it moves is never planted, nor takes the
+            body when the planted points let go (a body rising), unless a trunk point held it
+            (a body rolling on its back, which also hands a planted trunk point's hold to a
+            lower point of its segment: :mod:`.trunk_roll`); it counts as the lowest point
+            (a trunk sitting up is low while it moves); a resting one is planted only among
+            the lowest points (``enter_relative``), not within ``still_relative`` as a foot,
+            knee or palm (None: no such point).
 
     Returns:
         A new state: the same anchors for the points that stay, fewer active points, and
@@ -174,7 +176,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     drift, other_age = drift_from_other_foot(layout, staying, held, p_sensed, state.age)
     # Two planted feet that disagree: the foot planted earlier lets go (toe-off), even a
     # still one (its anchor is out of date); a still foot ignores the sensed height and pitch.
-    pulled = (drift > th.leave_distance) & (state.age >= other_age)
+    pulled = pulled_points(drift > th.leave_distance, state.age >= other_age, staying,
+                           needs_rest, layout)
     # a resting knee or palm (calm accelerometer) is weaker evidence than a still foot: the
     # sensed pose may still lift it
     lifted = ((height_rel > th.leave_relative) | tilted) & ~(still & layout.stepping)
@@ -191,10 +194,10 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         # Without a flight hint the lowest point of the sensed pose keeps the body down: the
         # lowest planted one, unless the body rests on another point (hands in a cartwheel)
         # or the planted points are all well above the lowest (a foot swung overhead).
-        # (a trunk point whose segment's IMU says it moves takes nothing: a body rolling or
-        # rising swings it low through the air)
+        # (a trunk point whose segment's IMU says it moves takes nothing, a body rising swings
+        # it low through the air, unless the body rolls on its back: :mod:`.trunk_roll`)
         kept = int(np.argmin(np.where(active, p_sensed[:, 2], np.inf)))
-        takers = ~moving_rest_points(needs_rest, foot_still, len(active))
+        takers = body_takers(needs_rest, foot_still, kept, len(active))
         lowest = int(np.argmin(np.where(takers, p_sensed[:, 2], np.inf)))
         handover = bool(takers[lowest] and not active[lowest] and not tilted[lowest]
                         and (not layout.stepping[lowest]
@@ -223,7 +226,10 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         age[plant] = 0.0
     released = state.released.copy()
     released[leave] = 0.0
-    return ContactState(state.names, (active & ~leave) | plant, anchors, age, released)
+    held_now = (active & ~leave) | plant
+    if not hints:  # a planted trunk point rolls onto a lower point of its segment
+        roll_on_segment(held_now, anchors, age, released, p_sensed, needs_rest, layout, th.floor_z)
+    return ContactState(state.names, held_now, anchors, age, released)
 
 
 def _plant_height(th: ContactThresholds, needs_rest: np.ndarray | None) -> np.ndarray | float:
