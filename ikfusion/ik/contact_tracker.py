@@ -89,6 +89,7 @@ class ContactTracker:
         self._p_sensed = np.zeros((len(self.names), 3))
         self._pitch = np.zeros(len(self.names))
         self.far_from_floor = np.zeros(len(self.names), dtype=bool)
+        self._v_sensed: np.ndarray | None = None
         # the IMU evidence of the frame being solved: (frame, feet still, points moving)
         self._evidence: tuple[Frame, np.ndarray | None, np.ndarray | None] | None = None
         self.support.reset()
@@ -167,11 +168,13 @@ class ContactTracker:
         if not self.names:
             return None
         a = self.settings.detection_smoothing  # sensor noise is white: smooth the evidence
-        self._p_sensed = a * self._p_sensed + (1.0 - a) * p_sensed
+        previous, self._p_sensed = self._p_sensed, a * self._p_sensed + (1.0 - a) * p_sensed
+        dt = frame.time - self._history[-1][0]  # the last solved frame's (smoothed) sensed pose
+        self._v_sensed = (self._p_sensed - previous) / dt if dt > 0 else None
         self._pitch = a * self._pitch + (1.0 - a) * pitch
         z = self._p_sensed[:, 2]
         self.far_from_floor = self._needs_rest & (z > min_of(z) + FAR_FROM_FLOOR)
-        still, moving = self._imu_evidence(frame)
+        still, moving = self._feet_still(frame), self._points_moving(frame)
         self._evidence = (frame, still, moving)  # touch_down() of the same frame reuses it
         self.state = release_contacts(self.state, self._p_sensed, self.thresholds,
                                       self._hints(frame), self._pitch, still,
@@ -180,7 +183,7 @@ class ContactTracker:
                                       layout=self.layout,
                                       points_moving=self.carrier.relative_motion(self.state,
                                                                                  moving),
-                                      needs_rest=self._needs_rest)
+                                      needs_rest=self._needs_rest, v_sensed=self._v_sensed)
         # a planted heel whose foot already rolls toe-down may rise (it still cannot slip),
         # unless its IMU says the foot stands still
         rising = self.layout.on_foot & (pitch > math.radians(self.settings.heel_rise_deg))
@@ -255,11 +258,12 @@ class ContactTracker:
         t_old, p_old = self._history[0]
         released, self._evidence = self._evidence, None
         still, moving = (released[1:] if released is not None and released[0] is frame
-                         else self._imu_evidence(frame))
+                         else (self._feet_still(frame), self._points_moving(frame)))
         self.state = touch_down(self.state, p_contacts, p_old, self._p_sensed,
                                 frame.time - t_old, self.thresholds, self._hints(frame),
                                 self._pitch, layout=self.layout, points_moving=moving,
-                                foot_still=still, needs_rest=self._needs_rest)
+                                foot_still=still, needs_rest=self._needs_rest,
+                                v_sensed=self._v_sensed)
 
     def _hints(self, frame: Frame) -> Mapping[str, bool] | None:
         """The frame's contact hints; in flight (``frame.airborne``) every point is free.
@@ -270,10 +274,6 @@ class ContactTracker:
         if frame.airborne:
             return {**dict.fromkeys(self.names, False), **(frame.contacts or {})}
         return frame.contacts
-
-    def _imu_evidence(self, frame: Frame) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """The frame's :meth:`_feet_still` and :meth:`_points_moving`."""
-        return self._feet_still(frame), self._points_moving(frame)
 
     def _points_moving(self, frame: Frame) -> np.ndarray | None:
         """Per point: 1 moves by its foot's IMU (``frame.points_moving``), 0 not, NaN unknown."""

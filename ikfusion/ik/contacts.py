@@ -6,20 +6,20 @@ segments set from the targets, before the no-slip constraints bend anything) lif
 lowest point or pulls it away from its anchor: a planted point cannot reveal lift-off by its own
 motion, since the constraint holds it. Hints given with a frame override the detection.
 
-When the feet carry IMUs, their stance (:mod:`ikfusion.imu.stance`) is stronger evidence than
-the kinematics: a still foot keeps its planted points, a still foot near the floor is planted at
-once where the sensed pose puts it relative to the points planted so far, and a moving foot lets
-go as soon as the other foot stands still (the body is handed over to the still foot, so a
-kinematic threshold missed by a few centimetres cannot hold a swinging foot on the floor), except
-its points that the foot IMU says do not move (:mod:`ikfusion.imu.point_speed`).
-Knees and palms may carry the same evidence from their accelerometers
-(:mod:`ikfusion.imu.resting`), weaker than a foot's: it plants and hands over, but does not
-stop the sensed pose from lifting them. So may the points where a lying or sitting body rests
-(sacrum, buttocks, shoulder blades, chest: ``needs_rest``), with a stricter rule, as their
-segments are also calm when the body stands still: they are
-planted only among the lowest points and never while their segment's IMU says it moves.
-When every planted point lets go, the lowest point of the sensed pose takes the body (a palm
-in a cartwheel), not a foot swung overhead.
+When the feet carry IMUs, their stance (:mod:`ikfusion.imu.stance`) is stronger evidence than the
+kinematics: a still foot keeps its planted points, a still foot near the floor is planted at once
+where the sensed pose puts it relative to the points planted so far, and a moving foot lets go as
+soon as the other foot stands still (the body is handed over to the still foot, so a kinematic
+threshold missed by a few centimetres cannot hold a swinging foot on the floor), except its points
+that the foot IMU says do not move (:mod:`ikfusion.imu.point_speed`). Knees and palms may carry the
+same evidence from their accelerometers (:mod:`ikfusion.imu.resting`), weaker than a foot's: it
+plants and hands over, but does not stop the sensed pose from lifting them. So may the points where
+a lying or sitting body rests (sacrum, buttocks, shoulder blades, chest: ``needs_rest``), with a
+stricter rule, as their segments are also calm when the body stands still: they are planted only
+among the lowest points and never while their segment's IMU says it moves (a body rolling on its
+back: :mod:`.trunk_roll`). When every planted point lets go, the lowest point of the sensed pose
+takes the body (a palm in a cartwheel), not a foot swung overhead nor one sweeping over the floor
+(:mod:`.sweeping`).
 """
 
 from __future__ import annotations
@@ -41,6 +41,8 @@ from .point_evidence import (
     point_motion,
     tilted_points,
 )
+from .sweeping import sweeping_beside, sweeping_points
+from .trunk_roll import body_takers, pulled_points, roll_on_segment
 
 
 @dataclass
@@ -105,18 +107,17 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
                      hints: Mapping[str, bool] | None = None,
                      foot_pitch: np.ndarray | None = None,
                      foot_still: np.ndarray | None = None,
-                     p_solved: np.ndarray | None = None,
-                     placed: np.ndarray | None = None, *,
+                     p_solved: np.ndarray | None = None, placed: np.ndarray | None = None, *,
                      layout: FootLayout, points_moving: np.ndarray | None = None,
-                     needs_rest: np.ndarray | None = None) -> ContactState:
+                     needs_rest: np.ndarray | None = None,
+                     v_sensed: np.ndarray | None = None) -> ContactState:
     """Let go of planted points the current frame's sensed pose lifts (run before solving).
 
     With ``foot_still``, also plant the points of still feet and hand the body over to them.
 
     Args:
         state: Current state.
-        p_sensed: (k, 3) contact point positions in this frame's sensed pose [m] (any
-            translation).
+        p_sensed: (k, 3) the contact points in this frame's sensed pose [m] (any translation).
         thresholds: Hysteresis thresholds.
         hints: Name -> in contact, overriding the detection for those points.
         foot_pitch: (k,) pitch [rad] of each point's foot (toe down positive), NaN when unknown.
@@ -137,13 +138,13 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
             two-footed take-off accelerates flat on the floor before it turns or slides, and
             one foot crossing the stance thresholds a sample before the other must not lift it
             (the ball of a foot that rolls over it stays too, until it moves itself).
-        needs_rest: (k,) points where the body rests only while lying or sitting (the
-            trunk): one whose segment's IMU says it moves is never planted, not even as the
-            lowest point taking the body when the planted points let go (a body rolling or
-            rising); it still counts as the lowest point the others are measured
-            from (a trunk sitting up is low while it moves); a resting one is planted only as
-            one of the lowest points (``enter_relative``), not within ``still_relative`` as a
-            foot, knee or palm (None: no such point).
+        needs_rest: (k,) points where the body rests only lying or sitting (the trunk): one
+            whose segment's IMU says it moves is never planted, nor takes the body when the
+            planted points let go (a body rising) unless a trunk point held it (rolling on its
+            back: :mod:`.trunk_roll`); it counts as the lowest point; a resting one is planted
+            only among the lowest points (``enter_relative``), not within ``still_relative``
+            as a foot, knee or palm (None: no such point).
+        v_sensed: (k, 3) the points' sensed-pose velocities [m/s] (:mod:`.sweeping`).
 
     Returns:
         A new state: the same anchors for the points that stay, fewer active points, and
@@ -174,7 +175,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     drift, other_age = drift_from_other_foot(layout, staying, held, p_sensed, state.age)
     # Two planted feet that disagree: the foot planted earlier lets go (toe-off), even a
     # still one (its anchor is out of date); a still foot ignores the sensed height and pitch.
-    pulled = (drift > th.leave_distance) & (state.age >= other_age)
+    pulled = pulled_points(drift > th.leave_distance, state.age >= other_age, staying,
+                           needs_rest, layout)
     # a resting knee or palm (calm accelerometer) is weaker evidence than a still foot: the
     # sensed pose may still lift it
     lifted = ((height_rel > th.leave_relative) | tilted) & ~(still & layout.stepping)
@@ -191,10 +193,11 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         # Without a flight hint the lowest point of the sensed pose keeps the body down: the
         # lowest planted one, unless the body rests on another point (hands in a cartwheel)
         # or the planted points are all well above the lowest (a foot swung overhead).
-        # (a trunk point whose segment's IMU says it moves takes nothing: a body rolling or
-        # rising swings it low through the air)
+        # (a trunk point whose segment's IMU says it moves takes nothing, a body rising swings
+        # it low through the air, unless the body rolls on its back: :mod:`.trunk_roll`)
         kept = int(np.argmin(np.where(active, p_sensed[:, 2], np.inf)))
-        takers = ~moving_rest_points(needs_rest, foot_still, len(active))
+        takers = body_takers(needs_rest, foot_still, kept, len(active)) & ~sweeping_points(
+            v_sensed, kept, settled & (height_rel <= th.still_relative), th.enter_speed)
         lowest = int(np.argmin(np.where(takers, p_sensed[:, 2], np.inf)))
         handover = bool(takers[lowest] and not active[lowest] and not tilted[lowest]
                         and (not layout.stepping[lowest]
@@ -209,8 +212,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
             # where the sensed pose puts it, aligned on the points that let go this frame
             anchors[plant] = p_sensed[plant] + _sensed_offset(p_sensed, anchors, active)
         elif p_solved is not None:
-            anchors[plant] = landing_anchors(layout, active & ~leave, anchors, p_solved,
-                                              plant)
+            anchors[plant] = landing_anchors(layout, active & ~leave, anchors, p_solved, plant)
         else:
             reference = active & ~leave if any_true(active & ~leave) else active
             same = layout.same_foot
@@ -223,7 +225,10 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         age[plant] = 0.0
     released = state.released.copy()
     released[leave] = 0.0
-    return ContactState(state.names, (active & ~leave) | plant, anchors, age, released)
+    held_now = (active & ~leave) | plant
+    if not hints:  # a planted trunk point rolls onto a lower point of its segment
+        roll_on_segment(held_now, anchors, age, released, p_sensed, needs_rest, layout, th.floor_z)
+    return ContactState(state.names, held_now, anchors, age, released)
 
 
 def _plant_height(th: ContactThresholds, needs_rest: np.ndarray | None) -> np.ndarray | float:
@@ -250,7 +255,8 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
                foot_pitch: np.ndarray | None = None, *, layout: FootLayout,
                points_moving: np.ndarray | None = None,
                foot_still: np.ndarray | None = None,
-               needs_rest: np.ndarray | None = None) -> ContactState:
+               needs_rest: np.ndarray | None = None,
+               v_sensed: np.ndarray | None = None) -> ContactState:
     """Plant the points that reached the floor this frame (run after solving).
 
     A point enters contact when it is near the floor, slow, among the lowest points of the
@@ -273,6 +279,8 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
         foot_still: See :func:`release_contacts`.
         needs_rest: See :func:`release_contacts`: such a point does not touch down while its
             segment's IMU says it moves (``foot_still`` 0; unknown: the kinematics decide).
+        v_sensed: See :func:`release_contacts`: a point sweeping beside a planted point whose
+            IMU says it does not move does not touch down.
 
     Returns:
         A new state; anchors above the floor settle toward it at ``settle_speed``
@@ -289,6 +297,7 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     if any_true(enter):
         enter &= _may_enter(was, p_solved, p_solved_previous, dt, height_rel, released, th,
                             foot_pitch, layout, points_moving, foot_still, needs_rest)
+        enter &= ~sweeping_beside(v_sensed, was, points_moving, th.enter_speed)
     for i, hinted in hinted_points(state.names, hints):
         enter[i] = (not was[i]) and hinted
     if not any_true(was) and not any_true(enter) and not hints:
