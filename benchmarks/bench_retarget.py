@@ -18,8 +18,11 @@ wall time, source loading included; the start-up and CPU seconds of all processe
 (fair on a machine other jobs share; ``fps`` stays ``summary.json``'s wall-clock figure);
 ``--repeat N`` keeps the best of N timings of each (other jobs only ever slow a run down).
 
+``--phases N`` prints instead of the table where a whole command's CPU time goes, phase by
+phase (``retarget_phases.py``), the least of N runs per clip.
+
 Run: .venv/bin/python benchmarks/bench_retarget.py [--robots g1 talos] [--clips walk] [--cpu]
-[--repeat N] [--no-batch | --no-table] [--copies N]
+[--repeat N] [--no-batch | --no-table] [--copies N] [--phases N]
 """
 
 from __future__ import annotations
@@ -32,8 +35,11 @@ import time
 from pathlib import Path
 
 from batch_timing import batch_rows, print_batch_rows
+from retarget_phases import print_phase_rows
 
+from ikfusion.mocap.skeleton_map import _default_alias_table
 from ikfusion.model.human_model import _model_of_body
+from ikfusion.model.model_cache import code_fingerprint
 from ikfusion.retarget import load_source, retarget
 from ikfusion.retarget.robot_config import SHIPPED_ROBOTS
 
@@ -56,15 +62,18 @@ def clips(pattern: str = "") -> list[Path]:
 
 
 def forget_loaded_clips() -> None:
-    """Drop what loading clips left in this process (each body's parsed model).
+    """Drop what loading clips left in this process, as a fresh command starts without it.
 
-    A ``retarget`` command loads its one clip in a fresh process: timing ``whole`` after the
-    table's own loads of the same clip would leave out getting its body's model. As in a
-    fresh process, ``whole`` then loads it from the user cache (``human_models/``, filled by
-    the table's first load, as by a command's first run on that body; building it instead
-    costs about 10 ms more once).
+    That is each body's parsed model, the fingerprint of the model code that keys the model
+    cache, and the expanded joint-name aliases. A ``retarget`` command loads its one clip in a
+    fresh process: timing ``whole`` after the table's own loads of the same clip would leave
+    out getting its body's model. As in a fresh process, ``whole`` then loads it from the user
+    cache (``human_models/``, filled by the table's first load, as by a command's first run on
+    that body; building it instead costs about 10 ms more once).
     """
     _model_of_body.cache_clear()
+    code_fingerprint.cache_clear()
+    _default_alias_table.cache_clear()
 
 
 def robot_table(robots: list[str], pattern: str = "", cpu: bool = False,
@@ -140,8 +149,13 @@ def main() -> None:
     parser.add_argument("--no-table", action="store_true", help="only the batch throughput")
     parser.add_argument("--repeat", type=int, default=1,
                         help="time call and whole this many times, keep the best (a busy machine)")
+    parser.add_argument("--phases", type=int, default=0, metavar="N",
+                        help="instead of the table: each phase's CPU time of a whole command on "
+                             "the first robot, the least of N runs per clip")
     args = parser.parse_args()
-    if not args.no_table:
+    if args.phases > 0:
+        print_phase_rows(clips(args.clips), args.robots[0], args.phases, forget_loaded_clips)
+    elif not args.no_table:
         robot_table(args.robots, args.clips, args.cpu, max(1, args.repeat))
     if not args.no_batch:
         batch_table(max(1, args.copies))

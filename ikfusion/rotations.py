@@ -165,12 +165,51 @@ def matrix_to_quat_wxyz(R: npt.ArrayLike) -> np.ndarray:
         Shape ``S + (4,)``.
     """
     M = np.asarray(R, dtype=float)
-    if M.ndim == 2 or (M.ndim == 3 and len(M) <= 24 and np.isfinite(M).all()):
-        flat = M.reshape(-1, 3, 3)
-        q = np.array([pin.Quaternion(m).coeffs() for m in flat])  # (x, y, z, w)
-        q = q[:, [3, 0, 1, 2]] / np.linalg.norm(q, axis=1, keepdims=True)
-        q[q[:, 0] < 0.0] *= -1.0
-        return q.reshape(M.shape[:-2] + (4,))
+    if _few(M):
+        return _quat_wxyz_one_by_one(M)
+    return _quat_wxyz_at_once(M)
+
+
+def matrices_to_quats_wxyz(batches: list[np.ndarray]) -> list[np.ndarray]:
+    """``[matrix_to_quat_wxyz(R) for R in batches]``, the same to the bit, in fewer passes.
+
+    The batches that :func:`matrix_to_quat_wxyz` converts with NumPy's formulas (every
+    element on its own) are converted together, in one pass.
+
+    Args:
+        batches: Rotation matrices, each of shape ``S_i + (3, 3)``.
+
+    Returns:
+        Quaternions (w, x, y, z), each of shape ``S_i + (4,)``.
+    """
+    arrays = [np.asarray(R, dtype=float) for R in batches]
+    out: list[np.ndarray | None] = [_quat_wxyz_one_by_one(M) if _few(M) else None
+                                    for M in arrays]
+    rest = [k for k, q in enumerate(out) if q is None]
+    if rest:
+        joint = _quat_wxyz_at_once(np.concatenate([arrays[k].reshape(-1, 3, 3) for k in rest]))
+        ends = np.cumsum([arrays[k].size // 9 for k in rest])
+        for k, q in zip(rest, np.split(joint, ends[:-1])):
+            out[k] = q.reshape(arrays[k].shape[:-2] + (4,))
+    return [q for q in out if q is not None]
+
+
+def _few(M: np.ndarray) -> bool:
+    """Whether :func:`matrix_to_quat_wxyz` converts ``M`` one matrix at a time."""
+    return M.ndim == 2 or (M.ndim == 3 and len(M) <= 24 and bool(np.isfinite(M).all()))
+
+
+def _quat_wxyz_one_by_one(M: np.ndarray) -> np.ndarray:
+    """:func:`matrix_to_quat_wxyz` by Pinocchio's constructor, one matrix at a time."""
+    flat = M.reshape(-1, 3, 3)
+    q = np.array([pin.Quaternion(m).coeffs() for m in flat])  # (x, y, z, w)
+    q = q[:, [3, 0, 1, 2]] / np.linalg.norm(q, axis=1, keepdims=True)
+    q[q[:, 0] < 0.0] *= -1.0
+    return q.reshape(M.shape[:-2] + (4,))
+
+
+def _quat_wxyz_at_once(M: np.ndarray) -> np.ndarray:
+    """:func:`matrix_to_quat_wxyz` by NumPy's formulas over all matrices at once."""
     m00, m01, m02 = M[..., 0, 0], M[..., 0, 1], M[..., 0, 2]
     m10, m11, m12 = M[..., 1, 0], M[..., 1, 1], M[..., 1, 2]
     m20, m21, m22 = M[..., 2, 0], M[..., 2, 1], M[..., 2, 2]

@@ -161,3 +161,19 @@ def test_inverse_jacobian_is_finite_at_pi() -> None:
     # Along the axis a step changes the angle one to one; across it Jl^-1 = [[0, pi/2], ...].
     np.testing.assert_allclose(J, [[1, 0, 0], [0, 0, np.pi / 2], [0, -np.pi / 2, 0]],
                                atol=1e-12)
+
+
+def test_many_batches_convert_as_each_alone_to_the_bit() -> None:
+    rng = np.random.default_rng(7)
+    near_pi = rot.exp_so3(rng.normal(size=(40, 3)) * 1e-9 + np.array([np.pi, 0.0, 0.0]))
+    with_nan = rot.exp_so3(rng.normal(size=(5, 3)))
+    with_nan[2, 0, 0] = np.nan
+    batches = [rot.exp_so3(rng.normal(size=(135, 3))),  # converted together ...
+               rot.exp_so3(rng.normal(size=3)),  # ... not these: one matrix, a few, NaN
+               rot.exp_so3(rng.normal(size=(7, 3))), near_pi, with_nan,
+               rot.exp_so3(rng.normal(size=(4, 30, 3))), np.eye(3)[None].repeat(25, axis=0)]
+    together = rot.matrices_to_quats_wxyz(batches)
+    assert len(together) == len(batches)
+    for R, q in zip(batches, together, strict=True):
+        np.testing.assert_array_equal(q, rot.matrix_to_quat_wxyz(R))
+    assert rot.matrices_to_quats_wxyz([]) == []

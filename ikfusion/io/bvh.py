@@ -49,7 +49,7 @@ from ..atomic import atomic_write_text
 from ..errors import InputError, NameNotFound
 from ..model.angle_continuity import continuous_series
 from ..rotations import axis_rotation, matrix_to_euler
-from .bad_samples import FAR_BEYOND_ANY_HALL_M, Kind, bad_samples, bridge_channel
+from .bad_samples import FAR_BEYOND_ANY_HALL_M, MAX_ANGLE_DEG, Kind, bad_samples, bridge_channel
 
 __all__ = [
     "BVH_UNITS",
@@ -533,9 +533,11 @@ def _bridged(motion: BvhMotion, frame_lines: np.ndarray) -> BvhMotion:
         unit = min(BVH_UNITS.values())
     limit = FAR_BEYOND_ANY_HALL_M / unit  # [file units]
     channels = motion.channels
+    kinds: list[Kind] = ["position" if name.endswith("position") else "angle_deg"
+                         for name in motion.channel_names]
     warnings: list[str] = []
-    for c, name in enumerate(motion.channel_names):
-        kind: Kind = "position" if name.endswith("position") else "angle_deg"
+    for c in _suspect_channels(channels, kinds, limit):
+        name, kind = motion.channel_names[c], kinds[c]
         bad = bad_samples(channels[:, c], kind, limit)
         if not bad.any():
             continue
@@ -549,6 +551,22 @@ def _bridged(motion: BvhMotion, frame_lines: np.ndarray) -> BvhMotion:
     if not warnings:
         return motion
     return replace(motion, channels=channels, warnings=tuple(warnings))
+
+
+def _suspect_channels(channels: np.ndarray, kinds: list[Kind], limit: float) -> list[int]:
+    """The columns with a value :func:`bad_samples` could find bad, all checked in one pass.
+
+    Most files have none; only these columns are then looked at one by one.
+
+    Args:
+        channels: (F, C) values as written.
+        kinds: Each column's kind (``position`` or ``angle_deg``).
+        limit: The farthest plausible position [file units].
+    """
+    largest = np.array([limit if kind == "position" else MAX_ANGLE_DEG for kind in kinds])
+    with np.errstate(invalid="ignore"):
+        within = np.isfinite(channels).all(axis=0) & (np.abs(channels) <= largest).all(axis=0)
+    return [int(c) for c in np.flatnonzero(~within)]
 
 
 def _find_motion(lines: list[str], path: Path) -> int:

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..model.ball_joints import BallJoint
 from ..model.human_model import HumanModel
-from ..rotations import exp_so3, log_so3, matrix_to_quat_wxyz, wxyz_to_xyzw
+from ..rotations import exp_so3, log_so3, matrices_to_quats_wxyz, matrix_to_quat_wxyz, wxyz_to_xyzw
 
 #: A joint angle past its range by more than this counts as held by the range [rad] (the
 #: whole-body solver's own step tolerance: closer than this, the two poses agree).
@@ -53,12 +53,15 @@ def configurations_from_orientations(model: HumanModel,
     q = np.tile(model.neutral(), (n, 1))
     # the pelvis frame sits on the free-flyer joint: R_world_root = R_world_pelvis F^T
     R_root = R_world_segment["Pelvis"] @ root.placement.rotation.T
-    q[:, 3:7] = wxyz_to_xyzw(matrix_to_quat_wxyz(R_root))
     q[:, :3] = p_pelvis - R_root @ root.placement.translation
     limited = np.zeros(n, dtype=bool)
     reached = {"Pelvis": np.asarray(R_world_segment["Pelvis"], dtype=float)}
     by_child = {j.spec.child: j for j in model.ball_joints.values()}
     children = Counter(j.spec.parent for j in model.ball_joints.values())
+    # R_parent_child of every joint in all frames, converted to quaternions together at the
+    # end; the frames placed again afterwards overwrite theirs, in the order they were placed
+    placed: list[tuple[BallJoint, np.ndarray]] = []
+    replaced: list[tuple[BallJoint, np.ndarray, np.ndarray]] = []
 
     def place(joint: BallJoint, target: np.ndarray, rows: np.ndarray | slice) -> np.ndarray:
         """Turn ``joint`` toward the child orientation ``target`` in ``rows``, within range."""
@@ -79,7 +82,10 @@ def configurations_from_orientations(model: HumanModel,
         if spec.child not in reached:
             reached[spec.child] = np.empty((n, 3, 3))
         reached[spec.child][rows] = R_before @ R_joint @ F_child
-        q[rows, joint.idx_q:joint.idx_q + 4] = wxyz_to_xyzw(matrix_to_quat_wxyz(R_joint))
+        if isinstance(rows, slice):
+            placed.append((joint, R_joint))
+        else:
+            replaced.append((joint, rows, matrix_to_quat_wxyz(R_joint)))
         return outside
 
     for joint in model.ball_joints.values():  # parents before children
@@ -96,4 +102,10 @@ def configurations_from_orientations(model: HumanModel,
         missed = log_so3(target[rows] @ np.swapaxes(reached[spec.child][rows], 1, 2))
         place(above, exp_so3(0.5 * missed) @ reached[spec.parent][rows], rows)
         place(joint, target[rows], rows)
+    root_quat, *quats = matrices_to_quats_wxyz([R_root, *(R for _, R in placed)])
+    q[:, 3:7] = wxyz_to_xyzw(root_quat)
+    for (joint, _), quat in zip(placed, quats, strict=True):
+        q[:, joint.idx_q:joint.idx_q + 4] = wxyz_to_xyzw(quat)
+    for joint, rows, quat in replaced:
+        q[rows, joint.idx_q:joint.idx_q + 4] = wxyz_to_xyzw(quat)
     return q, limited

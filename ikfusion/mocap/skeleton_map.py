@@ -72,15 +72,17 @@ their ``ankle_height`` is a few centimetres short.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from functools import cache
+from types import MappingProxyType
 from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
 
 from ..errors import InputError
-from ..io.bvh import BvhMotion, Up, guess_bvh_scale, rotation_world_file
+from ..io.bvh import BvhMotion, BvhWorldPoses, Up, guess_bvh_scale, rotation_world_file
 from ..model.layout import HEEL_BEHIND_ANKLE
 from ..rotations import (
     exp_so3,
@@ -200,12 +202,18 @@ def normalize_joint_name(name: str) -> str:
 
 
 def default_aliases() -> dict[str, tuple[str, ...]]:
-    """Normalised joint-name aliases per role, built fresh on each call.
+    """Normalised joint-name aliases per role, a table of its own on each call.
 
     Roles: ``Pelvis``, ``Head``, ``Neck`` and, for each side, ``<Side>UpperLeg``,
     ``<Side>LowerLeg``, ``<Side>Foot``, ``<Side>Toe``, ``<Side>UpperArm``, ``<Side>ForeArm``,
     ``<Side>Hand``. Pass an extended copy to :func:`build_skeleton_map` for other skeletons.
     """
+    return dict(_default_alias_table())
+
+
+@cache
+def _default_alias_table() -> Mapping[str, tuple[str, ...]]:
+    """:func:`default_aliases`, expanded from the templates once per process (read only)."""
     table: dict[str, tuple[str, ...]] = {}
     for role, templates in _ALIAS_TEMPLATES.items():
         if "{" not in "".join(templates):
@@ -214,7 +222,7 @@ def default_aliases() -> dict[str, tuple[str, ...]]:
         for side, short in (("Left", "L"), ("Right", "R")):
             names = (t.replace("{Left}", side).replace("{L}", short) for t in templates)
             table[f"{side}{role}"] = tuple(dict.fromkeys(normalize_joint_name(n) for n in names))
-    return table
+    return MappingProxyType(table)
 
 
 @dataclass(frozen=True, eq=False)
@@ -324,7 +332,18 @@ def build_skeleton_map(
         InputError: The pelvis, both legs (upper and lower) or the trunk/head cannot be
             found; the message lists the joint names present.
     """
-    table = default_aliases() if aliases is None else {
+    return _skeleton_map(motion, scale, up, aliases, level_feet, motion.world_poses)
+
+
+#: ``BvhMotion.world_poses`` or what stands for it: (scale [m], up axis, frames) -> poses.
+PosesAt = Callable[[float, Up, np.ndarray], BvhWorldPoses]
+
+
+def _skeleton_map(motion: BvhMotion, scale: float | None, up: Up | Literal["auto"],
+                  aliases: Mapping[str, tuple[str, ...]] | None, level_feet: bool,
+                  poses_at: PosesAt) -> SkeletonMap:
+    """:func:`build_skeleton_map`, the stance poses of ``level_feet`` from ``poses_at``."""
+    table = _default_alias_table() if aliases is None else {
         k: tuple(normalize_joint_name(a) for a in v) for k, v in aliases.items()
     }
     tree = _Tree(motion)
@@ -360,7 +379,8 @@ def build_skeleton_map(
     dims = _body_dims(tree, found, rest_world, end_world, R_world_body[:, 2])
     level: dict[str, float] = {}
     if level_feet:
-        for segment, R_new in _level_feet(motion, unit, file_up, sources, directions).items():
+        learnt = _level_feet(motion, unit, file_up, sources, directions, poses_at)
+        for segment, R_new in learnt.items():
             src = sources[segment]
             level[segment] = float(np.linalg.norm(log_so3(src.R_joint_segment.T @ R_new)))
             sources[segment] = SegmentSource(
@@ -404,10 +424,13 @@ def map_motion(
     Returns:
         The motion on the model segments, in our Z-up world.
     """
-    smap = skeleton_map if skeleton_map is not None else build_skeleton_map(
-        motion, scale=scale, up=up, aliases=aliases
-    )
-    poses = motion.world_poses(smap.scale, smap.up, frames)
+    if skeleton_map is None:  # the map's stance poses and ours from one pass over the clip
+        shared = _PosesOnce(motion, _frame_indices(motion, frames))
+        smap = _skeleton_map(motion, scale, up, aliases, True, shared)
+        poses = shared(smap.scale, smap.up, shared.later)
+    else:
+        smap = skeleton_map
+        poses = motion.world_poses(smap.scale, smap.up, frames)
     R_world_joint = poses.R_world_joint
     p_world = poses.p_world_joint
     R_seg: dict[str, np.ndarray] = {}
@@ -768,12 +791,51 @@ def _align(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return exp_so3(axis / s * np.arctan2(s, c))
 
 
+def _frame_indices(motion: BvhMotion, frames: npt.ArrayLike | slice | None) -> np.ndarray:
+    """The frame indices that ``frames`` (None: all, a slice or indices) selects."""
+    if frames is None or isinstance(frames, slice):
+        return np.arange(motion.num_frames)[frames if frames is not None else slice(None)]
+    return np.asarray(frames, dtype=int).reshape(-1)
+
+
+class _PosesOnce:
+    """``BvhMotion.world_poses`` for two passes over one clip, computed once.
+
+    The first call (the skeleton map's stance frames) computes the poses at its frames and at
+    ``later`` (the frames :func:`map_motion` maps) together; a call with the same scale and up
+    axis at frames among those takes its rows from them. Each frame's forward kinematics is
+    its own, so the rows are those a call at only these frames gives, to the bit.
+
+    Attributes:
+        later: Frame indices a later call will ask for.
+    """
+
+    def __init__(self, motion: BvhMotion, later: np.ndarray) -> None:
+        self.motion = motion
+        self.later = later
+        self._key: tuple[float, Up] | None = None
+        self._frames = np.zeros(0, dtype=int)
+        self._poses: BvhWorldPoses | None = None
+
+    def __call__(self, scale: float, up: Up, frames: np.ndarray) -> BvhWorldPoses:
+        """World poses at ``frames`` (indices), as ``motion.world_poses(scale, up, frames)``."""
+        if self._poses is None or self._key != (scale, up):
+            self._key = (scale, up)
+            self._frames = np.union1d(frames, self.later)
+            self._poses = self.motion.world_poses(scale, up, self._frames)
+        elif not np.isin(frames, self._frames).all():  # pragma: no cover - not asked for
+            return self.motion.world_poses(scale, up, frames)
+        rows = np.searchsorted(self._frames, frames)
+        return BvhWorldPoses(*(a[rows] for a in self._poses))
+
+
 def _level_feet(
     motion: BvhMotion,
     scale: float,
     up: Up,
     sources: dict[str, SegmentSource],
     directions: dict[str, np.ndarray],
+    poses_at: PosesAt,
 ) -> dict[str, np.ndarray]:
     """Foot and toe frames that are level while standing flat, learnt from the clip.
 
@@ -795,13 +857,14 @@ def _level_feet(
         up: The file's up axis.
         sources: The segments mapped so far.
         directions: Unit rest direction to each segment's distal end, world axes.
+        poses_at: The clip's world poses (``motion.world_poses`` or one shared with others).
     """
     n = motion.num_frames
     if n < 10:
         return {}
     step = max(1, int(round(motion.frame_rate / 30.0)))
     frames = np.arange(0, n, step)
-    poses = motion.world_poses(scale, up, frames)
+    poses = poses_at(scale, up, frames)
     times = frames * motion.frame_time
     R_file_world = rotation_world_file(up).T
     out: dict[str, np.ndarray] = {}

@@ -414,18 +414,17 @@ class HumanModel:
 def _model_of_body(body: Body) -> HumanModel:
     """The model of ``body`` from its URDF text, kept for equal bodies.
 
-    A few per process (a batch's clips of one subject share one), and on disk keyed by the
-    URDF text (:mod:`~ikfusion.model.model_cache`): a fresh process loads it instead of
-    building it, with the same result to the bit.
+    A few per process (a batch's clips of one subject share one), and on disk keyed by what
+    the URDF text is made of (:mod:`~ikfusion.model.model_cache`): a fresh process loads it
+    instead of building it (or writing its URDF text), with the same result to the bit.
     """
-    text = body_to_urdf(body)
-    folder = entry_folder(text)
+    folder = entry_folder(body)
     cached = load_entry(folder)
     tables = None if cached is None else cached[1]
     if cached is not None and tables is not None and tables["body"] == body:
         model, revolute = cached[0]
         return HumanModel._from_parts(model, revolute, tables)
-    built = HumanModel._from_urdf_text(text, body)
+    built = HumanModel._from_urdf_text(body_to_urdf(body), body)
     store_entry(folder, dict(zip(HUMAN_MODEL_FILES, (built.model, built.revolute_model))),
                 {name: getattr(built, name) for name in TABLE_ATTRIBUTES})
     return built

@@ -3,9 +3,11 @@
 Building the model of a body (parsing its URDF, merging the revolute triplets into ball joints,
 finding segments, sites and the N-pose) takes about 10 ms; loading it back takes about 1 ms. A
 model is cached under ``<user cache>/human_models/<key>/`` (:func:`~ikfusion.paths.user_cache_dir`)
-where ``key`` hashes the URDF text, the source of :mod:`ikfusion.model` and
-:mod:`ikfusion.rotations` (the code that turns the text into the model), and the Pinocchio and
-Python versions: any change of them builds a new model instead of loading one made otherwise.
+where ``key`` hashes what the URDF text is made from (every field of the body, exactly, and the
+shipped ``configs/joints.yaml``), the source of :mod:`ikfusion.model`, :mod:`ikfusion.rotations`
+and :mod:`ikfusion.yaml_files` (the code that writes the text and turns it into the model), and the
+Pinocchio and Python versions: any change of them builds a new model instead of loading one
+made otherwise, and a cached model is loaded without writing its URDF text at all.
 
 A cache entry is a folder of three files, ``model.bin`` and ``revolute.bin`` (Pinocchio's binary
 serialisation, exact to the bit) and ``tables.pickle`` (ball joints, name tables, the N-pose),
@@ -27,14 +29,19 @@ import pickle
 import shutil
 import sys
 from collections.abc import Callable
+from dataclasses import fields
+from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pinocchio as pin
 
-from .. import rotations
+from .. import rotations, yaml_files
 from ..atomic import is_leftover_name, remove_leftovers, temporary_name
-from ..paths import user_cache_dir
+from ..paths import shipped_config, user_cache_dir
+
+if TYPE_CHECKING:
+    from .body import Body
 
 #: The Pinocchio models of a human model's entry (the ball-joint model, the revolute one) ...
 HUMAN_MODEL_FILES = ("model.bin", "revolute.bin")
@@ -49,21 +56,35 @@ TABLE_ATTRIBUTES = ("body", "ball_joints", "joint_map", "_frames", "_segments", 
                     "_q_neutral")
 
 
+@cache
 def code_fingerprint() -> str:
-    """SHA-256 of the code that turns a URDF text into a model and of its library versions."""
+    """SHA-256 of the code that turns a URDF text into a model and of its library versions.
+
+    Read once per process (the code does not change under a running process).
+    """
     digest = hashlib.sha256()
     folder = Path(__file__).resolve().parent
     for module in sorted(folder.glob("*.py")):
         digest.update(module.name.encode() + b"\0" + module.read_bytes())
-    digest.update(Path(str(rotations.__file__)).read_bytes())
+    for other in (rotations, yaml_files):  # the rotations, and how configs/joints.yaml reads
+        digest.update(Path(str(other.__file__)).read_bytes())
     digest.update(f"pinocchio {pin.__version__} python {sys.version_info[:3]}".encode())
     return digest.hexdigest()
 
 
-def entry_folder(urdf_text: str) -> Path:
-    """The cache folder of the human model of ``urdf_text`` (whether or not it exists yet)."""
-    key = hashlib.sha256(urdf_text.encode() + b"\0" + code_fingerprint().encode()).hexdigest()
-    return user_cache_dir() / "human_models" / key[:32]
+def entry_folder(body: Body) -> Path:
+    """The cache folder of the human model of ``body`` (whether or not it exists yet).
+
+    Its key stands for the URDF text of ``body`` without writing it: the body's fields (floats
+    by ``repr``, exact to the bit), the bytes of the shipped ``configs/joints.yaml`` (its
+    ranges of motion are in the text), and :func:`code_fingerprint`. Equal bodies share an
+    entry; bodies that differ in any field, even where the text would round them alike, do not.
+    """
+    digest = hashlib.sha256()
+    digest.update(repr([(f.name, getattr(body, f.name)) for f in fields(body)]).encode())
+    digest.update(b"\0" + shipped_config("joints.yaml").read_bytes())
+    digest.update(b"\0" + code_fingerprint().encode())
+    return user_cache_dir() / "human_models" / digest.hexdigest()[:32]
 
 
 def _digest(contents: list[bytes]) -> str:

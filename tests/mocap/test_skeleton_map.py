@@ -204,9 +204,37 @@ def test_name_normalisation() -> None:
     assert "leftupleg" in table["LeftUpperLeg"] and "rightupleg" in table["RightUpperLeg"]
     assert "bip01rcalf" in table["RightLowerLeg"]
     assert table is not default_aliases()  # a fresh table each call
+    table["Head"] += ("Kopf",)
+    assert "kopf" not in default_aliases()["Head"]  # extending a copy leaves the defaults
 
 
 # --------------------------------------------------------------------------- real clips
+@pytest.mark.parametrize("frames", [slice(None), np.arange(0, 270, 2), np.arange(1, 270, 5)])
+def test_a_clip_is_posed_once_with_the_same_result(shared_data: Path, frames: object,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """The skeleton map's stance poses and the mapped frames come from one forward pass."""
+    from ikfusion.io.bvh import BvhMotion
+
+    motion = read_bvh(shared_data / "mocap/sfu_0005_Walking001.bvh")  # 120 Hz: stance at 30
+    apart = map_motion(motion, frames=frames, skeleton_map=build_skeleton_map(motion))
+    passes = []
+    world_poses = BvhMotion.world_poses
+
+    def counted(self: BvhMotion, *args: object, **kwargs: object) -> object:
+        passes.append(args)
+        return world_poses(self, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(BvhMotion, "world_poses", counted)
+    mapped = map_motion(motion, frames=frames)
+    assert len(passes) == 1
+    for name, R in apart.R_world_segment.items():
+        np.testing.assert_array_equal(mapped.R_world_segment[name], R)
+    for name, p in apart.p_world_joint.items():
+        np.testing.assert_array_equal(mapped.p_world_joint[name], p)
+    np.testing.assert_array_equal(mapped.root_position, apart.root_position)
+    np.testing.assert_array_equal(mapped.time, apart.time)
+
+
 EXPECTED_JOINTS = {
     "mocap/cmu_02_01_walk.bvh": {
         "Pelvis": "Hips", "L5": "LowerBack", "T12": "Spine", "T8": "Spine1",

@@ -1,4 +1,4 @@
-"""The on-disk cache of human models: a loaded model equals a built one, keyed by the URDF."""
+"""The on-disk cache of human models: a loaded model equals a built one, keyed by the body."""
 
 from __future__ import annotations
 
@@ -26,13 +26,17 @@ def cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
 
 
 def _fresh_process(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Forget the models kept in this process and refuse to build one from its URDF."""
+    """Forget the models kept in this process; refuse to build one or to write its URDF."""
     human_model._model_of_body.cache_clear()
 
     def no_build(*_: object) -> None:
         raise AssertionError("the model was built although it is cached")
 
+    def no_text(*_: object) -> None:
+        raise AssertionError("the URDF text was written although the model is cached")
+
     monkeypatch.setattr(HumanModel, "_from_urdf_text", no_build)
+    monkeypatch.setattr(human_model, "body_to_urdf", no_text)
 
 
 def _assert_same_model(a: HumanModel, b: HumanModel) -> None:
@@ -53,7 +57,7 @@ def test_a_cached_model_equals_a_fresh_one(cache: Path,
     body = Body.from_dict({"height": 1.62, "upper_leg": 0.41, "forearm": 0.25})
     fresh = HumanModel._from_urdf_text(body_to_urdf(body), body)
     built = HumanModel.from_body(body)  # built and stored
-    assert (entry_folder(body_to_urdf(body)) / "sha256").is_file()
+    assert (entry_folder(body) / "sha256").is_file()
     _fresh_process(monkeypatch)
     loaded = HumanModel.from_body(body)
     assert loaded.urdf_path is None
@@ -65,7 +69,7 @@ def test_other_dimensions_get_their_own_model(cache: Path,
                                               monkeypatch: pytest.MonkeyPatch) -> None:
     short, long = (Body.from_dict({"height": 1.75, "lower_leg": leg}) for leg in (0.40, 0.46))
     a, b = HumanModel.from_body(short), HumanModel.from_body(long)
-    folders = {entry_folder(body_to_urdf(x)) for x in (short, long)}
+    folders = {entry_folder(x) for x in (short, long)}
     assert len(folders) == 2 and all(f.is_dir() for f in folders)
     _fresh_process(monkeypatch)
     a2, b2 = HumanModel.from_body(short), HumanModel.from_body(long)
@@ -80,7 +84,7 @@ def test_other_dimensions_get_their_own_model(cache: Path,
 def test_a_damaged_entry_is_rebuilt_not_loaded(cache: Path) -> None:
     body = Body.from_height(1.8)
     reference = HumanModel.from_body(body)
-    tables = entry_folder(body_to_urdf(body)) / "tables.pickle"
+    tables = entry_folder(body) / "tables.pickle"
     data = bytearray(tables.read_bytes())
     data[len(data) // 2] ^= 0xFF
     tables.write_bytes(bytes(data))
@@ -112,7 +116,7 @@ def test_the_least_recently_used_entries_go_first(cache: Path,
 
     monkeypatch.setattr(model_cache, "MAX_ENTRIES", 2)
     bodies = [Body.from_height(h) for h in (1.6, 1.7, 1.8)]
-    folders = [entry_folder(body_to_urdf(b)) for b in bodies]
+    folders = [entry_folder(b) for b in bodies]
     for body in bodies[:2]:
         HumanModel.from_body(body)
     for i, folder in enumerate(folders[:2]):  # the first one built, the second used later
@@ -121,3 +125,26 @@ def test_the_least_recently_used_entries_go_first(cache: Path,
     HumanModel.from_body(bodies[0])  # loaded: now the most recently used
     HumanModel.from_body(bodies[2])  # a third entry: the one used least recently goes
     assert [f.is_dir() for f in folders] == [True, False, True]
+
+
+def test_equal_bodies_hit_and_other_bodies_or_joint_files_miss(
+        cache: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from ikfusion.model import model_cache
+    from ikfusion.paths import shipped_config
+
+    body = Body.from_dict({"height": 1.71, "upper_arm": 0.3})
+    built = HumanModel.from_body(body)
+    twin = Body.from_dict({"upper_arm": 0.3, "height": 1.71})  # equal, made apart
+    assert entry_folder(twin) == entry_folder(body)
+    _fresh_process(monkeypatch)  # an equal body loads without building or writing a URDF
+    _assert_same_model(HumanModel.from_body(twin), built)
+    others = [Body.from_dict({"height": 1.71, "upper_arm": 0.3 + 1e-12}),  # the text rounds
+              Body.from_dict({"height": 1.71, "upper_arm": 0.3, "mass": 70.0}),
+              Body.from_dict({"height": 1.71, "upper_arm": 0.3,
+                              "ranges": "athlete"})]
+    folders = {entry_folder(b) for b in [body, *others]}
+    assert len(folders) == 1 + len(others)
+    joints = tmp_path / "joints.yaml"  # other shipped ranges of motion: another model
+    joints.write_text(shipped_config("joints.yaml").read_text().replace("[-20, 35]", "[-20, 36]"))
+    monkeypatch.setattr(model_cache, "shipped_config", lambda *_: joints)
+    assert entry_folder(body) not in folders
