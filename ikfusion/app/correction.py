@@ -109,7 +109,8 @@ class CorrectionSettings(ShippedSettings):
             and fades out over as long before its predicted touch-down.
         release_distance: A planted foot whose tag moved farther than this [m]
             is let go (:mod:`.tag_release`) ...
-        release_speed: ... until its tag moves slower than this [m/s]; a step of a fix faster
+        release_speed: ... until its tag moves slower than this [m/s] (and a foot near the
+            floor whose tag moves faster is not planted: it has not landed); a step of a fix faster
             than ``release_jump_speed`` [m/s] is a jump of the positioning, not a foot moving
             (nor a heading drift: such a window is not compared).
         far_distance: A tag site farther than this from its fix [m] ...
@@ -182,6 +183,7 @@ class DriftCorrection:
     _body_pull: BodyPull | None = None  # the head's task faded in and out on the floor
     _shape_pull: BodyPull | None = None  # the head's shaping of the trunk, faded in and out
     _stance: set[str] = field(default_factory=set)  # feet planted since the placement
+    _low: set[str] = field(default_factory=set)  # feet not planted, below enter_height
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -263,10 +265,12 @@ class DriftCorrection:
         planted = planted_feet(self._last.contacts, self._foot_of_point)
         self._swing.update(self._feet, planted, dt)
         floor_z = solver.settings.floor_z
-        self._swing.update_landing(
-            {foot: np.array([pose.site_position(p)[2] - floor_z for p, of in
-                             self._foot_of_point.items() if of == foot])
-             for foot in self._anchors}, planted, dt)
+        heights = {foot: np.array([pose.site_position(p)[2] - floor_z for p, of in
+                                   self._foot_of_point.items() if of == foot])
+                   for foot in self._anchors}
+        self._swing.update_landing(heights, planted, dt)
+        self._low = {foot for foot, z in heights.items() if foot not in planted and len(z)
+                     and float(z.min()) < solver.settings.enter_height}
         # A foot's release judges its site without the slides of planted points (slide mode): a
         # foot slid after its running-away tag is still a false hold. The body's release keeps
         # the solved site: its hold spans a whole walk, which the slides rightly close.
@@ -407,9 +411,17 @@ class DriftCorrection:
             solver.ballistic.shift(pull)
 
     def _hints(self, frame: Frame) -> dict[str, bool] | None:
-        """The frame's contact hints with the points of released feet (or body) let go."""
+        """The frame's contact hints with the points of released feet (or body) let go.
+
+        A foot near the floor whose tag still travels faster than ``release_speed`` is not
+        landing either (it is kept off the floor): planted early, while the solve lagged a
+        run's flight, it held the body back until the head's tag let every point go, and the
+        tags then flew the body to them while the true foot stood (issue #19: 9 cm of slide).
+        Only near the floor, so that a foot swinging high leaves the solver's own rules for
+        landing from a flight (which act when no hint is given) alone.
+        """
         released = {foot for foot, r in zip(self._feet, self._release)
-                    if r is not None and r.released}
+                    if r is not None and (r.released or (r.moving and foot in self._low))}
         body = any(r is not None and r.released for r in self._body_release)
         hints = dict(frame.contacts or {})
         for point, foot in self._foot_of_point.items():

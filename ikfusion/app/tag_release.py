@@ -35,12 +35,16 @@ class FootRelease:
         jump_speed: A step of the fix faster than this [m/s] is a jump of the positioning, not
             a foot moving.
         released: The foot is let go in the next frames.
+        moving: Its fix moved faster than ``speed`` in the last frame (not a jump): a foot
+            that is not planted is still travelling, not landing
+            (:meth:`ikfusion.app.correction.DriftCorrection.shape` keeps it off the floor).
     """
 
     distance: float
     speed: float
     jump_speed: float
     released: bool = False
+    moving: bool = False
     _anchor: np.ndarray | None = None  # (2,) the gap [m] when the foot was planted
     _last: np.ndarray | None = field(default=None)
 
@@ -64,7 +68,7 @@ class FootRelease:
         if jumped and self._anchor is not None and self._last is not None:
             self._anchor = self._anchor + (p - self._last)
         moving = self._last is not None and dt > 0 and not jumped and step > self.speed * dt
-        self._last = p
+        self._last, self.moving = p, moving
         if self.released:
             self.released = moving
             self._anchor = None
