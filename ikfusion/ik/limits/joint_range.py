@@ -7,8 +7,13 @@ vector Pinocchio uses for spherical joints) through ``w = E(a) da``, with
 
     E = [R3^T R2^T s1 e1,  R3^T s2 e2,  s3 e3],   Ri = R(ei, si ai),
 
-so the linearised limits are ``lower - a <= E^-1 w <= upper - a``. ``E`` is invertible while the
-middle angle stays away from +-90 deg, which the ranges guarantee.
+so the linearised limits are ``lower - a <= E^-1 w <= upper - a``. ``E`` is singular where the
+middle angle reaches +-90 deg (gimbal lock). A middle limit at +-90 deg (the shoulders' axial
+rotation) is no limit: every Euler triple has its middle angle within +-90 deg, and near the
+lock that angle is 90 deg minus the turn from a line of poses, a cone whose linearisation at its
+apex would hold the joint there (an arm that turns through the lock would stop at it, then cross
+it in one frame). Such a limit makes no row; nor do the first and third angles of a joint at
+the lock itself, whose rates are not finite there (only their sum or difference is defined).
 
 A pose beyond its range (the warm start at the sensed pose of an athlete, or of noisy sensors
 near a limit) is measured on the Euler triple that the smallest turn of the joint brings into
@@ -39,6 +44,8 @@ from .base import Inequality
 from .soft_wall import SoftWall
 
 _UNIT = np.eye(3)
+_LOCK = np.pi / 2.0 - 1e-6  # [rad] a middle limit this far from 0 (at the lock) is no limit
+_STEEPEST = 1e8  # an angle's rate [rad/rad] beyond this (or not finite): a joint at the lock
 
 
 class JointRangeLimit:
@@ -76,6 +83,11 @@ class JointRangeLimit:
         i, j = self.axes[:, 0], self.axes[:, 1]
         self.parity = np.where((j - i) % 3 == 1, 1.0, -1.0)
         self.coupling = np.array([s.axis_coupling for s in specs])
+        # the limits at the lock (middle angles only) make no rows: upper ones, then lower ones
+        at_lock = np.zeros((2, *self.upper.shape), dtype=bool)
+        at_lock[0, :, 1] = self.upper[:, 1] >= _LOCK
+        at_lock[1, :, 1] = self.lower[:, 1] <= -_LOCK
+        self._at_lock = at_lock.reshape(2, -1) if any_true(at_lock) else None
         self.margin = np.radians(margin_deg)
         self.wall = SoftWall(self.lower, self.upper, float(np.radians(overshoot_deg)), settle_s)
         self._linearised: tuple[np.ndarray, np.ndarray] | None = None  # angles, G
@@ -122,11 +134,25 @@ class JointRangeLimit:
             self._linearised = (a, ranges.G)
             self._solved = a
         room = self.wall.room(a)
-        if room is None:
+        if room is not None:
+            up, down = room
+            ranges = LinearisedRanges(ranges.G, ranges.room_up + up.reshape(-1),
+                                      ranges.room_down + down.reshape(-1))
+        return self.without_lock_limits(ranges)
+
+    def without_lock_limits(self, ranges: LinearisedRanges) -> LinearisedRanges:
+        """``ranges`` with endless room (no rows) where a limit does not bind.
+
+        The middle limits at +-90 deg, and the angles without rates (:func:`finite_rates`: a
+        joint at the lock).
+        """
+        still = ~np.any(ranges.G, axis=1)
+        if self._at_lock is None and not any_true(still):
             return ranges
-        up, down = room
-        return LinearisedRanges(ranges.G, ranges.room_up + up.reshape(-1),
-                                ranges.room_down + down.reshape(-1))
+        up, down = (still, still) if self._at_lock is None else \
+            (still | self._at_lock[0], still | self._at_lock[1])
+        return LinearisedRanges(ranges.G, np.where(up, np.inf, ranges.room_up),
+                                np.where(down, np.inf, ranges.room_down))
 
     def took_step(self, dq: np.ndarray) -> None:
         """Take the step ``dq`` (nv,) made from the last linearisation (:meth:`softened`).
@@ -146,7 +172,9 @@ class JointRangeLimit:
         col1 = R3t @ np.swapaxes(R2, 1, 2) @ e[:, 0, :, None]
         col2 = R3t @ e[:, 1, :, None]
         E = np.concatenate([col1, col2, e[:, 2, :, None]], axis=2)
-        return np.linalg.inv(E)
+        with np.errstate(all="ignore"):
+            E_inv = np.linalg.inv(E)
+        return finite_rates(E_inv)
 
     def violation_deg(self, q: np.ndarray) -> np.ndarray:
         """How far each angle lies outside its range (joints, 3) [deg], 0 inside."""
@@ -164,7 +192,7 @@ class JointRangeLimit:
 
         ``rate_matrices`` (``E^-1``, joints x 3 x 3) are computed when not given.
         """
-        linear = self.linearise(angles, rate_matrices, nv)
+        linear = self.without_lock_limits(self.linearise(angles, rate_matrices, nv))
         return linear.inequality(*linear.near(self.margin))
 
     def linearise(self, angles: np.ndarray, rate_matrices: np.ndarray | None,
@@ -183,6 +211,17 @@ class JointRangeLimit:
         G = np.zeros((a.size, nv))  # row 3j + m: angle m of joint j per unit tangent step
         G[self._rows, self._cols] = Einv.reshape(-1)
         return LinearisedRanges(G, (self.upper - a).reshape(-1), (a - self.lower).reshape(-1))
+
+
+def finite_rates(E_inv: np.ndarray) -> np.ndarray:
+    """``E_inv`` (joints, 3, 3) with the rows of the angles of a joint at gimbal lock set to 0.
+
+    Such a row holds a rate beyond any real one (or not finite): the angle is not defined there
+    (only the sum or difference of the first and third is).
+    """
+    with np.errstate(invalid="ignore"):
+        steep = ~np.all(np.abs(E_inv) < _STEEPEST, axis=2, keepdims=True)
+    return np.where(steep, 0.0, E_inv)
 
 
 @dataclass
