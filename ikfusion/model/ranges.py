@@ -10,8 +10,8 @@ flexes a hip past 130 deg). A body file may widen or narrow any angle::
 
 Values are ``[lower, upper]`` in degrees with ``-180 < lower < upper < 180``; the middle angle of
 a joint's Euler sequence (``abd`` of the hip, ``rot`` of the shoulder, see the joints file) must
-stay within [-90, 90] deg, where the angles of a rotation are unique (a limit at +-90, the
-gimbal lock, is no limit: every rotation's middle angle is within it). ``ranges: athlete`` alone
+stay within [-90, 90] deg, where the angles of a rotation are unique (a range reaching +-90,
+the gimbal lock, walls off no cone of poses around it). ``ranges: athlete`` alone
 names a preset. Presets are the YAML files of ``configs/ranges/`` with the same ``ranges`` mapping.
 """
 

@@ -8,12 +8,10 @@ vector Pinocchio uses for spherical joints) through ``w = E(a) da``, with
     E = [R3^T R2^T s1 e1,  R3^T s2 e2,  s3 e3],   Ri = R(ei, si ai),
 
 so the linearised limits are ``lower - a <= E^-1 w <= upper - a``. ``E`` is singular where the
-middle angle reaches +-90 deg (gimbal lock). A middle limit at +-90 deg (the shoulders' axial
-rotation) is no limit: every Euler triple has its middle angle within +-90 deg, and near the
-lock that angle is 90 deg minus the turn from a line of poses, a cone whose linearisation at its
-apex would hold the joint there (an arm that turns through the lock would stop at it, then cross
-it in one frame). Such a limit makes no row; nor do the first and third angles of a joint at
-the lock itself, whose rates are not finite there (only their sum or difference is defined).
+middle angle reaches +-90 deg (gimbal lock): the first and third angles of a joint exactly there
+make no rows, their rates are not finite (only their sum or difference is defined). A middle
+range reaching +-90 deg (a body file's ``rot: [-90, 90]`` for a shoulder) walls off no cone
+around the lock.
 
 A pose beyond its range (the warm start at the sensed pose of an athlete, or of noisy sensors
 near a limit) is measured on the Euler triple that the smallest turn of the joint brings into
@@ -44,7 +42,6 @@ from .base import Inequality
 from .soft_wall import SoftWall
 
 _UNIT = np.eye(3)
-_LOCK = np.pi / 2.0 - 1e-6  # [rad] a middle limit this far from 0 (at the lock) is no limit
 _STEEPEST = 1e8  # an angle's rate [rad/rad] beyond this (or not finite): a joint at the lock
 
 
@@ -83,11 +80,6 @@ class JointRangeLimit:
         i, j = self.axes[:, 0], self.axes[:, 1]
         self.parity = np.where((j - i) % 3 == 1, 1.0, -1.0)
         self.coupling = np.array([s.axis_coupling for s in specs])
-        # the limits at the lock (middle angles only) make no rows: upper ones, then lower ones
-        at_lock = np.zeros((2, *self.upper.shape), dtype=bool)
-        at_lock[0, :, 1] = self.upper[:, 1] >= _LOCK
-        at_lock[1, :, 1] = self.lower[:, 1] <= -_LOCK
-        self._at_lock = at_lock.reshape(2, -1) if any_true(at_lock) else None
         self.margin = np.radians(margin_deg)
         self.wall = SoftWall(self.lower, self.upper, float(np.radians(overshoot_deg)), settle_s)
         self._linearised: tuple[np.ndarray, np.ndarray] | None = None  # angles, G
@@ -138,21 +130,7 @@ class JointRangeLimit:
             up, down = room
             ranges = LinearisedRanges(ranges.G, ranges.room_up + up.reshape(-1),
                                       ranges.room_down + down.reshape(-1))
-        return self.without_lock_limits(ranges)
-
-    def without_lock_limits(self, ranges: LinearisedRanges) -> LinearisedRanges:
-        """``ranges`` with endless room (no rows) where a limit does not bind.
-
-        The middle limits at +-90 deg, and the angles without rates (:func:`finite_rates`: a
-        joint at the lock).
-        """
-        still = ~np.any(ranges.G, axis=1)
-        if self._at_lock is None and not any_true(still):
-            return ranges
-        up, down = (still, still) if self._at_lock is None else \
-            (still | self._at_lock[0], still | self._at_lock[1])
-        return LinearisedRanges(ranges.G, np.where(up, np.inf, ranges.room_up),
-                                np.where(down, np.inf, ranges.room_down))
+        return ranges.without_still_angles()
 
     def took_step(self, dq: np.ndarray) -> None:
         """Take the step ``dq`` (nv,) made from the last linearisation (:meth:`softened`).
@@ -192,7 +170,7 @@ class JointRangeLimit:
 
         ``rate_matrices`` (``E^-1``, joints x 3 x 3) are computed when not given.
         """
-        linear = self.without_lock_limits(self.linearise(angles, rate_matrices, nv))
+        linear = self.linearise(angles, rate_matrices, nv).without_still_angles()
         return linear.inequality(*linear.near(self.margin))
 
     def linearise(self, angles: np.ndarray, rate_matrices: np.ndarray | None,
@@ -237,6 +215,18 @@ class LinearisedRanges:
     G: np.ndarray
     room_up: np.ndarray
     room_down: np.ndarray
+
+    def without_still_angles(self) -> LinearisedRanges:
+        """These ranges with endless room (no rows) for the angles whose rates are all 0.
+
+        Those are the first and third angles of a joint at gimbal lock (:func:`finite_rates`),
+        which no step could bring back (a row ``0 <= room`` past a limit is infeasible).
+        """
+        still = ~np.any(self.G, axis=1)
+        if not any_true(still):
+            return self
+        return LinearisedRanges(self.G, np.where(still, np.inf, self.room_up),
+                                np.where(still, np.inf, self.room_down))
 
     def near(self, margin: float) -> tuple[np.ndarray, np.ndarray]:
         """Masks of the angles within ``margin`` [rad] of their upper and lower limits."""
