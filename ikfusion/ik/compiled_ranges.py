@@ -8,7 +8,8 @@ brings into its range kept (:func:`~ikfusion.model.angle_continuity.turn_into_ra
 other branch the middle angle's rate changes sign). Outputs, for
 ``j`` ball joints: the rows ``G`` (3j, nv) of the angles' rates per unit tangent step and the
 room to the limits ``upper - a`` and ``a - lower`` (3j) [rad], so that the linearised limits
-read ``G dq <= upper - a`` and ``-G dq <= a - lower``.
+read ``G dq <= upper - a`` and ``-G dq <= a - lower``. An angle's rates at gimbal lock (not
+finite there) are 0, as :func:`.limits.joint_range.finite_rates` makes them.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import casadi as ca
 import numpy as np
 
 _TURN = 2.0 * np.pi
+_STEEPEST = 1e8  # an angle's rate [rad/rad] beyond this (or not finite): a joint at the lock
 
 
 def _wrap_near(a: ca.SX, centre: ca.SX) -> ca.SX:
@@ -71,10 +73,13 @@ def range_rows(angles: Sequence[ca.SX], rates: Sequence[ca.SX], idx_v: Sequence[
         flipped = (_turn_into_range(lo - other, hi - other, kappa)
                    < _turn_into_range(lo - same, hi - same, kappa))
         chosen = ca.if_else(flipped, other, same)
-        middle_sign = ca.if_else(flipped, -1.0, 1.0)
-        G[3 * n, col:col + 3] = E_inv[0, :]
-        G[3 * n + 1, col:col + 3] = middle_sign * E_inv[1, :]
-        G[3 * n + 2, col:col + 3] = E_inv[2, :]
+        signs: tuple[ca.SX, ...] = (ca.SX(1.0), ca.if_else(flipped, -1.0, 1.0), ca.SX(1.0))
+        for m, sign in enumerate(signs):
+            row = E_inv[m, :]
+            tame = ca.logic_and(ca.logic_and(ca.fabs(row[0]) < _STEEPEST,  # NaN compares false
+                                             ca.fabs(row[1]) < _STEEPEST),
+                                ca.fabs(row[2]) < _STEEPEST)
+            G[3 * n + m, col:col + 3] = ca.if_else(tame, sign * row, ca.DM.zeros(1, 3))
         up.append(hi - chosen)
         down.append(chosen - lo)
     empty = ca.SX(0, 1)

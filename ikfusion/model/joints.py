@@ -174,9 +174,9 @@ def _parse_joint(file: Path, name: str, entry: object) -> JointSpec:
     if len({a.axis for a in angles}) != 3:
         raise ConfigError("the three axes must differ", path=file, field=f"{name}.sequence")
     middle = angles[1]
-    if not (-90.0 < middle.lower_deg and middle.upper_deg < 90.0):
+    if not (-90.0 <= middle.lower_deg and middle.upper_deg <= 90.0):
         raise ConfigError(
-            f"the middle angle {middle.name!r} must stay inside (-90, 90) deg (gimbal lock)",
+            f"the middle angle {middle.name!r} must stay within [-90, 90] deg (gimbal lock)",
             path=file, field=f"{name}.sequence[1].range",
         )
     return JointSpec(name, entry["parent"], entry["child"], angles)  # type: ignore[arg-type]

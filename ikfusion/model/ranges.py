@@ -10,7 +10,8 @@ flexes a hip past 130 deg). A body file may widen or narrow any angle::
 
 Values are ``[lower, upper]`` in degrees with ``-180 < lower < upper < 180``; the middle angle of
 a joint's Euler sequence (``abd`` of the hip, ``rot`` of the shoulder, see the joints file) must
-stay inside (-90, 90) deg, where the angles of a rotation are unique. ``ranges: athlete`` alone
+stay within [-90, 90] deg, where the angles of a rotation are unique (a range reaching +-90,
+the gimbal lock, walls off no cone of poses around it). ``ranges: athlete`` alone
 names a preset. Presets are the YAML files of ``configs/ranges/`` with the same ``ranges`` mapping.
 """
 
@@ -91,10 +92,10 @@ def _parse_bounds(spec: JointSpec, angle: str, bounds: object,
     if not -180.0 < lower < upper < 180.0:
         raise ConfigError(f"expected -180 < lower < upper < 180 deg, found [{lower:g}, {upper:g}]",
                           path=source, field=field)
-    if spec.angles[1].name == angle and not -90.0 < lower < upper < 90.0:
+    if spec.angles[1].name == angle and not -90.0 <= lower < upper <= 90.0:
         raise ConfigError(
             f"{angle} is the middle angle of {spec.name}'s Euler sequence ({spec.sequence}): its "
-            f"range must stay inside (-90, 90) deg, found [{lower:g}, {upper:g}]",
+            f"range must stay within [-90, 90] deg, found [{lower:g}, {upper:g}]",
             path=source, field=field)
     return spec.name, angle, lower, upper
 

@@ -15,6 +15,7 @@ from motions import smooth_motion
 from ikfusion.ik import Configuration, Frame, Solver, SolverSettings, compiled, native
 from ikfusion.ik.compiled import CompiledKinematics
 from ikfusion.ik.limits import JointRangeLimit
+from ikfusion.ik.limits.joint_range import LinearisedRanges
 from ikfusion.ik.tasks import (
     ChainShareTask,
     DampingTask,
@@ -161,6 +162,38 @@ def test_compiled_ranges_measure_on_the_triple_nearest_the_range(human: HumanMod
         np.testing.assert_allclose(outputs[8][:, 0], ranges.room_up, atol=1e-10)
         np.testing.assert_allclose(outputs[9][:, 0], ranges.room_down, atol=1e-10)
     assert flipped > 0
+
+
+def test_a_joint_at_gimbal_lock_makes_no_rows_of_its_undefined_angles() -> None:
+    """The right shoulder exactly at its Euler lock (axial rotation 90 deg): its flexion and
+    abduction are not defined there, only their sum (the compiled rates were NaN, NumPy's
+    9e15), with the axial rotation's range reaching the lock (``rot: [-90, 90]``). The
+    compiled and NumPy rows are finite and agree, and neither angle makes a row, though the
+    principal triple puts the abduction at -90 deg, 40 deg past its limit (a row ``0 <= -40
+    deg`` would be infeasible)."""
+    human = HumanModel.from_body(Body(ranges=(("jRightShoulder", "rot", -90.0, 90.0),)))
+    joints = list(human.ball_joints.values())
+    frames = [human.segment_frame_id(s) for s in SENSOR_SEGMENTS]
+    kin = CompiledKinematics(human.model, frames, joints, [])
+    limits = JointRangeLimit(human.ball_joints, margin_deg=25.0)
+    q = human.configuration({"jRightShoulder_flex": 170.0, "jRightShoulder_rot": 90.0,
+                             "jRightShoulder_abd": -23.0})
+    outputs = kin(q, np.tile(np.eye(3), (len(frames), 1, 1)), kin.geometry(human.model),
+                  np.ones(3 * len(frames)), np.ones(3 * len(joints)),
+                  np.tile(np.eye(3), (len(joints), 1, 1)), (limits.lower, limits.upper))
+    n = list(human.ball_joints).index("jRightShoulder")
+    a = limits.angles(q)
+    assert np.degrees(a[n, 2]) == pytest.approx(-90.0) and limits.lower[n, 2] > a[n, 2] + 0.6
+    numpy_rows = limits.linearise(a, None, human.model.nv)
+    compiled_rows = LinearisedRanges(outputs[7], outputs[8][:, 0], outputs[9][:, 0])
+    defined = np.arange(3 * len(joints)) != 3 * n + 1  # the middle angle's rate at the lock:
+    for ranges in (compiled_rows, numpy_rows):       # a cone's apex, any direction
+        assert np.all(np.isfinite(ranges.G))
+        assert np.all(np.abs(ranges.G) < 1e3)
+        np.testing.assert_allclose(ranges.G[defined], numpy_rows.G[defined], atol=1e-8)
+        up, down = ranges.without_still_angles().near(limits.margin)
+        undefined = [3 * n, 3 * n + 2]
+        assert not np.any(up[undefined]) and not np.any(down[undefined])
 
 
 def test_compiled_and_reference_solvers_agree(human: HumanModel, rng) -> None:

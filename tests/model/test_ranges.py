@@ -40,6 +40,15 @@ def test_the_athlete_preset_and_an_override_on_top(tmp_path: Path) -> None:
     assert Body.from_dict({"height": 1.7, "ranges": "athlete"}).ranges == load_preset("athlete")
 
 
+def test_a_shoulders_axial_rotation_may_reach_the_gimbal_lock(tmp_path: Path) -> None:
+    """``rot: [-90, 90]`` (a middle angle's range reaching the lock, no cone walled off around
+    it: see configs/joints.yaml) is accepted; it was refused as outside (-90, 90)."""
+    path = tmp_path / "body.yaml"
+    path.write_text("height: 1.68\nranges:\n  jLeftShoulder: {rot: [-90, 90]}\n")
+    model = HumanModel.from_body(Body.from_yaml(path))
+    assert limits(model, "jLeftShoulder")["rot"] == (-90.0, 90.0)
+
+
 @pytest.mark.parametrize("entry, field, line", [
     ("ranges:\n  jRightHipp: {flex: [-30, 175]}\n", "ranges.jRightHipp", 3),
     ("ranges:\n  jRightHip:\n    flexion: [-30, 175]\n", "ranges.jRightHip.flexion", 4),

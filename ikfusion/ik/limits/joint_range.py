@@ -7,8 +7,11 @@ vector Pinocchio uses for spherical joints) through ``w = E(a) da``, with
 
     E = [R3^T R2^T s1 e1,  R3^T s2 e2,  s3 e3],   Ri = R(ei, si ai),
 
-so the linearised limits are ``lower - a <= E^-1 w <= upper - a``. ``E`` is invertible while the
-middle angle stays away from +-90 deg, which the ranges guarantee.
+so the linearised limits are ``lower - a <= E^-1 w <= upper - a``. ``E`` is singular where the
+middle angle reaches +-90 deg (gimbal lock): the first and third angles of a joint exactly there
+make no rows, their rates are not finite (only their sum or difference is defined). A middle
+range reaching +-90 deg (a body file's ``rot: [-90, 90]`` for a shoulder) walls off no cone
+around the lock.
 
 A pose beyond its range (the warm start at the sensed pose of an athlete, or of noisy sensors
 near a limit) is measured on the Euler triple that the smallest turn of the joint brings into
@@ -39,6 +42,7 @@ from .base import Inequality
 from .soft_wall import SoftWall
 
 _UNIT = np.eye(3)
+_STEEPEST = 1e8  # an angle's rate [rad/rad] beyond this (or not finite): a joint at the lock
 
 
 class JointRangeLimit:
@@ -122,11 +126,11 @@ class JointRangeLimit:
             self._linearised = (a, ranges.G)
             self._solved = a
         room = self.wall.room(a)
-        if room is None:
-            return ranges
-        up, down = room
-        return LinearisedRanges(ranges.G, ranges.room_up + up.reshape(-1),
-                                ranges.room_down + down.reshape(-1))
+        if room is not None:
+            up, down = room
+            ranges = LinearisedRanges(ranges.G, ranges.room_up + up.reshape(-1),
+                                      ranges.room_down + down.reshape(-1))
+        return ranges.without_still_angles()
 
     def took_step(self, dq: np.ndarray) -> None:
         """Take the step ``dq`` (nv,) made from the last linearisation (:meth:`softened`).
@@ -146,7 +150,9 @@ class JointRangeLimit:
         col1 = R3t @ np.swapaxes(R2, 1, 2) @ e[:, 0, :, None]
         col2 = R3t @ e[:, 1, :, None]
         E = np.concatenate([col1, col2, e[:, 2, :, None]], axis=2)
-        return np.linalg.inv(E)
+        with np.errstate(all="ignore"):
+            E_inv = np.linalg.inv(E)
+        return finite_rates(E_inv)
 
     def violation_deg(self, q: np.ndarray) -> np.ndarray:
         """How far each angle lies outside its range (joints, 3) [deg], 0 inside."""
@@ -164,7 +170,7 @@ class JointRangeLimit:
 
         ``rate_matrices`` (``E^-1``, joints x 3 x 3) are computed when not given.
         """
-        linear = self.linearise(angles, rate_matrices, nv)
+        linear = self.linearise(angles, rate_matrices, nv).without_still_angles()
         return linear.inequality(*linear.near(self.margin))
 
     def linearise(self, angles: np.ndarray, rate_matrices: np.ndarray | None,
@@ -185,6 +191,17 @@ class JointRangeLimit:
         return LinearisedRanges(G, (self.upper - a).reshape(-1), (a - self.lower).reshape(-1))
 
 
+def finite_rates(E_inv: np.ndarray) -> np.ndarray:
+    """``E_inv`` (joints, 3, 3) with the rows of the angles of a joint at gimbal lock set to 0.
+
+    Such a row holds a rate beyond any real one (or not finite): the angle is not defined there
+    (only the sum or difference of the first and third is).
+    """
+    with np.errstate(invalid="ignore"):
+        steep = ~np.all(np.abs(E_inv) < _STEEPEST, axis=2, keepdims=True)
+    return np.where(steep, 0.0, E_inv)
+
+
 @dataclass
 class LinearisedRanges:
     """The ranges of motion linearised at one configuration.
@@ -198,6 +215,18 @@ class LinearisedRanges:
     G: np.ndarray
     room_up: np.ndarray
     room_down: np.ndarray
+
+    def without_still_angles(self) -> LinearisedRanges:
+        """These ranges with endless room (no rows) for the angles whose rates are all 0.
+
+        Those are the first and third angles of a joint at gimbal lock (:func:`finite_rates`),
+        which no step could bring back (a row ``0 <= room`` past a limit is infeasible).
+        """
+        still = ~np.any(self.G, axis=1)
+        if not any_true(still):
+            return self
+        return LinearisedRanges(self.G, np.where(still, np.inf, self.room_up),
+                                np.where(still, np.inf, self.room_down))
 
     def near(self, margin: float) -> tuple[np.ndarray, np.ndarray]:
         """Masks of the angles within ``margin`` [rad] of their upper and lower limits."""
