@@ -10,6 +10,7 @@ import pytest
 from ikfusion.cli import main
 from ikfusion.errors import ConfigError
 from ikfusion.ik import Frame, Solver
+from ikfusion.ik.settings import SolverSettings
 from ikfusion.model import Body, HumanModel
 from ikfusion.model.ranges import load_preset
 
@@ -70,7 +71,8 @@ def test_a_bad_range_names_file_line_and_field(tmp_path: Path, capsys, entry: st
 
 def test_a_wider_hip_lets_the_solve_follow_a_high_kick(human_athlete: HumanModel) -> None:
     """Hip flexed to 160 deg: the default model stops at its 130 deg limit, the athlete's
-    follows the truth."""
+    follows the truth. Reached at 1.5 deg a frame with the target pulling on, the default's
+    hip sinks into its soft range wall (``joint_range_overshoot_deg``) and is pushed back."""
     flex = np.linspace(100.0, 160.0, 40)
     solved = {}
     for name, model in (("default", HumanModel.default()), ("athlete", human_athlete)):
@@ -81,7 +83,9 @@ def test_a_wider_hip_lets_the_solve_follow_a_high_kick(human_athlete: HumanModel
         motion = Solver(model, contacts=False).solve(frames)
         column = model.angle_columns.index("jRightHip_flex")
         solved[name] = motion.joint_angles()[:, column]
-    assert np.max(solved["default"]) == pytest.approx(130.0, abs=1.0)
+    overshoot = SolverSettings.load().joint_range_overshoot_deg
+    assert 129.0 < np.max(solved["default"]) <= 130.0 + overshoot + 1e-6
+    assert solved["default"][-1] < np.max(solved["default"]) - 1.0  # on its way back
     np.testing.assert_allclose(solved["athlete"][-1], 160.0, atol=1.0)
 
 
