@@ -51,7 +51,4 @@ def test_the_drift_is_turned_back(drifted, mode: str) -> None:  # type: ignore[n
     # the targets were turned back by about the drift the sensors took
     assert np.degrees(turned.heading[-1]) == pytest.approx(-DRIFT_DEG, abs=3.0)
     assert np.all(still.heading == 0.0)
-    # with the turn / without, head RMS after 20 s [cm]: 0.90 / 2.70 (slide) on f1706d9; 1.50 /
-    # 2.19 since the head's trunk shaping (which narrows the gap without the turn) and the
-    # smooth sensor errors of ImuNoise (issue #19 session 14: the 1.50 is open work)
-    assert with_turn < 0.75 * without
+    assert with_turn < 0.6 * without

@@ -368,7 +368,8 @@ class DriftCorrection:
         shape, shape_weights = body_targets(
             [f.site for f in self.fixes], self._feet,
             p_body - (0.0 if drift is None else drift), cov_body, last.forward,
-            self._shape_pull.update(has_fix and near, dt), tag_settings)
+            self._shape_pull.update(has_fix and near, dt)
+            * bend_scale(last.bend, np.radians(s.tag_body_bend_deg)), tag_settings)
         frame = replace(frame, shape_positions=shape, shape_weights=shape_weights,
                         shape_reach=s.tag_speed * dt)
         if last.flight:  # the legs are left to their sensors; the tags move the body's path
