@@ -85,39 +85,18 @@ def point_velocities(v_world_sensor: np.ndarray, omega_world: np.ndarray,
     return np.asarray(v_world_sensor[:, None, :] + np.cross(omega_world[:, None, :], r_world))
 
 
-def hinged_tip_slide(v_world_ball: np.ndarray, p_world_ball: np.ndarray,
-                     p_world_tip: np.ndarray) -> np.ndarray:
-    """The least velocity (3,) [m/s] of a toe tip whose ball moves at ``v_world_ball``.
-
-    The toes are a rigid segment hinged at the ball: turning about the ball they move their
-    tip across the line ball -> tip, never along it. So whatever the toes' unsensed turn, the
-    tip moves along that line exactly as the ball does: ``(v_ball . u) u`` with ``u`` the unit
-    vector from ball to tip. A foot rolling over flat toes (its ball still) or pivoting on the
-    tips of bent toes (the ball swinging about the tip, kneeling down) gives no slide; a ball
-    pushed towards the tip drags the tip along the floor.
-
-    Args:
-        v_world_ball: (3,) the ball's velocity [m/s] (its foot IMU's,
-            :func:`foot_point_velocities`).
-        p_world_ball: (3,) the ball's position [m].
-        p_world_tip: (3,) the toe tip's position [m].
-    """
-    u = np.asarray(p_world_tip, dtype=float) - np.asarray(p_world_ball, dtype=float)
-    u /= np.linalg.norm(u)
-    return np.asarray(float(np.dot(v_world_ball, u)) * u)
-
-
 def floor_tip_slide(v_world_ball: np.ndarray, p_world_ball: np.ndarray,
                     p_world_tip: np.ndarray) -> np.ndarray:
     """The velocity (3,) [m/s] of a toe tip held on the floor whose ball moves at ``v_world_ball``.
 
-    A tip on the floor moves horizontally, and a rigid toe moves it along the line ball -> tip
-    exactly as the ball (:func:`hinged_tip_slide`). With the toe pitched down by ``a``, a
+    A tip on the floor moves horizontally, and a rigid toe hinged at the ball moves its tip along
+    the line ball -> tip exactly as the ball (a turn about the ball moves the tip only across
+    that line). With the toe pitched down by ``a``, a
     horizontal velocity ``s`` along the toe's horizontal direction ``h`` has ``s cos(a)`` along
     the toe, so ``s = (v_ball . u) / cos(a)``: at push-off, with the toe pitched 30-45 deg, the
-    tip slides 1.3-2 times faster than :func:`hinged_tip_slide`'s horizontal part
-    (``(v_ball . u) cos(a)``), and that is the truth's speed. Across ``h`` it gives nothing
-    (a turn about the vertical through the tip, as :func:`hinged_tip_slide`), and a ball moving
+    tip slides 1.3-2 times faster than the horizontal part of the ball's velocity along the
+    toe (``(v_ball . u) cos(a)``), and that is the truth's speed. Across ``h`` it gives nothing
+    (a turn about the vertical through the tip), and a ball moving
     more across ``h`` than along it gives no slide at all: the foot spins on its forefoot, and
     the tip moves by that unknown turn. ``s`` is bounded by the ball's own horizontal speed
     along ``h``: a toe that turns further down as the heel rises brings its tip closer to the
