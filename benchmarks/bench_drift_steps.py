@@ -14,6 +14,15 @@ solver holds: a held point whose true counterpart moves shifts the body by as mu
 * per step (from one true heel strike to the next): the true and solved pelvis travel [mm],
   their difference, and per held point the true point's motion while held (``*``: the truth
   no longer labels it planted).
+
+The pelvis's error gained while points are held splits in two (mean over the held points): the
+held point's solved motion against the true point's (``point mm``: an anchor held or carried
+wrongly) and the change of the pelvis's offset from that point against the truth's (``shape
+mm``: the body between the point and the pelvis posed otherwise than the truth, e.g. an unsensed
+toe bent less than the true one while the body rides on it). ``--frames T0 T1`` prints every
+frame of that time span [s]: the true and held contact states (heel and toe, left then right;
+``1`` planted), the pelvis's along-track error gained and its sum [mm], both parts, the true
+points' heights [mm] and the solved ones.
 """
 
 from __future__ import annotations
@@ -41,6 +50,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("capture", type=Path, help="capture folder (truth.npz)")
     parser.add_argument("result", type=Path, help="IMU-only solve result folder")
+    parser.add_argument("--frames", type=float, nargs=2, metavar=("T0", "T1"),
+                        help="also print every frame from T0 to T1 [s]")
     args = parser.parse_args(argv)
     truth = np.load(args.capture / "truth.npz", allow_pickle=True)
     t = truth["time"]
@@ -53,29 +64,50 @@ def main(argv: Sequence[str] | None = None) -> int:
     planted_true = truth["contacts"][:, [contact_names.index(n) for n in FEET]].astype(bool)
     with (args.result / "contacts.csv").open() as f:
         held = np.array([[float(r[n]) > 0.5 for n in FEET] for r in csv.DictReader(f)])
-    points = np.stack([truth["p_world_site"][:, sites.index(n), :2] for n in FEET], axis=1)
-
-    by_set: dict[str, list[float]] = {}
-    for k in range(len(t) - 1):
+    points_3d = np.stack([truth["p_world_site"][:, sites.index(n)] for n in FEET], axis=1)
+    points = points_3d[:, :, :2]
+    sites_solved = np.stack([_rows(args.result / "sites.csv", "site", n, ["x", "y", "z"])
+                       for n in FEET], axis=1)
+    # per frame: the pelvis's along-track error gained, and its point and shape parts [m]
+    frames = len(t)
+    gained, point_part, shape_part = np.zeros(frames), np.zeros(frames), np.zeros(frames)
+    for k in range(frames - 1):
         step = p_true[k + 1] - p_true[k]
         if np.linalg.norm(step) < 1e-6:
             continue
         u = step / np.linalg.norm(step)
-        gained = float((err[k + 1] - err[k]) @ u)
+        gained[k + 1] = float((err[k + 1] - err[k]) @ u)
+        both = held[k] & held[k + 1]
+        if both.any():
+            point_err = sites_solved[:, both, :2] - points[:, both]
+            point_part[k + 1] = float(((point_err[k + 1] - point_err[k]) @ u).mean())
+            shape_part[k + 1] = gained[k + 1] - point_part[k + 1]
+
+    by_set: dict[str, list[float]] = {}
+    for k in range(frames - 1):
+        step = p_true[k + 1] - p_true[k]
+        if np.linalg.norm(step) < 1e-6:
+            continue
+        u = step / np.linalg.norm(step)
         both = held[k] & held[k + 1]
         moved = float(((points[k + 1] - points[k]) @ u)[both].mean()) if both.any() else 0.0
         key = ("+".join(n for n, h in zip(FEET, both, strict=True) if h) or "none") + (
             " (truth:" + "".join("1" if planted_true[k, i] else "0"
                                  for i in np.flatnonzero(both)) + ")")
-        entry = by_set.setdefault(key, [0.0, 0.0, 0.0])
+        entry = by_set.setdefault(key, [0.0, 0.0, 0.0, 0.0, 0.0])
         entry[0] += 1
-        entry[1] += gained
+        entry[1] += gained[k + 1]
         entry[2] += moved
+        entry[3] += point_part[k + 1]
+        entry[4] += shape_part[k + 1]
     travelled = float(np.linalg.norm(np.diff(p_true, axis=0), axis=1).sum())
     print(f"end error {1000 * np.linalg.norm(err[-1]):.1f} mm over {travelled:.2f} m")
-    print(f"{'held points':<42s} {'frames':>6s} {'pelvis mm':>9s} {'true held mm':>12s}")
-    for key, (frames, gained, moved) in sorted(by_set.items(), key=lambda kv: kv[1][1]):
-        print(f"{key:<42s} {int(frames):6d} {1000 * gained:9.1f} {1000 * moved:12.1f}")
+    print(f"{'held points':<42s} {'frames':>6s} {'pelvis mm':>9s} {'true held mm':>12s} "
+          f"{'point mm':>8s} {'shape mm':>8s}")
+    for key, (count, gain, moved, part, shape) in sorted(by_set.items(),
+                                                         key=lambda kv: kv[1][1]):
+        print(f"{key:<42s} {int(count):6d} {1000 * gain:9.1f} {1000 * moved:12.1f} "
+              f"{1000 * part:8.1f} {1000 * shape:8.1f}")
 
     strikes = sorted(k for i in (0, 2) for k in range(1, len(t))
                      if planted_true[k, i] and not planted_true[k - 1, i])
@@ -94,7 +126,31 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{t[a]:5.2f}-{t[b]:5.2f} {1000 * np.linalg.norm(step):8.1f} {1000 * solved:9.1f} "
               f"{1000 * (solved - np.linalg.norm(step)):8.1f}  "
               + " ".join(f"{n}:{1000 * v:.1f}" for n, v in moved.items()))
+    if args.frames is not None:
+        _print_frames(t, args.frames, planted_true, held, gained, point_part, shape_part,
+                      points_3d[:, :, 2], sites_solved[:, :, 2])
     return 0
+
+
+def _states(row: np.ndarray) -> str:
+    """Contact states as ``1`` (planted) and ``.``."""
+    return "".join("1" if x else "." for x in row)
+
+
+def _print_frames(t: np.ndarray, span: Sequence[float], planted_true: np.ndarray,
+                  held: np.ndarray, gained: np.ndarray, point_part: np.ndarray,
+                  shape_part: np.ndarray, z_true: np.ndarray, z_solved: np.ndarray) -> None:
+    """The per-frame table of ``--frames`` (see the module docstring); lengths in [m]."""
+    print(f"\n{'t [s]':>6s} {'truth':>5s} {'held':>4s} {'gain mm':>7s} {'sum mm':>7s} "
+          f"{'point':>6s} {'shape':>6s}  true z mm {'':10s} solved z mm")
+    total = float(gained[t < span[0]].sum())
+    for k in np.flatnonzero((t >= span[0]) & (t <= span[1])):
+        total += float(gained[k])
+        print(f"{t[k]:6.2f} {_states(planted_true[k]):>5s} {_states(held[k]):>4s} "
+              f"{1000 * gained[k]:7.1f} {1000 * total:7.1f} {1000 * point_part[k]:6.1f} "
+              f"{1000 * shape_part[k]:6.1f}  "
+              + " ".join(f"{1000 * z:4.0f}" for z in z_true[k]) + "   "
+              + " ".join(f"{1000 * z:4.0f}" for z in z_solved[k]))
 
 
 if __name__ == "__main__":

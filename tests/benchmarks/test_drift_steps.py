@@ -1,0 +1,75 @@
+"""``benchmarks/bench_drift_steps.py``: the pelvis's lost distance split into the held point's
+motion and the body's shape, on a hand-made capture whose answer is known."""
+
+from __future__ import annotations
+
+import csv
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+FEET = ["LeftHeel", "LeftToe", "RightHeel", "RightToe"]
+
+
+def _drift_steps():
+    """``benchmarks/bench_drift_steps.py`` as a module (benchmarks/ is not a package)."""
+    name = "bench_drift_steps_under_test"
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(
+            name, ROOT / "benchmarks" / "bench_drift_steps.py")
+        assert spec is not None and spec.loader is not None
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        spec.loader.exec_module(module)
+    return sys.modules[name]
+
+
+def _write(path: Path, header: list[str], rows: list[list[object]]) -> None:
+    with path.open("w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow(header)
+        writer.writerows(rows)
+
+
+def test_lost_distance_splits_into_point_and_shape(tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """The pelvis walks +x 10 mm per frame over a planted left heel. The solve holds that heel:
+    in frame 2 its pelvis falls 3 mm behind with the heel in place (the body's shape), in frame
+    3 the held heel slips 2 mm back and the pelvis with it (the point): -5 = -2 + -3 mm."""
+    t = np.arange(4) / 60.0
+    pelvis_true = np.array([[0.0, 0, 1], [0.01, 0, 1], [0.02, 0, 1], [0.03, 0, 1]])
+    heel = np.array([0.5, 0.1, 0.0])
+    sites_true = np.tile(np.array([heel, heel + [0.2, 0, 0], heel - [0, 0.2, 0],
+                                   heel + [0.2, -0.2, 0]]), (4, 1, 1))
+    capture = tmp_path / "capture"
+    capture.mkdir()
+    contacts = np.zeros((4, 4), dtype=bool)
+    contacts[:, 0] = True
+    np.savez(capture / "truth.npz", time=t, segment_names=np.array(["Pelvis"]),
+             site_names=np.array(FEET), contact_names=np.array(FEET),
+             p_world_segment=pelvis_true[:, None, :], p_world_site=sites_true,
+             contacts=contacts)
+    result = tmp_path / "result"
+    result.mkdir()
+    pelvis_solved = pelvis_true + [[0, 0, 0], [0, 0, 0], [-0.003, 0, 0], [-0.005, 0, 0]]
+    sites_solved = sites_true.copy()
+    sites_solved[3, 0, 0] -= 0.002
+    _write(result / "segments.csv", ["time", "segment", "px", "py", "pz"],
+           [[tk, "Pelvis", *p] for tk, p in zip(t, pelvis_solved, strict=True)])
+    _write(result / "sites.csv", ["time", "site", "x", "y", "z"],
+           [[tk, name, *sites_solved[k, i]] for k, tk in enumerate(t)
+            for i, name in enumerate(FEET)])
+    _write(result / "contacts.csv", ["time", *FEET], [[tk, 1, 0, 0, 0] for tk in t])
+
+    assert _drift_steps().main([str(capture), str(result), "--frames", "0", "1"]) == 0
+    out = capsys.readouterr().out
+    row = next(line for line in out.splitlines() if line.startswith("LeftHeel (truth:1)"))
+    frames, pelvis, moved, point, shape = row.split()[2:]
+    assert (int(frames), float(pelvis), float(moved)) == (3, -5.0, 0.0)
+    assert (float(point), float(shape)) == (-2.0, -3.0)
+    gains = [float(line.split()[3]) for line in out.splitlines()[-4:]]
+    assert gains == [0.0, 0.0, -3.0, -2.0]
