@@ -209,8 +209,10 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     anchors, age = state.anchors.copy(), state.age.copy()
     if any_true(plant):
         if handover:
-            # where the sensed pose puts it, aligned on the points that let go this frame
+            # where the sensed pose puts it, aligned on the points that let go this frame ...
             anchors[plant] = p_sensed[plant] + _sensed_offset(p_sensed, anchors, active)
+            if p_solved is not None:  # ... horizontally where it was solved (no jump)
+                anchors[plant, :2] = p_solved[plant, :2]
         elif p_solved is not None:
             anchors[plant] = landing_anchors(layout, active & ~leave, anchors, p_solved, plant)
         else:

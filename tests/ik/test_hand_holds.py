@@ -60,3 +60,34 @@ def test_body_handed_to_the_lowest_palm_when_the_planted_toe_swings_up(
     p_sensed[toe, 2], p_sensed[heel, 2], p_sensed[palm, 2] = 0.14, 0.1, 0.5
     out = release_contacts(state, p_sensed, th, layout=layout)
     assert out.active[toe] and out.active.sum() == 1
+
+
+def test_point_taking_the_body_is_anchored_where_it_was_solved(human: HumanModel) -> None:
+    """Issue #19 (dm-getup-facedown, causal no-slide): the body kneeling down from a toe onto
+    its knee. The solve holds the toe with its legs bent a little away from their sensors (the
+    drift correction's pulls and lean); the knee that takes the body was anchored where the
+    unbent sensed pose puts it, 5 cm from where it was solved, and the hips, knees and ankles
+    jumped by 4-5 deg in that frame (and by 7 deg when the knee let go again)."""
+    names = list(human.sites_of_kind("contact"))
+    layout = BodyTopology.of(human).foot_layout(names)
+    th = ContactThresholds(floor_z=0.0, enter_height=0.03, enter_speed=0.5,
+                           enter_relative=0.03, leave_relative=0.025, leave_distance=0.02,
+                           settle_speed=0.2, tilt_deg=2.0, still_relative=0.06,
+                           reenter_delay=0.2)
+    toe, knee = names.index("RightToe"), names.index("RightKnee")
+    state = ContactState.empty(names)
+    state.active[toe] = True
+    state.anchors[toe] = [3.216, 3.655, 0.0]
+    # sensed pose (any translation): the knee lowest, the toe rising off the floor behind it
+    p_sensed = np.tile([0.0, 0.0, 0.5], (len(names), 1))
+    p_sensed[toe] = [0.1, -0.2, 0.043]
+    p_sensed[knee] = [0.0, 0.147, 0.0]
+    # the last solve: the toe on its anchor, the knee on the floor 5.3 cm beside where the
+    # sensed pose aligned on the toe's anchor puts it (3.116, 4.002)
+    p_solved = np.tile([3.0, 4.0, 0.5], (len(names), 1))
+    p_solved[toe] = state.anchors[toe]
+    p_solved[knee] = [3.132, 4.055, 0.0]
+    out = release_contacts(state, p_sensed, th, p_solved=p_solved, layout=layout)
+    assert out.active[knee] and out.active.sum() == 1
+    # it stays where it was solved: nothing jumps (old: anchored at [3.116, 4.002])
+    np.testing.assert_allclose(out.anchors[knee], [3.132, 4.055, 0.0], atol=1e-9)
