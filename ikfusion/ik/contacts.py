@@ -19,7 +19,7 @@ stricter rule, as their segments are also calm when the body stands still: they 
 among the lowest points and never while their segment's IMU says it moves (a body rolling on its
 back: :mod:`.trunk_roll`). When every planted point lets go, the lowest point of the sensed pose
 takes the body (a palm in a cartwheel), not a foot swung overhead nor one sweeping over the floor
-(:mod:`.sweeping`).
+(:mod:`.sweeping`); it is held horizontally where it was solved, so nothing jumps.
 """
 
 from __future__ import annotations
@@ -209,10 +209,9 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     anchors, age = state.anchors.copy(), state.age.copy()
     if any_true(plant):
         if handover:
-            # where the sensed pose puts it, aligned on the points that let go this frame ...
+            # the sensed pose's height (aligned on the points letting go), the solved place
             anchors[plant] = p_sensed[plant] + _sensed_offset(p_sensed, anchors, active)
-            if p_solved is not None:  # ... horizontally where it was solved (no jump)
-                anchors[plant, :2] = p_solved[plant, :2]
+            anchors[plant, :2] = anchors[plant, :2] if p_solved is None else p_solved[plant, :2]
         elif p_solved is not None:
             anchors[plant] = landing_anchors(layout, active & ~leave, anchors, p_solved, plant)
         else:
