@@ -177,8 +177,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     # still one (its anchor is out of date); a still foot ignores the sensed height and pitch.
     pulled = pulled_points(drift > th.leave_distance, state.age >= other_age, staying,
                            needs_rest, layout)
-    # a resting knee or palm (calm accelerometer) is weaker evidence than a still foot: the
-    # sensed pose may still lift it
+    # a resting knee or palm (calm accelerometer) is weaker than a still foot: sensed pose lifts it
     lifted = ((height_rel > th.leave_relative) | tilted) & ~(still & layout.stepping)
     leave = staying & (lifted | pulled)
     if handed_over is not None:
