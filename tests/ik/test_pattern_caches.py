@@ -77,3 +77,19 @@ def test_foot_pitch_is_nan_without_a_foot_and_fresh_each_frame(human: HumanModel
             x = R[tracker._feet[i], :, 0]
             assert pitch[i] == np.arctan2(-x[2], np.hypot(x[0], x[1]))
         pitch[:] = 0.0  # the caller's own array: the next frame starts from NaN again
+
+
+def test_reference_points_are_the_oldest_groups_whatever_the_ages(human: HumanModel,
+                                                                   rng: np.random.Generator
+                                                                   ) -> None:
+    support: SupportFollower = _tracker(human).support
+    groups = np.array(support._feet)
+    for _ in range(200):
+        active = rng.random(groups.shape[1]) < 0.4
+        planted = (groups & active).any(axis=1)
+        if not planted.any():
+            continue
+        support._planted_for = rng.choice([0.0, 0.01, 0.5], size=len(groups))  # ties too
+        oldest = planted & (support._planted_for == support._planted_for[planted].max())
+        expected = (groups & oldest[:, None]).any(axis=0) & active
+        np.testing.assert_array_equal(support._reference(active, planted), expected)
