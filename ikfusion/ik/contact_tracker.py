@@ -68,6 +68,9 @@ class ContactTracker:
         self._points_of_foot = {f: np.array([i for i, g in enumerate(self._foot_names) if g == f])
                                 for f in dict.fromkeys(self._foot_names) if f is not None}
         self._foot_rows = self._feet[self._has_foot]  # the segment of each point with a foot
+        self._foot_points = true_indices(self._has_foot)  # ... and the point
+        self._no_pitch = np.full(len(self._feet), np.nan)  # foot_pitch's start: no foot
+        self._still_of: dict[tuple[tuple[str, bool], ...], np.ndarray] = {}  # _feet_still's
         self._tracked: np.ndarray | None = None  # the last foot_pitch's tracked segments ...
         self._untracked = np.zeros(0, dtype=int)  # ... and its rows without a target
         self.support = SupportFollower(self.layout, s.lag_speed, s.lag_max, s.swing_speed,
@@ -132,9 +135,9 @@ class ContactTracker:
         for row in self._untracked_feet(tracked):  # a foot without sensor
             name = self.model.segment_names[self._foot_rows[row]]
             forward[row] = self.model.segment_rotation(q, name)[:, 0]
-        pitch = np.full(len(self._feet), np.nan)
-        pitch[self._has_foot] = np.arctan2(-forward[:, 2],
-                                           np.hypot(forward[:, 0], forward[:, 1]))
+        pitch = self._no_pitch.copy()
+        pitch[self._foot_points] = np.arctan2(-forward[:, 2],
+                                              np.hypot(forward[:, 0], forward[:, 1]))
         return pitch
 
     def _untracked_feet(self, tracked: np.ndarray) -> np.ndarray:
@@ -283,10 +286,20 @@ class ContactTracker:
         return np.array([float(known[n]) if n in known else np.nan for n in self.names])
 
     def _feet_still(self, frame: Frame) -> np.ndarray | None:
-        """1 where each point's foot stands still by its IMU, 0 moving, NaN unknown."""
+        """1 where each point's foot stands still by its IMU, 0 moving, NaN unknown.
+
+        Read-only, kept per pattern of ``frame.feet_still`` (few: the feet's stance changes at
+        steps only).
+        """
         known = frame.feet_still
         if not known:
             return None
-        nan = math.nan
-        return np.array([nan if f is None or (still := known.get(f)) is None else float(still)
-                         for f in self._foot_names])
+        key = tuple(known.items())
+        still = self._still_of.get(key)
+        if still is None:
+            nan = math.nan
+            still = np.array([nan if f is None or (s := known.get(f)) is None else float(s)
+                              for f in self._foot_names])
+            still.setflags(write=False)
+            self._still_of[key] = still
+        return still

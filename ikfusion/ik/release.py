@@ -19,7 +19,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..rotations import exp_so3
-from .fast_math import any_true, true_indices
+from .fast_math import any_true, row_norms, true_indices
 
 
 class ReleaseEasing:
@@ -63,10 +63,10 @@ class ReleaseEasing:
         """Shrink the offsets by ``speed * dt``; the offset targets (n, 3, 3), None if none."""
         if not self._easing:  # the usual case: no leg eases
             return None
-        norm = np.linalg.norm(self.offsets, axis=1)
+        norm = row_norms(self.offsets)
         keep = np.maximum(0.0, 1.0 - self.speed * dt / np.where(norm > 0, norm, 1.0))
         self.offsets *= np.where(norm > 0, keep, 0.0)[:, None]
-        moving = np.flatnonzero(np.any(self.offsets != 0.0, axis=1))
+        moving = true_indices((self.offsets != 0.0).any(axis=1))
         if len(moving) == 0:
             self._easing = False
             return None

@@ -1,0 +1,95 @@
+"""The frame loop's kept results: what is worked out once per pattern of planted points or feet
+stance must equal the plain computation whichever pattern comes back, and must not be mutable."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from ikfusion.ik.contact_tracker import ContactTracker
+from ikfusion.ik.fast_math import any_true
+from ikfusion.ik.frame import Frame
+from ikfusion.ik.settings import SolverSettings
+from ikfusion.ik.support import SupportFollower
+from ikfusion.model import HumanModel
+from ikfusion.model.topology import BodyTopology
+
+
+@pytest.mark.parametrize("values", [
+    np.zeros(0, dtype=bool), np.zeros(14, dtype=bool), np.eye(1, 14, 13, dtype=bool)[0],
+    np.array([0.0, np.nan]), np.array([0.0, -0.0]), np.array([[0, 0], [0, 3]]),
+    np.zeros((3, 3)), np.array([np.inf])])
+def test_any_true_is_numpys_any(values: np.ndarray) -> None:
+    assert any_true(values) is bool(np.any(values))
+
+
+def _tracker(human: HumanModel) -> ContactTracker:
+    names = human.sites_of_kind("contact")
+    return ContactTracker(human, BodyTopology.of(human), names, SolverSettings.load())
+
+
+def test_planted_groups_follow_every_pattern_back_and_forth(human: HumanModel,
+                                                            rng: np.random.Generator) -> None:
+    support: SupportFollower = _tracker(human).support
+    k = len(support._led)
+    groups = np.array(support._feet)
+    patterns = [rng.random(k) < p for p in (0.1, 0.3, 0.6) for _ in range(20)]
+    for points in patterns + patterns[::-1]:  # each pattern again after the others
+        planted = support._planted(points)
+        np.testing.assert_array_equal(planted, (groups & points).any(axis=1))
+        with pytest.raises(ValueError):
+            planted[0] = not planted[0]  # shared between frames: read-only
+
+
+def test_feet_stance_follows_every_pattern_back_and_forth(human: HumanModel) -> None:
+    tracker = _tracker(human)
+    feet = ["LeftFoot", "RightFoot", "LeftLowerLeg", "Pelvis"]
+    stances = [dict(zip(feet, flags)) for flags in itertools.product([True, False], repeat=4)]
+    stances += [{"RightFoot": True}, {"LeftFoot": False, "T8": True}]
+    for stance in stances + stances[::-1]:
+        still = tracker._feet_still(Frame(0.0, feet_still=stance))
+        assert still is not None
+        expected = [np.nan if f is None or f not in stance else float(stance[f])
+                    for f in tracker._foot_names]
+        np.testing.assert_array_equal(still, expected)
+        assert not still.flags.writeable
+    assert tracker._feet_still(Frame(0.0)) is None
+
+
+def test_foot_pitch_is_nan_without_a_foot_and_fresh_each_frame(human: HumanModel,
+                                                               rng: np.random.Generator) -> None:
+    from ikfusion.rotations import exp_so3
+
+    tracker = _tracker(human)
+    n = len(human.segment_names)
+    tracked = np.ones(n, dtype=bool)
+    tracked.setflags(write=False)
+    q = human.neutral()
+    for _ in range(5):
+        R = exp_so3(rng.normal(scale=0.5, size=(n, 3)))
+        pitch = tracker.foot_pitch(q, R, tracked)
+        for i, f in enumerate(tracker._foot_names):
+            if tracker._feet[i] < 0:
+                assert np.isnan(pitch[i]), f
+                continue
+            x = R[tracker._feet[i], :, 0]
+            assert pitch[i] == np.arctan2(-x[2], np.hypot(x[0], x[1]))
+        pitch[:] = 0.0  # the caller's own array: the next frame starts from NaN again
+
+
+def test_reference_points_are_the_oldest_groups_whatever_the_ages(human: HumanModel,
+                                                                   rng: np.random.Generator
+                                                                   ) -> None:
+    support: SupportFollower = _tracker(human).support
+    groups = np.array(support._feet)
+    for _ in range(200):
+        active = rng.random(groups.shape[1]) < 0.4
+        planted = (groups & active).any(axis=1)
+        if not planted.any():
+            continue
+        support._planted_for = rng.choice([0.0, 0.01, 0.5], size=len(groups))  # ties too
+        oldest = planted & (support._planted_for == support._planted_for[planted].max())
+        expected = (groups & oldest[:, None]).any(axis=0) & active
+        np.testing.assert_array_equal(support._reference(active, planted), expected)
