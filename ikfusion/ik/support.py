@@ -73,8 +73,6 @@ class SupportFollower:
         feet = [np.asarray(f, dtype=bool) for f in layout.feet]
         self._feet = tuple(feet + [np.zeros(k, dtype=bool)] * (2 - len(feet)))
         self._foot_rows = np.array(self._feet)  # (groups, k) the points of each group
-        self._planted_of: dict[bytes, np.ndarray] = {}  # bytes of points -> :meth:`_planted`
-        self._points_of_groups: dict[tuple[int, ...], np.ndarray] = {}  # groups -> points
         # only feet proper are led through a swing; knees and palms land where the body puts them
         self._steps = [bool((f & layout.stepping).any()) for f in self._feet]
         # the swing foot is led by its heels: points on the foot itself, not on the unsensed toes
@@ -195,16 +193,8 @@ class SupportFollower:
         return next((f for f, g in enumerate(self._feet) if any_true(points & g)), 0)
 
     def _planted(self, points: np.ndarray) -> np.ndarray:
-        """(groups,) does each group (foot, knee, palm) have one of ``points`` (k,) bool?
-
-        Read-only, kept per pattern of ``points`` (few: they change at contact events only).
-        """
-        key = points.tobytes()
-        planted = self._planted_of.get(key)
-        if planted is None:  # a boolean product: any of the group's
-            planted = self._planted_of[key] = np.asarray(self._foot_rows @ points)
-            planted.setflags(write=False)
-        return planted
+        """(groups,) does each group (foot, knee, palm) have one of ``points`` (k,) bool?"""
+        return np.asarray(self._foot_rows @ points)  # a boolean product: any of the group's
 
     def _reference(self, active: np.ndarray, planted: np.ndarray) -> np.ndarray:
         """The planted points of the foot planted longest (both feet when they landed together).
@@ -213,16 +203,9 @@ class SupportFollower:
         landed, led away from where the sensed legs put it, takes the body over only when the
         other foot lets go, so the leg that leaves the floor carries no strain that would snap.
         """
-        age = self._planted_for.tolist()  # plain floats: a few groups, compared exactly
-        groups = true_indices(planted).tolist()
-        longest = max(age[g] for g in groups)
-        oldest = tuple(g for g in groups if age[g] == longest)
-        points = self._points_of_groups.get(oldest)
-        if points is None:  # the points of the oldest groups, kept per set of groups
-            points = np.asarray(self._foot_rows[list(oldest)].any(axis=0))
-            points.setflags(write=False)
-            self._points_of_groups[oldest] = points
-        return points & active
+        age = self._planted_for
+        oldest = planted & (age == np.maximum.reduce(age[planted]))
+        return (oldest @ self._foot_rows) & active  # the points of the oldest groups
 
     def lose_support(self) -> None:
         """No point is planted (flight): the ballistic path takes over; nothing lags."""
