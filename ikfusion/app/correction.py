@@ -420,10 +420,17 @@ class DriftCorrection:
         tags then flew the body to them while the true foot stood (issue #19: 9 cm of slide).
         Only near the floor, so that a foot swinging high leaves the solver's own rules for
         landing from a flight (which act when no hint is given) alone.
+        After the head's tag let every point go, until a point is held again
+        (:attr:`~.tag_release.BodyRelease.landing`), tag feet not near the floor are kept off
+        it: unhinted, the solver plants the lowest point wherever it is (a spin kick's toe
+        28 cm up, rising at 5 m/s, dragged the body 37 cm from its tags).
         """
         released = {foot for foot, r in zip(self._feet, self._release)
                     if r is not None and (r.released or (r.moving and foot in self._low))}
         body = any(r is not None and r.released for r in self._body_release)
+        if any(r is not None and r.landing for r in self._body_release):
+            # let go by the head's tag and not held since: only a foot near the floor lands
+            released |= set(self._anchors) - self._low
         hints = dict(frame.contacts or {})
         for point, foot in self._foot_of_point.items():
             if (body or foot in released) and point not in hints:

@@ -98,6 +98,10 @@ class BodyRelease:
     the hold is false and every held point is let go: the body flies, and the tags move its
     path (:func:`ikfusion.app.tag_tasks.flight_pull`) until the gap is below half
     ``distance``; then the points may be planted again where the sensed legs meet the floor.
+    Until one is (``landing``), nothing says the body is back on the floor: a closed gap is
+    not a landing, and a foot high in the air must not be planted just because it is the
+    body's lowest point (:meth:`ikfusion.app.correction.DriftCorrection.shape` keeps the feet
+    that are not near the floor off it).
     Only a change within a hold counts, and not the part of it that closes the gap (the
     correction walking the body toward its tags, after a jump of the positioning say): a slow
     inertial drift never lets a standing body go.
@@ -107,11 +111,13 @@ class BodyRelease:
         jump_speed: A step of the fix faster than this [m/s] is a jump of the positioning:
             the gap's reference moves with it.
         released: The held points are let go in the next frames.
+        landing: A release ended (the gap closed) and no point has been held since.
     """
 
     distance: float
     jump_speed: float
     released: bool = False
+    landing: bool = False
     _anchor: np.ndarray | None = None  # (2,) the gap [m] when the hold began
     _last: np.ndarray | None = field(default=None)
 
@@ -126,6 +132,8 @@ class BodyRelease:
             p_site: (3,) the solved tag site [m].
             dt: Time since the last frame [s].
         """
+        if held:
+            self.landing = False
         if not (np.isfinite(p_fix).all() and np.isfinite(cov).all()):
             return
         p = np.asarray(p_fix[:2], dtype=float)
@@ -135,6 +143,7 @@ class BodyRelease:
         self._last = p
         if self.released:
             self.released = float(np.linalg.norm(gap)) > 0.5 * self.distance
+            self.landing = not self.released
             self._anchor = None
             return
         if not held or jumped or self._anchor is None:  # a jump of the fixes starts anew
