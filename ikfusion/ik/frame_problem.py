@@ -256,7 +256,7 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
         LinearisedRanges(step.output(7), step.output(8)[:, 0], step.output(9)[:, 0]), still)
     up, down = ranges.near(limits.margin)
     if len(tasks.contact_rows):
-        Pc, Jc = P[tasks.contact_rows], J[tasks.contact_rows]
+        Pc, Jc = P.take(tasks.contact_rows, axis=0), J.take(tasks.contact_rows, axis=0)
         floor, contact = tasks.floor.rows(Pc, Jc), tasks.contact.rows(Pc, Jc)
     else:
         floor, contact = compiled.no_floor, compiled.no_contact
