@@ -75,6 +75,7 @@ def solve_with_active_set(problem: QpProblem, rows: LimitRows, backend: str,
         ranges = rows.ranges.inequality(rows.up, rows.down)
         problem.G = np.vstack([ranges.G, rows.floor.G])
         problem.h = np.concatenate([ranges.h, rows.floor.h])
+        problem.packed = None  # G and h are no longer views of it: checked one by one
         if outside or solution.relaxed:
             problem.lb, problem.ub = lb, ub
         relaxed_before = solution.relaxed

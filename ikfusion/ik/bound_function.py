@@ -80,6 +80,14 @@ class BoundFunction:
         for buffer, value in zip(self._inputs, inputs):
             buffer[:] = np.ravel(value)
 
+    def nonzeros(self, i: int) -> np.ndarray:
+        """Output ``i``'s structural nonzeros (CasADi's column-major order) of the last call.
+
+        Overwritten by the next call; for a dense vector output, the output itself.
+        """
+        scattered = self._scattered.get(i)
+        return self._dense[i].reshape(-1) if scattered is None else scattered[2]
+
     def output(self, i: int) -> np.ndarray:
         """Output ``i`` of the last :meth:`evaluate` as a dense array, overwritten by the next."""
         scattered = self._scattered.get(i)

@@ -53,22 +53,22 @@ def equality_optimum(H: np.ndarray, c: np.ndarray, A: np.ndarray | None,
     if info != 0:
         return None
     rows = A if A is not None and b is not None and len(b) else None
-    m = 0 if rows is None else len(rows)
+    if rows is None:  # no equality rows (no planted point): one solve, nothing to stack
+        x, info = dpotrs(L, np.negative(c), lower=1, overwrite_b=1)
+        return np.asarray(x) if info == 0 and np.isfinite(x.sum()) else None
+    m = len(rows)
     # one solve for every right-hand side: -c, then the equality rows (H^-1 A^T)
     rhs = np.empty((len(c), 1 + m), order="F")
     rhs[:, 0] = -c
-    if rows is not None:
-        rhs[:, 1:] = rows.T
+    rhs[:, 1:] = rows.T
     X, info = dpotrs(L, rhs, lower=1, overwrite_b=1)
-    if info != 0:
+    if info != 0 or b is None:
         return None
-    x = X[:, 0]
-    if rows is not None and b is not None:
-        Y = X[:, 1:]
-        multipliers = independent_solve(rows @ Y, rows @ x - b)
-        if multipliers is None:
-            return None
-        x = x - Y @ multipliers
+    Y = X[:, 1:]
+    multipliers = independent_solve(rows @ Y, rows @ X[:, 0] - b)
+    if multipliers is None:
+        return None
+    x = X[:, 0] - Y @ multipliers
     return np.asarray(x) if np.isfinite(x.sum()) else None
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import casadi as ca
 import numpy as np
 
 from ..model.human_model import HumanModel
@@ -20,9 +21,10 @@ from .compiled_sensed import SensedPoseSpec
 from .configuration import Configuration
 from .fast_math import add_to_diagonal, any_true
 from .limits import ContactConstraint, FloorLimit, JointRangeLimit, VelocityLimit
+from .limits.base import Equality, Inequality, empty_equality, empty_inequality
 from .limits.joint_range import LinearisedRanges
 from .points_configuration import PointsConfiguration
-from .qp import QpProblem, build_qp
+from .qp import QpBuffer, QpProblem, build_qp
 from .settings import SolverSettings
 from .tasks import (
     ChainShareTask,
@@ -46,10 +48,25 @@ class FrameProblem:
 
 @dataclass
 class CompiledStep:
-    """The compiled step function and the model geometry it is evaluated with."""
+    """The compiled step function, the model geometry it is evaluated with, and its buffers.
+
+    Attributes:
+        kinematics: The compiled step function.
+        geometry: The model's geometry input.
+        buffer: Where each step's QP is built (overwritten by the next step).
+        no_floor: The floor rows of a body without contact points (none).
+        no_contact: Its contact rows (none).
+        rate_rows: (ranges, 3) where each row's structural nonzeros lie among those of the
+            step's ``G_ranges`` (the rates of an angle to its joint's three tangent columns);
+            None when its rows do not hold three each.
+    """
 
     kinematics: CompiledKinematics
     geometry: np.ndarray
+    buffer: QpBuffer
+    no_floor: Inequality
+    no_contact: Equality
+    rate_rows: np.ndarray | None
 
 
 @dataclass
@@ -147,9 +164,24 @@ def compiled_step(model: HumanModel, tasks: FrameTasks,
                                          list(model.ball_joints.values()), tasks.site_frames(),
                                          sensed, tasks.even_chain.pairs,
                                          tasks.contact.frame_ids)
-        return CompiledStep(kinematics, kinematics.geometry(model.model))
+        nv = model.model.nv
+        return CompiledStep(kinematics, kinematics.geometry(model.model), QpBuffer(nv),
+                            empty_inequality(nv), empty_equality(nv),
+                            rate_rows(kinematics.function.sparsity_out(7)))
     except NotImplementedError:
         return None
+
+
+def rate_rows(G_ranges: ca.Sparsity) -> np.ndarray | None:
+    """Where each row's nonzeros lie among those of ``G_ranges``: (rows, 3) indices.
+
+    None unless every row holds three (the rates of an angle to its joint's tangent columns).
+    """
+    rows = np.asarray(G_ranges.get_triplet()[0], dtype=int)
+    if not np.array_equal(np.bincount(rows, minlength=G_ranges.size1()),
+                          np.full(G_ranges.size1(), 3)):
+        return None
+    return np.argsort(rows, kind="stable").reshape(-1, 3)
 
 
 def step_configuration(model: HumanModel, tasks: FrameTasks,
@@ -206,31 +238,57 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     step = compiled.kinematics.evaluate(
         conf.q, tasks.orientation.targets, compiled.geometry, *row_weights,
         tasks.posture.R_reference, (limits.lower, limits.upper), chain, share, persist)
-    # the outputs (:mod:`.compiled`) this step reads: H, c, the sites and the ranges
-    H, c = step.output(0).copy(), step.output(1)[:, 0].copy()
-    P = step.output(5).reshape(-1, 3)
-    J = step.output(6).reshape(-1, 3, nv)
-    G_ranges, room_up, room_down = step.output(7), step.output(8), step.output(9)
-    tasks.position.add_rows(P[:-1], J[:-1], H, c)
-    if tasks.shape in active:
-        tasks.shape.add_rows(P[:-1], J[:-1], H, c)
-    if tasks.root in active:
-        tasks.root.add_rows(P[-1:], J[-1:], H, c)
+    # the outputs (:mod:`.compiled`) this step reads: H, c, the sites and the ranges, read in
+    # place (valid until the next evaluation, after this step's solve); the sites only when a
+    # task or a limit weighs them (with contact points or site targets)
+    shape = tasks.shape in active and tasks.shape.has_targets()
+    sites = len(tasks.contact_rows) > 0 or tasks.root in active or shape or \
+        tasks.position.has_targets()
+    if sites:
+        P = step.output(5).reshape(-1, 3)
+        J = step.output(6).reshape(-1, 3, nv)
+    # the angles whose rates are all 0 (at gimbal lock) from G's structural nonzeros, three a
+    # row, instead of a search of every row of G
+    still = None
+    if compiled.rate_rows is not None:
+        still = np.logical_not(step.nonzeros(7).take(compiled.rate_rows).any(axis=1))
+    ranges = limits.softened(
+        LinearisedRanges(step.output(7), step.output(8)[:, 0], step.output(9)[:, 0]), still)
+    up, down = ranges.near(limits.margin)
+    if len(tasks.contact_rows):
+        Pc, Jc = P.take(tasks.contact_rows, axis=0), J.take(tasks.contact_rows, axis=0)
+        floor, contact = tasks.floor.rows(Pc, Jc), tasks.contact.rows(Pc, Jc)
+    else:
+        floor, contact = compiled.no_floor, compiled.no_contact
+    n_up, n_down = int(np.count_nonzero(up)), int(np.count_nonzero(down))
+    below = n_up + n_down
+    # what assemble_qp makes of these blocks, built in one packed buffer (a step every frame)
+    qp = compiled.buffer.views(below + len(floor.h), len(contact.b))
+    H, c = qp.H, qp.c
+    np.copyto(H, step.output(0))
+    np.copyto(c, step.output(1)[:, 0])
+    if sites:
+        tasks.position.add_rows(P[:-1], J[:-1], H, c)
+        if shape:
+            tasks.shape.add_rows(P[:-1], J[:-1], H, c)
+        if tasks.root in active:
+            tasks.root.add_rows(P[-1:], J[-1:], H, c)
     same = tasks.damping.q_reference is previous
     tasks.damping.add_objective(conf, H, c, moved if same else None)
     if numpy_persistence:
         persistence.add_objective(conf, H, c)
-    Pc, Jc = P[tasks.contact_rows], J[tasks.contact_rows]
     if tasks.swing in active:
         tasks.swing.add_rows(Pc, Jc, H, c)
-    ranges = limits.softened(
-        LinearisedRanges(G_ranges.copy(), room_up[:, 0].copy(), room_down[:, 0].copy()))
-    up, down = ranges.near(limits.margin)
-    floor = tasks.floor.rows(Pc, Jc)
-    contact = tasks.contact.rows(Pc, Jc)
-    # what assemble_qp makes of these blocks, stacked at once (a step is built every frame)
     add_to_diagonal(H, levenberg_marquardt)
-    G = np.concatenate([ranges.G[up], -ranges.G[down], floor.G])
-    h = np.concatenate([ranges.room_up[up], ranges.room_down[down], floor.h])
-    qp = QpProblem(H, c, G, h, contact.A, contact.b)
+    if n_up:
+        np.compress(up, ranges.G, axis=0, out=qp.G[:n_up])
+        np.compress(up, ranges.room_up, out=qp.h[:n_up])
+    if n_down:
+        np.negative(np.compress(down, ranges.G, axis=0, out=qp.G[n_up:below]),
+                    out=qp.G[n_up:below])
+        np.compress(down, ranges.room_down, out=qp.h[n_up:below])
+    qp.G[below:] = floor.G
+    qp.h[below:] = floor.h
+    qp.A[:] = contact.A
+    qp.b[:] = contact.b
     return FrameProblem(qp, LimitRows(ranges, up, down, floor, bounds))

@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import SolverError
 from .configuration import Configuration
 from .equality_qp import ClosedFormHint, equality_optimum, satisfies
-from .fast_math import sum_of
+from .fast_math import add_to_diagonal, sum_of
 from .limits.base import Equality, Inequality
 from .qp_backends import call_daqp, installed, qpsolvers_module, solver_options
 from .tasks.base import Task
@@ -130,40 +130,47 @@ class QpBuffer:
                  equalities: Sequence[Equality], bounds: tuple[np.ndarray, np.ndarray] | None,
                  damping: float) -> QpProblem:
         """:func:`assemble_qp` into the buffer (``H`` is copied, not changed)."""
-        nv = self.nv
         m_in = sum(len(i.h) for i in inequalities)
         m_eq = sum(len(e.b) for e in equalities)
+        problem = self.views(m_in, m_eq)
+        np.copyto(problem.H, H)
+        add_to_diagonal(problem.H, damping)
+        np.copyto(problem.c, c)
+        _stacked_rows(problem.G, problem.h, [(i.G, i.h) for i in inequalities if len(i.h)])
+        _stacked_rows(problem.A, problem.b, [(e.A, e.b) for e in equalities if len(e.b)])
+        problem.lb, problem.ub = bounds if bounds is not None else (None, None)
+        return problem
+
+    def views(self, m_in: int, m_eq: int) -> QpProblem:
+        """A problem of ``m_in`` inequality and ``m_eq`` equality rows in the buffer.
+
+        Its arrays are views of the buffer, uninitialised (the caller fills every entry), with
+        no bounds; overwritten by the next call.
+        """
+        nv = self.nv
         size = nv * nv + nv + (m_in + m_eq) * (nv + 1)
         if len(self._flat) < size:
             self._flat = np.empty(max(size, 2 * len(self._flat)))
         packed = self._flat[:size]
-        H_out = packed[:nv * nv].reshape(nv, nv)
-        np.copyto(H_out, H)
-        H_out.flat[::nv + 1] += damping  # the diagonal
-        end = nv * nv + nv
-        c_out = packed[nv * nv:end]
-        np.copyto(c_out, c)
-        G_out, h_out, end = _stacked_rows(packed, end, m_in, nv,
-                                          [(i.G, i.h) for i in inequalities if len(i.h)])
-        A_out, b_out, end = _stacked_rows(packed, end, m_eq, nv,
-                                          [(e.A, e.b) for e in equalities if len(e.b)])
-        lb, ub = bounds if bounds is not None else (None, None)
-        return QpProblem(H_out, c_out, G_out, h_out, A_out, b_out, lb, ub, packed)
+        c_at = nv * nv
+        G_at = c_at + nv
+        h_at = G_at + m_in * nv
+        A_at = h_at + m_in
+        b_at = A_at + m_eq * nv
+        return QpProblem(packed[:c_at].reshape(nv, nv), packed[c_at:G_at],
+                         packed[G_at:h_at].reshape(m_in, nv), packed[h_at:A_at],
+                         packed[A_at:b_at].reshape(m_eq, nv), packed[b_at:], packed=packed)
 
 
-def _stacked_rows(packed: np.ndarray, start: int, m: int, nv: int,
-                  blocks: list[tuple[np.ndarray, np.ndarray]]
-                  ) -> tuple[np.ndarray, np.ndarray, int]:
-    """Row blocks ``(M, v)`` stacked into ``packed`` from ``start``: ``(M, v, end)``."""
-    M = packed[start:start + m * nv].reshape(m, nv)
-    v = packed[start + m * nv:start + m * (nv + 1)]
+def _stacked_rows(M: np.ndarray, v: np.ndarray,
+                  blocks: list[tuple[np.ndarray, np.ndarray]]) -> None:
+    """Row blocks ``(M_i, v_i)`` stacked into ``M`` and ``v`` (as many rows as they hold)."""
     row = 0
     for block, values in blocks:
         k = len(values)
         M[row:row + k] = block
         v[row:row + k] = values
         row += k
-    return M, v, start + m * (nv + 1)
 
 
 def _call(backend: str, settings: QpSettings, H: np.ndarray, c: np.ndarray,

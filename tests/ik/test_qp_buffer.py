@@ -55,3 +55,34 @@ def test_a_packed_problem_holding_nan_is_refused_by_name(where: str) -> None:
     problem = QpBuffer(NV).assemble(H, c, ineq, eq, None, 1e-4)
     with pytest.raises(SolverError, match=f"\\b{where}\\b"):
         solve_qp(problem, "daqp", SolverSettings.load().qp)
+
+
+def test_views_are_consecutive_blocks_of_one_array() -> None:
+    buffer = QpBuffer(NV)
+    problem = buffer.views(3, 2)
+    assert problem.packed is not None and problem.packed.size == NV * NV + NV + 5 * (NV + 1)
+    blocks = [problem.H, problem.c, problem.G, problem.h, problem.A, problem.b]
+    assert [b.shape for b in blocks] == [(NV, NV), (NV,), (3, NV), (3,), (2, NV), (2,)]
+    problem.packed[:] = np.arange(problem.packed.size)
+    assert np.concatenate([b.reshape(-1) for b in blocks]).tolist() == \
+        problem.packed.tolist()
+
+
+def test_rows_added_by_the_active_set_are_checked_not_the_stale_packing() -> None:
+    """A packed problem whose left-out range row the step crosses: once the active set stacks
+    that row into a new G, the packed array no longer holds the problem's rows (its one-sum
+    finite check would read the old ones)."""
+    from ikfusion.ik.active_set import LimitRows, solve_with_active_set
+    from ikfusion.ik.limits.joint_range import LinearisedRanges
+
+    H = np.eye(NV)
+    c = -np.ones(NV)  # unconstrained step: dq = 1 in every column
+    ranges = LinearisedRanges(np.eye(NV)[:2], np.array([0.5, 2.0]), np.array([2.0, 2.0]))
+    up, down = np.zeros(2, dtype=bool), np.zeros(2, dtype=bool)
+    floor = Inequality(np.zeros((0, NV)), np.zeros(0))
+    problem = QpBuffer(NV).assemble(H, c, [], [], None, 0.0)
+    rows = LimitRows(ranges, up, down, floor, None)
+    solution = solve_with_active_set(problem, rows, "daqp", SolverSettings.load().qp, 1e-6, 2)
+    assert rows.up.tolist() == [True, False]  # the crossed row was added
+    assert solution.dq[0] == pytest.approx(0.5)
+    assert problem.packed is None or np.shares_memory(problem.G, problem.packed)

@@ -114,12 +114,15 @@ class JointRangeLimit:
             self.wall.update(self._solved, dt)
         self._solved = None
 
-    def softened(self, ranges: LinearisedRanges) -> LinearisedRanges:
+    def softened(self, ranges: LinearisedRanges,
+                 still: np.ndarray | None = None) -> LinearisedRanges:
         """``ranges`` (hard) widened by the soft wall's room past each limit (:meth:`next_frame`).
 
         The angles they were linearised at are kept as where the frame stands until
         :meth:`took_step`. An angle measured on another triple than the previous frame's (the
-        other Euler branch, a wrap) keeps its hard limits.
+        other Euler branch, a wrap) keeps its hard limits. ``still``: the mask of the rows of
+        ``G`` that are all zeros when the caller has it
+        (:meth:`LinearisedRanges.without_still_angles`).
         """
         a = self.upper - ranges.room_up.reshape(self.upper.shape)
         if self.wall.enabled:
@@ -130,7 +133,7 @@ class JointRangeLimit:
             up, down = room
             ranges = LinearisedRanges(ranges.G, ranges.room_up + up.reshape(-1),
                                       ranges.room_down + down.reshape(-1))
-        return ranges.without_still_angles()
+        return ranges.without_still_angles(still)
 
     def took_step(self, dq: np.ndarray) -> None:
         """Take the step ``dq`` (nv,) made from the last linearisation (:meth:`softened`).
@@ -216,13 +219,15 @@ class LinearisedRanges:
     room_up: np.ndarray
     room_down: np.ndarray
 
-    def without_still_angles(self) -> LinearisedRanges:
+    def without_still_angles(self, still: np.ndarray | None = None) -> LinearisedRanges:
         """These ranges with endless room (no rows) for the angles whose rates are all 0.
 
         Those are the first and third angles of a joint at gimbal lock (:func:`finite_rates`),
         which no step could bring back (a row ``0 <= room`` past a limit is infeasible).
+        ``still`` is the mask of those rows when the caller has it (else found here).
         """
-        still = ~np.any(self.G, axis=1)
+        if still is None:
+            still = ~np.any(self.G, axis=1)
         if not any_true(still):
             return self
         return LinearisedRanges(self.G, np.where(still, np.inf, self.room_up),

@@ -73,13 +73,32 @@ class EvenChainTask(Task):
         self.active = np.ones(len(pairs), dtype=bool)
         self.reference = np.zeros((len(pairs), 3))  # each pair's wanted difference [rad]
 
+    @property
+    def active(self) -> np.ndarray:
+        """(pairs,) the pairs in the objective this frame (set whole, not entry by entry)."""
+        return self._active
+
+    @active.setter
+    def active(self, value: np.ndarray) -> None:
+        self._active = value
+        self._row_weights: tuple[float, np.ndarray] | None = None  # (weight, rows) of value
+
     def set_tracked(self, tracked: np.ndarray) -> None:
         """Pairs whose shared segment has an orientation target this frame are left out."""
         self.active = ~np.asarray(tracked, dtype=bool)[self.shared]
 
     def row_weights(self) -> np.ndarray:
-        """Three rows per pair: ``weight`` where the pair is active, 0 elsewhere."""
-        return np.repeat(np.where(self.active, self.weight, 0.0), 3)
+        """Three rows per pair: ``weight`` where the pair is active, 0 elsewhere (read-only).
+
+        Kept until :attr:`active` or :attr:`weight` changes: a step reads them every
+        Gauss-Newton iteration, the tracked segments change rarely.
+        """
+        kept = self._row_weights
+        if kept is None or kept[0] != self.weight:
+            rows = np.repeat(np.where(self._active, self.weight, 0.0), 3)
+            rows.setflags(write=False)
+            self._row_weights = kept = (self.weight, rows)
+        return kept[1]
 
     def _logs(self, q: np.ndarray, pairs: np.ndarray | slice = slice(None)) -> np.ndarray:
         """Rotation vectors (pairs, 2, 3) [rad] of both joints of each (selected) pair."""

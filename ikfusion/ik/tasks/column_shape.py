@@ -88,7 +88,8 @@ class ColumnShapeTask(PositionTask):
     def add_rows(self, p_world: np.ndarray, J_linear: np.ndarray, H: np.ndarray,
                  c: np.ndarray) -> None:
         """Accumulate from the sites' positions (k, 3) [m] and linear Jacobians (k, 3, nv)."""
-        if not len(self._columns) or not self.is_active():
+        # no site target (the usual frame): out before the row weights are worked out
+        if not len(self._columns) or not self.has_targets() or not self.is_active():
             return
         J = np.zeros_like(J_linear)
         cols = self._columns

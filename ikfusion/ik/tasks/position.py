@@ -66,6 +66,10 @@ class PositionTask(Task):
         self._scalar = scalar if np.array_equal(info, scalar[:, None, None] * np.eye(3)) \
             else None
 
+    def has_targets(self) -> bool:
+        """Whether any frame has a target this frame (a non-zero information matrix)."""
+        return any_true(self._active)
+
     def row_weights(self) -> np.ndarray:
         """Diagonal of the information matrices (rows with zero are inactive)."""
         return self.weight * np.einsum("kii->ki", self.information).reshape(-1)
