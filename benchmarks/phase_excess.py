@@ -15,7 +15,7 @@ Each listed phase's excess is then split by cause (:func:`step_causes`): the sol
 motion relative to the true one, frame by frame, goes to what the solver's held points did in
 that step; the excess is shared out in proportion to those path lengths [mm]:
 
-* ``sunk``: the solver held a point the truth has sunk deeper than the truth's floor scatter
+* ``sunk``: the solver held a trunk point the truth has sunk deeper than the floor scatter
   (:data:`ikfusion.app.slide_excess.SUNK_DEPTH`): the floor holds the solved point where the true
   one slides through the floor, a motion no solve on the floor can follow (the steps
   ``foot_slide_excess_on_floor_mm``, the ``floor mm`` column, leaves out);
@@ -51,16 +51,17 @@ def phase_spans(contacts: np.ndarray) -> list[tuple[int, int]]:
                     strict=True))
 
 
-def step_causes(held: np.ndarray, z_true: np.ndarray) -> np.ndarray:
+def step_causes(held: np.ndarray, z_true: np.ndarray, names: Sequence[str]) -> np.ndarray:
     """The cause (index into :data:`CAUSES`) of each step ``k -> k + 1`` (N - 1,).
 
     Args:
         held: (N, k) the points the solver holds in each frame.
         z_true: (N, k) the true points' heights [m] (floor at 0).
+        names: (k,) the points' names (:func:`~ikfusion.app.slide_excess.sunk_steps`).
     """
     now, before = held[1:], held[:-1]
     under = np.any(now & (z_true[1:] < 0.0), axis=1)
-    cause = np.where(sunk_steps(held, z_true), 0, np.where(under, 1, 2))
+    cause = np.where(sunk_steps(held, z_true, names), 0, np.where(under, 1, 2))
     cause = np.where(np.any(now != before, axis=1), 3, cause)
     return np.where(~now.any(axis=1), 4, cause)
 
@@ -104,7 +105,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     solver_names = [n for n in names if n in header and n in site_names]
     held_all = held_table[held_rows][:, [header.index(n) for n in solver_names]] > 0.5
     z_true = truth["p_world_site"][:, [site_names.index(n) for n in solver_names], 2]
-    causes = step_causes(held_all, z_true)
+    causes = step_causes(held_all, z_true, solver_names)
     contacts = np.asarray(truth["contacts"], dtype=bool)
     excess = []
     split = np.zeros(len(CAUSES))

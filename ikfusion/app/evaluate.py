@@ -30,7 +30,7 @@ Metrics (all over the common time span):
   (None when the truth has no contact phase): the skating a solve adds, free of the truth's
   loose phases (a point the solver holds still while the true one rolls counts 0);
   ``foot_slide_excess_on_floor_mm`` the same where the truth is a body on the floor: the steps
-  in which the solver holds a point the truth has sunk more than 2 cm under the floor (a
+  in which the solver holds a trunk point the truth has sunk more than 2 cm under the floor (a
   lying body's back, :mod:`.slide_excess`) are left out, the solved points moving there as the
   true ones do [mm];
 * ``held_slide_mm`` and ``held_slide_max_mm``: the same per contact phase of the *solver*
@@ -345,7 +345,8 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
     held_true = [i for i, n in enumerate(held_names) if n in own]
     excess = excess_slides(P[:, own_cols], P_true, true_contacts[:, own_cols])
     sunk = sunk_steps(held[:, held_true],
-                      P_true[:, [own.index(held_names[i]) for i in held_true], 2])
+                      P_true[:, [own.index(held_names[i]) for i in held_true], 2],
+                      [held_names[i] for i in held_true])
     excess_on_floor = excess_slides(P[:, own_cols], P_true, true_contacts[:, own_cols], sunk)
     held_truth_slides = phase_slides(P_true[:, [own.index(held_names[i]) for i in held_true]],
                                      held[:, held_true])

@@ -10,6 +10,7 @@ import pytest
 from ikfusion.app.slide_excess import SUNK_DEPTH, excess_slides, sunk_steps
 
 N = 31
+NAMES = ["LeftShoulderBlade", "LeftHeel"]
 STEP = 0.001  # [m] the true back point's slide per frame, along x
 
 
@@ -35,7 +36,7 @@ def _scene(depth: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nd
 
 def test_a_back_sunk_under_the_floor_adds_no_slide_on_the_floor() -> None:
     P_est, P_true, contacts, held = _scene(np.full(N, 0.05))
-    sunk = sunk_steps(held, P_true[:, :, 2])
+    sunk = sunk_steps(held, P_true[:, :, 2], NAMES)
     assert sunk.all()
     # back point: held still while the truth's slides (0); heel: 30 mm behind the still truth
     np.testing.assert_allclose(excess_slides(P_est, P_true, contacts), [0.0, 0.030], atol=1e-12)
@@ -47,19 +48,29 @@ def test_only_the_sunk_steps_are_left_out() -> None:
     """Strict: a point within the truth's floor scatter (1 cm deep) is on the floor, every step
     counts; a back that comes up out of the floor halfway counts from then on."""
     P_est, P_true, contacts, held = _scene(np.full(N, 0.01))
-    sunk = sunk_steps(held, P_true[:, :, 2])
+    sunk = sunk_steps(held, P_true[:, :, 2], NAMES)
     assert not sunk.any()
     np.testing.assert_allclose(excess_slides(P_est, P_true, contacts, sunk), [0.0, 0.030],
                                atol=1e-12)
     depth = np.where(np.arange(N) <= 10, 0.05, 0.0)
     P_est, P_true, contacts, held = _scene(depth)
-    sunk = sunk_steps(held, P_true[:, :, 2])
+    sunk = sunk_steps(held, P_true[:, :, 2], NAMES)
     assert sunk.tolist() == [True] * 10 + [False] * 20
     np.testing.assert_allclose(excess_slides(P_est, P_true, contacts, sunk), [0.0, 0.020],
                                atol=1e-12)
     # a sunk point the solver does not hold moves nothing
     held[:] = False
-    assert not sunk_steps(held, P_true[:, :, 2]).any()
+    assert not sunk_steps(held, P_true[:, :, 2], NAMES).any()
+
+
+def test_limb_points_are_on_the_floor_however_deep() -> None:
+    """The truth lifts its limb points onto the floor within its fit's scatter (a toe of
+    amp-walk 2.5 cm deep): a held toe under the floor is the truth's floor, every step counts."""
+    P_est, P_true, contacts, held = _scene(np.full(N, 0.05))
+    sunk = sunk_steps(held, P_true[:, :, 2], ["LeftToe", "LeftHeel"])
+    assert not sunk.any()
+    np.testing.assert_allclose(excess_slides(P_est, P_true, contacts, sunk), [0.0, 0.030],
+                               atol=1e-12)
 
 
 def test_excess_per_phase_is_the_solved_slide_beyond_the_true_one() -> None:
