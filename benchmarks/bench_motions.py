@@ -32,7 +32,10 @@ percentage of the distance travelled (``evaluate``'s ``drift_percent``; '-' belo
 ``step deg``: the largest turn of a joint of the solve in one frame, the solve alone
 (``joint_angle_step_max_deg``, toes left out) [deg]; ``beyond mm``: per contact phase of the
 truth, how much further the solved point slid than the true one, mean (``foot_slide_excess_mm``:
-the skating the solve adds, free of the truth's loose phases) [mm].
+the skating the solve adds, free of the truth's loose phases) [mm]; ``floor mm``: the same where
+the truth is a body on the floor (``foot_slide_excess_on_floor_mm``: the steps in which the solver
+holds a trunk point the truth has sunk more than 2 cm under the floor are left out, the solved
+points moving there as the true ones do; ``ikfusion.app.slide_excess``) [mm].
 The last row holds the worst of each column over the rows of the chosen ``--noise`` (reference
 rows left out).
 
@@ -65,7 +68,14 @@ when a criterion fails. With the default sensor errors (``--noise none`` is refu
    flips to another solution (twists the other way round, bends backwards) turns by 90 deg or
    more at once. The solve alone is measured, so a flip counts whatever the truth does.
 9. Perfect sensors, no UWB: planted points slide at most 5 mm on every clip with stance:
-   ``beyond mm`` of the reference rows (clips whose truth has no contact phase are not judged).
+   ``floor mm`` of the reference rows (clips whose truth has no contact phase are not judged).
+   A truth read from motion capture onto our body may sink the points of a lying body's back
+   centimetres under the floor (dm-getup-faceup: a shoulder blade 7 cm deep, sliding 5 cm
+   there); a solve holds such a point on the floor, and the whole solved body falls behind the
+   true one by the sunk point's motion, which no solve on a floor can follow. ``floor mm``
+   leaves those steps out, and only those (trunk points only: the truth lifts its limb points
+   onto the floor, within its fit's scatter); ``beyond mm`` counts them. On the library's
+   perfect rows (first 12 s) the two differ on dm-getup-faceup alone.
    Not ``held`` (the solver holds its points by construction: 0.0 mm everywhere), nor ``held
    tru`` or ``slide``, which measure the truth's loose phases (a point below 3 cm moving at up
    to 0.3 m/s counts as planted; the truths' points slide up to 22 mm there) as much as the
@@ -222,6 +232,7 @@ class Row:
     step_deg: float = 0.0
     beyond_mm: float | None = None
     jump_vs_ref_deg: float | None = None
+    beyond_floor_mm: float | None = None
 
     def text(self) -> str:
         """The row as printed."""
@@ -230,7 +241,8 @@ class Row:
                 f"{self.held_max_mm:8.1f} {self.held_truth_mm:8.1f} {self.agree_pct:7.1f} "
                 f"{self.angle_rms_deg:8.2f} {self.jump_deg:8.2f} {self.fps:7.0f} "
                 f"{_cell(self.drift_pct, 7, 2)} {_cell(self.jump_vs_ref_deg, 8, 2)} "
-                f"{self.step_deg:8.2f} {_cell(self.beyond_mm, 9, 1)}")
+                f"{self.step_deg:8.2f} {_cell(self.beyond_mm, 9, 1)} "
+                f"{_cell(self.beyond_floor_mm, 8, 1)}")
 
 
 def _cell(value: float | None, width: int, decimals: int) -> str:
@@ -241,7 +253,7 @@ def _cell(value: float | None, width: int, decimals: int) -> str:
 HEADER = (f"{'clip':<24s} {'mode':<16s} {'head cm':>8s} {'slide mm':>8s} {'max mm':>8s} "
           f"{'truth mm':>8s} {'held mm':>8s} {'held max':>8s} {'held tru':>8s} "
           f"{'agree %':>7s} {'ang deg':>8s} {'jump deg':>8s} {'frame/s':>7s} {'drift %':>7s} "
-          f"{'jump-ref':>8s} {'step deg':>8s} {'beyond mm':>9s}")
+          f"{'jump-ref':>8s} {'step deg':>8s} {'beyond mm':>9s} {'floor mm':>8s}")
 
 
 def run_clip(clip: Clip, root: Path, modes: Sequence[str], seconds: float | None, seed: int,
@@ -260,7 +272,8 @@ def run_clip(clip: Clip, root: Path, modes: Sequence[str], seconds: float | None
                         ev.joint_angle_jump_max_deg, ev.frames / wall, ev.drift_percent,
                         ev.joint_angle_step_max_deg, ev.foot_slide_excess_mm,
                         None if ref_jump_deg is None
-                        else ev.joint_angle_jump_max_deg - ref_jump_deg))
+                        else ev.joint_angle_jump_max_deg - ref_jump_deg,
+                        ev.foot_slide_excess_on_floor_mm))
     return rows
 
 
@@ -284,6 +297,8 @@ def worst(rows: Sequence[Row]) -> Row:
                max(r.step_deg for r in rows),
                max((r.beyond_mm for r in rows if r.beyond_mm is not None), default=None),
                max((r.jump_vs_ref_deg for r in rows if r.jump_vs_ref_deg is not None),
+                   default=None),
+               max((r.beyond_floor_mm for r in rows if r.beyond_floor_mm is not None),
                    default=None))
 
 
@@ -353,7 +368,8 @@ def acceptance(rows: Sequence[Row], references: Mapping[str, Row],
               if r.mode == "imu-only" and r.clip in walking and r.drift_pct is not None]
     jumps = [(r, r.jump_deg - references[r.clip].jump_deg) for r in rows if r.clip in references]
     steps = [(r, r.step_deg) for r in [*rows, *references.values()]]
-    beyond = [(r, r.beyond_mm) for r in references.values() if r.beyond_mm is not None]
+    beyond = [(r, r.beyond_floor_mm) for r in references.values()
+              if r.beyond_floor_mm is not None]
     return [
         judge("IMU only: drift of walking clips", 1.0, "%", drifts),
         judge("IMU only: head RMS", 50.0, "cm", of("imu-only", "head_cm")),
@@ -364,7 +380,7 @@ def acceptance(rows: Sequence[Row], references: Mapping[str, Row],
         judge("no-slide-causal: head RMS", 8.0, "cm", of("no-slide-causal", "head_cm")),
         judge("no pops: jump - perfect IMU-only jump", 1.0, "deg", jumps),
         judge("no flips: joint turn in one frame (step)", FLIP_DEG, "deg", steps),
-        judge("perfect, no UWB: slide beyond the truth's", 5.0, "mm", beyond),
+        judge("perfect, no UWB: slide beyond the truth's (floor)", 5.0, "mm", beyond),
     ]
 
 

@@ -29,6 +29,10 @@ Metrics (all over the common time span):
   slid than the true one did (``max(0, slide_estimated - slide_true)``), mean over phases [mm]
   (None when the truth has no contact phase): the skating a solve adds, free of the truth's
   loose phases (a point the solver holds still while the true one rolls counts 0);
+  ``foot_slide_excess_on_floor_mm`` the same where the truth is a body on the floor: the steps
+  in which the solver holds a trunk point the truth has sunk more than 2 cm under the floor (a
+  lying body's back, :mod:`.slide_excess`) are left out, the solved points moving there as the
+  true ones do [mm];
 * ``held_slide_mm`` and ``held_slide_max_mm``: the same per contact phase of the *solver*
   (``contacts.csv``): how far a point the solver holds planted moves, mean and maximum [mm];
   ``held_truth_slide_mm`` the same of the *true* point over those phases, mean [mm]: a point the
@@ -70,6 +74,7 @@ from ..model.angle_continuity import (
 )
 from ..model.joints import load_joint_specs
 from ..rotations import angle_between, continuous_quaternions, quat_wxyz_to_matrix
+from .slide_excess import excess_slides, sunk_steps
 
 
 @dataclass
@@ -96,6 +101,7 @@ class Evaluation:
     truth_slide_mm: float = 0.0
     held_truth_slide_mm: float = 0.0
     foot_slide_excess_mm: float | None = None
+    foot_slide_excess_on_floor_mm: float | None = None
     joint_angle_step_max_deg: float = 0.0
 
     def as_dict(self) -> dict[str, object]:
@@ -335,11 +341,13 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
     P_true = truth["p_world_site"][span][:, [true_sites.index(n) for n in own]]
     own_cols = [contact_names.index(n) for n in own]
     own_slides = phase_slides(P_true, true_contacts[:, own_cols])
-    excess = [max(0.0, est - tru) for est, tru in
-              zip(phase_slides(P[:, own_cols], true_contacts[:, own_cols]), own_slides,
-                  strict=True)]
     held_names, held = _solver_contacts(folder / "contacts.csv", t, contact_names)
     held_true = [i for i, n in enumerate(held_names) if n in own]
+    excess = excess_slides(P[:, own_cols], P_true, true_contacts[:, own_cols])
+    sunk = sunk_steps(held[:, held_true],
+                      P_true[:, [own.index(held_names[i]) for i in held_true], 2],
+                      [held_names[i] for i in held_true])
+    excess_on_floor = excess_slides(P[:, own_cols], P_true, true_contacts[:, own_cols], sunk)
     held_truth_slides = phase_slides(P_true[:, [own.index(held_names[i]) for i in held_true]],
                                      held[:, held_true])
     held_cols = [contact_names.index(n) for n in held_names]
@@ -376,5 +384,7 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
         held_truth_slide_mm=(1e3 * float(np.mean(held_truth_slides)) if held_truth_slides
                              else 0.0),
         foot_slide_excess_mm=1e3 * float(np.mean(excess)) if excess else None,
+        foot_slide_excess_on_floor_mm=(1e3 * float(np.mean(excess_on_floor))
+                                       if excess_on_floor else None),
         joint_angle_step_max_deg=step,
     )

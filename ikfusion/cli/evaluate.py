@@ -59,7 +59,10 @@ def run(args: argparse.Namespace) -> int:
          f"{result.foot_slide_mm:.1f} / {result.foot_slide_max_mm:.1f} mm (the truth's own "
          f"{result.truth_slide_mm:.1f} mean; beyond the truth's "
          + ("-" if result.foot_slide_excess_mm is None
-            else f"{result.foot_slide_excess_mm:.1f}") + " mean)"),
+            else f"{result.foot_slide_excess_mm:.1f}") + " mean, "
+         + ("-" if result.foot_slide_excess_on_floor_mm is None
+            else f"{result.foot_slide_excess_on_floor_mm:.1f}")
+         + " where the truth lies on the floor)"),
         ("slide of held contacts (mean / max)",
          f"{result.held_slide_mm:.1f} / {result.held_slide_max_mm:.1f} mm (the true points "
          f"{result.held_truth_slide_mm:.1f} mean)"),

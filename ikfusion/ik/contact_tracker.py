@@ -186,7 +186,8 @@ class ContactTracker:
                                       layout=self.layout,
                                       points_moving=self.carrier.relative_motion(self.state,
                                                                                  moving),
-                                      needs_rest=self._needs_rest, v_sensed=self._v_sensed)
+                                      needs_rest=self._needs_rest, v_sensed=self._v_sensed,
+                                      step_sensed=self._p_sensed - previous)
         # a planted heel whose foot already rolls toe-down may rise (it still cannot slip),
         # unless its IMU says the foot stands still
         rising = self.layout.on_foot & (pitch > math.radians(self.settings.heel_rise_deg))

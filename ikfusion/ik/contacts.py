@@ -19,7 +19,7 @@ stricter rule, as their segments are also calm when the body stands still: they 
 among the lowest points and never while their segment's IMU says it moves (a body rolling on its
 back: :mod:`.trunk_roll`). When every planted point lets go, the lowest point of the sensed pose
 takes the body (a palm in a cartwheel), not a foot swung overhead nor one sweeping over the floor
-(:mod:`.sweeping`); it is held horizontally where it was solved, so nothing jumps.
+(:mod:`.sweeping`).
 """
 
 from __future__ import annotations
@@ -32,8 +32,9 @@ import numpy as np
 
 from ..model.topology import FootLayout
 from .anchor_settling import settled_heights
-from .fast_math import any_true, mean_rows, min_of, row_norms, true_indices
+from .fast_math import any_true, min_of, row_norms, true_indices
 from .foot_pairs import drift_from_other_foot, landing_anchors, other_foot
+from .handover import sensed_offset, takeover_anchors
 from .point_evidence import (
     all_planted_moving,
     hinted_points,
@@ -110,7 +111,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
                      p_solved: np.ndarray | None = None, placed: np.ndarray | None = None, *,
                      layout: FootLayout, points_moving: np.ndarray | None = None,
                      needs_rest: np.ndarray | None = None,
-                     v_sensed: np.ndarray | None = None) -> ContactState:
+                     v_sensed: np.ndarray | None = None,
+                     step_sensed: np.ndarray | None = None) -> ContactState:
     """Let go of planted points the current frame's sensed pose lifts (run before solving).
 
     With ``foot_still``, also plant the points of still feet and hand the body over to them.
@@ -145,6 +147,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
             only among the lowest points (``enter_relative``), not within ``still_relative``
             as a foot, knee or palm (None: no such point).
         v_sensed: (k, 3) the points' sensed-pose velocities [m/s] (:mod:`.sweeping`).
+        step_sensed: (k, 3) the points' sensed-pose motion since ``p_solved``'s frame [m]
+            (a point taking the body over: :mod:`.handover`).
 
     Returns:
         A new state: the same anchors for the points that stay, fewer active points, and
@@ -177,7 +181,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     # still one (its anchor is out of date); a still foot ignores the sensed height and pitch.
     pulled = pulled_points(drift > th.leave_distance, state.age >= other_age, staying,
                            needs_rest, layout)
-    # a resting knee or palm (calm accelerometer) is weaker than a still foot: sensed pose lifts it
+    # a resting knee or palm (calm accelerometer) is weaker evidence than a still foot: the
+    # sensed pose may still lift it
     lifted = ((height_rel > th.leave_relative) | tilted) & ~(still & layout.stepping)
     leave = staying & (lifted | pulled)
     if handed_over is not None:
@@ -208,9 +213,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     anchors, age = state.anchors.copy(), state.age.copy()
     if any_true(plant):
         if handover:
-            # the sensed pose's height (aligned on the points letting go), the solved place
-            anchors[plant] = p_sensed[plant] + _sensed_offset(p_sensed, anchors, active)
-            anchors[plant, :2] = anchors[plant, :2] if p_solved is None else p_solved[plant, :2]
+            anchors[plant] = takeover_anchors(p_sensed, anchors, active, plant, p_solved,
+                                              step_sensed)
         elif p_solved is not None:
             anchors[plant] = landing_anchors(layout, active & ~leave, anchors, p_solved, plant)
         else:
@@ -220,7 +224,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
                 # the point's own foot, when planted, keeps that foot's anchors in shape
                 own = reference & same[j]
                 ref = own if any_true(own) else reference & ~same[j]
-                anchors[j] = p_sensed[j] + _sensed_offset(p_sensed, anchors, ref)
+                anchors[j] = p_sensed[j] + sensed_offset(p_sensed, anchors, ref)
         anchors[plant, 2] = np.maximum(anchors[plant, 2], th.floor_z)
         age[plant] = 0.0
     released = state.released.copy()
@@ -236,17 +240,6 @@ def _plant_height(th: ContactThresholds, needs_rest: np.ndarray | None) -> np.nd
     if needs_rest is None:
         return th.still_relative
     return np.where(np.asarray(needs_rest, dtype=bool), th.enter_relative, th.still_relative)
-
-
-def _sensed_offset(p_sensed: np.ndarray, anchors: np.ndarray, reference: np.ndarray
-                   ) -> np.ndarray:
-    """The shift (3,) [m] putting the sensed pose onto the ``reference`` anchors on average.
-
-    Zero without a reference point.
-    """
-    if not any_true(reference):
-        return np.zeros(3)
-    return mean_rows(anchors[reference] - p_sensed[reference])
 
 
 def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.ndarray,

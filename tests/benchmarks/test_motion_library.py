@@ -130,7 +130,8 @@ def _row(clip: str, mode: str, **figures):
     """A row within every limit unless ``figures`` says otherwise."""
     values = dict(head_cm=1.0, slide_mm=10.0, slide_max_mm=30.0, truth_mm=8.0, held_mm=0.0,
                   held_max_mm=0.0, held_truth_mm=5.0, agree_pct=90.0, angle_rms_deg=2.0,
-                  jump_deg=2.0, fps=300.0, drift_pct=0.5, step_deg=10.0, beyond_mm=1.0)
+                  jump_deg=2.0, fps=300.0, drift_pct=0.5, step_deg=10.0, beyond_mm=1.0,
+                  beyond_floor_mm=1.0)
     values.update(figures)
     return _bench().Row(clip, mode, **values)
 
@@ -152,7 +153,7 @@ def test_acceptance_passes_every_criterion_at_its_limit() -> None:
                        "jumps no-slide": dict(head_cm=5.0, held_max_mm=1.0),
                        "jumps slide": dict(head_cm=4.0, jump_deg=3.0),
                        "walk no-slide-causal": dict(head_cm=8.0, step_deg=60.0),
-                       "jumps imu-only perfect": dict(beyond_mm=5.0)})
+                       "jumps imu-only perfect": dict(beyond_floor_mm=5.0)})
     assert [v.status for v in verdicts] == ["PASS"] * 9
     assert [v.judged for v in verdicts] == [1, 2, 2, 2, 2, 2, 8, 10, 2]
     assert verdicts[POPS].value == pytest.approx(1.0) and verdicts[POPS].worst == "jumps slide"
@@ -170,7 +171,7 @@ def test_acceptance_passes_every_criterion_at_its_limit() -> None:
     (POPS, "jumps imu-only", dict(jump_deg=3.1), 1.1),  # sensor errors may not pop either
     (FLIPS, "walk no-slide-causal", dict(step_deg=61.0), 61.0),
     (FLIPS, "jumps imu-only perfect", dict(step_deg=61.0), 61.0),  # the reference flips
-    (PERFECT_SLIDE, "walk imu-only perfect", dict(beyond_mm=5.1), 5.1),
+    (PERFECT_SLIDE, "walk imu-only perfect", dict(beyond_floor_mm=5.1), 5.1),
 ])
 def test_each_criterion_fails_on_its_own_figure_alone(index: int, where: str, figures: dict,
                                                       value: float) -> None:
@@ -187,7 +188,9 @@ def test_what_a_criterion_does_not_judge() -> None:
         "walk slide": dict(held_max_mm=30.0),  # slide mode moves its held points on purpose
         "walk imu-only": dict(head_cm=30.0),  # within IMU only's 50 cm
         "jumps no-slide": dict(jump_deg=0.5),  # smoother than the reference: no pop
-        "walk imu-only perfect": dict(beyond_mm=None),  # no stance in the truth
+        "walk imu-only perfect": dict(beyond_mm=None, beyond_floor_mm=None),  # no stance
+        # a truth whose back sinks into the floor: its steps are judged as the truth moves
+        "jumps imu-only perfect": dict(beyond_mm=7.0, beyond_floor_mm=4.0),
     })
     assert all(v.status == "PASS" for v in verdicts)
     assert verdicts[PERFECT_SLIDE].judged == 1
@@ -215,11 +218,11 @@ def test_acceptance_run_prints_the_reference_and_the_verdicts(capsys) -> None:
     header = out.index(bench.HEADER)
     reference, imu_only = out[header + 1].split(), out[header + 2].split()
     assert reference[:3] == ["amp-run", "imu-only", "perfect"]
-    assert imu_only[:2] == ["amp-run", "imu-only"] and len(imu_only) == 2 + 15
-    # the 15 figures end a row; jump deg is the 10th, jump-ref the 13th ('-' for the reference)
-    assert reference[-15:][12] == "-"
-    jump, reference_jump = float(imu_only[-15:][9]), float(reference[-15:][9])
-    assert float(imu_only[-15:][12]) == pytest.approx(jump - reference_jump, abs=0.011)
+    assert imu_only[:2] == ["amp-run", "imu-only"] and len(imu_only) == 2 + 16
+    # the 16 figures end a row; jump deg is the 10th, jump-ref the 13th ('-' for the reference)
+    assert reference[-16:][12] == "-"
+    jump, reference_jump = float(imu_only[-16:][9]), float(reference[-16:][9])
+    assert float(imu_only[-16:][12]) == pytest.approx(jump - reference_jump, abs=0.011)
     verdicts = out[out.index(bench.VERDICT_HEADER) + 1:]
     assert len(verdicts) == 9
     statuses = [line.split()[-1] for line in verdicts]

@@ -252,6 +252,8 @@ def test_slide_beyond_the_truths_is_the_skating_a_solve_adds(walk, tmp_path: Pat
     e = evaluate(result_of(walk, drifting, tmp_path / "sliding"), truth_file)
     assert e.truth_slide_mm < 0.1 and e.foot_slide_mm > 10.0
     assert e.foot_slide_excess_mm == pytest.approx(e.foot_slide_mm, abs=0.1)
+    # the walk's points lie on the floor: the excess on the floor is the same
+    assert e.foot_slide_excess_on_floor_mm == pytest.approx(e.foot_slide_excess_mm)
 
 
 def test_a_flip_is_the_largest_turn_of_a_joint_in_one_frame(walk, tmp_path: Path) -> None:

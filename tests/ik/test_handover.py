@@ -108,3 +108,33 @@ def test_a_toe_lands_while_the_toe_holding_the_body_lifts() -> None:
                          layout=LAYOUT, points_moving=moving)
         assert bool(out.active[3]) is planted
         assert out.active[1]
+
+
+def _take_over(p_solved: np.ndarray, step_sensed: np.ndarray | None) -> np.ndarray:
+    """The right heel's anchor when the left foot, lifted 8 cm in the sensed pose, lets go."""
+    sensed = P.copy()
+    sensed[:2, 2] = 0.08
+    state = ContactState(NAMES, np.array([True, True, False, False]), P.copy(), np.full(4, 1.0))
+    state.released[:] = 1.0
+    out = release_contacts(state, sensed, TH, foot_pitch=np.zeros(4), p_solved=p_solved,
+                           layout=LAYOUT, step_sensed=step_sensed)
+    assert out.active.tolist() == [False, False, True, False]
+    return out.anchors[2]
+
+
+def test_the_point_taking_the_body_over_is_anchored_where_the_solve_has_it() -> None:
+    """The solved pose is bent 2 cm away from the sensed one (the floor held a point the sensed
+    pose puts under it): the point taking the body over is anchored where it was solved, moved
+    on by its sensed motion relative to the points that held, not where the sensed geometry
+    puts it relative to them (issue #19: dm-getup-faceup, the hold passing from a buttock to a
+    palm moved the whole body 22 mm in one frame)."""
+    bent = P.copy()
+    bent[2] += [0.02, -0.01, 0.003]  # where the last solve had the right heel
+    step = np.zeros((4, 3))
+    step[:, 0] = 0.004  # the whole sensed pose moved 4 mm: nothing relative to the support
+    step[2, 1] = 0.003  # the right heel 3 mm to the left of it
+    anchor = _take_over(bent, step)
+    np.testing.assert_allclose(anchor[:2], bent[2, :2] + [0.0, 0.003], atol=1e-12)
+    assert anchor[2] == 0.0  # the height from the sensed pose, on the floor
+    # without the sensed step (callers that do not give it): where the last solve had it
+    np.testing.assert_allclose(_take_over(bent, None)[:2], bent[2, :2], atol=1e-12)
