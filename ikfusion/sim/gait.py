@@ -7,7 +7,8 @@ itself, so the ground truth is a kinematically exact motion of the model:
   smoothly after a standing N-pose;
 * footprints: each foot lands where the pelvis will be 22 % of a gait cycle later, beside the
   path; each stance rolls over the heel (heel rocker), stays flat, then rolls over the ball of
-  the foot with the toes flat (heel-off); each swing follows a smooth arc with clearance;
+  the foot with the toes flat (heel-off; with ``toe_roll_deg`` the toe rolls over its tip as
+  well, the ball rising as in brisk mocap walks); each swing follows a smooth arc with clearance;
 * pelvis bobbing, sway and rotation, thorax counter-rotation, arm swing, elbow flexion;
 * contact phases (heel and toe separately) are given to the solver as hints, so planted points
   are held exactly (hard no-slip constraints) and the truth never slides;
@@ -56,6 +57,9 @@ class GaitParameters:
         clearance: Peak foot lift in swing [m].
         heel_strike_deg: Foot pitch (toes up) at heel strike [deg].
         toe_off_deg: Foot pitch (heel up) at toe-off [deg].
+        toe_roll_deg: Toe pitch (ball up) at toe-off [deg]: 0 keeps the toes flat on the floor
+            while the foot rolls over the ball; more rolls the toe over its tip as the heel
+            rises (the ball lifts, as in brisk mocap walks) and the toe lifts off pitched.
         arm_swing_deg: Shoulder flexion amplitude [deg].
         start_heading_deg: Initial walking direction [deg] (0 = +X).
         facing_deg: Body heading relative to the walking direction [deg]: 0 forward, 180
@@ -82,6 +86,9 @@ class GaitParameters:
     clearance: float = 0.04
     heel_strike_deg: float = 15.0
     toe_off_deg: float = 30.0
+    toe_roll_deg: float = 0.0
+    heel_off: float = 0.75
+    stance: float = 0.6
     arm_swing_deg: float = 18.0
     start_heading_deg: float = 0.0
     facing_deg: float = 0.0
@@ -306,7 +313,7 @@ class GaitPlanner:
         if k < 0:
             s = 0.0
         else:
-            land = (0.4 if side == "Right" else 0.9) * T + k * T
+            land = (1.0 - self.p.stance + (0.0 if side == "Right" else 0.5)) * T + k * T
             s = self.distance(self.p.stand + land + 0.22 * T)
         return self.beside_path(side, s)
 
@@ -328,13 +335,14 @@ class GaitPlanner:
         tau = self._tau(t)
         off = 0.0 if side == "Right" else 0.5 * T
         rel = tau - off  # toe-off of swing k happens at rel = k T
+        st, sw = self.p.stance * T, (1.0 - self.p.stance) * T
         if rel < 0.0:
-            return "stance", -1, 1.0 + rel / (0.6 * T) if rel > -0.6 * T else 0.0
+            return "stance", -1, 1.0 + rel / st if rel > -st else 0.0
         k = int(np.floor(rel / T))
         within = rel - k * T
-        if within < 0.4 * T:
-            return "swing", k, within / (0.4 * T)
-        return "stance", k, (within - 0.4 * T) / (0.6 * T)
+        if within < sw:
+            return "swing", k, within / sw
+        return "stance", k, (within - sw) / st
 
     # ---------------------------------------------------------------- foot poses
     def _pose_about(self, pivot_local: np.ndarray, p_ankle_flat: np.ndarray, yaw: float,
@@ -350,22 +358,24 @@ class GaitPlanner:
         phase, k, f = self._phase(side, t)
         hs = -np.radians(self.p.heel_strike_deg)
         to = np.radians(self.p.toe_off_deg)
+        roll = np.radians(self.p.toe_roll_deg)
         if phase == "stance":
             p_flat, yaw = self.footprint(side, k)
             R_toe = axis_rotation("z", yaw)
-            standing_start = k < 0 and self._tau(t) < -0.6 * self.p.cycle
+            standing_start = k < 0 and self._tau(t) < -self.p.stance * self.p.cycle
             if f < 1.0 / 6.0 and k >= 0:  # heel rocker
                 pitch = hs * (1.0 - _smoothstep(6.0 * f))
                 R, pa = self._pose_about(self.heel_local, p_flat, yaw, float(pitch))
                 return R, pa, R, True, False  # the toes touch down when the foot is flat
-            if f < 0.75 or standing_start:
+            h = self.p.heel_off
+            if f < h or standing_start:
                 return R_toe, p_flat, R_toe, True, True
-            pitch = to * _smoothstep((f - 0.75) / 0.25)  # heel-off about the ball
-            R, pa = self._pose_about(self.ball_local, p_flat, yaw, float(pitch))
-            return R, pa, R_toe, pitch < np.radians(2.0), True
+            g = float(_smoothstep((f - h) / (1.0 - h)))  # heel-off about the ball (and tip)
+            R, pa, R_toe = self._push_off_pose(p_flat, yaw, to * g, roll * g)
+            return R, pa, R_toe, to * g < np.radians(2.0), True
         start, yaw0 = self.footprint(side, k - 1)
         end, yaw1 = self.footprint(side, k)
-        R0, p0 = self._pose_about(self.ball_local, start, yaw0, to)
+        R0, p0, _ = self._push_off_pose(start, yaw0, to, roll)
         R1, p1 = self._pose_about(self.heel_local, end, yaw1, hs)
         w = float(_smoothstep(f))
         p = (1.0 - w) * p0 + w * p1
@@ -374,8 +384,22 @@ class GaitPlanner:
         pitch = (1.0 - w) * to + w * hs
         R = axis_rotation("z", yaw) @ axis_rotation("y", pitch)
         toe_relax = float(_smoothstep(f / 0.5))
-        R_toe = R @ axis_rotation("y", -(1.0 - toe_relax) * to)
+        R_toe = R @ axis_rotation("y", -(1.0 - toe_relax) * (to - roll))
         return R, p, R_toe, False, False
+
+    def _push_off_pose(self, p_ankle_flat: np.ndarray, yaw: float, pitch: float,
+                       toe_pitch: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(R_world_foot, p_world_ankle, R_world_toe)`` of a foot on its toe tip.
+
+        The toe turned by ``toe_pitch`` [rad] (ball up) about its tip, which stays where the
+        flat foot puts it; the foot pitched by ``pitch`` [rad] (heel up) about the ball.
+        """
+        R_yaw = axis_rotation("z", yaw)
+        tip = p_ankle_flat + R_yaw @ (self.ball_local + self.toe_in_toe)
+        R_toe = R_yaw @ axis_rotation("y", toe_pitch)
+        ball = tip - R_toe @ self.toe_in_toe
+        R = R_yaw @ axis_rotation("y", pitch)
+        return R, ball - R @ self.ball_local, R_toe
 
     def contact_points(self, R_foot: np.ndarray, p_ankle: np.ndarray,
                        R_toe: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -398,7 +422,7 @@ class GaitPlanner:
         T = self.p.cycle
         tau = self._tau(t)
         walking = float(_smoothstep(tau / self.ramp)) if tau > 0 else 0.0
-        phase = 2.0 * np.pi * (tau - 0.4 * T) / T  # 0 at right heel strike
+        phase = 2.0 * np.pi * (tau - (1.0 - self.p.stance) * T) / T  # 0 at right heel strike
         s = self.distance(t)
         c, heading = self.path.at(s)
         arm = self.p.arm_swing_deg * walking
