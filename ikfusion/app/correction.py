@@ -23,7 +23,11 @@ A heading drift of the sensors (a magnetically disturbed area) makes the body wa
 way, which position corrections alone chase for ever. So the direction the tags travelled over
 the last ``heading_window`` seconds is compared with the direction the solved tag sites
 travelled; when both moved far enough, their angle is the heading error, and the solver's
-orientation targets are turned toward it at a bounded rate (``slide`` and ``no-slide``).
+orientation targets are turned toward it at a bounded rate (``slide`` and ``no-slide``). Fixes
+whose covariance leaves the travel's direction uncertain are not compared (a causal filter
+converging back after an outage reports its convergence as travel); back from an outage, half
+a window of clean travel is compared rather than waiting for a whole one, since the body walks
+the wrong way until its heading is turned back.
 
 The first fix places the body in the tag frame at once (there is nothing to slide yet); in
 ``no-slide``, until the body's first step (the same feet planted) it keeps following the fixes,
@@ -98,6 +102,9 @@ class CorrectionSettings(ShippedSettings):
         heading_length_ratio: Travels whose lengths differ by more than this factor are not
             compared (the fixes jumped or the body slid: no heading information).
         heading_time_constant: The turn closes the error with this lag [s].
+        heading_sigma_deg: A travel whose direction the fixes' covariances at the window's
+            ends leave more uncertain than this is not compared [deg] (a filter converging
+            back after an outage reports its convergence as travel, with its covariance).
         tag_speed: The tag tasks move a site at most this fast [m/s].
         tag_weight: ... with the fixes' information scaled by this.
         tag_sigma: ... with this uncertainty [m] added to the fixes' ...
@@ -125,6 +132,7 @@ class CorrectionSettings(ShippedSettings):
     heading_rate_deg: float
     heading_length_ratio: float
     heading_time_constant: float
+    heading_sigma_deg: float
     tag_speed: float
     tag_weight: float
     tag_sigma: float
@@ -457,17 +465,42 @@ class DriftCorrection:
     def heading_error(self, k: int, dt: float) -> float | None:
         """Angle from the solved sites' inertial travel to the tags' travel over the window [rad].
 
+        The angle of :meth:`heading_estimate`, None when there is none.
+        """
+        estimate = self.heading_estimate(k, dt)
+        return None if estimate is None else estimate[0]
+
+    def heading_estimate(self, k: int, dt: float) -> tuple[float, int] | None:
+        """Heading error up to frame ``k`` [rad] and the frame its travel starts at.
+
         The median over the sites whose fix and solved position both moved at least
-        ``heading_travel`` by lengths within ``heading_length_ratio`` of each other, and whose
-        fix did not step faster than ``release_jump_speed`` within the window (the positioning
-        jumped: a jump across the travel turns it with hardly a change of length), the head's
-        (body sites') only when it has one (swing feet are led by the no-slide correction);
-        None when none did (standing, turning on the spot, a jump of the fixes, no fixes).
+        ``heading_travel`` by lengths within ``heading_length_ratio`` of each other, whose
+        fixes' covariances leave the travel's direction certain within ``heading_sigma_deg``
+        (a causal filter converging back after an outage reports its convergence as travel,
+        with a covariance as large), and whose fix did not step faster than
+        ``release_jump_speed`` within the window (the positioning jumped: a jump across the
+        travel turns it with hardly a change of length), the head's (body sites') only when it
+        has one (swing feet are led by the no-slide correction); None when none did (standing,
+        turning on the spot, a jump of the fixes, no fixes). The travel is taken over the last
+        ``heading_window`` seconds, or, when no site qualifies there, over its second half: the
+        fixes are back from an outage since less than a window, and the body walks the wrong
+        way until its heading is turned back.
         """
         s = self.settings
-        back = k - int(round(s.heading_window / dt)) if dt > 0 else -1
-        if back < 0:
+        if dt <= 0:
             return None
+        for window in (s.heading_window, 0.5 * s.heading_window):
+            back = k - int(round(window / dt))
+            if back < 0:
+                return None
+            angle = self._travel_angle(k, back, dt)
+            if angle is not None:
+                return angle, back
+        return None
+
+    def _travel_angle(self, k: int, back: int, dt: float) -> float | None:
+        """:meth:`heading_estimate` over the travel from frame ``back`` to ``k`` [rad]."""
+        s = self.settings
         angles, body = [], []
         for i, f in enumerate(self.fixes):
             measured = f.p_world[k, :2] - f.p_world[back, :2]
@@ -479,6 +512,9 @@ class DriftCorrection:
                 continue
             if max(lengths) > s.heading_length_ratio * min(lengths):
                 continue  # a jump of the fixes, not a turn: heading drift keeps the length
+            spread = np.sqrt(np.trace(f.cov[k, :2, :2]) + np.trace(f.cov[back, :2, :2]))
+            if not spread <= np.tan(np.radians(s.heading_sigma_deg)) * min(lengths):
+                continue  # the fixes' uncertainty, not the travel, would set the angle
             steps = np.linalg.norm(np.diff(f.p_world[back:k + 1, :2], axis=0), axis=1)
             if (steps > s.release_jump_speed * dt).any():
                 continue  # the positioning jumped within the window (across its travel too)
@@ -492,12 +528,12 @@ class DriftCorrection:
     def _correct_heading(self, world: WorldOffset, k: int, dt: float) -> None:
         """Turn the solver's targets toward the heading error, at a bounded rate."""
         s = self.settings
-        error = self.heading_error(k, dt)
-        if error is None or dt <= 0:
+        estimate = self.heading_estimate(k, dt)
+        if estimate is None:
             return
+        error, back = estimate
         # the travel was solved under the turn of mid-window; what was turned since is done
-        mid = k - int(round(0.5 * s.heading_window / dt))
-        error -= world.heading - self.heading[max(mid, 0)]
+        error -= world.heading - self.heading[(back + k) // 2]
         if abs(error) < np.radians(s.heading_deadband_deg):
             return
         step = error * min(1.0, dt / s.heading_time_constant)
