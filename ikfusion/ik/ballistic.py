@@ -26,7 +26,12 @@ through the floor where the real toes bend.
 
 An outside estimate of where the body is (the UWB tags of the drift correction) moves the path
 itself (:meth:`BallisticRoot.shift`), so there is one path that lands once: the correction
-never flies the pelvis on a parabola of its own.
+never flies the pelvis on a parabola of its own. A shift lowers the path at most onto the
+landing height, never under it, whichever way the path flies: in a false flight of a body on
+the floor (every point let go after the head's tag ran away) the path still rose with the
+body's last velocity, so it had not landed, while the head's tag pulled it down; the pelvis
+sank 16 cm under where the sensed pose meets the floor, the floor bent an elbow 12 deg away
+from its sensors and the landing straightened it in one frame (issue #19).
 """
 
 from __future__ import annotations
@@ -66,7 +71,8 @@ class BallisticRoot:
         Given between two frames (after :meth:`update`), it moves the next :meth:`target` and
         so the rest of the flight; a shift the next frame does not fly on (a planted point
         carries the body, a planner's target) is dropped. The caller bounds it per frame. The
-        landing height still bounds the moved path.
+        landing height still bounds the moved path, and a downward shift never takes the
+        path under it (nor lower than the path flies by itself when it is under already).
         """
         self._shift = self._shift + np.asarray(delta, dtype=float)
 
@@ -88,8 +94,11 @@ class BallisticRoot:
         """
         a = GRAVITY if a_world is None or not _finite(a_world) else a_world
         start = p_last if self.position is None else self.position
-        self.position = np.asarray(start + self.velocity * dt + 0.5 * a * dt * dt
-                                   + self._shift)
+        free = np.asarray(start + self.velocity * dt + 0.5 * a * dt * dt)
+        self.position = free + self._shift
+        if lowest_z is not None and self._shift[2] < 0.0:
+            # a shift may lower the path onto the landing height, never under it
+            self.position[2] = max(float(self.position[2]), min(float(free[2]), lowest_z))
         self._shift = np.zeros(3)
         descending = self.velocity[2] <= 0.0
         self.landed = (lowest_z is not None and descending
