@@ -5,24 +5,28 @@ On the floor the head's fix pulls the head through every joint the planted point
 from the back, the pull turned the left hip 2.7 -> 7.4 -> 13 deg away from its sensors over two
 frames; when the sacrum took the body the bend snapped back: the clip's largest joint jump.
 The pull now fades as a joint between two sensed segments turns away from its sensors
-(:func:`ikfusion.app.tag_tasks.sensed_bend_scale`, ``tag_body_joint_bend_deg``).
+(:func:`ikfusion.app.tag_tasks.sensed_bend_scale`, ``tag_body_joint_bend_deg``). The bound
+is shipped off (0): on the benchmark's get-ups it ends the pops but costs the head 0.2-1.1 cm.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
 import pytest
 from room_captures import room_clip_solved
 
+from ikfusion.app.correction import CorrectionSettings
 from ikfusion.app.evaluate import joint_angle_jump
 from ikfusion.app.tag_tasks import sensed_bend_scale
 from ikfusion.ik.sensed_pose import Persistence
 from ikfusion.model.human_model import HumanModel
 
 MOTIONS = Path(__file__).resolve().parents[1] / "benchmarks" / "motions"
+BOUND_DEG = 3.0  # the sensors' own relative-orientation error, about
 
 
 def test_the_pull_fades_smoothly_to_nothing_at_the_bound() -> None:
@@ -61,9 +65,20 @@ def test_the_largest_bend_is_the_angle_of_the_most_turned_joint() -> None:
 @pytest.fixture(scope="module")
 def lying_back(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """The first 9 s of the DeepMimic get-up from the back (as the benchmark's clip) in the UWB
-    room, solved no-slide: lying back onto the shoulder blades at about 6.2 s."""
-    return room_clip_solved(MOTIONS / "deepmimic_getup_faceup.bvh.gz", 9.0,
-                            tmp_path_factory.mktemp("lying_back"), "no-slide")
+    room, solved no-slide with the pull bounded at 3 deg of a sensed joint's turn (shipped
+    off: it costs the head accuracy, see ``configs/correction.yaml``): lying back onto the
+    shoulder blades at about 6.2 s."""
+    shipped = CorrectionSettings.load.__func__  # type: ignore[attr-defined]
+
+    def bounded(cls: type[CorrectionSettings], path: str | Path | None = None,
+                **overrides: Any) -> CorrectionSettings:
+        return shipped(cls, path, **{"tag_body_joint_bend_deg": BOUND_DEG, **overrides})
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(CorrectionSettings, "load", classmethod(bounded))
+        assert CorrectionSettings.load().tag_body_joint_bend_deg == BOUND_DEG
+        return room_clip_solved(MOTIONS / "deepmimic_getup_faceup.bvh.gz", 9.0,
+                                tmp_path_factory.mktemp("lying_back"), "no-slide")
 
 
 def _largest_jump(capture: Path, out: Path, start: float) -> tuple[float, str]:
@@ -84,10 +99,10 @@ def _largest_jump(capture: Path, out: Path, start: float) -> tuple[float, str]:
 
 def test_lying_back_onto_the_shoulder_blades_bends_no_hip_in_a_frame(
         lying_back: tuple[Path, Path]) -> None:
-    """Before (e3e5965) the left hip's error against the truth changed by 5.6 deg in one frame
-    at 6.20 s (its flexion, the clip's largest jump); the same capture's perfect-IMU solve
-    without UWB jumps 4.2 deg over the whole clip. Now at most that plus the acceptance's 1 deg
-    (benchmarks/motions: jump-ref)."""
+    """Unbounded (as before, e3e5965, and as shipped) the left hip's error against the truth
+    changed by 5.5 deg in one frame at 6.20 s (its flexion, the clip's largest jump); the same
+    capture's perfect-IMU solve without UWB jumps 4.2 deg over the whole clip. Bounded: at most
+    that plus the acceptance's 1 deg (benchmarks/motions: jump-ref)."""
     capture, out = lying_back
     jump, where = _largest_jump(capture, out, 5.5)
     assert jump < 4.2 + 1.0, where
