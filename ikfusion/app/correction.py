@@ -66,6 +66,7 @@ from .tag_tasks import (
     flight_pull,
     horizontal_forward,
     planted_feet,
+    sensed_bend_scale,
     tag_targets,
 )
 
@@ -114,6 +115,9 @@ class CorrectionSettings(ShippedSettings):
         tag_flight_vertical: ... in height too when the head's tag has a fix.
         tag_onset: A swing foot's task grows to full weight over this much of its swing [s],
             and fades out over as long before its predicted touch-down.
+        tag_body_joint_bend_deg: The head's pull fades to nothing as the largest turn of a
+            joint between two sensed segments from its sensors reaches this [deg]
+            (:func:`~.tag_tasks.sensed_bend_scale`).
         release_distance: A planted foot whose tag moved farther than this [m]
             is let go (:mod:`.tag_release`) ...
         release_speed: ... until its tag moves slower than this [m/s] (and a foot near the
@@ -144,6 +148,7 @@ class CorrectionSettings(ShippedSettings):
     tag_body_weight: float
     tag_body_onset: float
     tag_body_bend_deg: float
+    tag_body_joint_bend_deg: float
     release_distance: float
     release_speed: float
     release_jump_speed: float
@@ -269,7 +274,8 @@ class DriftCorrection:
                                 {p: pose.site_position(p) for points in
                                  self._anchors.values() for p in points},
                                 horizontal_forward(R_pelvis),
-                                column_bend(R_pelvis, R_head) if R_head is not None else 0.0)
+                                column_bend(R_pelvis, R_head) if R_head is not None else 0.0,
+                                solver.sensed_bend())
         planted = planted_feet(self._last.contacts, self._foot_of_point)
         self._swing.update(self._feet, planted, dt)
         floor_z = solver.settings.floor_z
@@ -389,7 +395,9 @@ class DriftCorrection:
         body, body_weights = body_targets(
             [f.site for f in self.fixes], self._feet, p_body, cov_body, last.forward,
             self._body_pull.update(has_fix, dt)
-            * bend_scale(last.bend, np.radians(s.tag_body_bend_deg)), tag_settings)
+            * bend_scale(last.bend, np.radians(s.tag_body_bend_deg))
+            * sensed_bend_scale(last.sensed_bend, np.radians(s.tag_body_joint_bend_deg)),
+            tag_settings)
         positions, weights = {**positions, **body}, {**weights, **body_weights}
         if not positions:
             return replace(frame, contacts=hints)

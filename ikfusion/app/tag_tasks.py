@@ -83,6 +83,8 @@ class SolvedTags:
         p_points: Site -> its position (3,) [m]: the feet's anchors (:func:`tag_targets`).
         forward: (3,) the body's horizontal forward direction (unit; :func:`body_targets`).
         bend: Angle between the pelvis's and the head's up axes [rad] (:func:`bend_scale`).
+        sensed_bend: The largest angle by which the solve turned a joint between two sensed
+            segments from the sensors' relative orientation [rad] (:func:`sensed_bend_scale`).
     """
 
     contacts: Mapping[str, bool]
@@ -90,6 +92,7 @@ class SolvedTags:
     p_points: Mapping[str, np.ndarray] = field(default_factory=dict)
     forward: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
     bend: float = 0.0
+    sensed_bend: float = 0.0
 
     @property
     def flight(self) -> bool:
@@ -292,6 +295,22 @@ def bend_scale(bend: float, full: float) -> float:
     if full <= 0.0:
         return 1.0
     return min(1.0, (bend / full) ** 2)
+
+
+def sensed_bend_scale(sensed_bend: float, bound: float) -> float:
+    """Weight factor in [0, 1] of the head's pull with a sensed joint bent ``sensed_bend`` [rad].
+
+    The pull acts through every joint the planted points leave free, so it also turns joints
+    between two sensed segments away from their sensors (a lying body's hip). Such a bend is
+    held only by the planted points of the moment: when they change, it snaps back in a frame.
+    The factor falls along a smooth step from 1 with no bend to 0 at ``bound`` [rad] (about
+    the sensors' own relative-orientation error), so the pull keeps working where the joints
+    agree with their sensors but cannot store a large bend. ``bound`` <= 0: no bound.
+    """
+    if bound <= 0.0:
+        return 1.0
+    x = min(1.0, sensed_bend / bound)
+    return 1.0 - x * x * (3.0 - 2.0 * x)
 
 
 class BodyPull:

@@ -195,3 +195,14 @@ class Persistence:
         bent = np.zeros(self.model.nv)
         bent[sensed_joints] = pin.difference(self.model, q_warm, q)[sensed_joints]
         return bent
+
+    def largest(self, bent: np.ndarray) -> float:
+        """The largest turn of one joint in ``bent`` (nv, from :meth:`bend`) [rad].
+
+        A ball joint's tangent step is its rotation vector, so its norm is how far the solve
+        turned the joint from its sensed relative orientation (``bent`` is zero off the
+        joints between two sensed segments, the root's columns included).
+        """
+        turns = [float(np.linalg.norm(bent[j.idx_v:j.idx_v + j.nv]))
+                 for j in self.model.joints[1:]]
+        return max(turns, default=0.0)

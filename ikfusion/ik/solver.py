@@ -278,6 +278,15 @@ class Solver:
                     time.perf_counter() - start, iterations, relaxed,
                     residual_source(self.model.model, self.tasks, targets.R_sensed, q))
 
+    def sensed_bend(self) -> float:
+        """How far the last solve turned a joint between two sensed segments from the sensors.
+
+        The largest over those joints of the angle between the solved and the sensed relative
+        orientation [rad] (what contacts, limits and soft tasks bent them by); 0 before the
+        first frame.
+        """
+        return 0.0 if self._last is None else self.persistence.largest(self._last.bent)
+
     def solve(self, frames: Iterable[Frame], progress: bool = False,
               total: int | None = None,
               after_step: Callable[[Solver, Pose, int, float], None] | None = None) -> Motion:
