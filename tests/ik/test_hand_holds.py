@@ -10,7 +10,7 @@ from ikfusion.ik import Solver
 from ikfusion.ik.contacts import ContactState, ContactThresholds, release_contacts
 from ikfusion.mocap.model_motion import TruthMotion, contact_phases, site_positions
 from ikfusion.model import HumanModel
-from ikfusion.model.topology import BodyTopology
+from ikfusion.model.topology import BodyTopology, FootLayout
 
 
 def test_cartwheel_holds_no_point_off_the_floor(cartwheels: TruthMotion) -> None:
@@ -34,14 +34,19 @@ def test_cartwheel_holds_no_point_off_the_floor(cartwheels: TruthMotion) -> None
     assert np.linalg.norm(err[-1] - err[0]) < 0.5
 
 
-def test_body_handed_to_the_lowest_palm_when_the_planted_toe_swings_up(
-        human: HumanModel) -> None:
+def _contact_setup(human: HumanModel) -> tuple[list[str], FootLayout, ContactThresholds]:
+    """The model's contact point names, their foot layout and flat-floor thresholds."""
     names = list(human.sites_of_kind("contact"))
-    layout = BodyTopology.of(human).foot_layout(names)
     th = ContactThresholds(floor_z=0.0, enter_height=0.03, enter_speed=0.5,
                            enter_relative=0.03, leave_relative=0.025, leave_distance=0.02,
                            settle_speed=0.2, tilt_deg=2.0, still_relative=0.06,
                            reenter_delay=0.2)
+    return names, BodyTopology.of(human).foot_layout(names), th
+
+
+def test_body_handed_to_the_lowest_palm_when_the_planted_toe_swings_up(
+        human: HumanModel) -> None:
+    names, layout, th = _contact_setup(human)
     toe, palm = names.index("RightToe"), names.index("LeftPalm")
     state = ContactState.empty(names)
     state.active[toe] = True
@@ -68,12 +73,7 @@ def test_point_taking_the_body_is_anchored_where_it_was_solved(human: HumanModel
     drift correction's pulls and lean); the knee that takes the body was anchored where the
     unbent sensed pose puts it, 5 cm from where it was solved, and the hips, knees and ankles
     jumped by 4-5 deg in that frame (and by 7 deg when the knee let go again)."""
-    names = list(human.sites_of_kind("contact"))
-    layout = BodyTopology.of(human).foot_layout(names)
-    th = ContactThresholds(floor_z=0.0, enter_height=0.03, enter_speed=0.5,
-                           enter_relative=0.03, leave_relative=0.025, leave_distance=0.02,
-                           settle_speed=0.2, tilt_deg=2.0, still_relative=0.06,
-                           reenter_delay=0.2)
+    names, layout, th = _contact_setup(human)
     toe, knee = names.index("RightToe"), names.index("RightKnee")
     state = ContactState.empty(names)
     state.active[toe] = True
