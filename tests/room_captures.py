@@ -28,6 +28,15 @@ def room_walk(folder: Path, seconds: float, seed: int) -> Path:
     return folder
 
 
+def room_capture(truth: TruthMotion, folder: Path) -> Path:
+    """``truth`` placed in ``room_6x8``'s capture area (as the motion benchmark places a clip)
+    and written to ``folder`` with the default sensor errors, seed 1."""
+    room = load_constellation(shipped_config("constellations", "room_6x8.yaml"))
+    truth, _ = place_in_area(truth, capture_area(room), DEFAULT_MARGIN)
+    write_capture(folder, truth, ImuNoise(), 1, constellation=room)
+    return folder
+
+
 def room_clip_solved(clip: Path, seconds: float, folder: Path, correction: str
                      ) -> tuple[Path, Path]:
     """The first ``seconds`` [s] of a BVH ``clip`` (lead-in included, as the motion benchmark
@@ -38,15 +47,12 @@ def room_clip_solved(clip: Path, seconds: float, folder: Path, correction: str
     Returns:
         The capture folder and the solve's output folder.
     """
-    room = load_constellation(shipped_config("constellations", "room_6x8.yaml"))
     whole = truth_motion(str(clip), seconds, 60.0)
     n = int(seconds * 60.0) + 1
     truth = TruthMotion(whole.model, whole.time[:n].copy(), whole.q[:n].copy(),
                         list(whole.contact_names), whole.contacts[:n].copy(), whole.source,
                         dict(whole.info))
-    truth, _ = place_in_area(truth, capture_area(room), DEFAULT_MARGIN)
-    capture = folder / "capture"
-    write_capture(capture, truth, ImuNoise(), 1, constellation=room)
+    capture = room_capture(truth, folder / "capture")
     out = folder / correction
     assert main(["solve", "--imu", str(capture / "imu"), "--map", str(capture / "sensors.yaml"),
                  "--body", str(capture / "body.yaml"), "--toa", str(capture / "toa.csv"),

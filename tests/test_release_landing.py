@@ -15,16 +15,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from room_captures import room_capture
 
 from ikfusion.app.evaluate import evaluate
 from ikfusion.app.tag_release import BodyRelease
 from ikfusion.cli import main
-from ikfusion.paths import shipped_config
-from ikfusion.sim.area_fit import DEFAULT_MARGIN, place_in_area
-from ikfusion.sim.capture import truth_motion, write_capture
-from ikfusion.sim.imu import ImuNoise
-from ikfusion.uwb.constellation import load_constellation
-from ikfusion.uwb.dop import capture_area
+from ikfusion.sim.capture import truth_motion
 
 MOTIONS = Path(__file__).resolve().parents[1] / "benchmarks" / "motions"
 
@@ -60,12 +56,8 @@ def test_a_fix_missing_as_the_body_lands_still_ends_the_landing() -> None:
 @pytest.fixture(scope="module")
 def spin_kick(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The DeepMimic jumping spin kick (whole clip) in the library's UWB room, seed 1."""
-    room = load_constellation(shipped_config("constellations", "room_6x8.yaml"))
     truth = truth_motion(str(MOTIONS / "deepmimic_spinkick.bvh.gz"), 30.0, 60.0)
-    truth, _ = place_in_area(truth, capture_area(room), DEFAULT_MARGIN)
-    capture = tmp_path_factory.mktemp("spin_kick") / "capture"
-    write_capture(capture, truth, ImuNoise(), 1, constellation=room)
-    return capture
+    return room_capture(truth, tmp_path_factory.mktemp("spin_kick") / "capture")
 
 
 @pytest.mark.parametrize("causal", [False, True], ids=["offline", "causal"])

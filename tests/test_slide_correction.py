@@ -13,27 +13,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from room_captures import room_capture
 
 from ikfusion.app.evaluate import evaluate
 from ikfusion.app.tag_tasks import TagTaskSettings, flight_pull
 from ikfusion.cli import main
-from ikfusion.paths import shipped_config
-from ikfusion.sim.area_fit import DEFAULT_MARGIN, place_in_area
-from ikfusion.sim.capture import truth_motion, write_capture
-from ikfusion.sim.imu import ImuNoise
-from ikfusion.uwb.constellation import load_constellation
-from ikfusion.uwb.dop import capture_area
+from ikfusion.sim.capture import truth_motion
 
 MOTIONS = Path(__file__).resolve().parents[1] / "benchmarks" / "motions"
 
 
 def _capture(clip: str, folder: Path) -> Path:
     """The clip in the library's UWB room, default sensor errors, seed 1 (as the benchmark)."""
-    room = load_constellation(shipped_config("constellations", "room_6x8.yaml"))
-    truth = truth_motion(str(MOTIONS / clip), 30.0, 60.0)
-    truth, _ = place_in_area(truth, capture_area(room), DEFAULT_MARGIN)
-    write_capture(folder, truth, ImuNoise(), 1, constellation=room)
-    return folder
+    return room_capture(truth_motion(str(MOTIONS / clip), 30.0, 60.0), folder)
 
 
 def _solve(capture: Path, out: Path, mode: str) -> Path:

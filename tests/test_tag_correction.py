@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from room_captures import room_walk
+from room_captures import room_capture, room_walk
 
 from ikfusion.app.evaluate import evaluate, joint_angle_jump
 from ikfusion.app.far_from_tags import far_intervals
@@ -32,11 +32,9 @@ from ikfusion.ik.configuration import Configuration
 from ikfusion.ik.tasks import PositionTask
 from ikfusion.model.human_model import HumanModel
 from ikfusion.paths import shipped_config
-from ikfusion.sim.area_fit import DEFAULT_MARGIN, place_in_area
 from ikfusion.sim.capture import truth_motion, write_capture
 from ikfusion.sim.imu import ImuNoise
 from ikfusion.uwb.constellation import load_constellation
-from ikfusion.uwb.dop import capture_area
 
 MOTIONS = Path(__file__).resolve().parents[1] / "benchmarks" / "motions"
 
@@ -291,12 +289,8 @@ def test_a_standing_body_with_a_drift_and_noisy_fixes_stays_held(
 @pytest.fixture(scope="module")
 def run_capture(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The CMU 02_03 run (a stand, then a run of about 2 s) in the UWB room of the library."""
-    room = load_constellation(shipped_config("constellations", "room_6x8.yaml"))
     truth = truth_motion(str(MOTIONS / "cmu_02_03_run_jog.bvh.gz"), 15.0, 60.0)
-    truth, _ = place_in_area(truth, capture_area(room), DEFAULT_MARGIN)
-    folder = tmp_path_factory.mktemp("run") / "capture"
-    write_capture(folder, truth, ImuNoise(), 1, constellation=room)
-    return folder
+    return room_capture(truth, tmp_path_factory.mktemp("run") / "capture")
 
 
 def _solve(capture: Path, out: Path, *extra: str) -> Path:
@@ -343,11 +337,8 @@ def test_no_slide_lets_go_of_a_false_hold_of_a_kick(tmp_path: Path) -> None:
     on, and the head's tag (0.4 cm off the truth) acted in flight only: the body stayed up to
     19 cm behind it (head RMS 8.9 cm). The hold is now let go (BodyRelease) and the tags
     move the body: head RMS within the issue's 5 cm, the held points still never slide."""
-    room = load_constellation(shipped_config("constellations", "room_6x8.yaml"))
-    truth = truth_motion(str(MOTIONS / "deepmimic_kick.bvh.gz"), 15.0, 60.0)
-    truth, _ = place_in_area(truth, capture_area(room), DEFAULT_MARGIN)
-    capture = tmp_path / "capture"
-    write_capture(capture, truth, ImuNoise(), 1, constellation=room)
+    capture = room_capture(truth_motion(str(MOTIONS / "deepmimic_kick.bvh.gz"), 15.0, 60.0),
+                           tmp_path / "capture")
     uwb = ["--toa", str(capture / "toa.csv"), "--readers", str(capture / "readers.yaml"),
            "--tags", str(capture / "tags.yaml")]
     aided = _solve(capture, tmp_path / "no-slide", *uwb, "--correction", "no-slide")
