@@ -4,28 +4,19 @@ motion and the body's shape, on a hand-made capture whose answer is known."""
 from __future__ import annotations
 
 import csv
-import importlib.util
-import sys
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 import pytest
+from benchmark_scripts import benchmark_script
 
-ROOT = Path(__file__).resolve().parents[2]
 FEET = ["LeftHeel", "LeftToe", "RightHeel", "RightToe"]
 
 
-def _drift_steps():
-    """``benchmarks/bench_drift_steps.py`` as a module (benchmarks/ is not a package)."""
-    name = "bench_drift_steps_under_test"
-    if name not in sys.modules:
-        spec = importlib.util.spec_from_file_location(
-            name, ROOT / "benchmarks" / "bench_drift_steps.py")
-        assert spec is not None and spec.loader is not None
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
-        spec.loader.exec_module(module)
-    return sys.modules[name]
+def _drift_steps() -> ModuleType:
+    """``benchmarks/bench_drift_steps.py`` as a module."""
+    return benchmark_script("bench_drift_steps.py")
 
 
 def _write(path: Path, header: list[str], rows: list[list[object]]) -> None:

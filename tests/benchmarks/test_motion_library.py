@@ -6,13 +6,13 @@ the issue's list of motions and one short clip goes through the benchmark's own 
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 import pytest
+from benchmark_scripts import benchmark_script
 
 from ikfusion.app.evaluate import evaluate
 from ikfusion.io.bvh import read_bvh
@@ -29,17 +29,9 @@ ISSUE_CATEGORIES = {
 }
 
 
-def _bench():
-    """``benchmarks/bench_motions.py`` as a module (benchmarks/ is not a package)."""
-    name = "bench_motions_under_test"
-    if name not in sys.modules:
-        path = ROOT / "benchmarks" / "bench_motions.py"
-        spec = importlib.util.spec_from_file_location(name, path)
-        assert spec is not None and spec.loader is not None
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
-        spec.loader.exec_module(module)
-    return sys.modules[name]
+def _bench() -> ModuleType:
+    """``benchmarks/bench_motions.py`` as a module."""
+    return benchmark_script("bench_motions.py")
 
 
 def test_index_covers_the_issue_list_or_says_what_is_missing() -> None:

@@ -2,25 +2,15 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
+from types import ModuleType
 
 import numpy as np
+from benchmark_scripts import benchmark_script
 
-ROOT = Path(__file__).resolve().parents[2]
 
-
-def _tool():
-    """``benchmarks/phase_excess.py`` as a module (benchmarks/ is not a package)."""
-    name = "phase_excess_under_test"
-    if name not in sys.modules:
-        spec = importlib.util.spec_from_file_location(name, ROOT / "benchmarks" / "phase_excess.py")
-        assert spec is not None and spec.loader is not None
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
-        spec.loader.exec_module(module)
-    return sys.modules[name]
+def _tool() -> ModuleType:
+    """``benchmarks/phase_excess.py`` as a module."""
+    return benchmark_script("phase_excess.py")
 
 
 def test_each_step_gets_the_cause_of_what_the_solver_held() -> None:
