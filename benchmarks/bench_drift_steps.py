@@ -32,12 +32,13 @@ from __future__ import annotations
 import argparse
 import csv
 import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
 FEET = ["LeftHeel", "LeftToe", "RightHeel", "RightToe"]
+LINKS = ["toe", "foot", "shank", "thigh", "pelvis"]
 
 
 def _rows(path: Path, key: str, name: str, columns: list[str]) -> np.ndarray:
@@ -111,6 +112,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"{key:<42s} {int(count):6d} {1000 * gain:9.1f} {1000 * moved:12.1f} "
               f"{1000 * part:8.1f} {1000 * shape:8.1f}")
 
+    links = _link_parts(truth, args.result, held, p_true)
+    if links is not None:
+        print("shape by link of the held leg [mm]: "
+              + " ".join(f"{n} {1000 * v:.1f}" for n, v in zip(LINKS, links, strict=True)))
+
     strikes = sorted(k for i in (0, 2) for k in range(1, len(t))
                      if planted_true[k, i] and not planted_true[k - 1, i])
     print(f"\n{'step [s]':<13s} {'true mm':>8s} {'solved mm':>9s} {'diff mm':>8s}  held points")
@@ -139,6 +145,55 @@ def main(argv: Sequence[str] | None = None) -> int:
         _print_frames(t, args.frames, planted_true, held, gained, point_part, shape_part,
                       points_3d[:, :, 2], sites_solved[:, :, 2])
     return 0
+
+
+def _chain(point: str) -> list[tuple[str, str]]:
+    """The held leg from ``point`` up to the pelvis: (``site``/``segment``, name) nodes."""
+    side = "Left" if point.startswith("Left") else "Right"
+    toe = [("segment", f"{side}Toe")] if point.endswith("Toe") else []
+    return [("site", point), *toe, *(("segment", f"{side}{s}")
+                                     for s in ("Foot", "LowerLeg", "UpperLeg")),
+            ("segment", "Pelvis")]
+
+
+def _link_parts(truth: Mapping[str, np.ndarray], result: Path, held: np.ndarray,
+                p_true: np.ndarray) -> np.ndarray | None:
+    """(5,) the ``shape`` part per link of the held leg (:data:`LINKS`) [m]; None: no legs.
+
+    Per frame with held points, each link's along-track change (solved less true) of the
+    vector from its lower end to its upper end, the mean over the held points.
+    """
+    segments, sites = list(truth["segment_names"]), list(truth["site_names"])
+    nodes = {n for p in FEET for n in _chain(p)}
+    if any(name not in (segments if kind == "segment" else sites) for kind, name in nodes):
+        return None
+    solved: dict[tuple[str, str], np.ndarray] = {}
+    true: dict[tuple[str, str], np.ndarray] = {}
+    for kind, name in nodes:
+        file, key, cols = (("segments.csv", "segment", ["px", "py"]) if kind == "segment"
+                           else ("sites.csv", "site", ["x", "y"]))
+        solved[(kind, name)] = _rows(result / file, key, name, cols)
+        true[(kind, name)] = (truth["p_world_segment"][:, segments.index(name), :2]
+                              if kind == "segment" else
+                              truth["p_world_site"][:, sites.index(name), :2])
+    if any(len(v) != len(p_true) for v in solved.values()):
+        return None
+    parts = np.zeros(len(LINKS))
+    for k in range(len(p_true) - 1):
+        step = p_true[k + 1] - p_true[k]
+        both = np.flatnonzero(held[k] & held[k + 1])
+        if np.linalg.norm(step) < 1e-6 or not len(both):
+            continue
+        u = step / np.linalg.norm(step)
+        for i in both:
+            chain = _chain(FEET[i])
+            names = LINKS[len(LINKS) + 1 - len(chain):]
+            for lower, upper, link in zip(chain[:-1], chain[1:], names, strict=True):
+                d_solved = solved[upper] - solved[lower]
+                d_true = true[upper] - true[lower]
+                change = (d_solved[k + 1] - d_solved[k]) - (d_true[k + 1] - d_true[k])
+                parts[LINKS.index(link)] += float(change @ u) / len(both)
+    return parts
 
 
 def _states(row: np.ndarray) -> str:
