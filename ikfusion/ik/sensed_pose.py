@@ -174,7 +174,6 @@ class Persistence:
         self.model = model
         self.weight = weight
         self.task = DampingTask(np.zeros(model.nv))
-        self._joints: np.ndarray | None = None  # the sensed joints of the task's weights
 
     def hold(self, q_warm: np.ndarray, sensed_joints: np.ndarray,
              bent: np.ndarray | None) -> None:
@@ -185,13 +184,9 @@ class Persistence:
             sensed_joints: Tangent columns of the joints between two sensed segments.
             bent: The last frame's bend (nv) [rad]; None: nothing kept (the first frame).
         """
-        if sensed_joints is not self._joints or sensed_joints.flags.writeable:
-            # worked out again only when the joints change (the targets' weighting keeps
-            # one read-only array until a sensor drops out or comes back)
-            weights = np.zeros(self.model.nv)
-            weights[sensed_joints] = self.weight
-            weights.setflags(write=False)
-            self.task.weights, self._joints = weights, sensed_joints
+        weights = np.zeros(self.model.nv)
+        weights[sensed_joints] = self.weight
+        self.task.weights = weights
         self.task.set_reference(None if self.weight <= 0 or bent is None
                                 else pin.integrate(self.model, q_warm, bent))
 
