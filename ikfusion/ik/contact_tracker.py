@@ -64,6 +64,7 @@ class ContactTracker:
                                for f, steps in zip(self._foot_names, self.layout.stepping)],
                               dtype=int)
         self._has_foot = self._feet >= 0
+        self._heel_rise = math.radians(s.heel_rise_deg)  # [rad]
         # the points of each foot, for the per-frame stance lookup
         self._points_of_foot = {f: np.array([i for i, g in enumerate(self._foot_names) if g == f])
                                 for f in dict.fromkeys(self._foot_names) if f is not None}
@@ -190,7 +191,7 @@ class ContactTracker:
                                       step_sensed=self._p_sensed - previous)
         # a planted heel whose foot already rolls toe-down may rise (it still cannot slip),
         # unless its IMU says the foot stands still
-        rising = self.layout.on_foot & (pitch > math.radians(self.settings.heel_rise_deg))
+        rising = self.layout.on_foot & (pitch > self._heel_rise)
         if still is not None:
             rising &= still != 1.0
         return np.asarray(rising)

@@ -47,6 +47,11 @@ def add_to_diagonal(H: np.ndarray, values: np.ndarray | float) -> None:
         H.flat[::H.shape[0] + 1] += values
 
 
+def count_true(values: np.ndarray) -> int:
+    """How many entries of ``values`` are non-zero: ``np.count_nonzero(values)``."""
+    return int(_count_nonzero(values))
+
+
 def any_true(values: np.ndarray) -> bool:
     """Whether any entry of ``values`` is non-zero (True, NaN): ``bool(np.any(values))``."""
     return bool(_count_nonzero(values))

@@ -46,10 +46,9 @@ def drift_from_other_foot(layout: FootLayout, active: np.ndarray, anchors: np.nd
     the other foot has no planted point). Also returns the longest contact age of the other
     foot's planted points [s] (+inf when none).
     """
-    # row i: the other foot's planted points
-    others = active[:, None] & active[None, :] & layout.other_foot
-    if not any_true(others):  # the usual case: at most one foot planted
+    if not any_true(active & other_foot(layout, active)):  # the usual case: one foot planted
         return np.zeros(len(active)), np.full(len(active), np.inf)
+    others = active[:, None] & active[None, :] & layout.other_foot  # row i: the other foot's
     count = others.sum(axis=1)
     has = count > 0
     offset = (others @ (anchors - p_sensed)) / np.maximum(count, 1)[:, None]

@@ -36,7 +36,7 @@ import math
 import numpy as np
 
 from ..model.topology import FootLayout
-from .fast_math import any_true, mean_rows, true_indices
+from .fast_math import any_true, count_true, mean_rows, true_indices
 
 _HORIZONTAL = np.diag([1.0, 1.0, 0.0])  # information of a lead on the x and y axes
 _VERTICAL = np.diag([0.0, 0.0, 1.0])  # ... and on the z axis
@@ -283,11 +283,10 @@ class SupportFollower:
         they disagree by that much on purpose, not drift. None while fewer are planted.
         """
         planted = self._planted(active)
-        if np.count_nonzero(planted) < 2:
+        if count_true(planted) < 2:
             return None
         out = np.zeros((len(active), 3))
-        # a foot that touched down since the last frame is still swinging here (its
-        # landing is settled when the body follows): it is the youngest
+        # a foot that touched down since the last frame swings until the body follows: the youngest
         fresh = planted & self._swinging
         young = int(np.argmin(np.where(planted, np.where(fresh, -1.0, self._planted_for), np.inf)))
         if not self._has_goal[young]:  # not led: only its swing (a resumed one)
@@ -303,7 +302,7 @@ class SupportFollower:
 
     def leads(self) -> bool:
         """Whether a swinging foot is led now (:meth:`swing_targets` gives it information)."""
-        return any(s and g for s, g in zip(self._swinging, self._has_goal))
+        return any(map(bool.__and__, self._swinging, self._has_goal))  # lists of bools
 
     def keep_base(self, p_points: np.ndarray) -> None:
         """Keep the contact points (k, 3) [m] led this frame for :meth:`record` (no swing)."""
@@ -346,5 +345,6 @@ def _shrink(v: np.ndarray, by: float) -> np.ndarray:
 
 
 def _clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
-    """``v`` shortened to at most ``limit`` long."""
-    return v - _shrink(v, limit)
+    """``v`` shortened to at most ``limit`` long (``v - v * 0.0``, i.e. ``v + 0.0``, when not)."""
+    n = math.sqrt(float(v.dot(v)))
+    return v + 0.0 if n <= limit < math.inf else v - _shrink(v, limit)

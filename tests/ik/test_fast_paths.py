@@ -12,7 +12,14 @@ import pinocchio as pin
 import pytest
 
 from ikfusion.ik import Configuration, SolverSettings
-from ikfusion.ik.fast_math import any_true, mean_rows, min_of, row_norms, true_indices
+from ikfusion.ik.fast_math import (
+    any_true,
+    count_true,
+    mean_rows,
+    min_of,
+    row_norms,
+    true_indices,
+)
 from ikfusion.ik.limits import ContactConstraint
 from ikfusion.ik.tasks import PositionTask
 from ikfusion.ik.tasks.position import add_products
@@ -40,10 +47,25 @@ def test_any_true_and_true_indices_are_numpys_answers() -> None:
     cases += [c[::2] for c in list(cases)]
     for values in cases:
         assert any_true(values) is bool(np.any(values))
+        assert count_true(values) == np.count_nonzero(values)
         if values.size:
             assert np.array_equal(min_of(values), values.min(), equal_nan=True)
         if values.ndim == 1:
             assert np.array_equal(true_indices(values), np.flatnonzero(values))
+
+
+def test_clipping_a_short_vector_is_the_plain_formula() -> None:
+    """The support's clip of a vector already within its limit returns the bits of
+    ``v - shrink(v, limit)`` (zeros of either sign as +0.0), and the same numbers when longer."""
+    from ikfusion.ik.support import _clip_norm, _shrink
+
+    rng = np.random.default_rng(11)
+    vectors = [np.zeros(3), np.array([-0.0, 0.0, -0.0]), np.array([0.03, -0.0, 0.0]),
+               *rng.normal(size=(40, 3)) * 10.0 ** rng.integers(-6, 1, size=(40, 1))]
+    for v in vectors:
+        n = float(np.linalg.norm(v))
+        for limit in (0.0, 0.5 * n, n, 2.0 * n + 1e-9, 0.04, np.inf):
+            assert _clip_norm(v, limit).tobytes() == (v - _shrink(v, limit)).tobytes()
 
 
 @pytest.mark.parametrize("shape", [(1, 3), (4, 3), (4, 2), (7, 5)])

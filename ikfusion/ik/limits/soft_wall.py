@@ -71,11 +71,15 @@ class SoftWall:
         # of a joint there turn by tens of degrees for a small turn of the joint)
         steady = np.abs(moved) < _SAME_TRIPLE
         steady &= np.abs(angles[:, 1:2]) < _GIMBAL_FREE
-        # the module's formula with v = moved / dt_before, its constants folded
+        # the module's formula with v = moved / dt_before, its constants folded; computed in
+        # place, the upper limits' rows (sign +1) then the lower ones' (sign -1)
         decay = math.exp(-dt / self.tau)
-        past = self._sign * angles - self._limit
-        sunk = past * ((1.0 + dt / self.tau) * decay) \
-            + self._sign * (moved * (dt * decay / dt_before))
+        sunk = np.multiply(self._sign, angles)
+        sunk -= self._limit
+        sunk *= (1.0 + dt / self.tau) * decay
+        drift = moved * (dt * decay / dt_before)
+        sunk[0] += drift
+        sunk[1] -= drift
         sunk *= steady
         if sunk.max() > 0.0:  # else no angle reaches a limit: hard limits
             self._room = np.minimum(np.maximum(sunk, 0.0), self._depth)

@@ -11,6 +11,9 @@ from ..configuration import Configuration
 from ..fast_math import any_true
 from .base import Task
 
+_IDENTITY = np.eye(3)
+_IDENTITY.setflags(write=False)
+
 
 class PositionTask(Task):
     """Residual ``e_i = p_world_frame_i - p_world_target_i`` [m].
@@ -42,7 +45,7 @@ class PositionTask(Task):
         w = np.asarray(weights, dtype=float)
         if w.ndim == 1 and np.isfinite(p.sum() + w.sum()):  # finite scalar weights: at once
             self.targets = p.copy()
-            self._information = w[:, None, None] * np.eye(3)
+            self._information = w[:, None, None] * _IDENTITY
             self._active = w != 0.0
             self._scalar = w.copy()
             return
