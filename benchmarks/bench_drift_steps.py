@@ -11,11 +11,12 @@ solver holds: a held point whose true counterpart moves shifts the body by as mu
 * per set of points the solver holds (heel/toe of each foot; ``truth:`` their true contact
   states, ``1`` planted): frames, the pelvis's along-track error gained [mm] and the true
   held points' own motion along the track meanwhile [mm] (mean over the held points);
-* per step (from one true heel strike to the next): the true and solved pelvis travel [mm],
-  their difference, and per held point the true point's motion while held (``*``: the truth
-  no longer labels it planted); then the sums over all steps and the share the solve falls
-  short (``% short``). On the generator's circles that share is the walk's loss: the end
-  error (``drift_percent``) closes with the solved circle, a little smaller than the true.
+* per step (from one foot strike of the truth to the next, ``ikfusion.app.stride_loss``): the
+  true and solved pelvis travel [mm], their difference, and per held point the true point's
+  motion while held (``*``: the truth no longer labels it planted); then the sums over all steps
+  and the share the solve falls short (``% short``: ``evaluate``'s ``stride_loss_percent``). On
+  the generator's circles that share is the walk's loss: the end error (``drift_percent``)
+  closes with the solved circle, a little smaller than the true.
 
 The pelvis's error gained while points are held splits in two (mean over the held points): the
 held point's solved motion against the true point's (``point mm``: an anchor held or carried
@@ -36,6 +37,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
+
+from ikfusion.app.stride_loss import foot_strikes, steps, stride_loss_percent
 
 FEET = ["LeftHeel", "LeftToe", "RightHeel", "RightToe"]
 LINKS = ["toe", "foot", "shank", "thigh", "pelvis"]
@@ -117,16 +120,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("shape by link of the held leg [mm]: "
               + " ".join(f"{n} {1000 * v:.1f}" for n, v in zip(LINKS, links, strict=True)))
 
-    strikes = sorted(k for i in (0, 2) for k in range(1, len(t))
-                     if planted_true[k, i] and not planted_true[k - 1, i])
+    strikes = foot_strikes(t, truth["contacts"], contact_names)
+    step_list = steps(p_est, p_true, strikes)
     print(f"\n{'step [s]':<13s} {'true mm':>8s} {'solved mm':>9s} {'diff mm':>8s}  held points")
-    total_true = total_solved = 0.0
-    for a, b in zip(strikes[:-1], strikes[1:], strict=True):
-        step = p_true[b] - p_true[a]
-        u = step / max(float(np.linalg.norm(step)), 1e-9)
-        solved = float((p_est[b] - p_est[a]) @ u)
-        total_true += float(np.linalg.norm(step))
-        total_solved += solved
+    for s in step_list:
+        a, b, u = s.start, s.end, s.direction
         moved: dict[str, float] = {}
         for k in range(a, b):
             both = held[k] & held[k + 1]
@@ -134,13 +132,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                 name = FEET[i] + ("" if planted_true[k, i] else "*")
                 moved[name] = moved.get(name, 0.0) + float(
                     (points[k + 1, i] - points[k, i]) @ u) / both.sum()
-        print(f"{t[a]:5.2f}-{t[b]:5.2f} {1000 * np.linalg.norm(step):8.1f} {1000 * solved:9.1f} "
-              f"{1000 * (solved - np.linalg.norm(step)):8.1f}  "
+        print(f"{t[a]:5.2f}-{t[b]:5.2f} {1000 * s.true_m:8.1f} {1000 * s.solved_m:9.1f} "
+              f"{1000 * (s.solved_m - s.true_m):8.1f}  "
               + " ".join(f"{n}:{1000 * v:.1f}" for n, v in moved.items()))
+    total_true = sum(s.true_m for s in step_list)
     if total_true > 0:
-        print(f"steps: the pelvis went {total_solved:.3f} m of the true {total_true:.3f} m "
-              f"({100 * (1 - total_solved / total_true):.2f} % short; on a closed path the end "
-              "error hides a short stride)")
+        loss = stride_loss_percent(step_list, min_steps=1, min_distance_m=0.0)
+        print(f"steps: the pelvis went {sum(s.solved_m for s in step_list):.3f} m of the true "
+              f"{total_true:.3f} m ({loss:.2f} % short, evaluate's stride_loss_percent; on a "
+              "closed path the end error hides a short stride)")
     if args.frames is not None:
         _print_frames(t, args.frames, planted_true, held, gained, point_part, shape_part,
                       points_3d[:, :, 2], sites_solved[:, :, 2])

@@ -35,7 +35,14 @@ truth, how much further the solved point slid than the true one, mean (``foot_sl
 the skating the solve adds, free of the truth's loose phases) [mm]; ``floor mm``: the same where
 the truth is a body on the floor (``foot_slide_excess_on_floor_mm``: the steps in which the solver
 holds a trunk point the truth has sunk more than 2 cm under the floor are left out, the solved
-points moving there as the true ones do; ``ikfusion.app.slide_excess``) [mm].
+points moving there as the true ones do; ``ikfusion.app.slide_excess``) [mm]; ``stride %``:
+step by step (from one foot strike of the truth to the next), how far the solved pelvis's
+travel along the true one falls short of the true travel, summed over the steps, as a
+percentage (``stride_loss_percent``, ``ikfusion.app.stride_loss``; negative: the solve
+overshoots; '-' with fewer than 4 steps or under 1 m): the loss of a walk that ``drift %`` cannot
+see on a closed path, where the solved circle is a smaller copy of the true one and closes on
+itself. An extra figure, not an acceptance criterion: a straight walk's end error is its
+stride loss, which ``drift %`` judges on the straight clips.
 The last row holds the worst of each column over the rows of the chosen ``--noise`` (reference
 rows left out).
 
@@ -233,6 +240,7 @@ class Row:
     beyond_mm: float | None = None
     jump_vs_ref_deg: float | None = None
     beyond_floor_mm: float | None = None
+    stride_pct: float | None = None
 
     def text(self) -> str:
         """The row as printed."""
@@ -242,7 +250,7 @@ class Row:
                 f"{self.angle_rms_deg:8.2f} {self.jump_deg:8.2f} {self.fps:7.0f} "
                 f"{_cell(self.drift_pct, 7, 2)} {_cell(self.jump_vs_ref_deg, 8, 2)} "
                 f"{self.step_deg:8.2f} {_cell(self.beyond_mm, 9, 1)} "
-                f"{_cell(self.beyond_floor_mm, 8, 1)}")
+                f"{_cell(self.beyond_floor_mm, 8, 1)} {_cell(self.stride_pct, 8, 2)}")
 
 
 def _cell(value: float | None, width: int, decimals: int) -> str:
@@ -253,7 +261,7 @@ def _cell(value: float | None, width: int, decimals: int) -> str:
 HEADER = (f"{'clip':<24s} {'mode':<16s} {'head cm':>8s} {'slide mm':>8s} {'max mm':>8s} "
           f"{'truth mm':>8s} {'held mm':>8s} {'held max':>8s} {'held tru':>8s} "
           f"{'agree %':>7s} {'ang deg':>8s} {'jump deg':>8s} {'frame/s':>7s} {'drift %':>7s} "
-          f"{'jump-ref':>8s} {'step deg':>8s} {'beyond mm':>9s} {'floor mm':>8s}")
+          f"{'jump-ref':>8s} {'step deg':>8s} {'beyond mm':>9s} {'floor mm':>8s} {'stride %':>8s}")
 
 
 def run_clip(clip: Clip, root: Path, modes: Sequence[str], seconds: float | None, seed: int,
@@ -273,7 +281,7 @@ def run_clip(clip: Clip, root: Path, modes: Sequence[str], seconds: float | None
                         ev.joint_angle_step_max_deg, ev.foot_slide_excess_mm,
                         None if ref_jump_deg is None
                         else ev.joint_angle_jump_max_deg - ref_jump_deg,
-                        ev.foot_slide_excess_on_floor_mm))
+                        ev.foot_slide_excess_on_floor_mm, ev.stride_loss_percent))
     return rows
 
 
@@ -285,7 +293,8 @@ def run_reference(clip: Clip, root: Path, seconds: float | None, seed: int) -> R
 
 
 def worst(rows: Sequence[Row]) -> Row:
-    """The worst of each column (the largest error, the fewest frames per second)."""
+    """The worst of each column (the largest error, the fewest frames per second; ``stride %``:
+    the largest in size, signed)."""
     return Row("worst", "-", max(r.head_cm for r in rows), max(r.slide_mm for r in rows),
                max(r.slide_max_mm for r in rows), max(r.truth_mm for r in rows),
                max(r.held_mm for r in rows),
@@ -299,6 +308,8 @@ def worst(rows: Sequence[Row]) -> Row:
                max((r.jump_vs_ref_deg for r in rows if r.jump_vs_ref_deg is not None),
                    default=None),
                max((r.beyond_floor_mm for r in rows if r.beyond_floor_mm is not None),
+                   default=None),
+               max((r.stride_pct for r in rows if r.stride_pct is not None), key=abs,
                    default=None))
 
 

@@ -54,6 +54,13 @@ Metrics (all over the common time span):
 * ``drift_percent``: the pelvis's horizontal error over the last second, as a percentage of the
   horizontal distance the true pelvis travelled (its track sampled once a second, so sway does
   not count as distance); None when it travelled less than 2 m (standing, turning on the spot).
+  On a closed path (a circle) it is blind to a stride the solve shortens: the solved path is a
+  smaller copy that closes on itself;
+* ``stride_loss_percent``: step by step (from one foot strike of the truth's contacts to the
+  next), the solved pelvis's horizontal travel along the true pelvis's against the true travel,
+  summed over the steps, as a percentage short: ``100 (1 - solved / true)``, negative when the
+  solve overshoots (:mod:`.stride_loss`: a foot strike is a foot's heel or toe planted after
+  0.1 s or more with neither); None with fewer than 4 steps or under 1 m of true travel.
 """
 
 from __future__ import annotations
@@ -75,6 +82,7 @@ from ..model.angle_continuity import (
 from ..model.joints import load_joint_specs
 from ..rotations import angle_between, continuous_quaternions, quat_wxyz_to_matrix
 from .slide_excess import excess_slides, sunk_steps
+from .stride_loss import foot_strikes, steps, stride_loss_percent
 
 
 @dataclass
@@ -103,6 +111,7 @@ class Evaluation:
     foot_slide_excess_mm: float | None = None
     foot_slide_excess_on_floor_mm: float | None = None
     joint_angle_step_max_deg: float = 0.0
+    stride_loss_percent: float | None = None
 
     def as_dict(self) -> dict[str, object]:
         """Plain dictionary (for JSON)."""
@@ -359,9 +368,13 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
     jump, jump_at = joint_angle_jump(t, est_angles, true_angles, common)
     # against a zero truth the "error" is the estimate's own rotation: its turn per frame
     step, _ = joint_angle_jump(t, est_angles, np.zeros_like(est_angles), common)
-    drift = (drift_percent(t, _interp(t, t_seg, segments["Pelvis"][:, :3]) + shift,
-                           truth["p_world_segment"][span][:, true_seg.index("Pelvis")])
-             if "Pelvis" in segments else None)
+    drift = stride = None
+    if "Pelvis" in segments:
+        pelvis = _interp(t, t_seg, segments["Pelvis"][:, :3]) + shift
+        pelvis_true = truth["p_world_segment"][span][:, true_seg.index("Pelvis")]
+        drift = drift_percent(t, pelvis, pelvis_true)
+        stride = stride_loss_percent(steps(pelvis, pelvis_true,
+                                           foot_strikes(t, true_contacts, contact_names)))
     return Evaluation(
         frames=int(span.sum()),
         joint_angle_rms_deg=float(np.sqrt(np.mean(diff**2))),
@@ -387,4 +400,5 @@ def evaluate(result_dir: str | Path, truth_path: str | Path, align: str = "auto"
         foot_slide_excess_on_floor_mm=(1e3 * float(np.mean(excess_on_floor))
                                        if excess_on_floor else None),
         joint_angle_step_max_deg=step,
+        stride_loss_percent=stride,
     )

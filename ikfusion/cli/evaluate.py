@@ -74,6 +74,8 @@ def run(args: argparse.Namespace) -> int:
         ("largest joint turn in one frame", f"{result.joint_angle_step_max_deg:.2f} deg"),
         ("drift (pelvis, % of distance)", "-" if result.drift_percent is None
          else f"{result.drift_percent:.2f} %"),
+        ("stride loss (pelvis, % short per step)", "-" if result.stride_loss_percent is None
+         else f"{result.stride_loss_percent:.2f} %"),
         ("start aligned to truth", "yes" if result.aligned_start else "no"),
     ]
     width = max(len(r[0]) for r in rows)
