@@ -235,15 +235,16 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
         any_true(persistence.weights[compiled.kinematics.persistence_excluded])
     if persistence in active and persistence.q_reference is not None and not numpy_persistence:
         persist = (persistence.weights, persistence.q_reference)
-    step = compiled.kinematics.evaluate(
-        conf.q, tasks.orientation.targets, compiled.geometry, *row_weights,
-        tasks.posture.R_reference, (limits.lower, limits.upper), chain, share, persist)
     # the outputs (:mod:`.compiled`) this step reads: H, c, the sites and the ranges, read in
     # place (valid until the next evaluation, after this step's solve); the sites only when a
-    # task or a limit weighs them (with contact points or site targets)
+    # task or a limit weighs them (with contact points or site targets): otherwise from the
+    # step function without them
     shape = tasks.shape in active and tasks.shape.has_targets()
     sites = len(tasks.contact_rows) > 0 or tasks.root in active or shape or \
         tasks.position.has_targets()
+    step = compiled.kinematics.evaluate(
+        conf.q, tasks.orientation.targets, compiled.geometry, *row_weights,
+        tasks.posture.R_reference, (limits.lower, limits.upper), chain, share, persist, sites)
     if sites:
         P = step.output(5).reshape(-1, 3)
         J = step.output(6).reshape(-1, 3, nv)
