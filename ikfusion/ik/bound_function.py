@@ -88,6 +88,20 @@ class BoundFunction:
         scattered = self._scattered.get(i)
         return self._dense[i].reshape(-1) if scattered is None else scattered[2]
 
+    def output_into(self, i: int, out: np.ndarray) -> None:
+        """Output ``i`` of the last :meth:`evaluate`, dense, written into ``out`` (its shape).
+
+        :meth:`output` then a copy, the same numbers (a dense vector copied, a sparse output
+        scattered into ``out`` zeroed first) without the intermediate dense array.
+        """
+        scattered = self._scattered.get(i)
+        if scattered is None or not out.flags.c_contiguous:
+            np.copyto(out, self.output(i))
+            return
+        _, flat, nz = scattered
+        out.fill(0.0)
+        out.reshape(-1)[flat] = nz
+
     def output(self, i: int) -> np.ndarray:
         """Output ``i`` of the last :meth:`evaluate` as a dense array, overwritten by the next."""
         scattered = self._scattered.get(i)

@@ -11,11 +11,13 @@ spherical joint by ``R exp(w)``, a revolute joint by adding to its angle.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import casadi as ca
 import numpy as np
 import pinocchio as pin
 
-from ..rotations_casadi import quat_xyzw_to_matrix, rotation_about
+from ..rotations_casadi import left_jacobian_inverse, log_so3, quat_xyzw_to_matrix, rotation_about
 
 
 def symbolic_placements(geometry: ca.SX, n_joints: int, frames: list[int]) -> dict:
@@ -116,6 +118,33 @@ def frame_pose(model: pin.Model, fid: int, rotations: list, translations: list,
     j = model.frames[fid].parentJoint
     R_M, p_M = placements[("frame", fid)]
     return rotations[j] @ R_M, translations[j] + rotations[j] @ p_M
+
+
+def orientation_terms(model: pin.Model, segment_frames: Sequence[int], targets: ca.SX,
+                      w_orient: ca.SX, kinematics: tuple[list, list, dict], placements: dict
+                      ) -> tuple[list, list, list, list[list[int]]]:
+    """Per tracked segment: ``e_orient`` (3), ``K = M^T W M`` (3, 3), ``g = M^T W e`` (3), dofs.
+
+    ``e = log(R_world_segment R_world_target^T)`` [rad] with ``M = Jl^-1(e)`` (so that
+    ``J_orient = M J_angular``), ``W = diag(w_orient)`` of the segment's three rows, and its
+    angular tangent columns (those of its supporting joints) for :func:`angular_objective`.
+    ``targets`` (9k) are the column-major ``R_world_target``; ``kinematics`` is what
+    :func:`forward` returns.
+    """
+    rotations, translations, axes = kinematics
+    e_orient, K_orient, g_orient, dofs = [], [], [], []
+    for n, fid in enumerate(segment_frames):  # J_orient = Jl^-1(e) J_angular
+        R, _ = frame_pose(model, fid, rotations, translations, placements)
+        T = ca.reshape(targets[9 * n:9 * n + 9], 3, 3)
+        e, theta = log_so3(R @ T.T)
+        e_orient.append(e)
+        M, w = left_jacobian_inverse(e, theta), w_orient[3 * n:3 * n + 3]
+        K_orient.append(M.T @ ca.diag(w) @ M)
+        g_orient.append(M.T @ (w * e))
+        dofs.append([iv for j in model.supports[model.frames[fid].parentJoint] if j
+                     for iv in range(model.idx_vs[j], model.idx_vs[j] + model.nvs[j])
+                     if axes[iv][0] == "angular"])
+    return e_orient, K_orient, g_orient, dofs
 
 
 def angular_objective(K: list[ca.SX], g: list[ca.SX], dofs: list[list[int]], axes: dict,

@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg.lapack import dpotrf, dpotrs
+from scipy.linalg.lapack import dposv, dpotrf, dpotrs
 
 
 @dataclass
@@ -49,19 +49,17 @@ def equality_optimum(H: np.ndarray, c: np.ndarray, A: np.ndarray | None,
         The minimiser (n,), or None when ``H`` or ``A H^-1 A^T`` is not numerically positive
         definite (e.g. dependent equality rows): the caller's QP solver decides then.
     """
-    L, info = dpotrf(H, lower=1, clean=0)
-    if info != 0:
-        return None
+    # dposv: LAPACK's dpotrf then dpotrs (the same numbers) in one call
     rows = A if A is not None and b is not None and len(b) else None
     if rows is None:  # no equality rows (no planted point): one solve, nothing to stack
-        x, info = dpotrs(L, np.negative(c), lower=1, overwrite_b=1)
+        _, x, info = dposv(H, np.negative(c), lower=1, overwrite_b=1)
         return np.asarray(x) if info == 0 and np.isfinite(x.sum()) else None
     m = len(rows)
     # one solve for every right-hand side: -c, then the equality rows (H^-1 A^T)
     rhs = np.empty((len(c), 1 + m), order="F")
     rhs[:, 0] = -c
     rhs[:, 1:] = rows.T
-    X, info = dpotrs(L, rhs, lower=1, overwrite_b=1)
+    _, X, info = dposv(H, rhs, lower=1, overwrite_b=1)
     if info != 0 or b is None:
         return None
     Y = X[:, 1:]

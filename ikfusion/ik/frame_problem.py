@@ -235,15 +235,16 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
         any_true(persistence.weights[compiled.kinematics.persistence_excluded])
     if persistence in active and persistence.q_reference is not None and not numpy_persistence:
         persist = (persistence.weights, persistence.q_reference)
-    step = compiled.kinematics.evaluate(
-        conf.q, tasks.orientation.targets, compiled.geometry, *row_weights,
-        tasks.posture.R_reference, (limits.lower, limits.upper), chain, share, persist)
     # the outputs (:mod:`.compiled`) this step reads: H, c, the sites and the ranges, read in
     # place (valid until the next evaluation, after this step's solve); the sites only when a
-    # task or a limit weighs them (with contact points or site targets)
+    # task or a limit weighs them (with contact points or site targets): otherwise from the
+    # step function without them
     shape = tasks.shape in active and tasks.shape.has_targets()
     sites = len(tasks.contact_rows) > 0 or tasks.root in active or shape or \
         tasks.position.has_targets()
+    step = compiled.kinematics.evaluate(
+        conf.q, tasks.orientation.targets, compiled.geometry, *row_weights,
+        tasks.posture.R_reference, (limits.lower, limits.upper), chain, share, persist, sites)
     if sites:
         P = step.output(5).reshape(-1, 3)
         J = step.output(6).reshape(-1, 3, nv)
@@ -265,7 +266,7 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     # what assemble_qp makes of these blocks, built in one packed buffer (a step every frame)
     qp = compiled.buffer.views(below + len(floor.h), len(contact.b))
     H, c = qp.H, qp.c
-    np.copyto(H, step.output(0))
+    step.output_into(0, H)
     np.copyto(c, step.output(1)[:, 0])
     if sites:
         tasks.position.add_rows(P[:-1], J[:-1], H, c)
@@ -280,15 +281,17 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     if tasks.swing in active:
         tasks.swing.add_rows(Pc, Jc, H, c)
     add_to_diagonal(H, levenberg_marquardt)
-    if n_up:
-        np.compress(up, ranges.G, axis=0, out=qp.G[:n_up])
-        np.compress(up, ranges.room_up, out=qp.h[:n_up])
+    if n_up:  # the arrays' own compress: np.compress without its dispatch
+        ranges.G.compress(up, axis=0, out=qp.G[:n_up])
+        ranges.room_up.compress(up, out=qp.h[:n_up])
     if n_down:
-        np.negative(np.compress(down, ranges.G, axis=0, out=qp.G[n_up:below]),
+        np.negative(ranges.G.compress(down, axis=0, out=qp.G[n_up:below]),
                     out=qp.G[n_up:below])
-        np.compress(down, ranges.room_down, out=qp.h[n_up:below])
-    qp.G[below:] = floor.G
-    qp.h[below:] = floor.h
-    qp.A[:] = contact.A
-    qp.b[:] = contact.b
+        ranges.room_down.compress(down, out=qp.h[n_up:below])
+    if len(floor.h):
+        qp.G[below:] = floor.G
+        qp.h[below:] = floor.h
+    if len(contact.b):
+        qp.A[:] = contact.A
+        qp.b[:] = contact.b
     return FrameProblem(qp, LimitRows(ranges, up, down, floor, bounds))

@@ -125,6 +125,8 @@ class QpBuffer:
     def __init__(self, nv: int) -> None:
         self.nv = nv
         self._flat = np.empty(nv * nv + nv)
+        # (m_in, m_eq) -> the packed buffer and its views H, c, G, h, A, b: made once per size
+        self._views: dict[tuple[int, int], tuple[np.ndarray, ...]] = {}
 
     def assemble(self, H: np.ndarray, c: np.ndarray, inequalities: Sequence[Inequality],
                  equalities: Sequence[Equality], bounds: tuple[np.ndarray, np.ndarray] | None,
@@ -147,19 +149,28 @@ class QpBuffer:
         Its arrays are views of the buffer, uninitialised (the caller fills every entry), with
         no bounds; overwritten by the next call.
         """
+        made = self._views.get((m_in, m_eq))
+        if made is None:
+            made = self._views[m_in, m_eq] = self._made_views(m_in, m_eq)
+        packed, H, c, G, h, A, b = made
+        return QpProblem(H, c, G, h, A, b, packed=packed)
+
+    def _made_views(self, m_in: int, m_eq: int) -> tuple[np.ndarray, ...]:
+        """The packed buffer of a problem of this size and its six views (:meth:`views`)."""
         nv = self.nv
         size = nv * nv + nv + (m_in + m_eq) * (nv + 1)
-        if len(self._flat) < size:
+        if len(self._flat) < size:  # a larger buffer: the views of the old one are dropped
             self._flat = np.empty(max(size, 2 * len(self._flat)))
+            self._views.clear()
         packed = self._flat[:size]
         c_at = nv * nv
         G_at = c_at + nv
         h_at = G_at + m_in * nv
         A_at = h_at + m_in
         b_at = A_at + m_eq * nv
-        return QpProblem(packed[:c_at].reshape(nv, nv), packed[c_at:G_at],
-                         packed[G_at:h_at].reshape(m_in, nv), packed[h_at:A_at],
-                         packed[A_at:b_at].reshape(m_eq, nv), packed[b_at:], packed=packed)
+        return (packed, packed[:c_at].reshape(nv, nv), packed[c_at:G_at],
+                packed[G_at:h_at].reshape(m_in, nv), packed[h_at:A_at],
+                packed[A_at:b_at].reshape(m_eq, nv), packed[b_at:])
 
 
 def _stacked_rows(M: np.ndarray, v: np.ndarray,

@@ -52,3 +52,20 @@ def test_an_input_of_the_wrong_size_is_refused_not_shifted() -> None:
         call.evaluate(np.zeros(4), np.zeros(17), np.zeros(1))
     with pytest.raises(ValueError):
         call.evaluate(np.zeros(3), np.zeros(18), np.zeros(2))
+
+
+def test_an_output_written_into_an_array_is_the_dense_output() -> None:
+    """``output_into`` writes ``output``'s numbers (the sparse output's structural zeros too,
+    over whatever the array held) into a contiguous array and into a strided view."""
+    rng = np.random.default_rng(5)
+    call = BoundFunction(small_function())
+    call.evaluate(rng.normal(size=3), np.swapaxes(random_rotations(2, rng), 1, 2),
+                  rng.normal(size=1))
+    for i in (0, 1):
+        expected = call.output(i).copy()
+        out = np.full(expected.shape, np.nan)
+        call.output_into(i, out)
+        assert np.array_equal(out, expected)
+        strided = np.full((expected.shape[0], 2 * expected.shape[1]), np.nan)[:, ::2]
+        call.output_into(i, strided)
+        assert np.array_equal(strided, expected)

@@ -242,6 +242,27 @@ def test_solvers_agree_with_a_posture_reference(
     assert np.abs(plain.q - reference.q).max() > 1e-3  # the reference matters
 
 
+def test_the_step_without_sites_is_the_step_bit_for_bit(human: HumanModel, rng) -> None:
+    """The step function without the sites (a step weighing none, orientations alone) gives
+    every other output bit for bit as the full one (the same operations), the sites zero."""
+    solver = Solver(human, contacts=False)
+    assert solver.compiled is not None
+    kinematics, geometry = solver.compiled.kinematics, solver.compiled.geometry
+    k, j = len(kinematics.segment_frames), len(human.ball_joints)
+    for _ in range(3):
+        q = human.random_configuration(rng, p_world_pelvis=rng.normal(size=3))
+        inputs = (q, random_rotations(k, rng), geometry, rng.uniform(0.0, 2.0, 3 * k),
+                  rng.uniform(0.0, 2.0, 3 * j), random_rotations(j, rng),
+                  (-rng.uniform(0.1, 2.0, 3 * j), rng.uniform(0.1, 2.0, 3 * j)))
+        full = [o.copy() for o in kinematics(*inputs)]
+        bare = kinematics.evaluate(*inputs, sites=False)
+        for i, name in enumerate(kinematics.function.name_out()):
+            if name in ("p_sites", "J_sites"):
+                assert not bare.output(i).any()
+            else:
+                assert np.array_equal(bare.output(i), full[i], equal_nan=True), name
+
+
 def test_compiled_sensed_pose_equals_numpy(human: HumanModel, rng) -> None:
     """The sensed pose and its contact points: the compiled function and the NumPy version."""
     solver = Solver(human)

@@ -430,19 +430,26 @@ def test_a_step_copies_its_inputs_at_once_and_reads_only_its_outputs(
     kinematics = fast.compiled.kinematics
     read: set[int] = set()
     one_by_one: list[int] = []
-    output, set_each = BoundFunction.output, BoundFunction._set_each
+    output, output_into = BoundFunction.output, BoundFunction.output_into
+    set_each = BoundFunction._set_each
 
     def counted_output(call: BoundFunction, i: int) -> np.ndarray:
-        if call is getattr(kinematics, "_step", None):
+        if call in kinematics._steps.values():
             read.add(i)
         return output(call, i)
 
+    def counted_output_into(call: BoundFunction, i: int, out: np.ndarray) -> None:
+        if call in kinematics._steps.values():
+            read.add(i)
+        output_into(call, i, out)
+
     def counted_set_each(call: BoundFunction, inputs: tuple[np.ndarray, ...]) -> None:
-        if call is getattr(kinematics, "_step", None):
+        if call in kinematics._steps.values():
             one_by_one.append(len(inputs))
         set_each(call, inputs)
 
     monkeypatch.setattr(BoundFunction, "output", counted_output)
+    monkeypatch.setattr(BoundFunction, "output_into", counted_output_into)
     monkeypatch.setattr(BoundFunction, "_set_each", counted_set_each)
     motion = fast.solve(frames)
     names = kinematics.function.name_out()

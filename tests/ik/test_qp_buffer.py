@@ -32,7 +32,9 @@ def test_the_buffer_assembles_and_solves_exactly_as_assemble_qp(seed: int) -> No
     settings = SolverSettings.load().qp
     box = (np.full(NV, -0.3), np.full(NV, 0.3))
     # growing, shrinking and empty blocks, one buffer for all of them
-    for sizes_in, sizes_eq in (([3, 0, 5], [2]), ([20, 7], [6, 3]), ([], []), ([1], [0, 4])):
+    # (the first size again after the buffer grew: its views are made anew)
+    for sizes_in, sizes_eq in (([3, 0, 5], [2]), ([20, 7], [6, 3]), ([], []), ([1], [0, 4]),
+                               ([3, 0, 5], [2])):
         H, c, ineq, eq = _blocks(rng, sizes_in, sizes_eq)
         H_before = H.copy()
         packed = buffer.assemble(H, c, ineq, eq, box, 1e-4)
