@@ -48,6 +48,7 @@ import numpy.typing as npt
 from ..atomic import atomic_write_text
 from ..errors import InputError, NameNotFound
 from ..model.angle_continuity import continuous_series
+from ..number_text import format_rows
 from ..rotations import axis_rotation, matrix_to_euler
 from .bad_samples import FAR_BEYOND_ANY_HALL_M, MAX_ANGLE_DEG, Kind, bad_samples, bridge_channel
 
@@ -947,17 +948,16 @@ def write_bvh(
     out.append("MOTION")
     out.append(f"Frames: {n_frames}")
     out.append(f"Frame Time: {frame_time!r}")
-    out.extend(_frame_lines(values, decimals))
-    atomic_write_text(target, "\n".join(out) + "\n")
+    atomic_write_text(target, "\n".join(out) + "\n" + _frame_text(values, decimals))
     return target
 
 
-def _frame_lines(values: np.ndarray, decimals: int | None) -> list[str]:
-    """One text line per frame; fixed decimals (no ``-0.000``) or exact ``repr`` text."""
+def _frame_text(values: np.ndarray, decimals: int | None) -> str:
+    """One line per frame, each with its newline: fixed decimals (no ``-0.000``) or ``repr``."""
     if decimals is None:
-        return [" ".join(map(repr, row)) for row in values.tolist()]
+        return "".join(" ".join(map(repr, row)) + "\n" for row in values.tolist())
     if not len(values):
-        return []
+        return ""
     number = f"%.{decimals}f"
     flat = np.array(values, dtype=float).reshape(-1)
     # Values that would print as -0.000 (negative, |v| below one unit of the last digit, or
@@ -966,9 +966,7 @@ def _frame_lines(values: np.ndarray, decimals: int | None) -> list[str]:
     for i in np.flatnonzero(np.signbit(flat) & (flat > -(10.0 ** -decimals))):
         if number % flat[i] == negative_zero:
             flat[i] = 0.0
-    line_format = " ".join([number] * values.shape[1]) + "\n"
-    text = (line_format * len(values)) % tuple(flat.tolist())
-    return text[:-1].split("\n")
+    return format_rows(" ".join([number] * values.shape[1]) + "\n", flat.reshape(values.shape))
 
 
 def _depth_first(parents: np.ndarray) -> list[int]:
