@@ -935,7 +935,7 @@ def write_bvh(
     offsets = skeleton.offsets @ A.T / scale
     end_offsets = skeleton.end_site_offsets @ A.T / scale
     file_positions = positions @ A.T / scale
-    file_rotations = A @ rotations @ A.T
+    file_rotations = _conjugated(A, rotations)
 
     order = _depth_first(skeleton.parents)
     blocks = [file_positions] + [_euler_degrees(orders[j], file_rotations[:, j]) for j in order]
@@ -950,6 +950,20 @@ def write_bvh(
     out.append(f"Frame Time: {frame_time!r}")
     atomic_write_text(target, "\n".join(out) + "\n" + _frame_text(values, decimals))
     return target
+
+
+def _conjugated(A: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """``A @ R @ A.T`` for a stack of matrices R (..., 3, 3), by indexing when A permutes axes.
+
+    A permutation (the identity included) only reorders the entries: the products add exact
+    zeros, which leave every value as it is but turn ``-0.0`` into ``0.0`` (``+ 0.0`` does
+    the same), so the result is the product's, bit for bit, without a 3x3 product per matrix.
+    """
+    if np.isin(A, (0.0, 1.0)).all() and (A.sum(axis=0) == 1.0).all() \
+            and (A.sum(axis=1) == 1.0).all():
+        p = np.argmax(A, axis=1)  # (A @ R @ A.T)[i, j] = R[p[i], p[j]]
+        return R[..., p, :][..., :, p] + 0.0
+    return A @ R @ A.T
 
 
 def _frame_text(values: np.ndarray, decimals: int | None) -> str:

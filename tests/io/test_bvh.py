@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import os
 from pathlib import Path
 
@@ -545,3 +546,14 @@ def test_frame_lines_fixed_decimals_never_write_negative_zero(decimals: int, rng
     expected = [" ".join(one(v) for v in row) for row in values.tolist()]
     assert _frame_text(values, decimals) == "".join(line + "\n" for line in expected)
     assert _frame_text(values[:0], decimals) == ""
+
+
+@pytest.mark.parametrize("up", ["z", "y"])
+def test_axes_change_of_rotations_is_the_matrix_product_to_the_bit(up: str, rng) -> None:
+    """Signed zeros included: every 3x3 pattern of -0.0, 0.0 and two numbers of each sign."""
+    from ikfusion.io.bvh import _conjugated, rotation_world_file
+
+    A = rotation_world_file(up).T
+    patterns = np.array(list(itertools.product([-0.0, 0.0, -1.5, 2.0], repeat=9)))
+    for R in (patterns.reshape(-1, 3, 3), rng.normal(size=(50, 23, 3, 3))):
+        assert (_conjugated(A, R).view(np.uint64) == (A @ R @ A.T).view(np.uint64)).all()
