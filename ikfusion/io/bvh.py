@@ -938,8 +938,10 @@ def write_bvh(
     file_rotations = _conjugated(A, rotations)
 
     order = _depth_first(skeleton.parents)
-    blocks = [file_positions] + [_euler_degrees(orders[j], file_rotations[:, j]) for j in order]
-    values = np.concatenate(blocks, axis=1)
+    angles = np.stack([_euler_angles(orders[j], file_rotations[:, j]) for j in order], axis=1)
+    # continuous over the frames (no wraps, no Euler branch jumps), every joint at once
+    degrees = np.rad2deg(continuous_series(angles)).reshape(n_frames, 3 * len(order))
+    values = np.concatenate([file_positions, degrees], axis=1)
 
     out: list[str] = ["HIERARCHY"]
     # Offsets are written once: 4 more digits (trailing zeros dropped) keep long chains exact.
@@ -1017,15 +1019,15 @@ def _rotation_orders(
     return result
 
 
-def _euler_degrees(order: str, R: np.ndarray) -> np.ndarray:
-    """Intrinsic angles [deg] in ``order`` with ``R = R_a @ R_b @ R_c``, exact at gimbal lock.
+def _euler_angles(order: str, R: np.ndarray) -> np.ndarray:
+    """Intrinsic angles [rad] in ``order`` with ``R = R_a @ R_b @ R_c``, exact at gimbal lock.
 
     Args:
         order: Three distinct axes, e.g. ``"ZXY"``.
         R: Rotations, shape (F, 3, 3).
 
     Returns:
-        Angles (F, 3) [deg], continuous over the frames (no wraps, no Euler branch jumps).
+        Angles (F, 3) [rad], each frame's principal triple.
     """
     angles = matrix_to_euler(order, R)
     i, j, k = ("XYZ".index(c) for c in order)
@@ -1040,7 +1042,7 @@ def _euler_degrees(order: str, R: np.ndarray) -> np.ndarray:
         p, q = (k + 1) % 3, (k + 2) % 3
         angles[locked, 0] = 0.0
         angles[locked, 2] = np.arctan2(rest[:, q, p], rest[:, p, p])
-    return np.rad2deg(continuous_series(angles))
+    return angles
 
 
 def _formatter(decimals: int | None) -> Callable[[float], str]:

@@ -328,14 +328,15 @@ class HumanModel:
             continuous: False for each frame's principal triple on its own.
         """
         Q = np.atleast_2d(np.asarray(qs, dtype=float))
-        out = np.empty((Q.shape[0], 3 * len(self.ball_joints)))
-        for k, joint in enumerate(self.ball_joints.values()):
-            R = quat_wxyz_to_matrix(xyzw_to_wxyz(Q[:, joint.idx_q:joint.idx_q + 4]))
-            angles = joint.spec.angles_from_rotation(R)
-            if continuous:
-                angles = continuous_series(angles)
+        joints = list(self.ball_joints.values())
+        angles = np.stack([joint.spec.angles_from_rotation(quat_wxyz_to_matrix(xyzw_to_wxyz(
+            Q[:, joint.idx_q:joint.idx_q + 4]))) for joint in joints], axis=1)
+        if continuous:
+            angles = continuous_series(angles)  # every joint at once
+        out = np.empty((Q.shape[0], 3 * len(joints)))
+        for k, joint in enumerate(joints):
             order = [("flex", "abd", "rot").index(a.name) for a in joint.spec.angles]
-            out[:, 3 * k + np.array(order)] = np.degrees(angles)
+            out[:, 3 * k + np.array(order)] = np.degrees(angles[:, k])
         return out
 
     def revolute_to_spherical(self, q_revolute: npt.ArrayLike) -> np.ndarray:
