@@ -22,8 +22,8 @@ from ..atomic import atomic_folder
 from ..ik.pose import Motion
 from ..rotations import matrix_to_quat_wxyz
 from .bvh_export import write_motion_bvh
-from .motion_kinematics import ResultKinematics
 from .opensim_export import write_motion_mot
+from .result_kinematics import ResultKinematics
 from .text_table import long_rows, write_csv
 
 #: The files of a result folder (besides the hidden marker of :mod:`ikfusion.output_folders`).

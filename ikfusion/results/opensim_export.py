@@ -26,7 +26,7 @@ from ..model.motion_kinematics import frame_placements
 from ..paths import shipped_config
 from ..rotations import matrix_to_euler
 from ..yaml_files import read_yaml
-from .motion_kinematics import ResultKinematics
+from .result_kinematics import ResultKinematics
 from .text_table import write_rows
 
 #: ``R_opensim_ours``: our axes (X forward, Y left, Z up) to OpenSim's (X forward, Y up, Z right).
