@@ -333,14 +333,14 @@ class HumanModel:
         Q = np.atleast_2d(np.asarray(qs, dtype=float))
         chosen = list(self.ball_joints.values()) if joints is None else \
             [self.ball_joints[name] for name in joints]
-        angles = np.stack([joint.spec.angles_from_rotation(quat_wxyz_to_matrix(xyzw_to_wxyz(
-            Q[:, joint.idx_q:joint.idx_q + 4]))) for joint in chosen], axis=1)
-        if continuous:
-            angles = continuous_series(angles)  # every joint at once
         out = np.empty((Q.shape[0], 3 * len(chosen)))
         for k, joint in enumerate(chosen):
+            R = quat_wxyz_to_matrix(xyzw_to_wxyz(Q[:, joint.idx_q:joint.idx_q + 4]))
+            angles = joint.spec.angles_from_rotation(R)
+            if continuous:
+                angles = continuous_series(angles)
             order = [("flex", "abd", "rot").index(a.name) for a in joint.spec.angles]
-            out[:, 3 * k + np.array(order)] = np.degrees(angles[:, k])
+            out[:, 3 * k + np.array(order)] = np.degrees(angles)
         return out
 
     def revolute_to_spherical(self, q_revolute: npt.ArrayLike) -> np.ndarray:
