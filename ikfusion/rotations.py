@@ -213,18 +213,18 @@ def _quat_wxyz_at_once(M: np.ndarray) -> np.ndarray:
     m00, m01, m02 = M[..., 0, 0], M[..., 0, 1], M[..., 0, 2]
     m10, m11, m12 = M[..., 1, 0], M[..., 1, 1], M[..., 1, 2]
     m20, m21, m22 = M[..., 2, 0], M[..., 2, 1], M[..., 2, 2]
-    # 4 * q_i * q_j products; row k is the candidate whose k-th component is largest.
-    candidates = np.stack([
-        np.stack([1.0 + m00 + m11 + m22, m21 - m12, m02 - m20, m10 - m01], axis=-1),
-        np.stack([m21 - m12, 1.0 + m00 - m11 - m22, m01 + m10, m02 + m20], axis=-1),
-        np.stack([m02 - m20, m01 + m10, 1.0 - m00 + m11 - m22, m12 + m21], axis=-1),
-        np.stack([m10 - m01, m02 + m20, m12 + m21, 1.0 - m00 - m11 + m22], axis=-1),
-    ], axis=-2)
+    # 4 * q_i * q_j products; candidate k is the one whose k-th component is largest.
+    a, b, c = m21 - m12, m02 - m20, m10 - m01
+    d, e, f = m01 + m10, m02 + m20, m12 + m21
     diag = np.stack([1.0 + m00 + m11 + m22, 1.0 + m00 - m11 - m22, 1.0 - m00 + m11 - m22,
                      1.0 - m00 - m11 + m22], axis=-1)
     branch = np.argmax(diag, axis=-1)
-    q = np.take_along_axis(candidates, branch[..., None, None], axis=-2)[..., 0, :]
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    t0, t1, t2, t3 = (diag[..., k] for k in range(4))
+    w = np.choose(branch, [t0, a, b, c])
+    x = np.choose(branch, [a, t1, d, e])
+    y = np.choose(branch, [b, d, t2, f])
+    z = np.choose(branch, [c, e, f, t3])
+    q = np.stack([w, x, y, z], axis=-1) / np.sqrt(w * w + x * x + y * y + z * z)[..., None]
     return np.where(q[..., :1] < 0.0, -q, q)
 
 

@@ -174,8 +174,10 @@ def flight_phases(recording: ImuRecording, streams: Mapping[str, SensorStream],
 
 def knee_warning(motion: Motion) -> str | None:
     """A warning when the knees flex the wrong way (a heading or mounting mistake)."""
-    columns = motion.model.angle_columns
-    angles = motion.joint_angles()
+    knees = [f"j{side}Knee" for side in ("Right", "Left")
+             if f"j{side}Knee" in motion.model.ball_joints]  # only theirs: the rest is not needed
+    columns = [f"{knee}_{angle}" for knee in knees for angle in ("flex", "abd", "rot")]
+    angles = motion.model.joint_angle_matrix(motion.q, joints=knees)
     for side in ("Right", "Left"):
         name = f"j{side}Knee_flex"
         if name in columns:

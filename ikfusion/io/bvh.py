@@ -48,6 +48,7 @@ import numpy.typing as npt
 from ..atomic import atomic_write_text
 from ..errors import InputError, NameNotFound
 from ..model.angle_continuity import continuous_series
+from ..number_text import format_rows
 from ..rotations import axis_rotation, matrix_to_euler
 from .bad_samples import FAR_BEYOND_ANY_HALL_M, MAX_ANGLE_DEG, Kind, bad_samples, bridge_channel
 
@@ -934,11 +935,13 @@ def write_bvh(
     offsets = skeleton.offsets @ A.T / scale
     end_offsets = skeleton.end_site_offsets @ A.T / scale
     file_positions = positions @ A.T / scale
-    file_rotations = A @ rotations @ A.T
+    file_rotations = _conjugated(A, rotations)
 
     order = _depth_first(skeleton.parents)
-    blocks = [file_positions] + [_euler_degrees(orders[j], file_rotations[:, j]) for j in order]
-    values = np.concatenate(blocks, axis=1)
+    angles = np.stack([_euler_angles(orders[j], file_rotations[:, j]) for j in order], axis=1)
+    # continuous over the frames (no wraps, no Euler branch jumps), every joint at once
+    degrees = np.rad2deg(continuous_series(angles)).reshape(n_frames, 3 * len(order))
+    values = np.concatenate([file_positions, degrees], axis=1)
 
     out: list[str] = ["HIERARCHY"]
     # Offsets are written once: 4 more digits (trailing zeros dropped) keep long chains exact.
@@ -947,17 +950,30 @@ def write_bvh(
     out.append("MOTION")
     out.append(f"Frames: {n_frames}")
     out.append(f"Frame Time: {frame_time!r}")
-    out.extend(_frame_lines(values, decimals))
-    atomic_write_text(target, "\n".join(out) + "\n")
+    atomic_write_text(target, "\n".join(out) + "\n" + _frame_text(values, decimals))
     return target
 
 
-def _frame_lines(values: np.ndarray, decimals: int | None) -> list[str]:
-    """One text line per frame; fixed decimals (no ``-0.000``) or exact ``repr`` text."""
+def _conjugated(A: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """``A @ R @ A.T`` for a stack of matrices R (..., 3, 3), by indexing when A permutes axes.
+
+    A permutation (the identity included) only reorders the entries: the products add exact
+    zeros, which leave every value as it is but turn ``-0.0`` into ``0.0`` (``+ 0.0`` does
+    the same), so the result is the product's, bit for bit, without a 3x3 product per matrix.
+    """
+    if np.isin(A, (0.0, 1.0)).all() and (A.sum(axis=0) == 1.0).all() \
+            and (A.sum(axis=1) == 1.0).all():
+        p = np.argmax(A, axis=1)  # (A @ R @ A.T)[i, j] = R[p[i], p[j]]
+        return R[..., p, :][..., :, p] + 0.0
+    return A @ R @ A.T
+
+
+def _frame_text(values: np.ndarray, decimals: int | None) -> str:
+    """One line per frame, each with its newline: fixed decimals (no ``-0.000``) or ``repr``."""
     if decimals is None:
-        return [" ".join(map(repr, row)) for row in values.tolist()]
+        return "".join(" ".join(map(repr, row)) + "\n" for row in values.tolist())
     if not len(values):
-        return []
+        return ""
     number = f"%.{decimals}f"
     flat = np.array(values, dtype=float).reshape(-1)
     # Values that would print as -0.000 (negative, |v| below one unit of the last digit, or
@@ -966,9 +982,7 @@ def _frame_lines(values: np.ndarray, decimals: int | None) -> list[str]:
     for i in np.flatnonzero(np.signbit(flat) & (flat > -(10.0 ** -decimals))):
         if number % flat[i] == negative_zero:
             flat[i] = 0.0
-    line_format = " ".join([number] * values.shape[1]) + "\n"
-    text = (line_format * len(values)) % tuple(flat.tolist())
-    return text[:-1].split("\n")
+    return format_rows(" ".join([number] * values.shape[1]) + "\n", flat.reshape(values.shape))
 
 
 def _depth_first(parents: np.ndarray) -> list[int]:
@@ -1005,15 +1019,15 @@ def _rotation_orders(
     return result
 
 
-def _euler_degrees(order: str, R: np.ndarray) -> np.ndarray:
-    """Intrinsic angles [deg] in ``order`` with ``R = R_a @ R_b @ R_c``, exact at gimbal lock.
+def _euler_angles(order: str, R: np.ndarray) -> np.ndarray:
+    """Intrinsic angles [rad] in ``order`` with ``R = R_a @ R_b @ R_c``, exact at gimbal lock.
 
     Args:
         order: Three distinct axes, e.g. ``"ZXY"``.
         R: Rotations, shape (F, 3, 3).
 
     Returns:
-        Angles (F, 3) [deg], continuous over the frames (no wraps, no Euler branch jumps).
+        Angles (F, 3) [rad], each frame's principal triple.
     """
     angles = matrix_to_euler(order, R)
     i, j, k = ("XYZ".index(c) for c in order)
@@ -1028,7 +1042,7 @@ def _euler_degrees(order: str, R: np.ndarray) -> np.ndarray:
         p, q = (k + 1) % 3, (k + 2) % 3
         angles[locked, 0] = 0.0
         angles[locked, 2] = np.arctan2(rest[:, q, p], rest[:, p, p])
-    return np.rad2deg(continuous_series(angles))
+    return angles
 
 
 def _formatter(decimals: int | None) -> Callable[[float], str]:

@@ -179,7 +179,11 @@ def parse_block(body: str, delimiter: str, width: int) -> np.ndarray | None:
     """
     if not body:
         return np.zeros((0, width))
-    text = _fill_empty(_normalize_fields(body, delimiter), delimiter)
+    text = _normalize_fields(body, delimiter)
+    empty = _empty_columns(text, delimiter, width)
+    if empty is not None:
+        return _parse_filled_columns(text, delimiter, empty)
+    text = _fill_empty(text, delimiter)
     try:
         table = np.loadtxt(io.StringIO(text), delimiter=delimiter, comments=None, ndmin=2,
                            dtype=float, quotechar=None)
@@ -187,6 +191,44 @@ def parse_block(body: str, delimiter: str, width: int) -> np.ndarray | None:
         return None
     if table.shape != (body.count("\n") + 1, width):
         return None
+    return table
+
+
+def _empty_columns(text: str, delimiter: str, width: int) -> np.ndarray | None:
+    """The columns (width,) empty in every line of a block whose other fields are all filled.
+
+    None when the block is not so (a line with another field count, an empty field in a
+    column that is filled elsewhere, no column empty throughout, a space delimiter): the
+    caller then writes ``nan`` into the empty fields. Found from the delimiter positions in
+    a few array operations; MT Manager exports hold many such columns (UTC, Year, ...).
+    """
+    if delimiter == " " or len(delimiter) != 1:
+        return None
+    raw = np.frombuffer(text.encode(), np.uint8)
+    ends = np.flatnonzero((raw == ord(delimiter)) | (raw == ord("\n")))
+    lines = text.count("\n") + 1
+    if len(ends) + 1 != lines * width or not (raw[ends[width - 1::width]] == ord("\n")).all():
+        return None
+    empty = (np.diff(ends, prepend=-1, append=len(raw)) == 1).reshape(lines, width)
+    throughout = empty.all(axis=0)
+    if not throughout.any() or empty[:, ~throughout].any():
+        return None
+    return throughout
+
+
+def _parse_filled_columns(text: str, delimiter: str, empty: np.ndarray) -> np.ndarray | None:
+    """:func:`parse_block` of a block whose ``empty`` columns are empty in every line (NaN)."""
+    filled = np.flatnonzero(~empty).tolist()
+    try:
+        values = np.loadtxt(io.StringIO(text), delimiter=delimiter, comments=None, ndmin=2,
+                            dtype=float, quotechar=None, usecols=filled)
+    except ValueError:
+        return None
+    lines = text.count("\n") + 1
+    if values.shape != (lines, len(filled)):
+        return None
+    table = np.full((lines, len(empty)), np.nan)
+    table[:, filled] = values
     return table
 
 

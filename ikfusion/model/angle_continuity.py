@@ -87,15 +87,18 @@ def continuous_series(angles: npt.ArrayLike) -> np.ndarray:
     if len(a) <= 1:
         return a
     flat = a.reshape(len(a), -1, 3)
-    for j in range(flat.shape[1]):
+    whole = np.isfinite(flat).all(axis=(0, 2))  # joints finite in every frame
+    for j in np.flatnonzero(whole):  # one by one, contiguous: faster than all at once
+        flat[:, j] = _continuous_finite(np.ascontiguousarray(flat[:, j])[:, None])[:, 0]
+    for j in np.flatnonzero(~whole):
         finite = np.flatnonzero(np.isfinite(flat[:, j]).all(axis=1))
         if len(finite) > 1:  # rows holding NaN are kept as they are and are no reference
-            flat[finite, j] = _continuous_finite(flat[finite, j])
+            flat[finite, j] = _continuous_finite(flat[finite, j][:, None])[:, 0]
     return flat.reshape(a.shape)
 
 
 def _continuous_finite(x: np.ndarray) -> np.ndarray:
-    """:func:`continuous_series` of one joint's finite (M, 3) angles [rad], all frames at once.
+    """:func:`continuous_series` of joints' finite (M, J, 3) angles [rad], all frames at once.
 
     Whole turns do not change which branch is nearer, and the two branches are mirror images
     (the wrapped distance of ``a`` to the other triple of ``b`` equals that of the other triple
@@ -103,13 +106,15 @@ def _continuous_finite(x: np.ndarray) -> np.ndarray:
     triple of its raw angles lies nearer to frame k-1's raw angles, and its turn count is the
     previous one plus the rounded step. The result is then checked against the frame-by-frame
     rule in the same floating-point operations; from a frame where they differ (a near-tie in
-    rounding) the frame-by-frame rule is run on. The result is so identical to that rule's.
+    rounding) the frame-by-frame rule is run on, for that joint. The result is so identical to
+    that rule's. Every operation is elementwise per joint: the joints do not mix.
     """
-    other = np.stack([x[:, 0] + math.pi, math.pi - x[:, 1], x[:, 2] + math.pi], axis=1)
+    other = np.stack([x[..., 0] + math.pi, math.pi - x[..., 1], x[..., 2] + math.pi], axis=-1)
     step_same = _wrapped_squares(x[1:] - x[:-1])
     step_other = _wrapped_squares(other[1:] - x[:-1])
-    flipped = np.concatenate([[0], np.cumsum(step_other < step_same) % 2]).astype(bool)
-    chosen = np.where(flipped[:, None], other, x)
+    flipped = np.concatenate([np.zeros((1, x.shape[1]), dtype=np.int64),
+                              np.cumsum(step_other < step_same, axis=0) % 2]).astype(bool)
+    chosen = np.where(flipped[..., None], other, x)
     turns = np.zeros(x.shape, dtype=np.int64)
     turns[1:] = np.cumsum(np.rint((chosen[:-1] - chosen[1:]) / _TURN).astype(np.int64), axis=0)
     out = chosen + _TURN * turns
@@ -119,11 +124,11 @@ def _continuous_finite(x: np.ndarray) -> np.ndarray:
     same = x[1:] + _TURN * np.rint((ref - x[1:]) / _TURN)
     near_other = other[1:] + _TURN * np.rint((ref - other[1:]) / _TURN)
     pick_other = _summed_squares(near_other - ref) < _summed_squares(same - ref)
-    rule = np.where(pick_other[:, None], near_other, same)
-    differ = np.flatnonzero((rule != out[1:]).any(axis=1))
-    if len(differ):
-        k = int(differ[0]) + 1
-        out[k - 1:] = _continuous_triples(out[k - 1:k].tolist() + x[k:].tolist())
+    rule = np.where(pick_other[..., None], near_other, same)
+    differ = (rule != out[1:]).any(axis=-1)
+    for j in np.flatnonzero(differ.any(axis=0)):
+        k = int(np.flatnonzero(differ[:, j])[0]) + 1
+        out[k - 1:, j] = _continuous_triples(out[k - 1:k, j].tolist() + x[k:, j].tolist())
     return out
 
 
@@ -134,7 +139,7 @@ def _wrapped_squares(d: np.ndarray) -> np.ndarray:
 
 def _summed_squares(d: np.ndarray) -> np.ndarray:
     """``d0**2 + d1**2 + d2**2`` over the last axis, added in that order."""
-    return d[:, 0] ** 2 + d[:, 1] ** 2 + d[:, 2] ** 2
+    return d[..., 0] ** 2 + d[..., 1] ** 2 + d[..., 2] ** 2
 
 
 def _continuous_triples(rows: list[list[float]]) -> list[list[float]]:

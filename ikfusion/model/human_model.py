@@ -9,7 +9,7 @@ pelvis frame, then one rotation vector per joint in the child frame.
 from __future__ import annotations
 
 import copy
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -314,10 +314,12 @@ class HumanModel:
                 out[column] = float(value)
         return out
 
-    def joint_angle_matrix(self, qs: npt.ArrayLike, continuous: bool = True) -> np.ndarray:
+    def joint_angle_matrix(self, qs: npt.ArrayLike, continuous: bool = True,
+                           joints: Sequence[str] | None = None) -> np.ndarray:
         """Joint angles [deg] of a series of configurations, shape (N, 3 * joints).
 
-        Columns follow :attr:`angle_columns` (flex, abd, rot per joint). The series is
+        Columns follow :attr:`angle_columns` (flex, abd, rot per joint), or, with ``joints``,
+        those of the joints named (in that order; each joint's values are the same). The series is
         continuous (:func:`~ikfusion.model.angle_continuity.continuous_series`): the first frame
         takes the principal triple, every later one the triple closest to the frame before, so
         spins, arms overhead and high kicks neither wrap by 360 deg nor jump between the Euler
@@ -326,10 +328,13 @@ class HumanModel:
         Args:
             qs: (N, nq) configurations in time order.
             continuous: False for each frame's principal triple on its own.
+            joints: Names of :attr:`ball_joints` (None: all of them).
         """
         Q = np.atleast_2d(np.asarray(qs, dtype=float))
-        out = np.empty((Q.shape[0], 3 * len(self.ball_joints)))
-        for k, joint in enumerate(self.ball_joints.values()):
+        chosen = list(self.ball_joints.values()) if joints is None else \
+            [self.ball_joints[name] for name in joints]
+        out = np.empty((Q.shape[0], 3 * len(chosen)))
+        for k, joint in enumerate(chosen):
             R = quat_wxyz_to_matrix(xyzw_to_wxyz(Q[:, joint.idx_q:joint.idx_q + 4]))
             angles = joint.spec.angles_from_rotation(R)
             if continuous:

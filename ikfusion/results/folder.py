@@ -20,10 +20,10 @@ import numpy as np
 
 from ..atomic import atomic_folder
 from ..ik.pose import Motion
-from ..model.motion_kinematics import frame_placements
 from ..rotations import matrix_to_quat_wxyz
 from .bvh_export import write_motion_bvh
 from .opensim_export import write_motion_mot
+from .result_kinematics import ResultKinematics
 from .text_table import long_rows, write_csv
 
 #: The files of a result folder (besides the hidden marker of :mod:`ikfusion.output_folders`).
@@ -39,16 +39,6 @@ def _write_long_csv(path: Path, header: tuple[str, ...], time: np.ndarray, names
     with path.open("w") as out:
         out.write(",".join(header) + "\n")
         long_rows(out, time, names, values)
-
-
-def _poses(motion: Motion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Segment positions (N, S, 3), quaternions wxyz (N, S, 4) and site positions (N, M, 3)."""
-    model = motion.model
-    segments = [model.segment_frame_id(n) for n in model.segment_names]
-    sites = [model.site_frame_id(n) for n in model.site_names]
-    p, R = frame_placements(model.model, motion.q, segments + sites)
-    S = len(segments)
-    return p[:, :S], matrix_to_quat_wxyz(R[:, :S]), p[:, S:]
 
 
 def summary(motion: Motion, extra: Mapping[str, Any] | None = None) -> dict[str, Any]:
@@ -87,15 +77,16 @@ def write_result_folder(motion: Motion, out_dir: str | Path, bvh_up: str = "z",
         The folder.
     """
     model = motion.model
-    p_seg, quat_seg, p_site = _poses(motion)
+    kinematics = ResultKinematics.of(motion)
+    quat_seg = matrix_to_quat_wxyz(kinematics.R_world_segment)
     with atomic_folder(out_dir, "solve", force) as tmp:
-        angles = motion.joint_angles()
         write_csv(tmp / "joint_angles.csv", ["time", *model.angle_columns],
                   ["%.6f"] * (1 + len(model.angle_columns)),
-                  np.column_stack([motion.time, angles]))
+                  np.column_stack([motion.time, kinematics.angles]))
         _write_long_csv(tmp / "segments.csv", SEGMENT_COLUMNS, motion.time, model.segment_names,
-                        np.concatenate([p_seg, quat_seg], axis=2))
-        _write_long_csv(tmp / "sites.csv", SITE_COLUMNS, motion.time, model.site_names, p_site)
+                        np.concatenate([kinematics.p_world_segment, quat_seg], axis=2))
+        _write_long_csv(tmp / "sites.csv", SITE_COLUMNS, motion.time, model.site_names,
+                        kinematics.p_world_site)
         write_csv(tmp / "contacts.csv", ["time", *motion.contact_names],
                   ["%.6f"] + ["%d"] * len(motion.contact_names),
                   np.column_stack([motion.time, motion.contacts.astype(int)]))
@@ -104,6 +95,6 @@ def write_result_folder(motion: Motion, out_dir: str | Path, bvh_up: str = "z",
                   np.column_stack([motion.time, 1e3 * motion.solve_time, motion.iterations]))
         frame_time = 1.0 / motion.rate if motion.rate > 0 else 1.0 / 60.0
         write_motion_bvh(tmp / "motion.bvh", model, motion.q, frame_time, up=bvh_up)
-        write_motion_mot(tmp / "motion.mot", motion)
+        write_motion_mot(tmp / "motion.mot", motion, kinematics=kinematics)
         (tmp / "summary.json").write_text(json.dumps(summary(motion, extra_summary), indent=2))
     return Path(out_dir)

@@ -26,6 +26,7 @@ from ..model.motion_kinematics import frame_placements
 from ..paths import shipped_config
 from ..rotations import matrix_to_euler
 from ..yaml_files import read_yaml
+from .result_kinematics import ResultKinematics
 from .text_table import write_rows
 
 #: ``R_opensim_ours``: our axes (X forward, Y left, Z up) to OpenSim's (X forward, Y up, Z right).
@@ -178,13 +179,16 @@ def opensim_euler_deg(R_world_parent: np.ndarray | None, R_world_child: np.ndarr
 
 
 def opensim_coordinates(motion: Motion, mapping: OpenSimMapping | None = None,
-                        convention: str = "rajagopal2015") -> tuple[list[str], np.ndarray]:
+                        convention: str = "rajagopal2015",
+                        kinematics: ResultKinematics | None = None
+                        ) -> tuple[list[str], np.ndarray]:
     """The OpenSim coordinates of a motion.
 
     Args:
         motion: The solved motion.
         mapping: The coordinate rules; the shipped ``configs/opensim.yaml`` when omitted.
         convention: ``"rajagopal2015"`` or ``"gait2392"`` (flips the knee and mtp signs).
+        kinematics: The motion's angles and poses when already computed (else computed here).
 
     Returns:
         Coordinate names and values (N, names): angles [deg], translations [m] in OpenSim
@@ -196,8 +200,11 @@ def opensim_coordinates(motion: Motion, mapping: OpenSimMapping | None = None,
     segments = {s for r in mapping.rules if isinstance(r.source, tuple) for s in r.source
                 if s != WORLD}
     segments |= {str(r.source) for r in mapping.rules if r.kind == "position"}
-    rotations, positions = segment_poses(motion, segments)
-    angles = motion.joint_angles()
+    if kinematics is not None and segments <= kinematics.segment_index.keys():
+        rotations, positions = kinematics.segment_poses(segments)
+    else:
+        rotations, positions = segment_poses(motion, segments)
+    angles = motion.joint_angles() if kinematics is None else kinematics.angles
     column = {c: i for i, c in enumerate(motion.model.angle_columns)}
     euler: dict[tuple[str, str], np.ndarray] = {}
     values = np.empty((len(motion), len(mapping.rules)))
@@ -244,7 +251,8 @@ def write_mot(path: str | Path, time: np.ndarray, names: list[str], values: np.n
 
 
 def write_motion_mot(path: str | Path, motion: Motion, mapping: OpenSimMapping | None = None,
-                     convention: str = "rajagopal2015") -> Path:
+                     convention: str = "rajagopal2015",
+                     kinematics: ResultKinematics | None = None) -> Path:
     """Write ``motion.mot``: the motion as OpenSim coordinates, degrees and metres, Y up.
 
     Args:
@@ -252,9 +260,10 @@ def write_motion_mot(path: str | Path, motion: Motion, mapping: OpenSimMapping |
         motion: The solved motion.
         mapping: The coordinate rules; the shipped ``configs/opensim.yaml`` when omitted.
         convention: ``"rajagopal2015"`` (default) or ``"gait2392"``.
+        kinematics: The motion's angles and poses when already computed (else computed here).
 
     Returns:
         The path.
     """
-    names, values = opensim_coordinates(motion, mapping, convention)
+    names, values = opensim_coordinates(motion, mapping, convention, kinematics)
     return write_mot(path, motion.time, names, values, name=f"ikfusion motion ({convention})")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import os
 from pathlib import Path
 
@@ -529,7 +530,7 @@ def test_damaged_gzip_file_is_bad_input(tmp_path: Path) -> None:
 @pytest.mark.parametrize("decimals", [0, 3, 6])
 def test_frame_lines_fixed_decimals_never_write_negative_zero(decimals: int, rng) -> None:
     """Every value formats as on its own, except that ``-0.000`` is written ``0.000``."""
-    from ikfusion.io.bvh import _frame_lines
+    from ikfusion.io.bvh import _frame_text
 
     unit = 10.0 ** -decimals
     awkward = [-0.0, 0.0, -0.49 * unit, -0.5 * unit, -0.51 * unit, -unit, -1e-300, 1e-300,
@@ -543,5 +544,16 @@ def test_frame_lines_fixed_decimals_never_write_negative_zero(decimals: int, rng
         return text[1:] if text.lstrip("-0.") == "" and text.startswith("-") else text
 
     expected = [" ".join(one(v) for v in row) for row in values.tolist()]
-    assert _frame_lines(values, decimals) == expected
-    assert _frame_lines(values[:0], decimals) == []
+    assert _frame_text(values, decimals) == "".join(line + "\n" for line in expected)
+    assert _frame_text(values[:0], decimals) == ""
+
+
+@pytest.mark.parametrize("up", ["z", "y"])
+def test_axes_change_of_rotations_is_the_matrix_product_to_the_bit(up: str, rng) -> None:
+    """Signed zeros included: every 3x3 pattern of -0.0, 0.0 and two numbers of each sign."""
+    from ikfusion.io.bvh import _conjugated, rotation_world_file
+
+    A = rotation_world_file(up).T
+    patterns = np.array(list(itertools.product([-0.0, 0.0, -1.5, 2.0], repeat=9)))
+    for R in (patterns.reshape(-1, 3, 3), rng.normal(size=(50, 23, 3, 3))):
+        assert (_conjugated(A, R).view(np.uint64) == (A @ R @ A.T).view(np.uint64)).all()

@@ -252,3 +252,35 @@ def test_merged_ball_joints_carry_the_parent_and_child_of_configs_joints(human: 
         for name, joint in model.ball_joints.items():
             assert (joint.spec.parent, joint.spec.child) == (specs[name].parent,
                                                              specs[name].child), name
+
+
+def test_angles_of_some_joints_are_theirs_in_the_whole_table(human: HumanModel, rng) -> None:
+    qs = np.array([human.random_configuration(rng) for _ in range(40)])
+    whole = human.joint_angle_matrix(qs)
+    names = ["jLeftKnee", "jRightShoulder"]
+    some = human.joint_angle_matrix(qs, joints=names)
+    columns = [f"{n}_{a}" for n in names for a in ("flex", "abd", "rot")]
+    index = [human.angle_columns.index(c) for c in columns]
+    assert np.array_equal(some, whole[:, index])
+
+
+def test_knees_flexing_backwards_are_reported(human: HumanModel) -> None:
+    from ikfusion.app.pipeline import knee_warning
+    from ikfusion.ik import Motion
+    from ikfusion.rotations import matrix_to_quat_wxyz, wxyz_to_xyzw
+
+    def motion(flex_deg: float) -> Motion:
+        q = human.neutral()
+        joint = human.ball_joints["jRightKnee"]
+        angles = np.zeros(3)
+        angles[[a.name for a in joint.spec.angles].index("flex")] = np.radians(flex_deg)
+        q[joint.idx_q:joint.idx_q + 4] = wxyz_to_xyzw(matrix_to_quat_wxyz(
+            joint.spec.rotation(angles)))
+        n = 20
+        return Motion(human, np.arange(n) / 60.0, np.tile(q, (n, 1)), [], np.zeros((n, 0), bool),
+                      np.zeros(n), np.zeros(n, dtype=int), np.zeros(n, dtype=bool), [])
+
+    backwards = motion(-30.0)
+    assert human.joint_angle_matrix(backwards.q, joints=["jRightKnee"])[0, 0] < -8.0
+    assert "right knee flexes the wrong way" in (knee_warning(backwards) or "")
+    assert knee_warning(motion(30.0)) is None

@@ -1,0 +1,226 @@
+"""Rows of numbers as fixed-decimal text (``"%.6f"``), built by NumPy for all values at once.
+
+``"%.6f" % v`` costs about a fifth of a microsecond per value even when a whole block of rows
+goes through one ``%`` operation; a result folder holds over a million values. Here the values
+of a block become bytes together, in array operations: ``|v| * 10**d`` rounded to an integer,
+whose decimal digits are split eight at a time inside a uint64. A block of rows is a byte
+matrix of fixed-width slots (a literal, then a sign, the integer digits and the decimals), padded
+with NUL bytes that are dropped at the end, so each value keeps its own width. About four times
+faster than ``%``.
+
+The text is the same as ``%`` writes, byte for byte: the rounding of ``|v| * 10**d`` in floating
+point can only differ from the exact decimal rounding (Python's, half to even) when the scaled
+value lies within a few units in the last place of a half, and such values, like NaN,
+infinities and values too large for exact integers, are formatted by ``%`` instead (their rows
+are written by ``%``, in place). The sign is written for every value whose sign bit is set, as
+``%`` does (``-0.000000`` for ``-0.0`` and ``-1e-9``).
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+#: ``%`` fields the fast path writes: fixed decimals, e.g. ``%.6f``.
+_FIXED_FIELD = re.compile(r"%\.(\d)f")
+#: Any ``%`` field or escaped percent sign (to find the literal text between fields).
+_ANY_FIELD = re.compile(r"%%|%[^%]*?[a-zA-Z]")
+#: Scaled magnitudes below this convert to int64 exactly with room to spare.
+_EXACT_LIMIT = 2.0 ** 52
+#: Relative distance from a half below which the rounding is left to ``%`` (a few ulps).
+_TIE_MARGIN = 2.0 ** -50
+_NUL, _MINUS, _POINT = 0, ord("-"), ord(".")
+
+
+def fixed_row_parts(row_format: str) -> tuple[list[str], int] | None:
+    """The texts around the fields of ``row_format`` and their decimals, or None.
+
+    None unless every field is the same ``%.<d>f`` (the caller then formats with ``%``).
+
+    Returns:
+        ``(literals, d)`` with ``len(literals) == fields + 1`` (``%%`` already unescaped).
+    """
+    literals, fields, start = [], set(), 0
+    for match in _ANY_FIELD.finditer(row_format):
+        if match[0] == "%%":
+            continue
+        literals.append(row_format[start:match.start()].replace("%%", "%"))
+        fields.add(match[0])
+        start = match.end()
+    literals.append(row_format[start:].replace("%%", "%"))
+    if len(fields) != 1 or not _FIXED_FIELD.fullmatch(next(iter(fields))):
+        return None
+    if any("\0" in part for part in literals):
+        return None
+    return literals, int(next(iter(fields))[2])
+
+
+def format_rows(row_format: str, table: np.ndarray) -> str:
+    """``(row_format * len(table)) % tuple(table.ravel())``, the same text, faster.
+
+    Args:
+        row_format: One row's format with k ``%`` fields (and its newline).
+        table: (N, k) values.
+    """
+    rows = np.asarray(table, dtype=float)
+    rows = rows.reshape(len(rows), -1 if rows.size else 0)
+    parts = fixed_row_parts(row_format)
+    if parts is None or not rows.size:
+        return _percent(row_format, rows)
+    literals, decimals = parts
+    if len(literals) != rows.shape[1] + 1:
+        raise TypeError(f"{len(literals) - 1} fields in the format, {rows.shape[1]} values")
+    layout = _Layout(literals, decimals)
+    step = max(1, BLOCK_VALUES // rows.shape[1])
+    return "".join(_block_text(layout, row_format, rows[s:s + step])
+                   for s in range(0, len(rows), step))
+
+
+#: Values converted per pass of array operations: small enough for the temporaries to stay
+#: in the processor's cache (about twice as fast as one pass over a whole file).
+BLOCK_VALUES = 32768
+
+
+class _Layout:
+    """A row format's literals and decimals, and the byte tables its blocks are written in.
+
+    The literals are written once per table shape; the fields are overwritten per block.
+    """
+
+    def __init__(self, literals: list[str], decimals: int) -> None:
+        self.encoded = [part.encode() for part in literals]
+        self.decimals = decimals
+        self.scale = 10.0 ** decimals
+        self.lengths = [len(part) for part in self.encoded[:-1]]
+        self.tables: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, np.ndarray | None]] = {}
+
+    def row_table(self, n: int, width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """An (n, row bytes) table holding the literals, and its (n, k, width) field slots.
+
+        The third item: the table columns of the slots when they are a separate array (copied
+        into the table once filled), else None (the slots are a view into the table).
+        """
+        if (n, width) not in self.tables:
+            self.tables[(n, width)] = _row_table(self.encoded, self.lengths, n, width)
+        return self.tables[(n, width)]
+
+
+def _block_text(layout: _Layout, row_format: str, rows: np.ndarray) -> str:
+    """Rows as text: the fast path, with the rows it cannot write exactly through ``%``."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        scaled = np.abs(rows)
+        scaled *= layout.scale
+        whole = np.rint(scaled)
+        slow_rows = _slow_rows(scaled, whole)
+    if slow_rows is None:
+        return _fixed(layout, rows, whole)
+    text, start = [], 0
+    for k in np.flatnonzero(slow_rows).tolist():
+        if k > start:
+            text.append(_fixed(layout, rows[start:k], whole[start:k]))
+        text.append(_percent(row_format, rows[k:k + 1]))
+        start = k + 1
+    if start < len(rows):
+        text.append(_fixed(layout, rows[start:], whole[start:]))
+    return "".join(text)
+
+
+def _slow_rows(scaled: np.ndarray, whole: np.ndarray) -> np.ndarray | None:
+    """Rows (N,) holding a value the fast path cannot write exactly, or None.
+
+    None when there is none, the common case, found with two reductions.
+    """
+    gap = scaled - whole
+    np.abs(gap, out=gap)
+    largest = scaled.max()
+    if largest < _EXACT_LIMIT and gap.max() < 0.5 - largest * _TIE_MARGIN:
+        return None
+    slow = ~(scaled < _EXACT_LIMIT) | (gap >= 0.5 - scaled * _TIE_MARGIN)
+    return slow.any(axis=1)
+
+
+def _percent(row_format: str, rows: np.ndarray) -> str:
+    """The rows through ``%`` (the reference the fast path matches)."""
+    return (row_format * len(rows)) % tuple(rows.ravel().tolist())
+
+
+def _fixed(layout: _Layout, rows: np.ndarray, whole: np.ndarray) -> str:
+    """Rows whose every value takes the fast path, as text.
+
+    Args:
+        layout: The row format.
+        rows: (n, k) values (their signs).
+        whole: (n, k) ``|rows| * 10**decimals`` rounded, integers below 2**52 as floats.
+    """
+    n, k = rows.shape
+    d = layout.decimals
+    scaled = whole.astype(np.uint64)
+    int_digits = max(1, len(str(int(scaled.max()) // 10 ** d)))
+    width = 1 + int_digits + (1 + d if d else 0)
+    table, field, columns = layout.row_table(n, width)
+    np.multiply(np.signbit(rows), _MINUS, out=field[:, :, 0], dtype=np.uint8)
+    digits = _ascii_digits(scaled, int_digits + d)
+    field[:, :, 1:1 + int_digits] = digits[:, :, :int_digits]
+    for place in range(1, int_digits):  # leading zeros of the integer part
+        field[:, :, int_digits - place][scaled < 10 ** (place + d)] = _NUL
+    if d:
+        field[:, :, 1 + int_digits] = _POINT
+        field[:, :, 2 + int_digits:] = digits[:, :, int_digits:]
+    if columns is not None:
+        table[:, columns] = field.reshape(n, -1)
+    flat = table.ravel()
+    return flat[flat != _NUL].tobytes().decode()
+
+
+def _row_table(encoded: list[bytes], lengths: list[int], n: int,
+               width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """:meth:`_Layout.row_table` made."""
+    k = len(lengths)
+    template = b"".join(part + bytes(width) for part in encoded[:-1]) + encoded[-1]
+    table = np.empty((n, len(template)), np.uint8)
+    table[:] = np.frombuffer(template, np.uint8)
+    starts = np.cumsum(lengths) + width * np.arange(k)
+    if k == 1 or all(length == lengths[1] for length in lengths[1:]):  # evenly spaced slots
+        step = int(starts[1] - starts[0]) if k > 1 else width
+        view = np.lib.stride_tricks.as_strided(table[:, starts[0]:], (n, k, width),
+                                               (table.strides[0], step, 1))
+        return table, view, None
+    columns = (starts[:, None] + np.arange(width)).ravel()
+    return table, np.empty((n, k, width), np.uint8), columns
+
+
+def _ascii_digits(values: np.ndarray, count: int) -> np.ndarray:
+    """The last ``count`` digits of ``values`` (uint64 below 10**16) as ASCII bytes.
+
+    Shape ``values.shape + (count,)``, most significant first.
+
+    Eight digits at a time in one uint64 ("SIMD within a register"): split into two 4-digit
+    halves, each half into 2-digit pairs, each pair into digits, every lane at once.
+    """
+    words = [values] if count <= 8 else [values // 100_000_000, values % 100_000_000]
+    chunks = [_eight_digits(v) for v in words]
+    digits = chunks[0] if len(chunks) == 1 else np.concatenate(chunks, axis=-1)
+    return digits[..., -count:]
+
+
+def _eight_digits(values: np.ndarray) -> np.ndarray:
+    """The eight digits of ``values`` (uint64 below 10**8) as ASCII, ``shape + (8,)``."""
+    high = values // 10_000
+    v = values - high * 10_000
+    v <<= 32
+    v |= high  # the first four digits in the low 32 bits (the first bytes in memory)
+    high = v * 10486
+    high >>= 20
+    high &= 0x0000007F0000007F  # // 100 in each 32-bit lane
+    v -= high * 100
+    v <<= 16
+    v |= high
+    high = v * 103
+    high >>= 10
+    high &= 0x000F000F000F000F  # // 10 in each 16-bit lane
+    v -= high * 10
+    v <<= 8
+    v |= high
+    v |= 0x3030303030303030
+    return v.astype("<u8", copy=False)[..., None].view(np.uint8)

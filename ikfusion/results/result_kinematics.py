@@ -1,0 +1,52 @@
+"""What the writers of a result folder need from a solved motion, computed once for all.
+
+``joint_angles.csv`` and ``motion.mot`` both need the joint angles, ``segments.csv``,
+``sites.csv`` and ``motion.mot`` the segments' world poses: computing them once, for every
+frame at once, spares the second computation (the values are the very same ones).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..ik.pose import Motion
+from ..model.motion_kinematics import frame_placements
+
+
+@dataclass(frozen=True)
+class ResultKinematics:
+    """A motion's joint angles and segment and site placements, every frame.
+
+    Attributes:
+        angles: (N, C) joint angles [deg], columns ``model.angle_columns``.
+        p_world_segment: (N, S, 3) segment origins [m], segments ``model.segment_names``.
+        R_world_segment: (N, S, 3, 3) segment orientations.
+        p_world_site: (N, M, 3) site positions [m], sites ``model.site_names``.
+        segment_index: Segment name -> index into the S axis.
+    """
+
+    angles: np.ndarray
+    p_world_segment: np.ndarray
+    R_world_segment: np.ndarray
+    p_world_site: np.ndarray
+    segment_index: dict[str, int]
+
+    @classmethod
+    def of(cls, motion: Motion) -> ResultKinematics:
+        """Compute them (world frame: X forward, Y left, Z up)."""
+        model = motion.model
+        segments = [model.segment_frame_id(n) for n in model.segment_names]
+        sites = [model.site_frame_id(n) for n in model.site_names]
+        p, R = frame_placements(model.model, motion.q, segments + sites)
+        S = len(segments)
+        return cls(motion.joint_angles(), p[:, :S], R[:, :S], p[:, S:],
+                   {n: i for i, n in enumerate(model.segment_names)})
+
+    def segment_poses(self, names: set[str]) -> tuple[dict[str, np.ndarray],
+                                                       dict[str, np.ndarray]]:
+        """``R_world_segment`` (N, 3, 3) and ``p_world_segment`` (N, 3) [m] of ``names``."""
+        index = self.segment_index
+        return ({n: self.R_world_segment[:, index[n]] for n in names},
+                {n: self.p_world_segment[:, index[n]] for n in names})

@@ -1,0 +1,57 @@
+"""Fixed-decimal text built by NumPy: the same bytes as Python's ``%`` for every value."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ikfusion.number_text import BLOCK_VALUES, fixed_row_parts, format_rows
+
+#: Values whose text is easy to get wrong: signed zeros, exact and near halves, non-finite,
+#: integers too large for the fast path, the largest and smallest floats.
+AWKWARD = [0.0, -0.0, -1e-9, 1e-9, 0.5e-6, -0.5e-6, 2.5e-6, 1.0000005, 0.0078125, -0.0234375,
+           0.125, 2.5, -3.5, 1e15, 4503599627370495.5, 9007199254740993.0, 1e300, -1e-300,
+           np.nan, np.inf, -np.inf, 0.1 + 0.2, 99.9999995, 999999.9999999, 1.7976931348623157e308,
+           5e-324]
+
+
+def percent(row_format: str, table: np.ndarray) -> str:
+    """The reference: one ``%`` operation per row."""
+    return "".join(row_format % tuple(row) for row in np.asarray(table).tolist())
+
+
+@pytest.mark.parametrize("decimals", range(10))
+def test_every_magnitude_and_awkward_value_as_percent_writes_it(decimals: int, rng) -> None:
+    row_format = ",".join([f"%.{decimals}f"] * 6) + "\n"
+    scales = 10.0 ** rng.integers(-10, 13, (400, 1))
+    table = np.concatenate([rng.normal(size=(400, 6)) * scales,
+                            np.resize(np.array(AWKWARD), (9, 6)),
+                            (rng.integers(-10**6, 10**6, (200, 6)) + 0.5) / 10**decimals,
+                            rng.integers(-10**6, 10**6, (200, 6)) / 2.0 ** rng.integers(0, 30,
+                                                                                        (200, 6))])
+    rng.shuffle(table)
+    assert format_rows(row_format, table) == percent(row_format, table)
+
+
+def test_names_percent_signs_and_blocks(rng) -> None:
+    """Literals of several lengths (a long table's names, ``%%``), over many blocks."""
+    row_format = "%.6f,Pelvis,%.6f,%.6f\n%.6f,odd%%name,%.6f,%.6f\n%.6f\t%.6f x\n"
+    table = rng.normal(size=(2 * BLOCK_VALUES // 8 + 3, 8)) * 50.0
+    table[5, 2] = np.nan  # a row written by `%` in the middle of a block
+    assert format_rows(row_format, table) == percent(row_format, table)
+
+
+def test_other_formats_are_written_by_percent(rng) -> None:
+    table = np.column_stack([np.arange(20) / 100.0, rng.normal(size=20),
+                             rng.integers(0, 9, 20)]).astype(float)
+    for row_format in ("%.6f,%.4f,%d\n", "%.6f,%.6f,%g\n", "%.6f,%.6f,%.12f\n"):
+        assert fixed_row_parts(row_format) is None
+        assert format_rows(row_format, table) == percent(row_format, table)
+    assert format_rows("%.6f\n", np.empty((0, 1))) == ""
+
+
+def test_parts_of_a_format() -> None:
+    assert fixed_row_parts("%.3f,a%%b,%.3f\n") == (["", ",a%b,", "\n"], 3)
+    assert fixed_row_parts("no fields\n") is None
+    with pytest.raises(TypeError):
+        format_rows("%.6f,%.6f\n", np.zeros((2, 3)))
