@@ -23,6 +23,7 @@ from ..model.human_model import HumanModel
 from ..model.layout import TRUNK_CONTACT_SITES
 from ..model.topology import BodyTopology
 from .anchor_carry import AnchorCarry
+from .anchor_settling import risen_heights
 from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
 from .fast_math import any_true, min_of, true_indices
 from .frame import Frame
@@ -93,6 +94,7 @@ class ContactTracker:
         self._pitch = np.zeros(len(self.names))
         self.far_from_floor = np.zeros(len(self.names), dtype=bool)
         self._v_sensed: np.ndarray | None = None
+        self._rising: np.ndarray | None = None  # the heels release() let rise this frame
         # the IMU evidence of the frame being solved: (frame, feet still, points moving)
         self._evidence: tuple[Frame, np.ndarray | None, np.ndarray | None] | None = None
         self.support.reset()
@@ -193,7 +195,8 @@ class ContactTracker:
         rising = self.layout.on_foot & (pitch > math.radians(self.settings.heel_rise_deg))
         if still is not None:
             rising &= still != 1.0
-        return np.asarray(rising)
+        self._rising = np.asarray(rising)
+        return self._rising
 
     def ease(self, held: np.ndarray, bend: Callable[[np.ndarray], np.ndarray],
              R_world_sensed: np.ndarray, dt: float) -> np.ndarray | None:
@@ -250,6 +253,9 @@ class ContactTracker:
     def touch_down(self, frame: Frame, p_contacts: np.ndarray, p_root: np.ndarray) -> None:
         """After solving: plant the points that reached the floor.
 
+        A planted heel that was let rise this frame is anchored at the height it was solved at
+        (:func:`.anchor_settling.risen_heights`), from which the anchor settles to the floor.
+
         Args:
             frame: The frame (contact hints).
             p_contacts: (c, 3) solved contact points [m].
@@ -260,6 +266,12 @@ class ContactTracker:
         self._history.append((frame.time, p_contacts))
         self.support.record(p_contacts, p_root)
         t_old, p_old = self._history[0]
+        rising, self._rising = self._rising, None
+        if rising is not None and any_true(risen := rising & self.state.active):
+            anchors = self.state.anchors.copy()
+            anchors[:, 2] = risen_heights(anchors[:, 2], p_contacts[:, 2], risen,
+                                          self.thresholds.floor_z)
+            self.state = replace(self.state, anchors=anchors)
         released, self._evidence = self._evidence, None
         still, moving = (released[1:] if released is not None and released[0] is frame
                          else (self._feet_still(frame), self._points_moving(frame)))
