@@ -42,13 +42,14 @@ def settled_heights(z: np.ndarray, active: np.ndarray, same_segment: np.ndarray,
 
 def risen_heights(z: np.ndarray, z_solved: np.ndarray, risen: np.ndarray,
                   floor_z: float) -> np.ndarray:
-    """Anchor heights (k,) [m] with those of the ``risen`` points where they were solved.
+    """Anchor heights (k,) [m] with those of the ``risen`` points at ``z_solved`` (k,) [m].
 
     A planted heel held horizontally only (rising as its foot rolls toe-down) is not held in
-    height: its solved height ``z_solved`` (k,) [m] is where it is, on or above ``floor_z``
-    [m]. Its anchor takes that height, and settles down from there (:func:`settled_heights`)
-    once it is held in height again; an anchor left on the floor under a heel a sensed foot
-    pitched a few tenths of a degree toe-down held 7 mm up pulled the heel down in one frame
-    when the pitch fell back, and the ankle popped (gen-jumps landings, 1.2 deg).
+    height, and its anchor settles to the floor under it. When it is held in height again,
+    its anchor is where it rose to (the caller passes one settling step under where it was
+    solved), on or above ``floor_z`` [m], and settles from there (:func:`settled_heights`):
+    a floor anchor under a heel held 7 mm up by a foot its IMU pitched a few tenths of a degree
+    toe-down pulled the heel down in one frame when the pitch fell back, and the ankle popped
+    (gen-jumps landings, 1.2 deg).
     """
     return np.where(risen, np.maximum(z_solved, floor_z), z)

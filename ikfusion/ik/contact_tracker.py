@@ -195,8 +195,21 @@ class ContactTracker:
         rising = self.layout.on_foot & (pitch > math.radians(self.settings.heel_rise_deg))
         if still is not None:
             rising &= still != 1.0
-        self._rising = np.asarray(rising)
+        was, self._rising = self._rising, np.asarray(rising)
+        if was is not None and any_true(again := was & ~self._rising & self.state.active):
+            self._hold_again(again, dt)
         return self._rising
+
+    def _hold_again(self, again: np.ndarray, dt: float) -> None:
+        """Heels ``again`` (c,) that rose in the last frame are held in height again.
+
+        Each is anchored one settling step under where it was solved in the last frame
+        (:func:`.anchor_settling.risen_heights`), and settles on from there.
+        """
+        anchors = self.state.anchors.copy()
+        z_last = self._history[-1][1][:, 2] - self.thresholds.settle_speed * max(dt, 0.0)
+        anchors[:, 2] = risen_heights(anchors[:, 2], z_last, again, self.thresholds.floor_z)
+        self.state = replace(self.state, anchors=anchors)
 
     def ease(self, held: np.ndarray, bend: Callable[[np.ndarray], np.ndarray],
              R_world_sensed: np.ndarray, dt: float,
@@ -263,9 +276,6 @@ class ContactTracker:
     def touch_down(self, frame: Frame, p_contacts: np.ndarray, p_root: np.ndarray) -> None:
         """After solving: plant the points that reached the floor.
 
-        A planted heel that was let rise this frame is anchored at the height it was solved at
-        (:func:`.anchor_settling.risen_heights`), from which the anchor settles to the floor.
-
         Args:
             frame: The frame (contact hints).
             p_contacts: (c, 3) solved contact points [m].
@@ -276,12 +286,6 @@ class ContactTracker:
         self._history.append((frame.time, p_contacts))
         self.support.record(p_contacts, p_root)
         t_old, p_old = self._history[0]
-        rising, self._rising = self._rising, None
-        if rising is not None and any_true(risen := rising & self.state.active):
-            anchors = self.state.anchors.copy()
-            anchors[:, 2] = risen_heights(anchors[:, 2], p_contacts[:, 2], risen,
-                                          self.thresholds.floor_z)
-            self.state = replace(self.state, anchors=anchors)
         released, self._evidence = self._evidence, None
         still, moving = (released[1:] if released is not None and released[0] is frame
                          else (self._feet_still(frame), self._points_moving(frame)))

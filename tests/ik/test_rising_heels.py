@@ -32,10 +32,11 @@ FOOT_POINTS = ("LeftHeel", "LeftToe", "RightHeel", "RightToe")
 HEELS = ("LeftHeel", "RightHeel")
 
 
-def test_a_heel_let_rise_is_anchored_where_it_is_and_its_leg_eases(human: HumanModel) -> None:
-    """Feet flat on the floor, then the left foot pitched 1 deg toe-down: its heel rises, its
-    leg eases back to its sensors (the right one keeps its bend), and the heel, solved 7 mm up,
-    is anchored there, settling at ``settle_speed`` (not left on the floor under it)."""
+def test_a_heel_let_rise_eases_its_leg_and_is_held_again_where_it_is(human: HumanModel) -> None:
+    """Feet flat on the floor, then the left foot pitched 1 deg toe-down: its heel rises and
+    its leg eases back to its sensors (the right one keeps its bend). Solved 7 mm up, the heel
+    is held in height again when the pitch falls back: one settling step under where it was
+    (``settle_speed``), not on its floor anchor."""
     settings = SolverSettings.load()
     tracker = ContactTracker(human, BodyTopology.of(human), list(FOOT_POINTS), settings)
     p = np.array([[0.0, 0.1, 0.0], [0.2, 0.1, 0.0], [0.0, -0.1, 0.0], [0.2, -0.1, 0.0]])
@@ -53,6 +54,9 @@ def test_a_heel_let_rise_is_anchored_where_it_is_and_its_leg_eases(human: HumanM
     solved = p.copy()
     solved[0, 2] = 0.007
     tracker.touch_down(frame, solved, np.zeros(3))
+    assert tracker.state.active.all()
+    rising = tracker.release(Frame(time=2 / RATE), solved, np.zeros(4))
+    assert rising is not None and not rising.any()
     assert tracker.state.anchors[0, 2] == pytest.approx(0.007 - settings.settle_speed / RATE)
     assert tracker.state.anchors[1:, 2] == pytest.approx(0.0)
 
