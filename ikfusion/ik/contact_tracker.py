@@ -94,7 +94,7 @@ class ContactTracker:
         self._pitch = np.zeros(len(self.names))
         self.far_from_floor = np.zeros(len(self.names), dtype=bool)
         self._v_sensed: np.ndarray | None = None
-        self._rising: np.ndarray | None = None  # the heels release() let rise this frame
+        self._rising: np.ndarray | None = None  # the planted heels release() let rise
         # the IMU evidence of the frame being solved: (frame, feet still, points moving)
         self._evidence: tuple[Frame, np.ndarray | None, np.ndarray | None] | None = None
         self.support.reset()
@@ -195,7 +195,7 @@ class ContactTracker:
         rising = self.layout.on_foot & (pitch > math.radians(self.settings.heel_rise_deg))
         if still is not None:
             rising &= still != 1.0
-        was, self._rising = self._rising, np.asarray(rising)
+        was, self._rising = self._rising, np.asarray(rising & self.state.active)
         if was is not None and any_true(again := was & ~self._rising & self.state.active):
             self._hold_again(again, dt)
         return self._rising
