@@ -1,6 +1,7 @@
 """Anchors above the floor settling down to it, the planted points of one rigid segment as one.
 
-A helper of :mod:`.contacts` (``touch_down``); heights in metres, world z up.
+A helper of :mod:`.contacts` (``touch_down``) and :mod:`.contact_tracker`; heights in metres,
+world z up.
 """
 
 from __future__ import annotations
@@ -37,3 +38,18 @@ def settled_heights(z: np.ndarray, active: np.ndarray, same_segment: np.ndarray,
     together = same_segment & active[:, None] & active[None, :]
     shared = np.where(together, own[None, :], np.inf).min(axis=1)  # inf: no planted partner
     return np.maximum(z - np.minimum(own, shared), floor_z)
+
+
+def risen_heights(z: np.ndarray, z_solved: np.ndarray, risen: np.ndarray,
+                  floor_z: float) -> np.ndarray:
+    """Anchor heights (k,) [m] with those of the ``risen`` points at ``z_solved`` (k,) [m].
+
+    A planted heel held horizontally only (rising as its foot rolls toe-down) is not held in
+    height, and its anchor settles to the floor under it. When it is held in height again,
+    its anchor is where it rose to (the caller passes one settling step under where it was
+    solved), on or above ``floor_z`` [m], and settles from there (:func:`settled_heights`):
+    a floor anchor under a heel held 7 mm up by a foot its IMU pitched a few tenths of a degree
+    toe-down pulled the heel down in one frame when the pitch fell back, and the ankle popped
+    (gen-jumps landings, 1.2 deg).
+    """
+    return np.where(risen, np.maximum(z_solved, floor_z), z)

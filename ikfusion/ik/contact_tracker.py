@@ -23,6 +23,7 @@ from ..model.human_model import HumanModel
 from ..model.layout import TRUNK_CONTACT_SITES
 from ..model.topology import BodyTopology
 from .anchor_carry import AnchorCarry
+from .anchor_settling import risen_heights
 from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
 from .fast_math import any_true, min_of, true_indices
 from .frame import Frame
@@ -94,6 +95,7 @@ class ContactTracker:
         self._pitch = np.zeros(len(self.names))
         self.far_from_floor = np.zeros(len(self.names), dtype=bool)
         self._v_sensed: np.ndarray | None = None
+        self._rising: np.ndarray | None = None  # the planted heels release() let rise
         # the IMU evidence of the frame being solved: (frame, feet still, points moving)
         self._evidence: tuple[Frame, np.ndarray | None, np.ndarray | None] | None = None
         self.support.reset()
@@ -194,23 +196,47 @@ class ContactTracker:
         rising = self.layout.on_foot & (pitch > self._heel_rise)
         if still is not None:
             rising &= still != 1.0
-        return np.asarray(rising)
+        was, self._rising = self._rising, np.asarray(rising & self.state.active)
+        if was is not None and any_true(again := was & ~self._rising & self.state.active):
+            self._hold_again(again, dt)
+        return self._rising
+
+    def _hold_again(self, again: np.ndarray, dt: float) -> None:
+        """Heels ``again`` (c,) that rose in the last frame are held in height again.
+
+        Each is anchored one settling step under where it was solved in the last frame
+        (:func:`.anchor_settling.risen_heights`), and settles on from there.
+        """
+        anchors = self.state.anchors.copy()
+        z_last = self._history[-1][1][:, 2] - self.thresholds.settle_speed * max(dt, 0.0)
+        anchors[:, 2] = risen_heights(anchors[:, 2], z_last, again, self.thresholds.floor_z)
+        self.state = replace(self.state, anchors=anchors)
 
     def ease(self, held: np.ndarray, bend: Callable[[np.ndarray], np.ndarray],
-             R_world_sensed: np.ndarray, dt: float) -> np.ndarray | None:
+             R_world_sensed: np.ndarray, dt: float,
+             free_z: np.ndarray | None = None) -> np.ndarray | None:
         """Legs of points ``held`` in the last solve and not now ease back to their sensors.
+
+        So do the legs of heels held in height in the last solve that :meth:`release` lets
+        rise now: freed in height, the ankle the floor bent away from its sensor sprang back in
+        one frame (gen-jumps take-offs, 0.9 deg).
 
         Args:
             held: (c,) points held by the contact constraint in the last solve.
             bend: See :meth:`ReleaseEasing.release`.
             R_world_sensed: (n, 3, 3) this frame's sensed orientation targets.
             dt: Time since the last frame [s].
+            free_z: (c,) those of them held horizontally only (None: none).
 
         Returns:
             The eased orientation targets (n, 3, 3), None when no leg eases.
         """
         if self.names:
-            self.easing.release(held & ~self.state.active, bend)
+            let_go = held & ~self.state.active
+            if self._rising is not None:
+                in_height = held if free_z is None else held & ~free_z
+                let_go |= in_height & self.state.active & self._rising
+            self.easing.release(let_go, bend)
         return self.easing.apply(R_world_sensed, dt)
 
     def follow(self, p_sensed: np.ndarray, dt: float) -> np.ndarray | None:
