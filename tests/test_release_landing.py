@@ -66,21 +66,65 @@ def test_no_slide_plants_no_foot_in_the_air_after_a_release(spin_kick: Path, tmp
     """The spin kick's head stays within the late release's reach of the truth (the toe held
     0.1 s past the take-off: 14 cm; the toe planted in the air had taken it to 37 cm) and
     within the issue's 5 cm RMS; the held points still never slide."""
-    capture = spin_kick
-    out = tmp_path / "no-slide"
+    out = _solve(spin_kick, tmp_path / "no-slide", "no-slide", causal)
+    result = evaluate(out, spin_kick / "truth.npz", align="none")
+    assert result.head_position_rms_m < 0.05
+    assert result.held_slide_max_mm < 1.0
+    assert _head_errors(out, spin_kick).max() < 0.25
+
+
+def test_slide_lets_the_take_off_toe_go_as_the_head_rises(spin_kick: Path,
+                                                          tmp_path: Path) -> None:
+    """slide: the toe held past the take-off pins the body down while the head's fix rises.
+    Horizontally the slides close most of the gap it opens, so only the fix's rise lets the
+    hold go in time: the head fell 27 cm under the truth (RMS 3.8 cm, issue limit 4); now
+    within 20 cm and 3 cm RMS."""
+    out = _solve(spin_kick, tmp_path / "slide", "slide", False)
+    error = _head_errors(out, spin_kick)
+    assert float(np.sqrt(np.mean(error**2))) < 0.03
+    assert error.max() < 0.20
+
+
+def test_a_head_rising_above_the_held_body_lets_the_hold_go() -> None:
+    """The head's fix rising 10 cm above the solved head (held, not moving) is a false
+    hold; sinking under it is not (the legs' shape), nor is a rise closing a gap the fix
+    started below the site; a smaller rise counts with the horizontal change."""
+    cov, dt, site = np.eye(3) * 0.01**2, 1 / 60, np.array([1.0, 2.0, 1.7])
+
+    def moved(to: np.ndarray, start: np.ndarray | None = None) -> BodyRelease:
+        start = np.zeros(3) if start is None else start
+        release = BodyRelease(distance=0.10, jump_speed=20.0)
+        release.update(True, site + start, cov, site, dt)  # the hold begins
+        for w in np.linspace(0.0, 1.0, 31)[1:]:  # 0.5 s of a held body
+            release.update(True, site + start + w * (to - start), cov, site, dt)
+            if release.released:
+                break
+        return release
+
+    assert moved(np.array([0.0, 0.0, 0.12])).released
+    assert not moved(np.array([0.0, 0.0, 0.08])).released
+    assert not moved(np.array([0.0, 0.0, -0.30])).released
+    assert not moved(np.array([0.0, 0.0, 0.06]), start=np.array([0.0, 0.0, -0.08])).released
+    assert not moved(np.array([0.07, 0.0, 0.0])).released
+    assert moved(np.array([0.07, 0.0, 0.08])).released
+
+
+def _solve(capture: Path, out: Path, correction: str, causal: bool) -> Path:
+    """Solve the capture with UWB and ``--correction``; returns the result folder."""
     args = ["solve", "--imu", str(capture / "imu"), "--map", str(capture / "sensors.yaml"),
             "--body", str(capture / "body.yaml"), "--toa", str(capture / "toa.csv"),
             "--readers", str(capture / "readers.yaml"), "--tags", str(capture / "tags.yaml"),
-            "--correction", "no-slide", "--out", str(out), "--quiet"]
+            "--correction", correction, "--out", str(out), "--quiet"]
     assert main(args + (["--causal"] if causal else [])) == 0
-    result = evaluate(out, capture / "truth.npz", align="none")
-    assert result.head_position_rms_m < 0.05
-    assert result.held_slide_max_mm < 1.0
+    return out
+
+
+def _head_errors(out: Path, capture: Path) -> np.ndarray:
+    """(N,) 3-D distance [m] of the solved HeadTop to the truth's, per frame."""
     truth = np.load(capture / "truth.npz")
     head = list(truth["site_names"]).index("HeadTop")
     solved = _site_track(out / "sites.csv", "HeadTop")
-    error = np.linalg.norm(solved - truth["p_world_site"][:, head], axis=1)
-    assert error.max() < 0.25
+    return np.asarray(np.linalg.norm(solved - truth["p_world_site"][:, head], axis=1))
 
 
 def _site_track(path: Path, site: str) -> np.ndarray:

@@ -92,12 +92,18 @@ class BodyRelease:
     A planted point is a hard constraint: a false hold (a foot planted that is in the air, a
     hand held while the body crawls on) keeps the whole body in place while the person moves,
     and no soft task can move it. The tag on the body (the head) tells: while the body holds
-    on to the floor, the gap from the solved site to its fix (horizontal) stays what it was
-    when the hold began (a lean moves both). When it has changed by more than ``distance``
-    (and three standard deviations of the noise of two fixes' difference) during one hold,
-    the hold is false and every held point is let go: the body flies, and the tags move its
-    path (:func:`ikfusion.app.tag_tasks.flight_pull`) until the gap is below half
-    ``distance``; then the points may be planted again where the sensed legs meet the floor.
+    on to the floor, the gap from the solved site to its fix stays what it was when the hold
+    began (a lean moves both). When it has changed by more than ``distance`` (and three
+    standard deviations of the noise of two fixes' difference) during one hold, the hold is
+    false and every held point is let go. The change is judged horizontally, and also with
+    the fix's rise above the solved site (:func:`risen`): a body held on the floor cannot
+    rise with its head, while a take-off toe held past the take-off (a spinning pelvis's
+    accelerometers miss the flight) pins the body down as the head's fix goes up. A fix
+    sinking under the solved head is the legs' shape, not a hold, and does not count. Once
+    let go, the body flies, and the tags move its path
+    (:func:`ikfusion.app.tag_tasks.flight_pull`) until the gap (with the rise since the hold
+    began) is below half ``distance``; then the points may be planted again where the sensed
+    legs meet the floor.
     Until one is (``landing``), nothing says the body is back on the floor: a closed gap is
     not a landing, and a foot high in the air must not be planted just because it is the
     body's lowest point (:meth:`ikfusion.app.correction.DriftCorrection.shape` keeps the feet
@@ -119,6 +125,7 @@ class BodyRelease:
     released: bool = False
     landing: bool = False
     _anchor: np.ndarray | None = None  # (2,) the gap [m] when the hold began
+    _anchor_z: float = 0.0  # its height (fix above solved site: positive) [m]
     _last: np.ndarray | None = field(default=None)
 
     def update(self, held: bool, p_fix: np.ndarray, cov: np.ndarray, p_site: np.ndarray,
@@ -141,18 +148,23 @@ class BodyRelease:
         step = 0.0 if self._last is None else float(np.linalg.norm(p - self._last))
         jumped = dt > 0 and step > self.jump_speed * dt
         self._last = p
-        if self.released:
-            self.released = float(np.linalg.norm(gap)) > 0.5 * self.distance
+        gap_z = float(p_fix[2] - p_site[2])
+        if self.released:  # until the gap closed, the risen height too
+            rise = risen(self._anchor_z, gap_z)
+            self.released = float(np.hypot(np.linalg.norm(gap), rise)) > 0.5 * self.distance
             self.landing = not self.released
             self._anchor = None
             return
         if not held or jumped or self._anchor is None:  # a jump of the fixes starts anew
-            self._anchor = gap if held else None
+            self._anchor, self._anchor_z = (gap if held else None), gap_z
             return
+        change = unclosed_change(self._anchor, gap)
+        rising = np.append(change, risen(self._anchor_z, gap_z))
         # the change of the gap is the difference of two fixes: sqrt(2) times one's noise
-        noise = 3.0 * float(np.sqrt(max(2.0 * np.trace(cov[:2, :2]), 0.0)))
-        if float(np.linalg.norm(unclosed_change(self._anchor, gap))) > max(self.distance, noise):
-            self.released = True
+        for moved, axes in ((change, 2), (rising, 3)):
+            noise = 3.0 * float(np.sqrt(max(2.0 * np.trace(cov[:axes, :axes]), 0.0)))
+            if float(np.linalg.norm(moved)) > max(self.distance, noise):
+                self.released = True
 
 
 def unclosed_change(before: np.ndarray, after: np.ndarray) -> np.ndarray:
@@ -169,3 +181,12 @@ def unclosed_change(before: np.ndarray, after: np.ndarray) -> np.ndarray:
     u = np.asarray(before, dtype=float) / length
     along = float(change @ u)
     return change - max(min(along, 0.0), -length) * u
+
+
+def risen(before: float, after: float) -> float:
+    """How far a fix rose above its solved site from height gap ``before`` to ``after`` [m].
+
+    The gaps are the fix's height minus the site's. Only a rise counts (never below 0), and
+    not the part of it that closes a gap the fix started below the site.
+    """
+    return max(after - max(before, 0.0), 0.0)
