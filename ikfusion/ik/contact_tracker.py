@@ -213,30 +213,20 @@ class ContactTracker:
         self.state = replace(self.state, anchors=anchors)
 
     def ease(self, held: np.ndarray, bend: Callable[[np.ndarray], np.ndarray],
-             R_world_sensed: np.ndarray, dt: float,
-             free_z: np.ndarray | None = None) -> np.ndarray | None:
+             R_world_sensed: np.ndarray, dt: float) -> np.ndarray | None:
         """Legs of points ``held`` in the last solve and not now ease back to their sensors.
-
-        So do the legs of heels held in height in the last solve that :meth:`release` lets
-        rise now: freed in height, the ankle the floor bent away from its sensor sprang back in
-        one frame (gen-jumps take-offs, 0.9 deg).
 
         Args:
             held: (c,) points held by the contact constraint in the last solve.
             bend: See :meth:`ReleaseEasing.release`.
             R_world_sensed: (n, 3, 3) this frame's sensed orientation targets.
             dt: Time since the last frame [s].
-            free_z: (c,) those of them held horizontally only (None: none).
 
         Returns:
             The eased orientation targets (n, 3, 3), None when no leg eases.
         """
         if self.names:
-            let_go = held & ~self.state.active
-            if self._rising is not None:
-                in_height = held if free_z is None else held & ~free_z
-                let_go |= in_height & self.state.active & self._rising
-            self.easing.release(let_go, bend)
+            self.easing.release(held & ~self.state.active, bend)
         return self.easing.apply(R_world_sensed, dt)
 
     def follow(self, p_sensed: np.ndarray, dt: float) -> np.ndarray | None:

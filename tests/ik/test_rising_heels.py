@@ -32,11 +32,10 @@ FOOT_POINTS = ("LeftHeel", "LeftToe", "RightHeel", "RightToe")
 HEELS = ("LeftHeel", "RightHeel")
 
 
-def test_a_heel_let_rise_eases_its_leg_and_is_held_again_where_it_is(human: HumanModel) -> None:
-    """Feet flat on the floor, then the left foot pitched 1 deg toe-down: its heel rises and
-    its leg eases back to its sensors (the right one keeps its bend). Solved 7 mm up, the heel
-    is held in height again when the pitch falls back: one settling step under where it was
-    (``settle_speed``), not on its floor anchor."""
+def test_a_heel_let_rise_is_held_again_where_it_is(human: HumanModel) -> None:
+    """Feet flat on the floor, then the left foot pitched 1 deg toe-down: its heel rises.
+    Solved 7 mm up, the heel is held in height again when the pitch falls back: one settling
+    step under where it was (``settle_speed``), not on its floor anchor."""
     settings = SolverSettings.load()
     tracker = ContactTracker(human, BodyTopology.of(human), list(FOOT_POINTS), settings)
     p = np.array([[0.0, 0.1, 0.0], [0.2, 0.1, 0.0], [0.0, -0.1, 0.0], [0.2, -0.1, 0.0]])
@@ -46,11 +45,6 @@ def test_a_heel_let_rise_eases_its_leg_and_is_held_again_where_it_is(human: Huma
     frame = Frame(time=1 / RATE)
     rising = tracker.release(frame, p, np.radians([1.0, 1.0, 0.0, 0.0]))
     assert rising is not None and rising.tolist() == [True, False, False, False]
-    n = len(human.segment_names)
-    tracker.ease(np.ones(4, dtype=bool), lambda legs: np.tile([0.0, 0.02, 0.0], (len(legs), 1)),
-                 np.tile(np.eye(3), (n, 1, 1)), 1 / RATE, np.zeros(4, dtype=bool))
-    eased = set(np.flatnonzero(np.abs(tracker.easing.offsets).sum(axis=1)).tolist())
-    assert eased == set(tracker.easing._legs[0].tolist())  # the left leg only
     solved = p.copy()
     solved[0, 2] = 0.007
     tracker.touch_down(frame, solved, np.zeros(3))
