@@ -19,6 +19,7 @@ are written by ``%``, in place). The sign is written for every value whose sign 
 from __future__ import annotations
 
 import re
+from typing import NamedTuple
 
 import numpy as np
 
@@ -204,23 +205,36 @@ def _ascii_digits(values: np.ndarray, count: int) -> np.ndarray:
     return digits[..., -count:]
 
 
+class _LaneSplit(NamedTuple):
+    """One step of :func:`_eight_digits`, from lanes of ``2 * lane_bits`` bits to ``lane_bits``.
+
+    Each lane's value splits into ``value // divisor`` (a multiply and shift, exact over the
+    lane's range) and the remainder, in lanes half as wide.
+    """
+
+    multiplier: int
+    shift: int
+    mask: int
+    divisor: int
+    lane_bits: int
+
+
+_LANE_SPLITS = (_LaneSplit(10486, 20, 0x0000007F0000007F, 100, 16),
+                _LaneSplit(103, 10, 0x000F000F000F000F, 10, 8))
+
+
 def _eight_digits(values: np.ndarray) -> np.ndarray:
     """The eight digits of ``values`` (uint64 below 10**8) as ASCII, ``shape + (8,)``."""
     high = values // 10_000
     v = values - high * 10_000
     v <<= 32
     v |= high  # the first four digits in the low 32 bits (the first bytes in memory)
-    high = v * 10486
-    high >>= 20
-    high &= 0x0000007F0000007F  # // 100 in each 32-bit lane
-    v -= high * 100
-    v <<= 16
-    v |= high
-    high = v * 103
-    high >>= 10
-    high &= 0x000F000F000F000F  # // 10 in each 16-bit lane
-    v -= high * 10
-    v <<= 8
-    v |= high
+    for split in _LANE_SPLITS:  # 32-bit lanes into 16-bit ones, then 16-bit into 8-bit
+        high = v * split.multiplier
+        high >>= split.shift
+        high &= split.mask  # // divisor in each lane
+        v -= high * split.divisor
+        v <<= split.lane_bits
+        v |= high
     v |= 0x3030303030303030
     return v.astype("<u8", copy=False)[..., None].view(np.uint8)
