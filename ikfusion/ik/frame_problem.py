@@ -252,7 +252,9 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     # row, instead of a search of every row of G
     still = None
     if compiled.rate_rows is not None:
-        still = np.logical_not(step.nonzeros(7).take(compiled.rate_rows).any(axis=1))
+        # (logical_or.reduce: ndarray.any without its Python-level dispatch)
+        still = np.logical_not(np.logical_or.reduce(step.nonzeros(7).take(compiled.rate_rows),
+                                                    axis=1))
     ranges = limits.softened(
         LinearisedRanges(step.output(7), step.output(8)[:, 0], step.output(9)[:, 0]), still)
     up, down = ranges.near(limits.margin)
@@ -267,7 +269,7 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     qp = compiled.buffer.views(below + len(floor.h), len(contact.b))
     H, c = qp.H, qp.c
     step.output_into(0, H)
-    np.copyto(c, step.output(1)[:, 0])
+    step.output_into(1, c[:, None])
     if sites:
         tasks.position.add_rows(P[:-1], J[:-1], H, c)
         if shape:

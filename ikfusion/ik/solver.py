@@ -167,7 +167,7 @@ class Solver:
         # a rising heel is held against slipping but no longer stands on the floor
         contacts_now = dict(zip(self.contact_names,
                                 (tasks.contact.active & ~tasks.contact.free_z).tolist()))
-        contacts.touch_down(frame, self._configuration.positions(self._contact_frames), q[:3])
+        self._touch_down(frame, q)
         velocity = (q[:3] - last.q[:3]) / dt if dt > 0 else last.root_velocity
         self.ballistic.update(velocity, dt, a_root, offset is not None)
         return self._finish(frame, targets, q, q_warm, velocity, contacts_now, start,
@@ -196,7 +196,7 @@ class Solver:
         if self._contact_frames:
             contacts.start(self.sensed.pose(q, targets.R_sensed, targets.tracked)[1],
                            contacts.foot_pitch(q, targets.R_sensed, targets.tracked))
-        contacts.touch_down(frame, self._configuration.positions(self._contact_frames), q[:3])
+        self._touch_down(frame, q)
         return self._finish(frame, targets, q, q_warm, np.zeros(3), contacts.state.as_dict(),
                             start, iterations, relaxed)
 
@@ -218,8 +218,19 @@ class Solver:
                 q[:3] += delta
                 self._last = replace(self._last, q=q)
 
+    def _touch_down(self, frame: Frame, q: np.ndarray) -> None:
+        """Plant the points that reached the floor at ``q`` (no kinematics without points)."""
+        if self._contact_frames:
+            self.contacts.touch_down(frame, self._configuration.positions(self._contact_frames),
+                                     q[:3])
+
     def _hold_contacts(self, rising: np.ndarray | None) -> None:
-        """Hold the planted points at their anchors (``rising`` heels horizontally only)."""
+        """Hold the planted points at their anchors (``rising`` heels horizontally only).
+
+        Without contact points there is nothing to hold: their (empty) rows stay as made.
+        """
+        if not self._contact_frames:
+            return
         state, tasks = self.contacts.state, self.tasks
         tasks.contact.set_anchors(state.active, state.anchors, rising)
         # a point far above the floor has no floor row (ContactTracker.far_from_floor)

@@ -476,3 +476,33 @@ def test_add_to_diagonal_is_the_flat_sum() -> None:
     big = base.copy()
     add_to_diagonal(big[:, ::2], 1.0)  # a strided view: its base is changed
     assert np.array_equal(np.diagonal(big[:, ::2]), np.diagonal(base[:, ::2]) + 1.0)
+
+
+def test_an_orientation_only_solve_runs_no_pinocchio_pass(human: HumanModel,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """Issue #20: without contact points nothing is held or planted, so the compiled solve of
+    the orientations alone runs no Pinocchio kinematics pass (``Configuration._kinematics``)
+    in any frame, and solves the walk as the NumPy tasks do. Before, every frame computed
+    every joint Jacobian for the touch-down's empty list of points."""
+    from ikfusion.ik import Solver
+    from ikfusion.model import SENSOR_SEGMENTS
+    from ikfusion.sim.gait import GaitParameters, generate_gait
+    from ikfusion.sim.truth import orientation_frames
+
+    truth = generate_gait(human, GaitParameters(duration=1.0, stand=0.3), rate=60.0)
+    frames = orientation_frames(human, truth.q, truth.time, SENSOR_SEGMENTS)
+    plain = Solver(human, contacts=False, compiled=False).solve(frames)
+    fast = Solver(human, contacts=False)
+    assert fast.compiled is not None and fast.contact_names == []
+    passes: list[float] = []
+    kinematics = Configuration._kinematics
+
+    def counted(conf: Configuration) -> None:
+        if conf is fast._configuration and not conf._kinematics_done:
+            passes.append(float(conf.q[2]))
+        kinematics(conf)
+
+    monkeypatch.setattr(Configuration, "_kinematics", counted)
+    motion = fast.solve(frames)
+    assert passes == []
+    np.testing.assert_allclose(motion.q, plain.q, atol=1e-6)
