@@ -22,10 +22,10 @@ from .configuration import Configuration
 from .fast_math import add_to_diagonal, any_true
 from .limits import ContactConstraint, FloorLimit, JointRangeLimit, VelocityLimit
 from .limits.base import Equality, Inequality, empty_equality, empty_inequality
-from .limits.joint_range import LinearisedRanges
 from .points_configuration import PointsConfiguration
 from .qp import QpBuffer, QpProblem, build_qp
 from .settings import SolverSettings
+from .step_ranges import evaluated_ranges
 from .tasks import (
     ChainShareTask,
     ColumnShapeTask,
@@ -248,15 +248,7 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     if sites:
         P = step.output(5).reshape(-1, 3)
         J = step.output(6).reshape(-1, 3, nv)
-    # the angles whose rates are all 0 (at gimbal lock) from G's structural nonzeros, three a
-    # row, instead of a search of every row of G
-    still = None
-    if compiled.rate_rows is not None:
-        # (logical_or.reduce: ndarray.any without its Python-level dispatch)
-        still = np.logical_not(np.logical_or.reduce(step.nonzeros(7).take(compiled.rate_rows),
-                                                    axis=1))
-    ranges = limits.softened(
-        LinearisedRanges(step.output(7), step.output(8)[:, 0], step.output(9)[:, 0]), still)
+    ranges = evaluated_ranges(step, compiled.rate_rows, limits)
     up, down = ranges.near(limits.margin)
     if len(tasks.contact_rows):
         Pc, Jc = P.take(tasks.contact_rows, axis=0), J.take(tasks.contact_rows, axis=0)

@@ -43,10 +43,11 @@ from .frame import Frame
 from .frame_problem import FrameTasks, build_frame_problem, compiled_step, step_configuration
 from .frame_targets import FrameTargets, TargetLoader
 from .pose import Motion, Pose
-from .projection import place_on_floor, project_on_contacts
+from .projection import RangeRows, place_on_floor, project_on_contacts
 from .residuals import residual_source
 from .sensed_pose import Persistence, SensedPose
 from .settings import SolverSettings
+from .step_ranges import StepRangeRows
 from .tasks import Task
 from .world_offset import WorldOffset
 
@@ -101,6 +102,11 @@ class Solver:
         self.world = WorldOffset(self.contacts.support)
         self.ballistic = BallisticRoot(s.takeoff_velocity_tau)
         self._configuration = step_configuration(model, self.tasks, self.compiled)
+        # the projection's fallback QP linearises the ranges with the step function if compiled
+        self._range_rows: RangeRows = self.tasks.joint_range if self.compiled is None else \
+            StepRangeRows(self.compiled.kinematics, self.compiled.geometry,
+                          self.compiled.rate_rows, self.tasks.joint_range,
+                          len(self.tasks.orientation.frame_ids))
         self.reset()
 
     def reset(self, q: np.ndarray | None = None) -> None:
@@ -274,7 +280,7 @@ class Solver:
             if np.abs(solution.dq).max() < s.step_tolerance:
                 break  # planted points are then held exactly by the projection below
         t = self.tasks
-        relaxed = project_on_contacts(conf, t.contact, t.floor, t.joint_range,
+        relaxed = project_on_contacts(conf, t.contact, t.floor, self._range_rows,
                                       self._contact_frames, s.constraint_tolerance,
                                       s.projection_steps, s.backend, s.qp) or relaxed
         return conf.q.copy(), done, relaxed
