@@ -206,7 +206,8 @@ class ContactTracker:
         if still is not None:
             rising &= still != 1.0
         was, self._rising = self._rising, np.asarray(rising & self.state.active)
-        if was is not None and any_true(again := was & ~self._rising & self.state.active):
+        if (was is not None and any_true(was)
+                and any_true(again := was & ~self._rising & self.state.active)):
             self._hold_again(again, dt)
         return self._rising
 

@@ -81,20 +81,9 @@ def all_planted_moving(active: np.ndarray, moving_point: np.ndarray) -> bool:
 
 def tilted_points(layout: FootLayout, foot_pitch: np.ndarray | None, limit: float) -> np.ndarray:
     """Points whose foot pitch rules them out: heels when toe-down, toes when toe-up."""
-    return _tilted(foot_pitch, layout, limit)
-
-
-def _tilted_points(foot_pitch: np.ndarray | None, layout: FootLayout,
-                   limit: float) -> np.ndarray:
-    """:func:`tilted_points`, its pitch first (kept per read-only pitch: :data:`_tilted`)."""
     if foot_pitch is None:
         return np.zeros(len(layout.on_foot), dtype=bool)
     heel, toe = layout.on_foot, layout.below_foot
     pitch = foot_pitch if isinstance(foot_pitch, np.ndarray) \
         else np.asarray(foot_pitch, dtype=float)  # NaN (unknown) compares False: not tilted
     return (heel & (pitch > limit)) | (toe & (pitch < -limit))
-
-
-#: :func:`tilted_points` of the last read-only pitch array (the release and the touch-down of a
-#: frame ask it of the same smoothed pitches)
-_tilted = LastInput(_tilted_points)
