@@ -37,6 +37,8 @@ from .tasks import PositionTask, Task
 #: running cost nothing for the points of a lying body).
 FAR_FROM_FLOOR = 0.3
 
+_PATTERNS = 4096  # at most this many patterns of evidence are kept (a few dozen in practice)
+
 
 class ContactTracker:
     """The contact state of a solve and what depends on it (see the module docstring).
@@ -61,6 +63,7 @@ class ContactTracker:
         # the pitch of a foot proper rules its heel or toe out; knees and palms have none
         # where a lying or sitting body rests (the trunk): planted only with its IMU's rest
         self._needs_rest = np.array([n in TRUNK_CONTACT_SITES for n in self.names], dtype=bool)
+        self._needs_rest.setflags(write=False)
         self._feet = np.array([segments.index(f) if f is not None and steps else -1
                                for f, steps in zip(self._foot_names, self.layout.stepping)],
                               dtype=int)
@@ -73,6 +76,7 @@ class ContactTracker:
         self._foot_points = true_indices(self._has_foot)  # ... and the point
         self._no_pitch = np.full(len(self._feet), np.nan)  # foot_pitch's start: no foot
         self._still_of: dict[tuple[tuple[str, bool], ...], np.ndarray] = {}  # _feet_still's
+        self._moving_of: dict[tuple[tuple[str, bool], ...], np.ndarray] = {}  # _points_moving's
         self._tracked: np.ndarray | None = None  # the last foot_pitch's tracked segments ...
         self._untracked = np.zeros(0, dtype=int)  # ... and its rows without a target
         self.support = SupportFollower(self.layout, s.lag_speed, s.lag_max, s.swing_speed,
@@ -176,8 +180,13 @@ class ContactTracker:
         a = self.settings.detection_smoothing  # sensor noise is white: smooth the evidence
         previous, self._p_sensed = self._p_sensed, a * self._p_sensed + (1.0 - a) * p_sensed
         dt = frame.time - self._history[-1][0]  # the last solved frame's (smoothed) sensed pose
-        self._v_sensed = (self._p_sensed - previous) / dt if dt > 0 else None
+        step = self._p_sensed - previous  # [m]
+        self._v_sensed = step / dt if dt > 0 else None
         self._pitch = a * self._pitch + (1.0 - a) * pitch
+        # read-only: the rules of this frame work out what they ask of them once
+        # (:class:`.point_masks.LastInput`)
+        self._p_sensed.setflags(write=False)
+        self._pitch.setflags(write=False)
         z = self._p_sensed[:, 2]
         self.far_from_floor = self._needs_rest & (z > min_of(z) + FAR_FROM_FLOOR)
         still, moving = self._feet_still(frame), self._points_moving(frame)
@@ -190,14 +199,15 @@ class ContactTracker:
                                       points_moving=self.carrier.relative_motion(self.state,
                                                                                  moving),
                                       needs_rest=self._needs_rest, v_sensed=self._v_sensed,
-                                      step_sensed=self._p_sensed - previous)
+                                      step_sensed=step)
         # a planted heel whose foot already rolls toe-down may rise (it still cannot slip),
         # unless its IMU says the foot stands still
         rising = self.layout.on_foot & (pitch > self._heel_rise)
         if still is not None:
             rising &= still != 1.0
         was, self._rising = self._rising, np.asarray(rising & self.state.active)
-        if was is not None and any_true(again := was & ~self._rising & self.state.active):
+        if (was is not None and any_true(was)
+                and any_true(again := was & ~self._rising & self.state.active)):
             self._hold_again(again, dt)
         return self._rising
 
@@ -297,11 +307,21 @@ class ContactTracker:
         return frame.contacts
 
     def _points_moving(self, frame: Frame) -> np.ndarray | None:
-        """Per point: 1 moves by its foot's IMU (``frame.points_moving``), 0 not, NaN unknown."""
-        if not frame.points_moving:
-            return None
+        """Per point: 1 moves by its foot's IMU (``frame.points_moving``), 0 not, NaN unknown.
+
+        Read-only, kept per pattern of ``frame.points_moving`` (as :meth:`_feet_still`).
+        """
         known = frame.points_moving
-        return np.array([float(known[n]) if n in known else np.nan for n in self.names])
+        if not known:
+            return None
+        key = tuple(known.items())
+        moving = self._moving_of.get(key)
+        if moving is None:
+            moving = np.array([float(known[n]) if n in known else np.nan for n in self.names])
+            moving.setflags(write=False)
+            if len(self._moving_of) < _PATTERNS:
+                self._moving_of[key] = moving
+        return moving
 
     def _feet_still(self, frame: Frame) -> np.ndarray | None:
         """1 where each point's foot stands still by its IMU, 0 moving, NaN unknown.

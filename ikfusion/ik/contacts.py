@@ -32,11 +32,13 @@ import numpy as np
 
 from ..model.topology import FootLayout
 from .anchor_settling import settled_heights
-from .fast_math import any_true, min_of, row_norms, true_indices
+from .fast_math import any_true, row_norms, true_indices
 from .foot_pairs import drift_from_other_foot, landing_anchors, other_foot
 from .handover import sensed_offset, takeover_anchors
 from .point_evidence import (
     all_planted_moving,
+    by_rest,
+    heights_above_lowest,
     hinted_points,
     moving_rest_points,
     point_motion,
@@ -156,7 +158,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     """
     th = thresholds
     active = state.active  # read only: the new state's is built at the end
-    height_rel = p_sensed[:, 2] - min_of(p_sensed[:, 2])
+    height_rel = heights_above_lowest(p_sensed)
     tilted = tilted_points(layout, foot_pitch, math.radians(th.tilt_deg))
     still = np.zeros(len(active), dtype=bool)
     handed_over: np.ndarray | None = None
@@ -239,7 +241,7 @@ def _plant_height(th: ContactThresholds, needs_rest: np.ndarray | None) -> np.nd
     """How far above the lowest point [m] a still point is planted at once, per point."""
     if needs_rest is None:
         return th.still_relative
-    return np.where(np.asarray(needs_rest, dtype=bool), th.enter_relative, th.still_relative)
+    return by_rest(needs_rest, th.enter_relative, th.still_relative)
 
 
 def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.ndarray,
@@ -282,7 +284,7 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     th = thresholds
     was = state.active
     step = max(dt, 0.0)
-    height_rel = p_sensed[:, 2] - min_of(p_sensed[:, 2])
+    height_rel = heights_above_lowest(p_sensed)
     released = np.where(was, state.released, state.released + step)
     # near the floor and among the lowest points: the candidates (few frames have any)
     enter = (~was & (p_solved[:, 2] < th.floor_z + th.enter_height)

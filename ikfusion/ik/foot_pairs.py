@@ -5,17 +5,26 @@ Helpers of :mod:`.contacts`; a point's foot is given by :class:`FootLayout` ``sa
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ..model.topology import FootLayout
 from .fast_math import any_true, mean_rows, row_norms, true_indices
+from .point_masks import layout_memo
 
 
 def other_foot(layout: FootLayout, mask: np.ndarray) -> np.ndarray:
     """Per point: does the *other* foot have a point in ``mask`` (k,) bool?
 
-    A boolean matrix product: ``any_j(other_foot[i, j] and mask[j])``.
+    A boolean matrix product: ``any_j(other_foot[i, j] and mask[j])``, once per pattern of
+    ``mask`` (:mod:`.point_masks`; read-only).
     """
+    return layout_memo(layout, "other_foot", _other_foot)(mask)
+
+
+def _other_foot(layout: FootLayout, mask: np.ndarray) -> np.ndarray:
+    """:func:`other_foot`'s product."""
     return np.asarray(layout.other_foot @ mask)
 
 
@@ -46,12 +55,37 @@ def drift_from_other_foot(layout: FootLayout, active: np.ndarray, anchors: np.nd
     the other foot has no planted point). Also returns the longest contact age of the other
     foot's planted points [s] (+inf when none).
     """
-    if not any_true(active & other_foot(layout, active)):  # the usual case: one foot planted
-        return np.zeros(len(active)), np.full(len(active), np.inf)
-    others = active[:, None] & active[None, :] & layout.other_foot  # row i: the other foot's
-    count = others.sum(axis=1)
-    has = count > 0
-    offset = (others @ (anchors - p_sensed)) / np.maximum(count, 1)[:, None]
+    pairs = layout_memo(layout, "planted_pairs", _planted_pairs)(active)
+    if pairs is None:  # the usual case: one foot planted
+        return _no_drift(len(active))
+    others, has, count = pairs
+    offset = (others @ (anchors - p_sensed)) / count
     drift = np.where(has, row_norms((p_sensed + offset - anchors)[:, :2]), 0.0)
     other_age = np.where(has, np.where(others, age[None, :], -np.inf).max(axis=1), np.inf)
+    return drift, other_age
+
+
+def _planted_pairs(layout: FootLayout, active: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """:func:`drift_from_other_foot`'s pairs of planted points, once per pattern of ``active``.
+
+    None while one foot holds the planted points, else the (k, k) planted points of the other
+    foot of each point (row i), whether it has any (k,) and how many (k, 1), at least 1.
+    """
+    if not any_true(active & other_foot(layout, active)):
+        return None
+    others = active[:, None] & active[None, :] & layout.other_foot  # row i: the other foot's
+    count = others.sum(axis=1)
+    return others, count > 0, np.maximum(count, 1)[:, None]
+
+
+@functools.cache
+def _no_drift(k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Of :func:`drift_from_other_foot` without two planted feet: no drift, no other age.
+
+    (Read-only, one pair per number of points.)
+    """
+    drift, other_age = np.zeros(k), np.full(k, np.inf)
+    drift.setflags(write=False)
+    other_age.setflags(write=False)
     return drift, other_age

@@ -11,7 +11,8 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from ..model.topology import FootLayout
-from .fast_math import any_true
+from .fast_math import any_true, min_of
+from .point_masks import LastInput
 
 
 def hinted_points(names: Sequence[str],
@@ -20,6 +21,24 @@ def hinted_points(names: Sequence[str],
     if not hints:
         return []
     return [(i, bool(hints[n])) for i, n in enumerate(names) if n in hints]
+
+
+def _heights_above_lowest(p_sensed: np.ndarray) -> np.ndarray:
+    """(k,) how far each point is above the lowest of ``p_sensed`` (k, 3) [m] (world z)."""
+    return p_sensed[:, 2] - min_of(p_sensed[:, 2])
+
+
+#: :func:`_heights_above_lowest`, kept for the last read-only points (a frame's release and
+#: touch-down ask it of the same smoothed sensed pose)
+heights_above_lowest = LastInput(_heights_above_lowest)
+
+
+def _by_rest(needs_rest: np.ndarray, rest: float, other: float) -> np.ndarray:
+    """(k,) ``rest`` for the points that need rest (the trunk), ``other`` for the others."""
+    return np.where(np.asarray(needs_rest, dtype=bool), rest, other)
+
+
+by_rest = LastInput(_by_rest)  # :func:`_by_rest`, kept for a read-only ``needs_rest``
 
 
 def moving_rest_points(needs_rest: np.ndarray | None, foot_still: np.ndarray | None,
@@ -31,11 +50,28 @@ def moving_rest_points(needs_rest: np.ndarray | None, foot_still: np.ndarray | N
 
 
 def point_motion(points_moving: np.ndarray | None, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per point (k,): its IMU says it moves; its IMU says it does not (both False: unknown)."""
-    if points_moving is None:
-        return np.zeros(k, dtype=bool), np.zeros(k, dtype=bool)
+    """Per point (k,): its IMU says it moves; its IMU says it does not (both False: unknown).
+
+    Read-only arrays; kept for a read-only ``points_moving`` (:class:`.point_masks.LastInput`).
+    """
+    if points_moving is None:  # nothing known (read-only falses)
+        none = _NOTHING.get(k)
+        if none is None:
+            none = _NOTHING[k] = np.zeros(k, dtype=bool)
+            none.setflags(write=False)
+        return none, none
+    both = _point_motion(points_moving, k)
+    return both[0], both[1]
+
+
+def _both_motions(points_moving: np.ndarray, k: int) -> np.ndarray:
+    """(2, k) :func:`point_motion`'s two masks of known motions."""
     value = np.asarray(points_moving, dtype=float)  # NaN compares False both ways
-    return value == 1.0, value == 0.0
+    return np.array([value == 1.0, value == 0.0])
+
+
+_point_motion = LastInput(_both_motions)
+_NOTHING: dict[int, np.ndarray] = {}  # (k,) read-only falses, per k
 
 
 def all_planted_moving(active: np.ndarray, moving_point: np.ndarray) -> bool:

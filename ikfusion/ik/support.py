@@ -36,7 +36,8 @@ import math
 import numpy as np
 
 from ..model.topology import FootLayout
-from .fast_math import any_true, count_true, mean_rows, true_indices
+from .fast_math import any_true, count_true, mean_rows
+from .point_masks import PointGroups
 
 _HORIZONTAL = np.diag([1.0, 1.0, 0.0])  # information of a lead on the x and y axes
 _VERTICAL = np.diag([0.0, 0.0, 1.0])  # ... and on the z axis
@@ -66,13 +67,12 @@ class SupportFollower:
         self.lag_speed = lag_speed
         self.lag_max = lag_max
         self.swing_speed = swing_speed
-        self.lean_max = lean_max
-        self.lean_speed = lean_speed
+        self.lean_max, self.lean_speed = lean_max, lean_speed
         self.confirm = confirm
         k = len(layout.on_foot)
         feet = [np.asarray(f, dtype=bool) for f in layout.feet]
         self._feet = tuple(feet + [np.zeros(k, dtype=bool)] * (2 - len(feet)))
-        self._foot_rows = np.array(self._feet)  # (groups, k) the points of each group
+        self._groups = PointGroups(np.array(self._feet))  # the groups' masks, once per pattern
         # only feet proper are led through a swing; knees and palms land where the body puts them
         self._steps = [bool((f & layout.stepping).any()) for f in self._feet]
         # the swing foot is led by its heels: points on the foot itself, not on the unsensed toes
@@ -163,13 +163,13 @@ class SupportFollower:
         planted = self._planted(active)
         self._settle_landings(planted, dt)
         reference = self._reference(active, planted)
-        offset = mean_rows(anchors[reference] - p_sensed[reference])
+        offset = mean_rows((anchors - p_sensed)[reference])
         moved = np.zeros(3)  # how far the pelvis target moves to where the pelvis was solved
         if self._support is not None:
             was, held = self._support
             if any_true(was):
                 # what the last frame's support says now, minus what this frame's says
-                self.lag += mean_rows(held[was] - p_sensed[was]) - offset
+                self.lag += mean_rows((held - p_sensed)[was]) - offset
             if not any_true(was & reference):
                 # the body is handed to a foot that was placed leaning: the lean is in it now;
                 # and the pelvis goes on from where it was solved, not from its soft target
@@ -194,7 +194,7 @@ class SupportFollower:
 
     def _planted(self, points: np.ndarray) -> np.ndarray:
         """(groups,) does each group (foot, knee, palm) have one of ``points`` (k,) bool?"""
-        return np.asarray(self._foot_rows @ points)  # a boolean product: any of the group's
+        return self._groups.of(points)  # a boolean product: any of the group's
 
     def _reference(self, active: np.ndarray, planted: np.ndarray) -> np.ndarray:
         """The planted points of the foot planted longest (both feet when they landed together).
@@ -203,9 +203,9 @@ class SupportFollower:
         landed, led away from where the sensed legs put it, takes the body over only when the
         other foot lets go, so the leg that leaves the floor carries no strain that would snap.
         """
-        age = self._planted_for
-        oldest = planted & (age == np.maximum.reduce(age[planted]))
-        return (oldest @ self._foot_rows) & active  # the points of the oldest groups
+        age, on = self._planted_for.tolist(), self._groups.split(planted)[0]
+        longest = max([age[f] for f in on])
+        return self._groups.points(tuple([f for f in on if age[f] == longest])) & active
 
     def lose_support(self) -> None:
         """No point is planted (flight): the ballistic path takes over; nothing lags."""
@@ -215,7 +215,7 @@ class SupportFollower:
     def _settle_landings(self, planted: np.ndarray, dt: float) -> None:
         """Groups ``planted`` (groups,) that touched down stay where they were led (``landed``)."""
         self.landed = np.zeros(3)
-        for f in true_indices(planted):
+        for f in self._groups.split(planted)[0]:
             if self._swinging[f]:
                 self._swinging[f] = False
                 self._landed_swing[f] = self.swing[f]
@@ -238,7 +238,7 @@ class SupportFollower:
         heel is (held while the body moved on, it is no longer where it was led: a swing
         resumed there jumped the heel by centimetres), and its landing is not counted.
         """
-        for f in true_indices(~planted):
+        for f in self._groups.split(planted)[1]:
             points = self._feet[f]
             if not self._steps[f]:
                 self._swinging[f] = True  # lifted, never led: lands with no swing offset

@@ -22,7 +22,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -67,6 +67,11 @@ class FootLayout:
         other = ~np.asarray(self.same_foot, dtype=bool)
         other.setflags(write=False)
         return other
+
+    @cached_property
+    def memos(self) -> dict[str, Any]:
+        """Answers of the contact rules' mask functions, per pattern (:mod:`.ik.point_masks`)."""
+        return {}
 
     @cached_property
     def shares_segment(self) -> np.ndarray:

@@ -91,3 +91,49 @@ def test_reference_points_are_the_oldest_groups_whatever_the_ages(human: HumanMo
         oldest = planted & (support._planted_for == support._planted_for[planted].max())
         expected = (groups & oldest[:, None]).any(axis=0) & active
         np.testing.assert_array_equal(support._reference(active, planted), expected)
+
+
+def test_other_foot_and_drift_follow_every_pattern_back_and_forth(
+        human: HumanModel, rng: np.random.Generator) -> None:
+    from ikfusion.ik.foot_pairs import drift_from_other_foot, other_foot
+
+    layout = _tracker(human).layout
+    k = len(layout.on_foot)
+    other = ~layout.same_foot
+    patterns = [rng.random(k) < p for p in (0.1, 0.3, 0.6) for _ in range(20)]
+    for active in patterns + patterns[::-1]:
+        np.testing.assert_array_equal(other_foot(layout, active),
+                                      (other & active[None, :]).any(axis=1))
+        assert not other_foot(layout, active).flags.writeable
+        anchors, p_sensed, age = rng.normal(size=(k, 3)), rng.normal(size=(k, 3)), rng.random(k)
+        drift, other_age = drift_from_other_foot(layout, active, anchors, p_sensed, age)
+        for i in range(k):  # plain: align on the other foot's planted points, per point
+            others = active & other[i] & active[i]
+            if not others.any():
+                assert drift[i] == 0.0 and other_age[i] == np.inf
+                continue
+            offset = (anchors[others] - p_sensed[others]).mean(axis=0)
+            assert drift[i] == pytest.approx(np.hypot(*(p_sensed[i] + offset - anchors[i])[:2]))
+            assert other_age[i] == age[others].max()
+
+
+def test_last_input_is_kept_only_for_the_same_read_only_array() -> None:
+    from ikfusion.ik.point_masks import LastInput
+
+    calls: list[int] = []
+
+    def lowest_above(p: np.ndarray, margin: float) -> np.ndarray:
+        calls.append(1)
+        return p[:, 2] - p[:, 2].min() + margin
+
+    memo = LastInput(lowest_above)
+    p = np.arange(12.0).reshape(4, 3)
+    np.testing.assert_array_equal(memo(p, 0.5), [0.5, 3.5, 6.5, 9.5])
+    p[0, 2] = 20.0  # a writable array is never kept: the change is seen
+    np.testing.assert_array_equal(memo(p, 0.5), [15.5, 0.5, 3.5, 6.5])
+    p.setflags(write=False)
+    first = memo(p, 0.5)
+    assert memo(p, 0.5) is first and not first.flags.writeable and len(calls) == 3
+    np.testing.assert_array_equal(memo(p, 1.5), first + 1.0)  # other arguments: computed
+    np.testing.assert_array_equal(memo(p.copy(), 0.5), first)  # another array: computed
+    assert len(calls) == 5
