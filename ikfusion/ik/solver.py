@@ -102,7 +102,6 @@ class Solver:
         self.world = WorldOffset(self.contacts.support)
         self.ballistic = BallisticRoot(s.takeoff_velocity_tau)
         self._configuration = step_configuration(model, self.tasks, self.compiled)
-        # the projection's fallback QP linearises the ranges with the step function if compiled
         self._range_rows: RangeRows = self.tasks.joint_range if self.compiled is None else \
             StepRangeRows(self.compiled.kinematics, self.compiled.geometry,
                           self.compiled.rate_rows, self.tasks.joint_range,
@@ -227,14 +226,11 @@ class Solver:
     def _touch_down(self, frame: Frame, q: np.ndarray) -> None:
         """Plant the points that reached the floor at ``q`` (no kinematics without points)."""
         if self._contact_frames:
-            self.contacts.touch_down(frame, self._configuration.positions(self._contact_frames),
-                                     q[:3])
+            positions = self._configuration.positions(self._contact_frames)
+            self.contacts.touch_down(frame, positions, q[:3])
 
     def _hold_contacts(self, rising: np.ndarray | None) -> None:
-        """Hold the planted points at their anchors (``rising`` heels horizontally only).
-
-        Without contact points there is nothing to hold: their (empty) rows stay as made.
-        """
+        """Hold the planted points at their anchors (``rising`` heels horizontally only)."""
         if not self._contact_frames:
             return
         state, tasks = self.contacts.state, self.tasks
