@@ -43,18 +43,21 @@ class ReleaseEasing:
         self.offsets = np.zeros((self._n, 3))
         self._easing = False  # whether an offset may be non-zero (False: all are zero)
 
-    def release(self, released: np.ndarray,
-                bend: Callable[[np.ndarray], np.ndarray]) -> None:
+    def release(self, released: np.ndarray, bend: Callable[[np.ndarray], np.ndarray],
+                reach: int | None = None) -> None:
         """Points that let go (k,) bool: the segments of their legs keep their bend as offsets.
 
         Args:
             released: Which contact points let go this frame.
             bend: Given segment indices (m,), their last solved orientations' deviation from
                 their sensed ones, ``Log(R_world_sensed^T R_world_solved)`` (m, 3) [rad].
+            reach: Only this many segments of each leg, from the point's own segment up
+                (None: the whole leg).
         """
         if self.speed <= 0 or not any_true(released):
             return
-        legs = np.unique(np.concatenate([self._legs[k] for k in true_indices(released)]))
+        legs = np.unique(np.concatenate([self._legs[k][:reach]
+                                         for k in true_indices(released)]))
         if len(legs):
             self.offsets[legs] = bend(legs)
             self._easing = True
