@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import contextlib
 import io
+from collections.abc import Sequence
 from pathlib import Path
 
-from ikfusion.app.evaluate import Evaluation, evaluate
+import numpy as np
+
+from ikfusion.app.evaluate import Evaluation, evaluate, joint_angle_jump
 from ikfusion.cli import main
 from ikfusion.mocap.model_motion import TruthMotion
 from ikfusion.paths import shipped_config
@@ -37,12 +40,12 @@ def room_capture(truth: TruthMotion, folder: Path) -> Path:
     return folder
 
 
-def room_clip_solved(clip: Path, seconds: float, folder: Path, correction: str
-                     ) -> tuple[Path, Path]:
+def room_clip_solved(clip: Path, seconds: float, folder: Path, correction: str,
+                     causal: bool = False) -> tuple[Path, Path]:
     """The first ``seconds`` [s] of a BVH ``clip`` (lead-in included, as the motion benchmark
     builds it) at 60 Hz with the default sensor errors (seed 1), placed in ``room_6x8`` and
-    written to ``folder/capture``, then solved with UWB and ``correction`` into
-    ``folder/<correction>``.
+    written to ``folder/capture``, then solved with UWB and ``correction`` (``causal``: tag
+    tracks from the past only, ``--causal``) into ``folder/<correction>``.
 
     Returns:
         The capture folder and the solve's output folder.
@@ -58,7 +61,7 @@ def room_clip_solved(clip: Path, seconds: float, folder: Path, correction: str
                  "--body", str(capture / "body.yaml"), "--toa", str(capture / "toa.csv"),
                  "--readers", str(capture / "readers.yaml"), "--tags",
                  str(capture / "tags.yaml"), "--correction", correction, "--out", str(out),
-                 "--quiet"]) == 0
+                 "--quiet", *(["--causal"] if causal else [])]) == 0
     return capture, out
 
 
@@ -71,3 +74,28 @@ def solved_scored(capture: Path, out: Path, *options: str) -> Evaluation:
                      *options])
     assert code == 0
     return evaluate(out, capture / "truth.npz")
+
+
+def joint_error_jump(capture: Path, out: Path, joints: Sequence[str] | None = None,
+                     start: float = 0.0) -> tuple[float, str]:
+    """The largest one-frame change of a joint's error against the truth of ``capture``, of
+    the solve in ``out`` (``evaluate``'s measure, toes left out) [deg], and where.
+
+    Args:
+        capture: The capture folder (its ``truth.npz``).
+        out: The solve's output folder (its ``joint_angles.csv``).
+        joints: Only these joints (``"jLeftAnkle"``...; None: all).
+        start: From this time on [s].
+    """
+    truth = np.load(capture / "truth.npz")
+    names = [str(n) for n in truth["joint_angle_names"]]
+    columns = [n for n in names if joints is None or n.rsplit("_", 1)[0] in joints]
+    lines = (out / "joint_angles.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    solved = np.array([[float(v) for v in line.split(",")] for line in lines[1:]])
+    time = truth["time"]
+    estimated = np.stack([np.interp(time, solved[:, 0], solved[:, header.index(c)])
+                          for c in columns], axis=1)
+    true = truth["joint_angles"][:, [names.index(c) for c in columns]]
+    window = time >= start
+    return joint_angle_jump(time[window], estimated[window], true[window], columns)

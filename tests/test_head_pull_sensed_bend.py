@@ -17,10 +17,9 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 import pytest
-from room_captures import room_clip_solved
+from room_captures import joint_error_jump, room_clip_solved
 
 from ikfusion.app.correction import CorrectionSettings
-from ikfusion.app.evaluate import joint_angle_jump
 from ikfusion.app.tag_tasks import sensed_bend_scale
 from ikfusion.ik.sensed_pose import Persistence
 from ikfusion.model.human_model import HumanModel
@@ -81,22 +80,6 @@ def lying_back(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
                                 tmp_path_factory.mktemp("lying_back"), "no-slide")
 
 
-def _largest_jump(capture: Path, out: Path, start: float) -> tuple[float, str]:
-    """The largest one-frame change of a joint's error against the truth from ``start`` [s]
-    on (``evaluate``'s measure, toes left out) [deg], and where."""
-    truth = np.load(capture / "truth.npz")
-    names = [str(n) for n in truth["joint_angle_names"]]
-    lines = (out / "joint_angles.csv").read_text().splitlines()
-    header = lines[0].split(",")
-    solved = np.array([[float(v) for v in line.split(",")] for line in lines[1:]])
-    time = truth["time"]
-    estimated = np.stack([np.interp(time, solved[:, 0], solved[:, header.index(c)])
-                          for c in names], axis=1)
-    window = time >= start
-    return joint_angle_jump(time[window], estimated[window], truth["joint_angles"][window],
-                            names)
-
-
 def test_lying_back_onto_the_shoulder_blades_bends_no_hip_in_a_frame(
         lying_back: tuple[Path, Path]) -> None:
     """Unbounded (as before, e3e5965, and as shipped) the left hip's error against the truth
@@ -104,5 +87,5 @@ def test_lying_back_onto_the_shoulder_blades_bends_no_hip_in_a_frame(
     capture's perfect-IMU solve without UWB jumps 4.2 deg over the whole clip. Bounded: at most
     that plus the acceptance's 1 deg (benchmarks/motions: jump-ref)."""
     capture, out = lying_back
-    jump, where = _largest_jump(capture, out, 5.5)
+    jump, where = joint_error_jump(capture, out, start=5.5)
     assert jump < 4.2 + 1.0, where

@@ -27,7 +27,7 @@ from .anchor_settling import risen_heights
 from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
 from .fast_math import any_true, min_of, true_indices
 from .frame import Frame
-from .release import ReleaseEasing
+from .release import ANKLE, ReleaseEasing
 from .settings import SolverSettings
 from .support import SupportFollower
 from .tasks import PositionTask, Task
@@ -223,20 +223,27 @@ class ContactTracker:
         self.state = replace(self.state, anchors=anchors)
 
     def ease(self, held: np.ndarray, bend: Callable[[np.ndarray], np.ndarray],
-             R_world_sensed: np.ndarray, dt: float) -> np.ndarray | None:
+             R_world_sensed: np.ndarray, dt: float,
+             free_z: np.ndarray | None = None) -> np.ndarray | None:
         """Legs of points ``held`` in the last solve and not now ease back to their sensors.
+
+        So do the foot and shank (:data:`.release.ANKLE`) of heels held in height that rise now.
 
         Args:
             held: (c,) points held by the contact constraint in the last solve.
             bend: See :meth:`ReleaseEasing.release`.
             R_world_sensed: (n, 3, 3) this frame's sensed orientation targets.
             dt: Time since the last frame [s].
+            free_z: (c,) those of them held horizontally only (None: none).
 
         Returns:
             The eased orientation targets (n, 3, 3), None when no leg eases.
         """
         if self.names:
             self.easing.release(held & ~self.state.active, bend)
+            if self._rising is not None:
+                in_height = held if free_z is None else held & ~free_z
+                self.easing.release(in_height & self.state.active & self._rising, bend, ANKLE)
         return self.easing.apply(R_world_sensed, dt)
 
     def follow(self, p_sensed: np.ndarray, dt: float) -> np.ndarray | None:

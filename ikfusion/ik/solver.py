@@ -149,7 +149,7 @@ class Solver:
             frame, p_sensed, contacts.foot_pitch(last.q, targets.R_sensed, targets.tracked))
         eased = contacts.ease(tasks.contact.active,
                               lambda legs: self.sensed.bend(last.q, last.R_sensed, legs),
-                              targets.R_sensed, dt)
+                              targets.R_sensed, dt, tasks.contact.free_z)
         if eased is not None:  # legs that let go return to their sensors gradually
             tasks.orientation.set_targets(eased, tasks.orientation.weights)
         self._hold_contacts(rising)

@@ -15,9 +15,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
-from room_captures import room_clip_solved
+from room_captures import joint_error_jump, room_clip_solved
 
-from ikfusion.app.evaluate import joint_angle_jump
 from ikfusion.ik.configuration import Configuration
 from ikfusion.ik.settings import SolverSettings
 from ikfusion.ik.tasks import ChainShareTask
@@ -68,17 +67,5 @@ def test_the_spine_share_does_not_jump_when_a_toe_lets_go(spins: tuple[Path, Pat
     the right toe let go (jT9T8 flexion at 6.87 s; on the whole clip L5S1 +3.8, T9T8 -3.9 deg:
     the column's S flipped). Now the spine's largest one-frame change of its error over the
     window is 1.6 deg (at 2.37 s, a step of the lead-in), under 2 deg."""
-    capture, out = spins
-    truth = np.load(capture / "truth.npz")
-    names = [str(n) for n in truth["joint_angle_names"]]
-    lines = (out / "joint_angles.csv").read_text().splitlines()
-    header = lines[0].split(",")
-    solved = np.array([[float(v) for v in line.split(",")] for line in lines[1:]])
-    columns = [n for n in names if n.rsplit("_", 1)[0] in SPINE]
-    assert len(columns) == 12
-    time = truth["time"]
-    estimated = np.stack([np.interp(time, solved[:, 0], solved[:, header.index(c)])
-                          for c in columns], axis=1)
-    true = truth["joint_angles"][:, [names.index(c) for c in columns]]
-    jump, at = joint_angle_jump(time, estimated, true, columns)
+    jump, at = joint_error_jump(*spins, SPINE)
     assert jump < 2.0, (jump, at)
