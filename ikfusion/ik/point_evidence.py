@@ -6,6 +6,7 @@ contact points.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -54,11 +55,8 @@ def point_motion(points_moving: np.ndarray | None, k: int) -> tuple[np.ndarray, 
 
     Read-only arrays; kept for a read-only ``points_moving`` (:class:`.point_masks.LastInput`).
     """
-    if points_moving is None:  # nothing known (read-only falses)
-        none = _NOTHING.get(k)
-        if none is None:
-            none = _NOTHING[k] = np.zeros(k, dtype=bool)
-            none.setflags(write=False)
+    if points_moving is None:  # nothing known
+        none = _no_points(k)
         return none, none
     both = _point_motion(points_moving, k)
     return both[0], both[1]
@@ -71,7 +69,14 @@ def _both_motions(points_moving: np.ndarray, k: int) -> np.ndarray:
 
 
 _point_motion = LastInput(_both_motions)
-_NOTHING: dict[int, np.ndarray] = {}  # (k,) read-only falses, per k
+
+
+@functools.cache
+def _no_points(k: int) -> np.ndarray:
+    """(k,) read-only falses, one array per number of points."""
+    none = np.zeros(k, dtype=bool)
+    none.setflags(write=False)
+    return none
 
 
 def all_planted_moving(active: np.ndarray, moving_point: np.ndarray) -> bool:

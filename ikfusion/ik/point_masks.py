@@ -103,23 +103,23 @@ class LastInput:
 
     def __init__(self, function: Callable[..., np.ndarray]) -> None:
         self._function = function
-        self._array: object = None
-        self._rest: tuple[object, ...] = ()
-        self._out: np.ndarray | None = None
+        #: (array, rest, out) of the kept call, one attribute so that solvers in other threads
+        #: sharing this function read and replace it whole
+        self._kept: tuple[object, tuple[object, ...], np.ndarray] | None = None
 
     def __call__(self, array: np.ndarray | None, *rest: object) -> np.ndarray:
         """``function(array, *rest)``, kept when ``array`` is a read-only array."""
-        out = self._out
-        if out is not None and array is self._array and _same(rest, self._rest):
-            return out
+        kept = self._kept
+        if kept is not None and array is kept[0] and _same(rest, kept[1]):
+            return kept[2]
         out = np.asarray(self._function(array, *rest))
         if _read_only_arrays(array, rest):
             if out.base is not None or out is array:
                 out = out.copy()
             out.setflags(write=False)
-            self._array, self._rest, self._out = array, rest, out
+            self._kept = (array, rest, out)
         else:
-            self._array, self._rest, self._out = None, (), None
+            self._kept = None
         return out
 
 
