@@ -273,7 +273,7 @@ class Solver:
             relaxed = relaxed or solution.relaxed
             conf.update(conf.integrate(solution.dq))
             self.tasks.joint_range.took_step(solution.dq)
-            if np.abs(solution.dq).max() < s.step_tolerance:
+            if np.maximum.reduce(np.abs(solution.dq)) < s.step_tolerance:
                 break  # planted points are then held exactly by the projection below
         t = self.tasks
         relaxed = project_on_contacts(conf, t.contact, t.floor, self._range_rows,
