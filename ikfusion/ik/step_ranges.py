@@ -14,15 +14,12 @@ import numpy as np
 from .bound_function import BoundFunction
 from .compiled import CompiledKinematics
 from .configuration import Configuration
-from .fast_math import count_true
 from .limits import JointRangeLimit
 from .limits.base import Inequality
 from .limits.joint_range import LinearisedRanges
 
 #: The step function's outputs: G_ranges, room_up, room_down (:mod:`.compiled`).
 _G, _UP, _DOWN = 7, 8, 9
-#: The mask of still angles when none is (:meth:`.LinearisedRanges.without_still_angles`).
-_NONE_STILL = np.zeros(0, dtype=bool)
 
 
 def evaluated_ranges(step: BoundFunction, rate_rows: np.ndarray | None,
@@ -41,11 +38,8 @@ def evaluated_ranges(step: BoundFunction, rate_rows: np.ndarray | None,
     # row, instead of a search of every row of G
     still = None
     if rate_rows is not None:
-        rates = step.nonzeros(_G)
-        # no rate exactly 0 (every frame but at gimbal lock): no angle is still, one count
         # (logical_or.reduce: ndarray.any without its Python-level dispatch)
-        still = _NONE_STILL if count_true(rates) == len(rates) else \
-            np.logical_not(np.logical_or.reduce(rates.take(rate_rows), axis=1))
+        still = np.logical_not(np.logical_or.reduce(step.nonzeros(_G).take(rate_rows), axis=1))
     return limits.softened(LinearisedRanges(step.output(_G), step.output(_UP)[:, 0],
                                             step.output(_DOWN)[:, 0]), still)
 
