@@ -63,12 +63,14 @@ def solve_with_active_set(problem: QpProblem, rows: LimitRows, backend: str,
         if solution.relaxed:
             rows.up[:], rows.down[:] = True, True
         crossed_up, crossed_down = rows.ranges.crossed(solution.dq, tolerance)
-        if any_true(crossed_up) or any_true(crossed_down):  # rarely: masked only then
+        crossing = any_true(crossed_up) or any_true(crossed_down)
+        if crossing:  # rarely: masked only then
             crossed_up &= ~rows.up
             crossed_down &= ~rows.down
+            crossing = any_true(crossed_up) or any_true(crossed_down)
         outside = lb is not None and ub is not None and problem.lb is None and bool(
             any_true(solution.dq < lb - tolerance) or any_true(solution.dq > ub + tolerance))
-        if not (solution.relaxed or outside or any_true(crossed_up) or any_true(crossed_down)):
+        if not (solution.relaxed or outside or crossing):
             return solution
         rows.up |= crossed_up
         rows.down |= crossed_down

@@ -81,6 +81,11 @@ class AssumedTargets:
                                       float(np.radians(max(flex.lower_deg, 0.0))),
                                       float(np.radians(flex.upper_deg))))
 
+    def any_open(self, sensed: np.ndarray) -> bool:
+        """Whether :meth:`targets` gives a target with these ``sensed`` (n,) segments."""
+        return any(not sensed[h.segment] and sensed[h.child]
+                   and any(sensed[a] for a in h.ancestors) for h in self.hinges)
+
     def targets(self, R_world_segment: np.ndarray,
                 sensed: np.ndarray) -> list[tuple[int, np.ndarray]]:
         """The assumed ``R_world_segment`` (3, 3) of each open hinge parent.

@@ -12,7 +12,7 @@ import numpy as np
 
 def column_major(R: np.ndarray) -> np.ndarray:
     """Stacked rotations (k, 3, 3) as CasADi's column-major vector (9k,)."""
-    return np.swapaxes(R, 1, 2).reshape(-1)
+    return np.asarray(R).swapaxes(1, 2).reshape(-1)  # the method: no Python-level dispatch
 
 
 class BoundFunction:

@@ -11,10 +11,13 @@ the full QP.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg.lapack import dposv, dpotrf, dpotrs
+
+from .fast_math import sum_of
 
 
 @dataclass
@@ -53,7 +56,7 @@ def equality_optimum(H: np.ndarray, c: np.ndarray, A: np.ndarray | None,
     rows = A if A is not None and b is not None and len(b) else None
     if rows is None:  # no equality rows (no planted point): one solve, nothing to stack
         _, x, info = dposv(H, np.negative(c), lower=1, overwrite_b=1)
-        return np.asarray(x) if info == 0 and np.isfinite(x.sum()) else None
+        return x if info == 0 and math.isfinite(sum_of(x)) else None
     m = len(rows)
     # one solve for every right-hand side: -c, then the equality rows (H^-1 A^T)
     rhs = np.empty((len(c), 1 + m), order="F")

@@ -19,7 +19,7 @@ from .active_set import LimitRows
 from .compiled import CompiledKinematics, compiled_kinematics
 from .compiled_sensed import SensedPoseSpec
 from .configuration import Configuration
-from .fast_math import add_to_diagonal, any_true
+from .fast_math import add_to_diagonal, any_true, count_true
 from .limits import ContactConstraint, FloorLimit, JointRangeLimit, VelocityLimit
 from .limits.base import Equality, Inequality, empty_equality, empty_inequality
 from .points_configuration import PointsConfiguration
@@ -255,7 +255,7 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
         floor, contact = tasks.floor.rows(Pc, Jc), tasks.contact.rows(Pc, Jc)
     else:
         floor, contact = compiled.no_floor, compiled.no_contact
-    n_up, n_down = int(np.count_nonzero(up)), int(np.count_nonzero(down))
+    n_up, n_down = count_true(up), count_true(down)
     below = n_up + n_down
     # what assemble_qp makes of these blocks, built in one packed buffer (a step every frame)
     qp = compiled.buffer.views(below + len(floor.h), len(contact.b))

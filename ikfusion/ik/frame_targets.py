@@ -80,7 +80,8 @@ class TargetLoader:
         self.assumed = AssumedTargets(segments, model.ball_joints, settings.hinge_joints)
         self._posture_weights = tasks.posture.weights.copy()
         self._identities = np.tile(np.eye(3), (len(segments), 1, 1))
-        self._rows: dict[tuple[str, ...], np.ndarray] = {}  # tracked names -> rows
+        # tracked names -> their rows, weights and open hinges (:meth:`_new_rows`)
+        self._rows: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray, bool]] = {}
         self._positions_set = True  # the position task starts without targets: clear it once
         self._shape_set = True  # ... and the shape task
         self._last_weighting: _Weighting | None = None
@@ -90,20 +91,18 @@ class TargetLoader:
         """Set the tasks' targets from ``frame``, orientations turned by ``R_heading``."""
         tasks = self.tasks
         R = self._identities.copy()
-        w = np.zeros(len(self._segment_index))
         names = tuple(frame.orientations)
-        rows = self._rows.get(names)
-        if rows is None:  # a new set of tracked segments (a sensor dropped out or came back)
-            for name in names:
-                self.model.segment_frame_id(name)  # raises NameNotFound with the valid names
-            rows = self._rows[names] = np.array([self._segment_index[n] for n in names],
-                                                dtype=int)
+        rows, w, assumed = self._rows.get(names) or self._new_rows(names)
         if names:  # one assignment of all the rows instead of one per segment
             targets = np.array(list(frame.orientations.values()), dtype=float)
             R[rows] = targets if R_heading is None else R_heading @ targets
-            weights = frame.orientation_weights
-            w[rows] = [weights.get(n, 1.0) for n in names] if weights else 1.0
-        if self.assumed_weight > 0:  # open hinge parents (a thigh between pelvis and shank)
+        weights = frame.orientation_weights
+        if weights:  # the weights given (else 1 on every row: the one array of these rows)
+            w = np.zeros(len(self._segment_index))
+            w[rows] = [weights.get(n, 1.0) for n in names]
+            assumed = self.assumed.any_open(w > 0)
+        if assumed and self.assumed_weight > 0:  # open hinge parents (a thigh between pelvis
+            w = w.copy()  # and shank; the rows' weights are read-only)
             for i, R_assumed in self.assumed.targets(R, w > 0):
                 R[i], w[i] = R_assumed, self.assumed_weight
         tasks.orientation.set_targets(R, w)
@@ -119,6 +118,21 @@ class TargetLoader:
         tasks.posture.weights = weighting.posture_weights
         return FrameTargets(tasks.orientation.targets, weighting.tracked,
                             weighting.sensed_joints, weighting.row_weights)
+
+    def _new_rows(self, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, bool]:
+        """The rows of a new set of tracked ``names`` (a sensor dropped out or came back).
+
+        Their rows (k,), the weights (n,) of a frame without weights (1 on those rows, 0
+        elsewhere; read-only) and whether a hinge parent is open then.
+        """
+        for name in names:
+            self.model.segment_frame_id(name)  # raises NameNotFound with the valid names
+        rows = np.array([self._segment_index[n] for n in names], dtype=int)
+        w = np.zeros(len(self._segment_index))
+        w[rows] = 1.0
+        w.setflags(write=False)
+        made = self._rows[names] = (rows, w, self.assumed.any_open(w > 0))
+        return made
 
     def _weighting(self, weights: np.ndarray) -> _Weighting:
         """What the orientation weights (n,) of a frame decide; set on the chain tasks.

@@ -13,6 +13,7 @@ closed form (:mod:`.equality_qp`) and DAQP is called only when a limit binds.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -291,7 +292,7 @@ def _check_finite(p: QpProblem) -> None:
     # sum land there too).
     total = sum_of(p.packed) if p.packed is not None else (
         sum_of(p.H) + sum_of(p.c) + sum_of(p.h) + sum_of(p.b) + sum_of(p.G) + sum_of(p.A))
-    if np.isfinite(total) and not (p.lb is not None and np.isnan(p.lb.sum())) \
+    if math.isfinite(total) and not (p.lb is not None and np.isnan(p.lb.sum())) \
             and not (p.ub is not None and np.isnan(p.ub.sum())):
         return
     bad = [name for name, m in (("H", p.H), ("c (targets)", p.c), ("h (inequalities)", p.h),

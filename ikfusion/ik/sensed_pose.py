@@ -56,6 +56,7 @@ class SensedPose:
         self.contact_frames = list(contact_frames)
         self._data = model.model.createData()
         self._compiled: tuple[CompiledKinematics, np.ndarray] | None = None  # and geometry
+        self._tracked: tuple[np.ndarray | None, np.ndarray] = (None, np.zeros(0))  # as floats
 
     def spec(self) -> SensedPoseSpec:
         """What :meth:`configuration` does, for the compiled sensed-pose function."""
@@ -97,7 +98,12 @@ class SensedPose:
         """
         if self._compiled is not None:
             kinematics, geometry = self._compiled
-            return kinematics.sensed_pose(q, R_world_target, geometry, tracked.astype(float))
+            kept, as_float = self._tracked
+            if tracked is not kept:  # kept while the same read-only set (the frame targets')
+                as_float = tracked.astype(float)
+                if not tracked.flags.writeable:
+                    self._tracked = (tracked, as_float)
+            return kinematics.sensed_pose(q, R_world_target, geometry, as_float)
         return (self.configuration(q, R_world_target, tracked, level_toes=False),
                 self.contact_positions(self.configuration(q, R_world_target, tracked)))
 

@@ -144,17 +144,17 @@ class Solver:
         tasks.chain_share.set_previous(last.q)
         q_warm = q.copy()
         self.persistence.hold(q_warm, targets.sensed_joints, last.bent)
-        contacts.carry(frame, dt, self.world.R_heading, last.root_velocity, last.q)
-        rising = contacts.release(
-            frame, p_sensed, contacts.foot_pitch(last.q, targets.R_sensed, targets.tracked))
-        eased = contacts.ease(tasks.contact.active,
-                              lambda legs: self.sensed.bend(last.q, last.R_sensed, legs),
-                              targets.R_sensed, dt, tasks.contact.free_z)
-        if eased is not None:  # legs that let go return to their sensors gradually
-            tasks.orientation.set_targets(eased, tasks.orientation.weights)
-        self._hold_contacts(rising)
-        # ... translated so that its planted points sit on their anchors on average
-        offset = contacts.follow(p_sensed, dt)
+        if self._contact_frames:  # (none: nothing to carry, release, ease or hold)
+            contacts.carry(frame, dt, self.world.R_heading, last.root_velocity, last.q)
+            rising = contacts.release(
+                frame, p_sensed, contacts.foot_pitch(last.q, targets.R_sensed, targets.tracked))
+            eased = contacts.ease(tasks.contact.active,
+                                  lambda legs: self.sensed.bend(last.q, last.R_sensed, legs),
+                                  targets.R_sensed, dt, tasks.contact.free_z)
+            if eased is not None:  # legs that let go return to their sensors gradually
+                tasks.orientation.set_targets(eased, tasks.orientation.weights)
+            self._hold_contacts(rising)
+        offset = contacts.follow(p_sensed, dt)  # ... its planted points on their anchors
         a_root = self._root_acceleration(frame)
         active: list[Task] = self._base_tasks(frame)
         if offset is not None:
@@ -273,7 +273,7 @@ class Solver:
             relaxed = relaxed or solution.relaxed
             conf.update(conf.integrate(solution.dq))
             self.tasks.joint_range.took_step(solution.dq)
-            if np.abs(solution.dq).max() < s.step_tolerance:
+            if np.maximum.reduce(np.abs(solution.dq)) < s.step_tolerance:
                 break  # planted points are then held exactly by the projection below
         t = self.tasks
         relaxed = project_on_contacts(conf, t.contact, t.floor, self._range_rows,

@@ -67,10 +67,6 @@ class SoftWall:
             return
         a_before, dt_before = before
         moved = angles - a_before
-        # no rate across a change of triple, nor near gimbal lock (the first and third angles
-        # of a joint there turn by tens of degrees for a small turn of the joint)
-        steady = np.abs(moved) < _SAME_TRIPLE
-        steady &= np.abs(angles[:, 1:2]) < _GIMBAL_FREE
         # the module's formula with v = moved / dt_before, its constants folded; computed in
         # place, the upper limits' rows (sign +1) then the lower ones' (sign -1)
         decay = math.exp(-dt / self.tau)
@@ -80,6 +76,12 @@ class SoftWall:
         drift = moved * (dt * decay / dt_before)
         sunk[0] += drift
         sunk[1] -= drift
+        if not sunk.max() > 0.0:  # no angle reaches a limit (most frames): hard limits
+            return
+        # no rate across a change of triple, nor near gimbal lock (the first and third angles
+        # of a joint there turn by tens of degrees for a small turn of the joint)
+        steady = np.abs(moved) < _SAME_TRIPLE
+        steady &= np.abs(angles[:, 1:2]) < _GIMBAL_FREE
         sunk *= steady
         if sunk.max() > 0.0:  # else no angle reaches a limit: hard limits
             self._room = np.minimum(np.maximum(sunk, 0.0), self._depth)

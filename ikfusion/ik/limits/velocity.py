@@ -19,6 +19,7 @@ class VelocityLimit:
         self.max_velocity = np.asarray(max_velocity, dtype=float).reshape(-1)
         self.q_previous: np.ndarray | None = None
         self.dt = 0.0
+        self._span = (0.0, np.zeros_like(self.max_velocity))  # dt, max_velocity * dt
 
     def set_previous(self, q_previous: npt.ArrayLike | None, dt: float) -> None:
         """The previous frame's configuration and the time step [s] (None: no bound)."""
@@ -35,7 +36,10 @@ class VelocityLimit:
             return None
         if moved is None:
             moved = configuration.difference(self.q_previous)
-        span = self.max_velocity * self.dt
+        dt, span = self._span
+        if dt != self.dt:  # a new time step (every frame of a steady rate keeps it)
+            span = self.max_velocity * self.dt
+            self._span = (self.dt, span)
         lb = np.minimum(-span - moved, 0.0)
         ub = np.maximum(span - moved, 0.0)
         return lb, ub

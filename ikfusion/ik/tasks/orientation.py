@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -9,7 +10,7 @@ import numpy.typing as npt
 
 from ...rotations import left_jacobian_inverse, log_so3
 from ..configuration import Configuration
-from ..fast_math import true_indices
+from ..fast_math import sum_of, true_indices
 from .base import Task
 
 
@@ -39,7 +40,7 @@ class OrientationTask(Task):
         """Set targets (k, 3, 3) and per-frame weights (k,) (0 = not tracked this frame)."""
         R = np.asarray(R_world_target, dtype=float).reshape(-1, 3, 3)
         w = np.asarray(weights, dtype=float).reshape(-1)
-        if np.isfinite(R.sum()):  # every target finite (one sum: the usual frame, fast)
+        if math.isfinite(sum_of(R)):  # every target finite (one sum: the usual frame, fast)
             self.targets, self.weights = R.copy(), w.copy()
             return
         bad = ~np.isfinite(R).all(axis=(1, 2))
