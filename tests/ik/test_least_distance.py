@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import ikfusion.ik.qp_backends as backends
-from ikfusion.ik.least_distance import COUNTS, least_distance_daqp
+from ikfusion.ik.least_distance import COUNTS, _identity, least_distance_daqp
 from ikfusion.model import HumanModel
 
 N = 30
@@ -53,6 +53,7 @@ def test_the_step_and_its_binding_rows_are_daqps(seed: int, bounds: bool) -> Non
     if bounds:
         assert np.all(x >= lb - 1e-6) and np.all(x <= ub + 1e-6)  # type: ignore[operator]
     np.testing.assert_array_equal(H, H_before)  # the Hessian is left alone
+    np.testing.assert_array_equal(_identity(N), np.eye(N))  # and so is the shared identity
 
 
 def test_a_hessian_that_is_not_positive_definite_goes_to_daqp_as_given(rng) -> None:
