@@ -10,6 +10,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .least_distance import COUNTS, EQUALITY, least_distance_daqp, row_bounds
+
 if TYPE_CHECKING:
     from .qp import QpSettings
 
@@ -48,8 +50,9 @@ def call_daqp(max_iterations: int, H: np.ndarray, c: np.ndarray, G: np.ndarray |
               lb: np.ndarray | None, ub: np.ndarray | None) -> tuple[np.ndarray | None, bool]:
     """DAQP called directly (the same problem qpsolvers would pass, without its checks).
 
-    DAQP takes simple bounds as the first rows of ``blower <= (dq, A_rows dq) <= bupper`` and
-    marks equality rows with sense 5.
+    The problem goes to DAQP in the least-distance form on our own factorisation of ``H``
+    (:mod:`.least_distance`, the same step in a fraction of DAQP's set-up), and as it is when
+    that form fails (counted in :data:`.least_distance.COUNTS`).
 
     Returns:
         The step (None when DAQP fails) and whether an inequality row or a bound binds at it
@@ -57,26 +60,31 @@ def call_daqp(max_iterations: int, H: np.ndarray, c: np.ndarray, G: np.ndarray |
     """
     import daqp  # the default backend; imported here so that the others work without it
 
+    solved = least_distance_daqp(daqp, max_iterations, H, c, G, h, A, b, lb, ub)
+    if solved is not None:
+        COUNTS.solved += 1
+        return solved
+    COUNTS.fallbacks += 1
+    return daqp_as_given(daqp, max_iterations, H, c, G, h, A, b, lb, ub)
+
+
+def daqp_as_given(daqp: Any, max_iterations: int, H: np.ndarray, c: np.ndarray,
+                  G: np.ndarray | None, h: np.ndarray | None, A: np.ndarray | None,
+                  b: np.ndarray | None, lb: np.ndarray | None,
+                  ub: np.ndarray | None) -> tuple[np.ndarray | None, bool]:
+    """DAQP on the problem as it is (:func:`call_daqp`'s fall-back; ``daqp``: the module).
+
+    DAQP takes simple bounds as the first rows of ``blower <= (dq, A_rows dq) <= bupper`` and
+    marks equality rows with sense 5.
+    """
     nv = len(c)
     n_box = nv if lb is not None or ub is not None else 0
-    n_in = 0 if h is None else len(h)
-    n_eq = 0 if b is None else len(b)
-    end_in = n_box + n_in
-    upper = np.empty(end_in + n_eq)
-    lower = np.empty(end_in + n_eq)
-    if n_box:
-        upper[:nv] = 1e30 if ub is None else ub
-        lower[:nv] = -1e30 if lb is None else lb
-    if n_in:
-        upper[n_box:end_in] = h
-        lower[n_box:end_in] = -1e30
-    if n_eq:
-        upper[end_in:] = b
-        lower[end_in:] = b
+    upper, lower = row_bounds(n_box, lb, ub, h, b)
+    end_in = n_box + (0 if h is None else len(h))
     rows = [m for m in (G, A) if m is not None]
     A_all = np.vstack(rows) if rows else np.zeros((0, nv))  # a copy: DAQP may scale its rows
     sense = np.zeros(len(upper), dtype=np.intc)
-    sense[end_in:] = 5
+    sense[end_in:] = EQUALITY
     x, _, exitflag, info = daqp.solve(H, c, A_all, upper, lower, sense,
                                       iter_limit=max_iterations)
     if exitflag <= 0 or not np.isfinite(x).all():

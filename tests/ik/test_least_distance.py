@@ -1,0 +1,116 @@
+"""The step's QP in the least-distance form against DAQP on the problem as it is (issue #20)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import daqp
+import numpy as np
+import pytest
+
+import ikfusion.ik.qp_backends as backends
+from ikfusion.ik.least_distance import COUNTS, _identity, least_distance_daqp
+from ikfusion.model import HumanModel
+
+N = 30
+
+
+def _problem(rng: np.random.Generator, bounds: bool) -> tuple[np.ndarray | None, ...]:
+    """A strictly convex QP ``(H, c, G, h, A, b, lb, ub)``: 6 equality rows, 10 inequality
+    rows and optionally bounds, some of them cutting through the unconstrained optimum."""
+    M = rng.standard_normal((N, N))
+    H = M @ M.T + 0.1 * np.eye(N)
+    c = 3.0 * rng.standard_normal(N)
+    A = rng.standard_normal((6, N))
+    b = rng.standard_normal(6)
+    G = rng.standard_normal((10, N))
+    h = rng.uniform(-0.5, 1.0, 10)
+    lb, ub = (-np.full(N, 0.4), np.full(N, 0.4)) if bounds else (None, None)
+    return H, c, G, h, A, b, lb, ub
+
+
+def _as_given(*problem: np.ndarray | None) -> tuple[np.ndarray | None, bool]:
+    return backends.daqp_as_given(daqp, 1000, *problem)
+
+
+@pytest.mark.parametrize("bounds", [False, True])
+@pytest.mark.parametrize("seed", range(6))
+def test_the_step_and_its_binding_rows_are_daqps(seed: int, bounds: bool) -> None:
+    problem = _problem(np.random.default_rng(seed), bounds)
+    H_before = problem[0].copy()  # type: ignore[union-attr]
+    solved = least_distance_daqp(daqp, 1000, *problem)
+    assert solved is not None
+    x, binding = solved
+    expected, expected_binding = _as_given(*problem)
+    assert expected is not None
+    np.testing.assert_allclose(x, expected, rtol=0, atol=1e-9)
+    assert binding == expected_binding
+    H, _, G, h, A, b, lb, ub = problem
+    np.testing.assert_allclose(A @ x, b, atol=1e-9)  # type: ignore[operator]
+    assert np.all(G @ x <= h + 1e-6)  # type: ignore[operator]
+    if bounds:
+        assert np.all(x >= lb - 1e-6) and np.all(x <= ub + 1e-6)  # type: ignore[operator]
+    np.testing.assert_array_equal(H, H_before)  # the Hessian is left alone
+    np.testing.assert_array_equal(_identity(N), np.eye(N))  # and so is the shared identity
+
+
+def test_a_hessian_that_is_not_positive_definite_goes_to_daqp_as_given(rng) -> None:
+    H, c, G, h, A, b, lb, ub = _problem(rng, bounds=True)
+    H = np.diag(np.r_[np.ones(N - 1), -1.0])  # indefinite: no Cholesky factor
+    assert least_distance_daqp(daqp, 1000, H, c, G, h, A, b, lb, ub) is None
+    before = COUNTS.fallbacks
+    x, _ = backends.call_daqp(1000, H, c, G, h, A, b, lb, ub)
+    assert COUNTS.fallbacks == before + 1  # counted, never silent
+    expected, _ = _as_given(H, c, G, h, A, b, lb, ub)
+    assert (x is None) == (expected is None)
+
+
+def _compared(differences: list[float],
+              bindings: list[tuple[bool, bool]]) -> Callable[..., Any]:
+    """``least_distance_daqp`` that also solves each problem as given and records the largest
+    difference of the steps, and whether a row binds both ways."""
+    def solve(module: Any, iterations: int, *problem: np.ndarray | None) -> Any:
+        solved = least_distance_daqp(module, iterations, *problem)
+        expected, expected_binding = _as_given(*problem)
+        assert solved is not None and expected is not None
+        differences.append(float(np.abs(solved[0] - expected).max()))
+        bindings.append((solved[1], expected_binding))
+        return solved
+    return solve
+
+
+def test_every_qp_of_a_simulated_walk_is_daqps(human: HumanModel, monkeypatch) -> None:
+    """The contact frames' QPs of the 17-sensor walk (feet planted, floor and range rows
+    binding in runs of steps, the velocity bounds in some)."""
+    from ikfusion.ik import Solver
+    from ikfusion.model import SENSOR_SEGMENTS
+    from ikfusion.sim.gait import GaitParameters, generate_gait
+    from ikfusion.sim.truth import orientation_frames
+
+    truth = generate_gait(human, GaitParameters(duration=2.5, stand=0.5), rate=60.0)
+    frames = orientation_frames(human, truth.q, truth.time, SENSOR_SEGMENTS)
+    differences: list[float] = []
+    bindings: list[tuple[bool, bool]] = []
+    monkeypatch.setattr(backends, "least_distance_daqp", _compared(differences, bindings))
+    Solver(human, contacts=True).solve(frames)
+    assert all(ours == theirs for ours, theirs in bindings)
+    assert sum(ours for ours, _ in bindings) >= 10  # rows bind in many of them
+    assert max(differences) < 1e-9, max(differences)
+
+
+def test_every_qp_of_the_real_walk_is_daqps(shared_data: Path, tmp_path: Path,
+                                            monkeypatch) -> None:
+    """The 8-sensor real walk (2505 frames): every QP DAQP solves, solved both ways."""
+    from ikfusion.cli import main
+
+    trial = shared_data / "xsens" / "opensense_walk"
+    differences: list[float] = []
+    bindings: list[tuple[bool, bool]] = []
+    monkeypatch.setattr(backends, "least_distance_daqp", _compared(differences, bindings))
+    assert main(["solve", "--imu", str(trial), "--map", str(trial / "myIMUMappings.xml"),
+                 "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    assert all(ours == theirs for ours, theirs in bindings)
+    assert sum(ours for ours, _ in bindings) >= 100
+    assert max(differences) < 1e-9, max(differences)
