@@ -13,6 +13,7 @@ import numpy as np
 
 from ..model.topology import FootLayout
 from .fast_math import any_true, min_of
+from .point_bits import PointBits
 from .point_masks import LastInput
 
 
@@ -92,3 +93,31 @@ def tilted_points(layout: FootLayout, foot_pitch: np.ndarray | None, limit: floa
     pitch = foot_pitch if isinstance(foot_pitch, np.ndarray) \
         else np.asarray(foot_pitch, dtype=float)  # NaN (unknown) compares False: not tilted
     return (heel & (pitch > limit)) | (toe & (pitch < -limit))
+
+
+def tilted_bits(bits: PointBits, foot_pitch: np.ndarray | None, limit: float) -> int:
+    """:func:`tilted_points` as bits: heels when toe-down past ``limit``, toes when toe-up."""
+    if foot_pitch is None:
+        return 0
+    pitch = foot_pitch if isinstance(foot_pitch, np.ndarray) \
+        else np.asarray(foot_pitch, dtype=float)  # NaN (unknown) compares False: not tilted
+    return bits.heels & bits.of(pitch > limit) | bits.toes & bits.of(pitch < -limit)
+
+
+def motion_bits(bits: PointBits, points_moving: np.ndarray | None) -> tuple[int, int]:
+    """:func:`point_motion` as bits: the points whose IMU says they move; ... do not move."""
+    return _known_bits(bits, "motion", points_moving)
+
+
+def stance_bits(bits: PointBits, foot_still: np.ndarray | None) -> tuple[int, int]:
+    """Per point, its foot's IMU says it stands still (``foot_still`` 1); ... it moves (0)."""
+    return _known_bits(bits, "stance", foot_still)
+
+
+def _known_bits(bits: PointBits, name: str, evidence: np.ndarray | None) -> tuple[int, int]:
+    """The points where ``evidence`` (k,) is 1, and where it is 0 (NaN: neither), per pattern."""
+    if evidence is None:
+        return 0, 0
+    value = np.asarray(evidence, dtype=float)
+    return bits.memo(name, value.tobytes(),
+                     lambda: (bits.of(value == 1.0), bits.of(value == 0.0)))

@@ -25,6 +25,7 @@ import numpy as np
 from ..model.topology import FootLayout
 from .fast_math import any_true, true_indices
 from .foot_pairs import other_foot
+from .point_bits import PointBits
 from .point_evidence import moving_rest_points
 
 #: A point of a planted trunk point's segment this much [m] lower in the sensed pose takes
@@ -114,3 +115,18 @@ def pulled_points(disagrees: np.ndarray, older: np.ndarray, staying: np.ndarray,
         return disagrees & older
     trunk = np.asarray(needs_rest, dtype=bool)
     return disagrees & ~trunk & (older | other_foot(layout, staying & trunk))
+
+
+def pulled_bits(bits: PointBits, disagrees: int, older: int, staying: int, trunk: int) -> int:
+    """:func:`pulled_points` on the bits of the points (:mod:`.point_bits`).
+
+    Args:
+        bits: The contact points' groups.
+        disagrees: As in :func:`pulled_points`.
+        older: As there.
+        staying: As there.
+        trunk: The trunk points (``needs_rest``; 0: none).
+    """
+    if not staying & trunk:
+        return disagrees & older
+    return disagrees & ~trunk & (older | bits.other_foot(staying & trunk))
