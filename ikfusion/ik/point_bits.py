@@ -24,7 +24,7 @@ if TYPE_CHECKING:
     from ..model.topology import FootLayout
 
 _BOOL = np.dtype(bool)
-_PATTERNS = 1 << 16  # at most this many patterns are kept per table (a few dozen in practice)
+_PATTERNS = 1 << 14  # at most this many patterns are kept per table (a few dozen in practice)
 T = TypeVar("T")
 
 
