@@ -45,7 +45,7 @@ from .point_evidence import (
     tilted_bits,
 )
 from .sweeping import sweeping_beside, sweeping_points
-from .trunk_roll import body_takers, pulled_bits, roll_on_segment
+from .trunk_roll import body_takers, pulled_points, roll_on_segment
 
 
 @dataclass
@@ -185,7 +185,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         held = state.anchors if placed is None else state.anchors - placed
         drift, other_age = drift_from_other_foot(layout, bits.mask(staying), held, p_sensed,
                                                  state.age)
-        pulled = pulled_bits(bits, bits.of(drift > th.leave_distance),
+        pulled = pulled_points(bits, bits.of(drift > th.leave_distance),
                              bits.of(state.age >= other_age), staying, rest)
     # a resting knee or palm (calm accelerometer) is weaker evidence than a still foot: the
     # sensed pose may still lift it
