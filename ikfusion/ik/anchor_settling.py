@@ -53,3 +53,16 @@ def risen_heights(z: np.ndarray, z_solved: np.ndarray, risen: np.ndarray,
     (gen-jumps landings, 1.2 deg).
     """
     return np.where(risen, np.maximum(z_solved, floor_z), z)
+
+
+def held_again(anchors: np.ndarray, z_solved: np.ndarray, again: np.ndarray, drop: float,
+               floor_z: float) -> np.ndarray:
+    """The anchors (k, 3) [m] once the heels ``again`` (k,) that rose are held in height again.
+
+    Each is anchored ``drop`` [m] (one settling step) under where it was solved in the last
+    frame, ``z_solved`` (k,) [m], on or above ``floor_z`` [m] (:func:`risen_heights`), and
+    settles on from there; the other anchors are unchanged (a new array).
+    """
+    out = anchors.copy()
+    out[:, 2] = risen_heights(out[:, 2], z_solved - drop, again, floor_z)
+    return out

@@ -23,10 +23,12 @@ from ..model.human_model import HumanModel
 from ..model.layout import TRUNK_CONTACT_SITES
 from ..model.topology import BodyTopology
 from .anchor_carry import AnchorCarry
-from .anchor_settling import risen_heights
+from .anchor_settling import held_again
 from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
 from .fast_math import any_true, min_of, true_indices
 from .frame import Frame
+from .point_bits import point_bits
+from .point_evidence import stance_bits
 from .release import ANKLE, ReleaseEasing
 from .settings import SolverSettings
 from .support import SupportFollower
@@ -56,6 +58,7 @@ class ContactTracker:
         self.model = model
         self.names = list(names)
         self.layout = topology.foot_layout(self.names)
+        self._bits = point_bits(self.layout)
         self.thresholds = ContactThresholds.from_settings(s)
         self.settings = s
         segments = model.segment_names
@@ -99,7 +102,7 @@ class ContactTracker:
         self._pitch = np.zeros(len(self.names))
         self.far_from_floor = np.zeros(len(self.names), dtype=bool)
         self._v_sensed: np.ndarray | None = None
-        self._rising: np.ndarray | None = None  # the planted heels release() let rise
+        self._rising = 0  # the planted heels release() let rise (bits: :mod:`.point_bits`)
         # the IMU evidence of the frame being solved: (frame, feet still, points moving)
         self._evidence: tuple[Frame, np.ndarray | None, np.ndarray | None] | None = None
         self.support.reset()
@@ -202,25 +205,17 @@ class ContactTracker:
                                       step_sensed=step)
         # a planted heel whose foot already rolls toe-down may rise (it still cannot slip),
         # unless its IMU says the foot stands still
-        rising = self.layout.on_foot & (pitch > self._heel_rise)
-        if still is not None:
-            rising &= still != 1.0
-        was, self._rising = self._rising, np.asarray(rising & self.state.active)
-        if (was is not None and any_true(was)
-                and any_true(again := was & ~self._rising & self.state.active)):
-            self._hold_again(again, dt)
-        return self._rising
-
-    def _hold_again(self, again: np.ndarray, dt: float) -> None:
-        """Heels ``again`` (c,) that rose in the last frame are held in height again.
-
-        Each is anchored one settling step under where it was solved in the last frame
-        (:func:`.anchor_settling.risen_heights`), and settles on from there.
-        """
-        anchors = self.state.anchors.copy()
-        z_last = self._history[-1][1][:, 2] - self.thresholds.settle_speed * max(dt, 0.0)
-        anchors[:, 2] = risen_heights(anchors[:, 2], z_last, again, self.thresholds.floor_z)
-        self.state = replace(self.state, anchors=anchors)
+        bits, on = self._bits, self._bits.of(self.state.active)  # (:mod:`.point_bits`)
+        rising = bits.heels & on & ~stance_bits(bits, still)[0]
+        if rising:
+            rising &= bits.of(pitch > self._heel_rise)
+        was, self._rising = self._rising, rising
+        if again := was & ~rising & on:  # heels that rose in the last frame: held in height
+            th = self.thresholds
+            anchors = held_again(self.state.anchors, self._history[-1][1][:, 2], bits.mask(again),
+                                 th.settle_speed * max(dt, 0.0), th.floor_z)
+            self.state = replace(self.state, anchors=anchors)
+        return bits.mask(rising)
 
     def ease(self, held: np.ndarray, bend: Callable[[np.ndarray], np.ndarray],
              R_world_sensed: np.ndarray, dt: float,
@@ -240,10 +235,12 @@ class ContactTracker:
             The eased orientation targets (n, 3, 3), None when no leg eases.
         """
         if self.names:
-            self.easing.release(held & ~self.state.active, bend)
-            if self._rising is not None:
-                in_height = held if free_z is None else held & ~free_z
-                self.easing.release(in_height & self.state.active & self._rising, bend, ANKLE)
+            bits = self._bits
+            on, was = bits.of(self.state.active), bits.of(held)
+            if was & ~on:
+                self.easing.release(bits.mask(was & ~on), bend)
+            if rising := was & on & self._rising & ~bits.of_optional(free_z):
+                self.easing.release(bits.mask(rising), bend, ANKLE)
         return self.easing.apply(R_world_sensed, dt)
 
     def follow(self, p_sensed: np.ndarray, dt: float) -> np.ndarray | None:

@@ -32,17 +32,17 @@ import numpy as np
 
 from ..model.topology import FootLayout
 from .anchor_settling import settled_heights
-from .fast_math import any_true, row_norms, true_indices
-from .foot_pairs import drift_from_other_foot, landing_anchors, other_foot
-from .handover import sensed_offset, takeover_anchors
+from .fast_math import row_norms
+from .foot_pairs import drift_from_other_foot, landing_anchors
+from .handover import plant_anchors
+from .point_bits import PointBits, has, point_bits
 from .point_evidence import (
-    all_planted_moving,
     by_rest,
     heights_above_lowest,
     hinted_points,
-    moving_rest_points,
-    point_motion,
-    tilted_points,
+    motion_bits,
+    stance_bits,
+    tilted_bits,
 )
 from .sweeping import sweeping_beside, sweeping_points
 from .trunk_roll import body_takers, pulled_points, roll_on_segment
@@ -158,44 +158,47 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     """
     th = thresholds
     active = state.active  # read only: the new state's is built at the end
+    # masks as the bits of ints (:mod:`.point_bits`): bit i is point i
+    bits = point_bits(layout)
+    on = bits.of(active)  # planted
     height_rel = heights_above_lowest(p_sensed)
-    tilted = tilted_points(layout, foot_pitch, math.radians(th.tilt_deg))
-    still = np.zeros(len(active), dtype=bool)
-    handed_over: np.ndarray | None = None
-    plant = np.zeros(len(active), dtype=bool)
-    moving_point, settled = point_motion(points_moving, len(active))
+    tilted = tilted_bits(bits, foot_pitch, math.radians(th.tilt_deg))
+    still, foot_moves = stance_bits(bits, foot_still)
+    moving_point, settled = motion_bits(bits, points_moving)
+    rest = bits.of_optional(needs_rest)
+    handed_over = plant = 0
     if foot_still is not None:
-        evidence = np.asarray(foot_still, dtype=float)
-        still = evidence == 1.0
         # A moving foot lets go once the other foot stands planted and still; a still foot
         # low in the sensed pose is planted while the other foot holds the body (after a
         # flight the usual touch-down, near the floor and slow, plants the landing feet).
-        plant = ~active & still & (height_rel < _plant_height(th, needs_rest)) & ~tilted
-        if any_true(plant):
-            plant &= other_foot(layout, active)
-        moving = active & (evidence == 0.0)
-        if any_true(moving):  # ... handed over to the other foot, planted still or planted now
-            handed_over = moving & other_foot(layout, (active & still) | plant) & ~settled
-    staying = active if handed_over is None else active & ~handed_over
-    held = state.anchors if placed is None else state.anchors - placed
-    drift, other_age = drift_from_other_foot(layout, staying, held, p_sensed, state.age)
+        plant = still & ~on & ~tilted
+        if plant:
+            plant &= bits.of(height_rel < _plant_height(th, needs_rest)) & bits.other_foot(on)
+        moving = on & foot_moves
+        if moving:  # ... handed over to the other foot, planted still or planted now
+            handed_over = moving & bits.other_foot((on & still) | plant) & ~settled
+    staying = on & ~handed_over
     # Two planted feet that disagree: the foot planted earlier lets go (toe-off), even a
     # still one (its anchor is out of date); a still foot ignores the sensed height and pitch.
-    pulled = pulled_points(drift > th.leave_distance, state.age >= other_age, staying,
-                           needs_rest, layout)
+    pulled = 0  # one foot planted: no drift from another (nothing pulled, as leave_distance >= 0)
+    if staying & bits.other_foot(staying) or th.leave_distance < 0:
+        held = state.anchors if placed is None else state.anchors - placed
+        drift, other_age = drift_from_other_foot(layout, bits.mask(staying), held, p_sensed,
+                                                 state.age)
+        pulled = pulled_points(bits, bits.of(drift > th.leave_distance),
+                             bits.of(state.age >= other_age), staying, rest)
     # a resting knee or palm (calm accelerometer) is weaker evidence than a still foot: the
     # sensed pose may still lift it
-    lifted = ((height_rel > th.leave_relative) | tilted) & ~(still & layout.stepping)
-    leave = staying & (lifted | pulled)
-    if handed_over is not None:
-        leave |= handed_over
+    lifted = (bits.of(height_rel > th.leave_relative) | tilted) & ~(still & bits.stepping)
+    leave = staying & (lifted | pulled) | handed_over
     if points_moving is not None:  # while a still point of the other foot holds the body
-        leave |= staying & moving_point & other_foot(layout, staying & ~moving_point)
+        leave |= staying & moving_point & bits.other_foot(staying & ~moving_point)
     for i, hinted in hinted_points(state.names, hints):
-        leave[i] = active[i] and not hinted
-        plant[i] = not active[i] and hinted and plant[i]
+        point = 1 << i
+        leave = leave | point if on & point and not hinted else leave & ~point
+        plant = plant if not on & point and hinted else plant & ~point
     handover = False
-    if any_true(active) and not any_true(active & ~leave) and not any_true(plant) and not hints:
+    if on and not on & ~leave and not plant and not hints:
         # Without a flight hint the lowest point of the sensed pose keeps the body down: the
         # lowest planted one, unless the body rests on another point (hands in a cartwheel)
         # or the planted points are all well above the lowest (a foot swung overhead).
@@ -203,36 +206,28 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         # it low through the air, unless the body rolls on its back: :mod:`.trunk_roll`)
         kept = int(np.argmin(np.where(active, p_sensed[:, 2], np.inf)))
         takers = body_takers(needs_rest, foot_still, kept, len(active)) & ~sweeping_points(
-            v_sensed, kept, settled & (height_rel <= th.still_relative), th.enter_speed)
+            v_sensed, kept, bits.mask(settled) & (height_rel <= th.still_relative),
+            th.enter_speed)
         lowest = int(np.argmin(np.where(takers, p_sensed[:, 2], np.inf)))
-        handover = bool(takers[lowest] and not active[lowest] and not tilted[lowest]
-                        and (not layout.stepping[lowest]
+        handover = bool(takers[lowest] and not has(on | tilted, lowest)
+                        and (not has(bits.stepping, lowest)
                              or height_rel[kept] > th.still_relative))
         if handover:
-            plant[lowest] = True
+            plant |= 1 << lowest
         else:
-            leave[kept] = False
+            leave &= ~(1 << kept)
     anchors, age = state.anchors.copy(), state.age.copy()
-    if any_true(plant):
-        if handover:
-            anchors[plant] = takeover_anchors(p_sensed, anchors, active, plant, p_solved,
-                                              step_sensed)
-        elif p_solved is not None:
-            anchors[plant] = landing_anchors(layout, active & ~leave, anchors, p_solved, plant)
-        else:
-            reference = active & ~leave if any_true(active & ~leave) else active
-            same = layout.same_foot
-            for j in true_indices(plant):
-                # the point's own foot, when planted, keeps that foot's anchors in shape
-                own = reference & same[j]
-                ref = own if any_true(own) else reference & ~same[j]
-                anchors[j] = p_sensed[j] + sensed_offset(p_sensed, anchors, ref)
-        anchors[plant, 2] = np.maximum(anchors[plant, 2], th.floor_z)
-        age[plant] = 0.0
+    if plant:
+        plant_anchors(anchors, bits.mask(plant), active, bits.mask(on & ~leave), handover,
+                       p_sensed, p_solved, step_sensed, layout, th.floor_z)
+        age[bits.mask(plant)] = 0.0
     released = state.released.copy()
-    released[leave] = 0.0
-    held_now = (active & ~leave) | plant
-    if not hints:  # a planted trunk point rolls onto a lower point of its segment
+    if leave:
+        released[bits.mask(leave)] = 0.0
+    now = on & ~leave | plant
+    held_now = bits.array(now)
+    if not hints and now & rest & bits.shares_segment:
+        # a planted trunk point rolls onto a lower point of its segment
         roll_on_segment(held_now, anchors, age, released, p_sensed, needs_rest, layout, th.floor_z)
     return ContactState(state.names, held_now, anchors, age, released)
 
@@ -283,50 +278,53 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     """
     th = thresholds
     was = state.active
+    bits = point_bits(layout)
+    on = bits.of(was)  # planted (bits: :mod:`.point_bits`)
     step = max(dt, 0.0)
     height_rel = heights_above_lowest(p_sensed)
     released = np.where(was, state.released, state.released + step)
     # near the floor and among the lowest points: the candidates (few frames have any)
-    enter = (~was & (p_solved[:, 2] < th.floor_z + th.enter_height)
-             & (height_rel < th.enter_relative))
-    if any_true(enter):
-        enter &= _may_enter(was, p_solved, p_solved_previous, dt, height_rel, released, th,
-                            foot_pitch, layout, points_moving, foot_still, needs_rest)
-        enter &= ~sweeping_beside(v_sensed, was, points_moving, th.enter_speed)
+    enter = (bits.of(p_solved[:, 2] < th.floor_z + th.enter_height)
+             & bits.of(height_rel < th.enter_relative) & ~on)
+    if enter:
+        enter &= _may_enter(bits, on, p_solved, p_solved_previous, dt, height_rel, released, th,
+                            foot_pitch, points_moving, foot_still, needs_rest)
+        enter &= ~sweeping_beside(bits, v_sensed, on, points_moving, th.enter_speed)
     for i, hinted in hinted_points(state.names, hints):
-        enter[i] = (not was[i]) and hinted
-    if not any_true(was) and not any_true(enter) and not hints:
-        enter[int(np.argmin(p_sensed[:, 2]))] = True
+        enter = enter | 1 << i if not on & 1 << i and hinted else enter & ~(1 << i)
+    if not on and not enter and not hints:
+        enter = 1 << int(np.argmin(p_sensed[:, 2]))
     anchors = state.anchors.copy()
-    landing = any_true(enter)
-    if landing:
-        anchors[enter] = landing_anchors(layout, was, anchors, p_solved, enter)
-        active = was | enter
-        anchors[enter, 2] = np.maximum(anchors[enter, 2], th.floor_z)
+    if enter:
+        entering = bits.mask(enter)
+        anchors[entering] = landing_anchors(layout, was, anchors, p_solved, entering)
+        active = bits.array(on | enter)
+        anchors[entering, 2] = np.maximum(anchors[entering, 2], th.floor_z)
     else:
         active = was.copy()
     anchors[:, 2] = settled_heights(anchors[:, 2], active, layout.same_segment,
                                     th.settle_speed * step, th.floor_z, layout.shares_segment)
     age = np.where(active, state.age + step, 0.0)
-    if landing:
-        age[enter] = 0.0
+    if enter:
+        age[entering] = 0.0
     return ContactState(state.names, active, anchors, age, released)
 
 
-def _may_enter(active: np.ndarray, p_solved: np.ndarray, p_solved_previous: np.ndarray,
+def _may_enter(bits: PointBits, on: int, p_solved: np.ndarray, p_solved_previous: np.ndarray,
                dt: float, height_rel: np.ndarray, released: np.ndarray,
-               th: ContactThresholds, foot_pitch: np.ndarray | None, layout: FootLayout,
+               th: ContactThresholds, foot_pitch: np.ndarray | None,
                points_moving: np.ndarray | None, foot_still: np.ndarray | None,
-               needs_rest: np.ndarray | None) -> np.ndarray:
-    """(k,) the points :func:`touch_down` lets land, its other rules than height.
+               needs_rest: np.ndarray | None) -> int:
+    """The points (bits) :func:`touch_down` lets land, its other rules than height.
 
     Slow (or known not to move, or as low as a support that moves), not ruled out by the foot
     pitch, not let go just now (toe-off), not a moving point while a point of the other foot
-    that does not move holds the body, not a trunk point whose segment moves.
+    that does not move holds the body, not a trunk point whose segment moves. ``on``: the
+    planted points.
     """
-    k = len(active)
-    moving_point, settled = point_motion(points_moving, k)
-    speed = row_norms(p_solved - p_solved_previous) / dt if dt > 0 else np.zeros(k)
+    moving_point, settled = motion_bits(bits, points_moving)
+    speed = (row_norms(p_solved - p_solved_previous) / dt if dt > 0
+             else np.zeros(len(p_solved)))
     # a point that just let go (toe-off) does not come back down at once while it is low,
     # unless its foot IMU says it no longer moves (a landing heel let go while it skidded).
     # A point its foot IMU says does not move is slow whatever its solved speed: that speed
@@ -335,11 +333,14 @@ def _may_enter(active: np.ndarray, p_solved: np.ndarray, p_solved_previous: np.n
     # the solved speed says nothing while the IMUs say every planted point moves (a body held
     # on a toe that lifts): the sensed pose decides then, a point taking the body once it is
     # as low as the planted points.
-    support_moving = (height_rel <= np.min(height_rel[active], initial=np.inf)
-                      if all_planted_moving(active, moving_point) else False)
-    ok = (((speed < th.enter_speed) | settled | support_moving)
-          & ~tilted_points(layout, foot_pitch, math.radians(th.tilt_deg))
-          & ((released >= th.reenter_delay) | settled))
+    support_moving = (bits.of(height_rel <= np.min(height_rel[bits.mask(on)], initial=np.inf))
+                      if on and not on & ~moving_point else 0)
+    ok = ((bits.of(speed < th.enter_speed) | settled | support_moving)
+          & ~tilted_bits(bits, foot_pitch, math.radians(th.tilt_deg))
+          & (bits.of(released >= th.reenter_delay) | settled))
     if points_moving is not None:  # see release_contacts
-        ok &= ~(moving_point & other_foot(layout, active & ~moving_point))
-    return ok & ~moving_rest_points(needs_rest, foot_still, k)  # NaN: unknown
+        ok &= ~(moving_point & bits.other_foot(on & ~moving_point))
+    if needs_rest is not None:  # a trunk point whose segment's IMU says it moves (NaN: unknown)
+        ok &= ~(bits.of(np.asarray(needs_rest)) & stance_bits(bits, foot_still)[1])
+    return ok
+

@@ -7,6 +7,8 @@ dominates on arrays of a few rows.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 try:  # the C function behind ``np.count_nonzero(values)``: its Python wrapper costs 3x the count
@@ -60,3 +62,15 @@ def any_true(values: np.ndarray) -> bool:
 def true_indices(mask: np.ndarray) -> np.ndarray:
     """The indices of the non-zero entries of a 1-D ``mask``: ``np.flatnonzero(mask)``."""
     return mask.nonzero()[0]
+
+
+def shrink(v: np.ndarray, by: float) -> np.ndarray:
+    """``v`` shortened by ``by`` (never past zero)."""
+    n = math.sqrt(float(v.dot(v)))  # np.linalg.norm's own formula, without its overhead
+    return v * max(0.0, 1.0 - by / n) if n > 0 else v * 0.0
+
+
+def clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
+    """``v`` shortened to at most ``limit`` long (``v - v * 0.0``, i.e. ``v + 0.0``, when not)."""
+    n = math.sqrt(float(v.dot(v)))
+    return v + 0.0 if n <= limit < math.inf else v - shrink(v, limit)

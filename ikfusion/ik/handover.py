@@ -19,7 +19,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .fast_math import any_true, mean_rows
+from ..model.topology import FootLayout
+from .fast_math import any_true, mean_rows, true_indices
+from .foot_pairs import landing_anchors
 
 
 def sensed_offset(p_sensed: np.ndarray, anchors: np.ndarray, reference: np.ndarray
@@ -75,3 +77,30 @@ def takeover_anchors(p_sensed: np.ndarray, anchors: np.ndarray, support: np.ndar
                    else carried_points(p_solved, step_sensed, support))
         out[:, :2] = carried[plant, :2]
     return out
+
+
+def plant_anchors(anchors: np.ndarray, plant: np.ndarray, active: np.ndarray,
+                   staying: np.ndarray, handover: bool, p_sensed: np.ndarray,
+                   p_solved: np.ndarray | None, step_sensed: np.ndarray | None,
+                   layout: FootLayout, floor_z: float) -> None:
+    """Anchor the ``plant`` points (k,) of :func:`release_contacts` (``anchors`` in place).
+
+    A point taking the body over where the solve carries it (``handover``), else where it
+    lands beside the ``staying`` points (still planted) or, without a last solve, where the
+    sensed pose puts it relative to them (or to ``active`` when none stays); on or above the
+    floor ``floor_z`` [m].
+    """
+    if handover:
+        anchors[plant] = takeover_anchors(p_sensed, anchors, active, plant, p_solved,
+                                          step_sensed)
+    elif p_solved is not None:
+        anchors[plant] = landing_anchors(layout, staying, anchors, p_solved, plant)
+    else:
+        reference = staying if any_true(staying) else active
+        same = layout.same_foot
+        for j in true_indices(plant):
+            # the point's own foot, when planted, keeps that foot's anchors in shape
+            own = reference & same[j]
+            ref = own if any_true(own) else reference & ~same[j]
+            anchors[j] = p_sensed[j] + sensed_offset(p_sensed, anchors, ref)
+    anchors[plant, 2] = np.maximum(anchors[plant, 2], floor_z)

@@ -1,18 +1,17 @@
 """Per contact point, what a frame's evidence says: hints, IMU motion, the foot's pitch.
 
 Helpers of :mod:`.contacts` (``release_contacts`` and ``touch_down``), on (k,) arrays of the
-contact points.
+contact points; the masks they combine as the bits of ints (:mod:`.point_bits`).
 """
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from ..model.topology import FootLayout
-from .fast_math import any_true, min_of
+from .fast_math import min_of
+from .point_bits import PointBits
 from .point_masks import LastInput
 
 
@@ -50,45 +49,35 @@ def moving_rest_points(needs_rest: np.ndarray | None, foot_still: np.ndarray | N
     return np.asarray(needs_rest, dtype=bool) & (np.asarray(foot_still, dtype=float) == 0.0)
 
 
-def point_motion(points_moving: np.ndarray | None, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per point (k,): its IMU says it moves; its IMU says it does not (both False: unknown).
+def tilted_bits(bits: PointBits, foot_pitch: np.ndarray | None, limit: float) -> int:
+    """Points (bits) whose foot pitch [rad] rules them out past ``limit`` [rad].
 
-    Read-only arrays; kept for a read-only ``points_moving`` (:class:`.point_masks.LastInput`).
+    Heels when toe-down, toes when toe-up; none without a pitch.
     """
-    if points_moving is None:  # nothing known
-        none = _no_points(k)
-        return none, none
-    both = _point_motion(points_moving, k)
-    return both[0], both[1]
-
-
-def _both_motions(points_moving: np.ndarray, k: int) -> np.ndarray:
-    """(2, k) :func:`point_motion`'s two masks of known motions."""
-    value = np.asarray(points_moving, dtype=float)  # NaN compares False both ways
-    return np.array([value == 1.0, value == 0.0])
-
-
-_point_motion = LastInput(_both_motions)
-
-
-@functools.cache
-def _no_points(k: int) -> np.ndarray:
-    """(k,) read-only falses, one array per number of points."""
-    none = np.zeros(k, dtype=bool)
-    none.setflags(write=False)
-    return none
-
-
-def all_planted_moving(active: np.ndarray, moving_point: np.ndarray) -> bool:
-    """Some point is planted and the IMUs say every planted point moves."""
-    return any_true(active) and not any_true(active & ~moving_point)
-
-
-def tilted_points(layout: FootLayout, foot_pitch: np.ndarray | None, limit: float) -> np.ndarray:
-    """Points whose foot pitch rules them out: heels when toe-down, toes when toe-up."""
     if foot_pitch is None:
-        return np.zeros(len(layout.on_foot), dtype=bool)
-    heel, toe = layout.on_foot, layout.below_foot
+        return 0
     pitch = foot_pitch if isinstance(foot_pitch, np.ndarray) \
         else np.asarray(foot_pitch, dtype=float)  # NaN (unknown) compares False: not tilted
-    return (heel & (pitch > limit)) | (toe & (pitch < -limit))
+    return bits.heels & bits.of(pitch > limit) | bits.toes & bits.of(pitch < -limit)
+
+
+def motion_bits(bits: PointBits, points_moving: np.ndarray | None) -> tuple[int, int]:
+    """Per point (bits), its IMU says it moves (``points_moving`` 1); ... does not (0).
+
+    Neither where unknown (NaN); nothing known without ``points_moving``.
+    """
+    return _known_bits(bits, "motion", points_moving)
+
+
+def stance_bits(bits: PointBits, foot_still: np.ndarray | None) -> tuple[int, int]:
+    """Per point, its foot's IMU says it stands still (``foot_still`` 1); ... it moves (0)."""
+    return _known_bits(bits, "stance", foot_still)
+
+
+def _known_bits(bits: PointBits, name: str, evidence: np.ndarray | None) -> tuple[int, int]:
+    """The points where ``evidence`` (k,) is 1, and where it is 0 (NaN: neither), per pattern."""
+    if evidence is None:
+        return 0, 0
+    value = np.asarray(evidence, dtype=float)
+    return bits.memo(name, value.tobytes(),
+                     lambda: (bits.of(value == 1.0), bits.of(value == 0.0)))

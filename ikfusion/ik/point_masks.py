@@ -56,32 +56,6 @@ def _read_only(value: T, mask: np.ndarray) -> T:
     return value
 
 
-class PointGroups:
-    """The groups of the contact points (a foot, a knee, a palm, a trunk segment) as masks.
-
-    Args:
-        rows: (groups, k) the points of each group.
-    """
-
-    def __init__(self, rows: np.ndarray) -> None:
-        self._rows = rows
-        #: (groups,) the groups with a point in a (k,) mask
-        self.of = MaskMemo(lambda points: np.asarray(rows @ points))
-        #: the indices of the groups in, and out of, a (groups,) mask
-        self.split = MaskMemo(lambda groups: (tuple(groups.nonzero()[0].tolist()),
-                                              tuple((~groups).nonzero()[0].tolist())))
-        self._points: dict[tuple[int, ...], np.ndarray] = {}
-
-    def points(self, groups: tuple[int, ...]) -> np.ndarray:
-        """(k,) the points of the ``groups`` (indices), read-only."""
-        points = self._points.get(groups)
-        if points is None:
-            points = np.asarray(self._rows[list(groups)].any(axis=0))
-            points.setflags(write=False)
-            self._points[groups] = points
-        return points
-
-
 def layout_memo(layout: FootLayout, name: str,
                 function: Callable[[FootLayout, np.ndarray], T]) -> MaskMemo[T]:
     """The :class:`MaskMemo` of ``function(layout, mask)`` kept with ``layout`` under ``name``."""

@@ -31,13 +31,11 @@ the lag when the body is handed to a foot that was placed leaning.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ..model.topology import FootLayout
-from .fast_math import any_true, count_true, mean_rows
-from .point_masks import PointGroups
+from .fast_math import any_true, clip_norm, mean_rows, shrink
+from .point_bits import indices, point_bits
 
 _HORIZONTAL = np.diag([1.0, 1.0, 0.0])  # information of a lead on the x and y axes
 _VERTICAL = np.diag([0.0, 0.0, 1.0])  # ... and on the z axis
@@ -72,7 +70,12 @@ class SupportFollower:
         k = len(layout.on_foot)
         feet = [np.asarray(f, dtype=bool) for f in layout.feet]
         self._feet = tuple(feet + [np.zeros(k, dtype=bool)] * (2 - len(feet)))
-        self._groups = PointGroups(np.array(self._feet))  # the groups' masks, once per pattern
+        # points and groups as the bits of ints (:mod:`.point_bits`): bit f of a groups' mask
+        # is the group (foot, knee, palm) ``_feet[f]``
+        self._bits = point_bits(layout)
+        self._group_points = [self._bits.of(f) for f in self._feet]  # each group's points
+        self._all_groups = (1 << len(self._feet)) - 1
+        self._planted_of: dict[int, int] = {}  # _planted's, per pattern of points
         # only feet proper are led through a swing; knees and palms land where the body puts them
         self._steps = [bool((f & layout.stepping).any()) for f in self._feet]
         # the swing foot is led by its heels: points on the foot itself, not on the unsensed toes
@@ -81,7 +84,7 @@ class SupportFollower:
 
     def reset(self) -> None:
         """Forget the support, the lag and every offset."""
-        self._support: tuple[np.ndarray, np.ndarray] | None = None
+        self._support: tuple[int, np.ndarray] | None = None  # (points (bits), anchors)
         self.lag = np.zeros(3)
         self._allowance = 0.0
         self.lean = np.zeros(3)
@@ -101,7 +104,7 @@ class SupportFollower:
         self._planted_for = np.zeros(n)
         self.landed = np.zeros(3)
         self._placed_by = np.zeros((n, 3))  # how far each foot's anchors were moved on purpose
-        self._reference_feet = np.ones(n, dtype=bool)
+        self._reference_feet = self._all_groups  # the groups (bits) the body stands on
 
     # ------------------------------------------------------------------ corrections
     def set_step(self, offset: np.ndarray, max_step: float) -> None:
@@ -125,8 +128,11 @@ class SupportFollower:
 
         The intended placement of the foot the body stands on, plus the lag and the lean.
         """
-        placed = self._placed_by[self._reference_feet].mean(axis=0)
-        return placed + self.lag + self.lean
+        return self._reference_placed() + self.lag + self.lean
+
+    def _reference_placed(self) -> np.ndarray:
+        """How far the groups the body stands on were placed on purpose, on average (3,) [m]."""
+        return self._placed_by[list(indices(self._reference_feet))].mean(axis=0)
 
     @property
     def placed(self) -> bool:
@@ -160,17 +166,18 @@ class SupportFollower:
             p_sensed: (k, 3) contact points of this frame's sensed pose (any translation) [m].
             dt: Time since the last frame [s].
         """
-        planted = self._planted(active)
+        on = self._bits.of(active)
+        planted = self._planted(on)
         self._settle_landings(planted, dt)
-        reference = self._reference(active, planted)
-        offset = mean_rows((anchors - p_sensed)[reference])
+        reference = self._reference(on, planted)
+        offset = mean_rows((anchors - p_sensed)[self._bits.mask(reference)])
         moved = np.zeros(3)  # how far the pelvis target moves to where the pelvis was solved
         if self._support is not None:
             was, held = self._support
-            if any_true(was):
+            if was:
                 # what the last frame's support says now, minus what this frame's says
-                self.lag += mean_rows((held - p_sensed)[was]) - offset
-            if not any_true(was & reference):
+                self.lag += mean_rows((held - p_sensed)[self._bits.mask(was)]) - offset
+            if not was & reference:
                 # the body is handed to a foot that was placed leaning: the lean is in it now;
                 # and the pelvis goes on from where it was solved, not from its soft target
                 self.lag += self.lean + self._off_target
@@ -180,42 +187,46 @@ class SupportFollower:
                 self._allowance = self.lag_max + float(np.linalg.norm(
                     self._landed_swing[self._foot_of(reference)]))
         self._allowance = max(self.lag_max, self._allowance - self.lag_speed * dt)
-        self.lag = _clip_norm(_shrink(self.lag, self.lag_speed * dt), self._allowance)
-        wanted = _clip_norm(self.lean + self._step - self.pending, self.lean_max)
-        self.lean += _clip_norm(wanted - self.lean, self.lean_speed * dt)
+        self.lag = clip_norm(shrink(self.lag, self.lag_speed * dt), self._allowance)
+        wanted = clip_norm(self.lean + self._step - self.pending, self.lean_max)
+        self.lean += clip_norm(wanted - self.lean, self.lean_speed * dt)
         self._support = (reference, anchors.copy())
         self._reference_feet = self._planted(reference)
         self._update_swing(planted, dt, moved)
         return offset
 
-    def _foot_of(self, points: np.ndarray) -> int:
-        """The foot (index in the layout's feet) of the first of ``points``."""
-        return next((f for f, g in enumerate(self._feet) if any_true(points & g)), 0)
+    def _foot_of(self, points: int) -> int:
+        """The foot (index in the layout's feet) of the first of ``points`` (bits)."""
+        return next((f for f, g in enumerate(self._group_points) if points & g), 0)
 
-    def _planted(self, points: np.ndarray) -> np.ndarray:
-        """(groups,) does each group (foot, knee, palm) have one of ``points`` (k,) bool?"""
-        return self._groups.of(points)  # a boolean product: any of the group's
+    def _planted(self, points: int) -> int:
+        """The groups (foot, knee, palm; bits) with one of ``points`` (bits)."""
+        groups = self._planted_of.get(points)
+        if groups is None:
+            groups = self._planted_of[points] = sum(
+                1 << f for f, g in enumerate(self._group_points) if points & g)
+        return groups
 
-    def _reference(self, active: np.ndarray, planted: np.ndarray) -> np.ndarray:
+    def _reference(self, active: int, planted: int) -> int:
         """The planted points of the foot planted longest (both feet when they landed together).
 
         While both feet are planted the body stays on the foot it stood on: a foot that just
         landed, led away from where the sensed legs put it, takes the body over only when the
         other foot lets go, so the leg that leaves the floor carries no strain that would snap.
         """
-        age, on = self._planted_for.tolist(), self._groups.split(planted)[0]
+        age, on = self._planted_for.tolist(), indices(planted)
         longest = max([age[f] for f in on])
-        return self._groups.points(tuple([f for f in on if age[f] == longest])) & active
+        return sum(self._group_points[f] for f in on if age[f] == longest) & active
 
     def lose_support(self) -> None:
         """No point is planted (flight): the ballistic path takes over; nothing lags."""
         self._support = None
         self.lag = np.zeros(3)
 
-    def _settle_landings(self, planted: np.ndarray, dt: float) -> None:
-        """Groups ``planted`` (groups,) that touched down stay where they were led (``landed``)."""
+    def _settle_landings(self, planted: int, dt: float) -> None:
+        """Groups ``planted`` (bits) that touched down stay where they were led (``landed``)."""
         self.landed = np.zeros(3)
-        for f in self._groups.split(planted)[0]:
+        for f in indices(planted):
             if self._swinging[f]:
                 self._swinging[f] = False
                 self._landed_swing[f] = self.swing[f]
@@ -227,7 +238,7 @@ class SupportFollower:
                 self._planted_for[f] += dt
             self.swing[f] = 0.0
 
-    def _update_swing(self, planted: np.ndarray, dt: float, moved: np.ndarray) -> None:
+    def _update_swing(self, planted: int, dt: float, moved: np.ndarray) -> None:
         """Latch the offset of feet that lifted off and move swinging feet.
 
         Swing feet are led relative to the pelvis target: when it ``moved`` (3,) [m] to
@@ -238,7 +249,7 @@ class SupportFollower:
         heel is (held while the body moved on, it is no longer where it was led: a swing
         resumed there jumped the heel by centimetres), and its landing is not counted.
         """
-        for f in self._groups.split(planted)[1]:
+        for f in indices(self._all_groups & ~planted):
             points = self._feet[f]
             if not self._steps[f]:
                 self._swinging[f] = True  # lifted, never led: lands with no swing offset
@@ -248,7 +259,7 @@ class SupportFollower:
                 if self._planted_for[f] < self.confirm and any_true(self._landed_swing[f]):
                     self.landed -= self._landed_swing[f]  # not counted; its goal is kept
                 else:
-                    self._goal[f] = _clip_norm(self._step - self.pending, self._max_step)
+                    self._goal[f] = clip_norm(self._step - self.pending, self._max_step)
                     self._has_goal[f] = any_true(self._goal[f])
                 # the heel leaves the floor where it is, not where the sensed leg puts it (nor
                 # where it was led before a short touch-down: the body moved under it since)
@@ -256,7 +267,7 @@ class SupportFollower:
                 # a sensed leg that disagreed with the floor's height does not set the heel's
                 self._height_trust[f] = _band_share(-abs(float(self.swing[f][2])))
                 self._landed_swing[f] = 0.0
-            self.swing[f] += _clip_norm(self._goal[f] - self.swing[f], self.swing_speed * dt)
+            self.swing[f] += clip_norm(self._goal[f] - self.swing[f], self.swing_speed * dt)
             self.swing[f] -= moved
 
     def pelvis_target(self, p_warm: np.ndarray) -> np.ndarray:
@@ -282,22 +293,21 @@ class SupportFollower:
         While two feet (or knees, palms) are planted, the youngest was led by its swing offset:
         they disagree by that much on purpose, not drift. None while fewer are planted.
         """
-        planted = self._planted(active)
-        if count_true(planted) < 2:
+        planted = self._planted(self._bits.of(active))
+        if planted.bit_count() < 2:
             return None
         out = np.zeros((len(active), 3))
         # a foot that touched down since the last frame swings until the body follows: the youngest
-        fresh = planted & self._swinging
-        young = int(np.argmin(np.where(planted, np.where(fresh, -1.0, self._planted_for), np.inf)))
+        age = [-1.0 if self._swinging[f] else t for f, t in enumerate(self._planted_for.tolist())]
+        young = min(indices(planted), key=age.__getitem__)  # the first of the youngest
+        fresh = self._swinging[young]
         if not self._has_goal[young]:  # not led: only its swing (a resumed one)
-            out[self._feet[young]] = (self.swing[young] if fresh[young]
-                                      else self._landed_swing[young])
+            out[self._feet[young]] = self.swing[young] if fresh else self._landed_swing[young]
             return out
         # led from the pelvis (lag and lean on the foot the body stands on) plus its
         # swing: the same placement :meth:`_settle_landings` records
-        placed = (self.displacement + self.swing[young] if fresh[young]
-                  else self._placed_by[young])
-        out[self._feet[young]] = placed - self._placed_by[self._reference_feet].mean(axis=0)
+        placed = self.displacement + self.swing[young] if fresh else self._placed_by[young]
+        out[self._feet[young]] = placed - self._reference_placed()
         return out
 
     def leads(self) -> bool:
@@ -337,14 +347,3 @@ def _band_share(height: float) -> float:
     """1 at or above 0, falling to 0 at ``-_UNDER_FLOOR_BAND`` [m] and below."""
     return min(max(1.0 + height / _UNDER_FLOOR_BAND, 0.0), 1.0)
 
-
-def _shrink(v: np.ndarray, by: float) -> np.ndarray:
-    """``v`` shortened by ``by`` (never past zero)."""
-    n = math.sqrt(float(v.dot(v)))  # np.linalg.norm's own formula, without its overhead
-    return v * max(0.0, 1.0 - by / n) if n > 0 else v * 0.0
-
-
-def _clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
-    """``v`` shortened to at most ``limit`` long (``v - v * 0.0``, i.e. ``v + 0.0``, when not)."""
-    n = math.sqrt(float(v.dot(v)))
-    return v + 0.0 if n <= limit < math.inf else v - _shrink(v, limit)

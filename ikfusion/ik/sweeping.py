@@ -17,8 +17,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .fast_math import any_true, row_norms
-from .point_evidence import point_motion
+from .fast_math import row_norms
+from .point_bits import PointBits, first
+from .point_evidence import motion_bits
 
 
 def sweeping_points(v_sensed: np.ndarray | None, kept: int, settled: np.ndarray,
@@ -38,11 +39,14 @@ def sweeping_points(v_sensed: np.ndarray | None, kept: int, settled: np.ndarray,
     return np.asarray(row_norms((v_sensed - v_sensed[kept])[:, :2]) > limit)
 
 
-def sweeping_beside(v_sensed: np.ndarray | None, active: np.ndarray,
-                    points_moving: np.ndarray | None, limit: float) -> np.ndarray:
-    """(k,) points sweeping relative to a planted point that its IMU says does not move."""
-    _, settled = point_motion(points_moving, len(active))
-    standing = active & settled
-    if v_sensed is None or not any_true(standing):
-        return np.zeros(len(active), dtype=bool)
-    return sweeping_points(v_sensed, int(np.argmax(standing)), settled, limit)
+def sweeping_beside(bits: PointBits, v_sensed: np.ndarray | None, on: int,
+                    points_moving: np.ndarray | None, limit: float) -> int:
+    """Points (bits) sweeping relative to a planted point (in ``on``) its IMU says stands.
+
+    The first such point is the reference (:func:`sweeping_points`); bits as in
+    :mod:`.point_bits`.
+    """
+    settled = motion_bits(bits, points_moving)[1]
+    if v_sensed is None or not on & settled:
+        return 0
+    return bits.of(sweeping_points(v_sensed, first(on & settled), bits.mask(settled), limit))

@@ -1,7 +1,7 @@
 """A body rolling on its back: the contact passes along the trunk instead of sliding with it.
 
-Helpers of :mod:`.contacts` (``release_contacts``), on (k,) arrays of the contact points;
-positions in metres, world z up.
+Helpers of :mod:`.contacts` (``release_contacts``), on (k,) arrays of the contact points or
+their bits (:mod:`.point_bits`); positions in metres, world z up.
 
 A body sitting up from lying on its back rolls over its back: the contact leaves the shoulder
 blades for the sacrum, then the sacrum for a buttock. The trunk points are fixed points of
@@ -24,7 +24,7 @@ import numpy as np
 
 from ..model.topology import FootLayout
 from .fast_math import any_true, true_indices
-from .foot_pairs import other_foot
+from .point_bits import PointBits
 from .point_evidence import moving_rest_points
 
 #: A point of a planted trunk point's segment this much [m] lower in the sensed pose takes
@@ -94,9 +94,9 @@ def roll_on_segment(active: np.ndarray, anchors: np.ndarray, age: np.ndarray,
         age[j], released[i] = age[i], 0.0
 
 
-def pulled_points(disagrees: np.ndarray, older: np.ndarray, staying: np.ndarray,
-                  needs_rest: np.ndarray | None, layout: FootLayout) -> np.ndarray:
-    """(k,) planted points that let go as the other planted points pull them off their anchor.
+def pulled_points(bits: PointBits, disagrees: int, older: int, staying: int,
+                  trunk: int) -> int:
+    """Planted points (bits) that let go as the other planted points pull them off their anchor.
 
     Of two feet that disagree the one planted earlier lets go (toe-off). A body resting on its
     trunk keeps it: a planted trunk point's drift is its roll, and a point that disagrees
@@ -104,13 +104,12 @@ def pulled_points(disagrees: np.ndarray, older: np.ndarray, staying: np.ndarray,
     whatever its age.
 
     Args:
-        disagrees: (k,) points pulled farther than ``leave_distance`` from their anchor.
-        older: (k,) points planted no later than the other foot's planted points.
-        staying: (k,) planted points.
-        needs_rest: (k,) trunk points (None: none).
-        layout: Which points share a foot.
+        bits: The contact points' groups (:mod:`.point_bits`); the masks below are bits.
+        disagrees: Points pulled farther than ``leave_distance`` from their anchor.
+        older: Points planted no later than the other foot's planted points.
+        staying: Planted points.
+        trunk: Trunk points (``needs_rest``; 0: none).
     """
-    if needs_rest is None or not any_true(staying & needs_rest):
+    if not staying & trunk:
         return disagrees & older
-    trunk = np.asarray(needs_rest, dtype=bool)
-    return disagrees & ~trunk & (older | other_foot(layout, staying & trunk))
+    return disagrees & ~trunk & (older | bits.other_foot(staying & trunk))

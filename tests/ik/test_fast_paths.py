@@ -57,7 +57,7 @@ def test_any_true_and_true_indices_are_numpys_answers() -> None:
 def test_clipping_a_short_vector_is_the_plain_formula() -> None:
     """The support's clip of a vector already within its limit returns the bits of
     ``v - shrink(v, limit)`` (zeros of either sign as +0.0), and the same numbers when longer."""
-    from ikfusion.ik.support import _clip_norm, _shrink
+    from ikfusion.ik.fast_math import clip_norm, shrink
 
     rng = np.random.default_rng(11)
     vectors = [np.zeros(3), np.array([-0.0, 0.0, -0.0]), np.array([0.03, -0.0, 0.0]),
@@ -65,7 +65,7 @@ def test_clipping_a_short_vector_is_the_plain_formula() -> None:
     for v in vectors:
         n = float(np.linalg.norm(v))
         for limit in (0.0, 0.5 * n, n, 2.0 * n + 1e-9, 0.04, np.inf):
-            assert _clip_norm(v, limit).tobytes() == (v - _shrink(v, limit)).tobytes()
+            assert clip_norm(v, limit).tobytes() == (v - shrink(v, limit)).tobytes()
 
 
 @pytest.mark.parametrize("shape", [(1, 3), (4, 3), (4, 2), (7, 5)])

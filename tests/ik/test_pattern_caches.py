@@ -25,6 +25,11 @@ def test_any_true_is_numpys_any(values: np.ndarray) -> None:
     assert any_true(values) is bool(np.any(values))
 
 
+def _bits_of(mask: np.ndarray) -> int:
+    """The int with bit i set where ``mask[i]`` (plain arithmetic)."""
+    return sum(2 ** int(i) for i in np.flatnonzero(mask))
+
+
 def _tracker(human: HumanModel) -> ContactTracker:
     names = human.sites_of_kind("contact")
     return ContactTracker(human, BodyTopology.of(human), names, SolverSettings.load())
@@ -37,8 +42,8 @@ def test_planted_groups_follow_every_pattern_back_and_forth(human: HumanModel,
     groups = np.array(support._feet)
     patterns = [rng.random(k) < p for p in (0.1, 0.3, 0.6) for _ in range(20)]
     for points in patterns + patterns[::-1]:  # each pattern again after the others
-        planted = support._planted(points)
-        np.testing.assert_array_equal(planted, (groups & points).any(axis=1))
+        planted = support._planted(support._bits.of(points))  # groups, as bits
+        assert planted == _bits_of((groups & points).any(axis=1))
 
 
 def test_feet_stance_follows_every_pattern_back_and_forth(human: HumanModel) -> None:
@@ -90,7 +95,8 @@ def test_reference_points_are_the_oldest_groups_whatever_the_ages(human: HumanMo
         support._planted_for = rng.choice([0.0, 0.01, 0.5], size=len(groups))  # ties too
         oldest = planted & (support._planted_for == support._planted_for[planted].max())
         expected = (groups & oldest[:, None]).any(axis=0) & active
-        np.testing.assert_array_equal(support._reference(active, planted), expected)
+        reference = support._reference(support._bits.of(active), _bits_of(planted))
+        np.testing.assert_array_equal(support._bits.mask(reference), expected)
 
 
 def test_other_foot_and_drift_follow_every_pattern_back_and_forth(
