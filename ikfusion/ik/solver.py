@@ -156,7 +156,6 @@ class Solver:
         # ... translated so that its planted points sit on their anchors on average
         offset = contacts.follow(p_sensed, dt)
         a_root = self._root_acceleration(frame)
-        R_pelvis = targets.R_sensed[0] if targets.tracked[0] else None  # the root's (lever)
         active: list[Task] = self._base_tasks(frame)
         if offset is not None:
             q[:3] += offset
@@ -165,7 +164,7 @@ class Solver:
         elif frame.root_position is None and self._contact_frames:  # flight: ballistic pelvis
             # the sensed pose's lowest contact point on the floor bounds the pelvis height
             lowest_z = self.settings.floor_z + q[2] - float(np.min(p_sensed[:, 2]))
-            p_root = self.ballistic.target(last.q[:3], dt, a_root, lowest_z, R_pelvis)
+            p_root = self.ballistic.target(last.q[:3], dt, a_root, lowest_z, targets.R_root)
             tasks.root.set_targets(p_root[None], [self.settings.ballistic])
             active.append(tasks.root)
         q, iterations, relaxed = self._solve(frame, targets, q, active,
@@ -175,7 +174,7 @@ class Solver:
                                 (tasks.contact.active & ~tasks.contact.free_z).tolist()))
         self._touch_down(frame, q)
         velocity = (q[:3] - last.q[:3]) / dt if dt > 0 else last.root_velocity
-        self.ballistic.update(velocity, dt, a_root, offset is not None, R_pelvis)
+        self.ballistic.update(velocity, dt, a_root, offset is not None, targets.R_root)
         return self._finish(frame, targets, q, q_warm, velocity, contacts_now, start,
                             iterations, relaxed)
 
