@@ -114,7 +114,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
                      layout: FootLayout, points_moving: np.ndarray | None = None,
                      needs_rest: np.ndarray | None = None,
                      v_sensed: np.ndarray | None = None,
-                     step_sensed: np.ndarray | None = None) -> ContactState:
+                     step_sensed: np.ndarray | None = None,
+                     toe_off: np.ndarray | None = None) -> ContactState:
     """Let go of planted points the current frame's sensed pose lifts (run before solving).
 
     With ``foot_still``, also plant the points of still feet and hand the body over to them.
@@ -151,6 +152,9 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         v_sensed: (k, 3) the points' sensed-pose velocities [m/s] (:mod:`.sweeping`).
         step_sensed: (k, 3) the points' sensed-pose motion since ``p_solved``'s frame [m]
             (a point taking the body over: :mod:`.handover`).
+        toe_off: (k,) lone toes of a foot whose tips slide by the foot IMU faster than
+            ``enter_speed`` (:class:`.anchor_carry.AnchorCarry`): they let go even holding the
+            body alone (it flies on its ballistic path; held, it fell back 3-5 mm a push-off).
 
     Returns:
         A new state: the same anchors for the points that stay, fewer active points, and
@@ -191,6 +195,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         leave |= handed_over
     if points_moving is not None:  # while a still point of the other foot holds the body
         leave |= staying & moving_point & other_foot(layout, staying & ~moving_point)
+    leave |= staying & (False if toe_off is None else toe_off)  # a lone toe pushing off
     for i, hinted in hinted_points(state.names, hints):
         leave[i] = active[i] and not hinted
         plant[i] = not active[i] and hinted and plant[i]
@@ -210,7 +215,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
                              or height_rel[kept] > th.still_relative))
         if handover:
             plant[lowest] = True
-        else:
+        elif toe_off is None or not toe_off[kept]:  # a toe pushing off flies
             leave[kept] = False
     anchors, age = state.anchors.copy(), state.age.copy()
     if any_true(plant):
