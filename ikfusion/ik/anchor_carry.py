@@ -49,6 +49,8 @@ class AnchorCarry:
         k = len(self.names)
         self.carried = np.zeros(k, dtype=bool)  # heels carried at their own velocity this frame
         self._slid = np.zeros((k, 2))  # each point's shift in the last frame [m] (0: none)
+        #: toes held alone on their foot: how fast their tips slide this frame [m/s], else 0
+        self.tip_speed = np.zeros(k)
         self._velocity_before: Mapping[str, np.ndarray] = {}
 
     def carry(self, state: ContactState, frame: Frame, dt: float, R_heading: np.ndarray | None,
@@ -74,6 +76,8 @@ class AnchorCarry:
         shift against the travel of a body that moves (faster than ``release_speed``) is left
         out: a loaded foot is not dragged backwards by the body going forward, that is the
         velocity's integration error (a foot wrongly found still in the swing of a skip).
+        Such a toe's tip speed, carried or not, is kept in :attr:`tip_speed` (the release's
+        toe-off cue).
 
         Args:
             state: The contact state (its planted points and anchors; not changed).
@@ -85,6 +89,7 @@ class AnchorCarry:
             q: The last solved configuration (the toes' hinge geometry), None for none.
         """
         self.carried = np.zeros(len(self.names), dtype=bool)
+        self.tip_speed = np.zeros(len(self.names))
         slid, self._slid = self._slid, np.zeros((len(self.names), 2))
         before, self._velocity_before = self._velocity_before, frame.points_velocity
         if not frame.points_velocity or dt <= 0 or not any_true(state.active):
@@ -104,6 +109,8 @@ class AnchorCarry:
                 v_world = np.array([self._tip_slide(int(i), v, q, R_heading)
                                     for i, v in zip(held, v_world, strict=True)])
             speeds = np.linalg.norm(v_world[:, :2], axis=1)
+            if toes.all() and q is not None:
+                self.tip_speed[held] = speeds
             if not sliding and speeds.min() <= self.release_speed:
                 continue
             shift = v_world[int(np.argmin(speeds)), :2] * dt

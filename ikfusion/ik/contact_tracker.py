@@ -195,14 +195,14 @@ class ContactTracker:
         still, moving = self._feet_still(frame), self._points_moving(frame)
         self._evidence = (frame, still, moving)  # touch_down() of the same frame reuses it
         self.state = release_contacts(self.state, self._p_sensed, self.thresholds,
-                                      self._hints(frame), self._pitch, still,
-                                      self._history[-1][1],
+                                      self._hints(frame), self._pitch, still, self._history[-1][1],
                                       self.support.placed_offsets(self.state.active),
                                       layout=self.layout,
                                       points_moving=self.carrier.relative_motion(self.state,
                                                                                  moving),
                                       needs_rest=self._needs_rest, v_sensed=self._v_sensed,
-                                      step_sensed=step)
+                                      step_sensed=step,
+                                      toe_off=self.carrier.tip_speed > self.thresholds.enter_speed)
         # a planted heel whose foot already rolls toe-down may rise (it still cannot slip),
         # unless its IMU says the foot stands still
         bits, on = self._bits, self._bits.of(self.state.active)  # (:mod:`.point_bits`)

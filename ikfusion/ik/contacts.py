@@ -114,7 +114,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
                      layout: FootLayout, points_moving: np.ndarray | None = None,
                      needs_rest: np.ndarray | None = None,
                      v_sensed: np.ndarray | None = None,
-                     step_sensed: np.ndarray | None = None) -> ContactState:
+                     step_sensed: np.ndarray | None = None,
+                     toe_off: np.ndarray | None = None) -> ContactState:
     """Let go of planted points the current frame's sensed pose lifts (run before solving).
 
     With ``foot_still``, also plant the points of still feet and hand the body over to them.
@@ -151,6 +152,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         v_sensed: (k, 3) the points' sensed-pose velocities [m/s] (:mod:`.sweeping`).
         step_sensed: (k, 3) the points' sensed-pose motion since ``p_solved``'s frame [m]
             (a point taking the body over: :mod:`.handover`).
+        toe_off: (k,) lone toes sliding by their foot IMU (:class:`.anchor_carry.AnchorCarry`):
+            they let go even holding the body alone (it flies; held, it fell back 3-5 mm).
 
     Returns:
         A new state: the same anchors for the points that stay, fewer active points, and
@@ -166,6 +169,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     still, foot_moves = stance_bits(bits, foot_still)
     moving_point, settled = motion_bits(bits, points_moving)
     rest = bits.of_optional(needs_rest)
+    pushing_off = bits.of_optional(toe_off)  # lone toes pushing off: they let go
     handed_over = plant = 0
     if foot_still is not None:
         # A moving foot lets go once the other foot stands planted and still; a still foot
@@ -190,7 +194,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     # a resting knee or palm (calm accelerometer) is weaker evidence than a still foot: the
     # sensed pose may still lift it
     lifted = (bits.of(height_rel > th.leave_relative) | tilted) & ~(still & bits.stepping)
-    leave = staying & (lifted | pulled) | handed_over
+    leave = staying & (lifted | pulled | pushing_off) | handed_over
     if points_moving is not None:  # while a still point of the other foot holds the body
         leave |= staying & moving_point & bits.other_foot(staying & ~moving_point)
     for i, hinted in hinted_points(state.names, hints):
@@ -214,7 +218,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
                              or height_rel[kept] > th.still_relative))
         if handover:
             plant |= 1 << lowest
-        else:
+        elif not has(pushing_off, kept):  # a toe pushing off flies
             leave &= ~(1 << kept)
     anchors, age = state.anchors.copy(), state.age.copy()
     if plant:

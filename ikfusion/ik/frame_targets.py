@@ -38,6 +38,11 @@ class FrameTargets:
     sensed_joints: np.ndarray
     row_weights: tuple[np.ndarray, np.ndarray]
 
+    @property
+    def R_root(self) -> np.ndarray | None:
+        """(3, 3) the root's (pelvis's) sensed ``R_world_pelvis``, None when it is untracked."""
+        return self.R_sensed[0] if self.tracked[0] else None
+
 
 @dataclass(frozen=True)
 class _Weighting:

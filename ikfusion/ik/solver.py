@@ -36,7 +36,7 @@ from ..errors import SolverError
 from ..model.human_model import HumanModel
 from ..model.topology import BodyTopology
 from .active_set import solve_with_active_set
-from .ballistic import BallisticRoot
+from .ballistic import BallisticRoot, sensor_lever
 from .contact_tracker import ContactTracker
 from .equality_qp import ClosedFormHint
 from .frame import Frame
@@ -100,7 +100,7 @@ class Solver:
         self.targets = TargetLoader(model, self.tasks, self.sensed, s)
         self.contacts = ContactTracker(model, self.topology, self.contact_names, s)
         self.world = WorldOffset(self.contacts.support)
-        self.ballistic = BallisticRoot(s.takeoff_velocity_tau)
+        self.ballistic = BallisticRoot(s.takeoff_velocity_tau, sensor_lever(model))
         self._configuration = step_configuration(model, self.tasks, self.compiled)
         self._range_rows: RangeRows = self.tasks.joint_range if self.compiled is None else \
             StepRangeRows(self.compiled.kinematics, self.compiled.geometry,
@@ -164,7 +164,7 @@ class Solver:
         elif frame.root_position is None and self._contact_frames:  # flight: ballistic pelvis
             # the sensed pose's lowest contact point on the floor bounds the pelvis height
             lowest_z = self.settings.floor_z + q[2] - float(np.min(p_sensed[:, 2]))
-            p_root = self.ballistic.target(last.q[:3], dt, a_root, lowest_z)
+            p_root = self.ballistic.target(last.q[:3], dt, a_root, lowest_z, targets.R_root)
             tasks.root.set_targets(p_root[None], [self.settings.ballistic])
             active.append(tasks.root)
         q, iterations, relaxed = self._solve(frame, targets, q, active,
@@ -174,7 +174,7 @@ class Solver:
                                 (tasks.contact.active & ~tasks.contact.free_z).tolist()))
         self._touch_down(frame, q)
         velocity = (q[:3] - last.q[:3]) / dt if dt > 0 else last.root_velocity
-        self.ballistic.update(velocity, dt, a_root, offset is not None)
+        self.ballistic.update(velocity, dt, a_root, offset is not None, targets.R_root)
         return self._finish(frame, targets, q, q_warm, velocity, contacts_now, start,
                             iterations, relaxed)
 
