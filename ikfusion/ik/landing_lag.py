@@ -1,0 +1,51 @@
+"""A foot that lands while the pelvis lags is anchored where the body without the lag puts it.
+
+The support's *lag* (:mod:`.support`) is how far the pelvis is held from where the reference
+foot's anchors and the sensed legs put it; it shrinks at ``lag_speed`` while the planted legs
+take it up. IMU only, the lag grows at each push-off: the trailing toe's tip, carried along the
+floor by its foot IMU (:mod:`.anchor_carry`), runs ahead of the pelvis, which follows at the
+lag's speed. The swing leg hangs from that lagging pelvis, so the heel that lands then is
+solved behind by the lag (8-13 mm at each step of cmu-02-02-walk) and anchored there: the new
+foot agrees with the lagging body, the lag is handed over without a jump and shrinks to zero
+without the body ever moving by it. Each step lost it (cmu-02-02-walk's sensed-links loss).
+
+A point that lands on a foot without planted points is therefore anchored at its solved
+position less the lag (horizontally): the body catches up with it through the new foot too.
+Only with the foot IMUs' point velocities (IMU only, offline), where the lag is drift alone;
+with a correction the swing foot is led to where the corrected body wants it (:mod:`.support`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..model.topology import FootLayout
+from .contacts import ContactState
+from .fast_math import any_true
+from .frame import Frame
+
+
+def unlagged_landings(before: np.ndarray, state: ContactState, layout: FootLayout,
+                      lag: np.ndarray, frame: Frame) -> ContactState:
+    """``state`` with the points that landed on a foot without planted points moved by ``-lag``.
+
+    Args:
+        before: (k,) the points planted before this touch-down.
+        state: The contact state after it.
+        layout: The points' feet (heels and toes of feet proper land; knees, palms do not).
+        lag: (3,) the support's lag [m] (pelvis less where the reference foot puts it).
+        frame: The frame (with its points' velocities, IMU only; else ``state`` as it is).
+    """
+    if not frame.points_velocity or len(before) != len(state.active) or not (lag[0] or lag[1]):
+        return state
+    landed = state.active & ~before & layout.stepping
+    if not any_true(landed):
+        return state
+    landed &= ~(layout.same_foot & before[None, :]).any(axis=1)
+    if not any_true(landed):
+        return state
+    anchors = state.anchors.copy()
+    anchors[landed, :2] -= lag[:2]
+    return replace(state, anchors=anchors)
