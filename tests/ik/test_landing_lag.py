@@ -34,12 +34,16 @@ def test_a_foot_landing_is_anchored_where_the_body_without_the_lag_puts_it() -> 
     np.testing.assert_array_equal(out.anchors[1:], state.anchors[1:])  # the others stay
 
 
-def test_points_landing_on_a_planted_foot_or_without_imu_velocities_stay() -> None:
-    """A toe coming down on a foot whose heel holds keeps the foot's shape; with a correction
-    (no point velocities) the swing foot was led where the corrected body wants it."""
-    state, before = _landing([True, False, False, True], [True, True, False, True])
-    out = unlagged_landings(before, state, LAYOUT, LAG, IMU_ONLY)
-    np.testing.assert_array_equal(out.anchors, state.anchors)
-    state, before = _landing([False, False, False, True], [True, False, False, True])
-    out = unlagged_landings(before, state, LAYOUT, LAG, Frame(1.0, {}))
-    np.testing.assert_array_equal(out.anchors, state.anchors)
+def test_other_landings_and_landings_with_a_correction_stay() -> None:
+    """A toe coming down on a foot whose heel holds keeps the foot's shape; a foot landing flat
+    or on its toes (a skip, a crouch) lands after lags of other origins; with a correction (no
+    point velocities) the swing foot was led where the corrected body wants it."""
+    t, f = True, False
+    for before, after, frame in (([t, f, f, t], [t, t, f, t], IMU_ONLY),  # toe onto a heel
+                                 ([f, f, f, t], [t, t, f, t], IMU_ONLY),  # flat
+                                 ([f, f, f, t], [f, t, f, t], IMU_ONLY),  # on its toes
+                                 ([f, f, t, t], [t, f, t, t], IMU_ONLY),  # other foot flat
+                                 ([f, f, f, t], [t, f, f, t], Frame(1.0, {}))):  # a correction
+        state, planted = _landing(before, after)
+        out = unlagged_landings(planted, state, LAYOUT, LAG, frame)
+        np.testing.assert_array_equal(out.anchors, state.anchors)
