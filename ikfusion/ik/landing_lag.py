@@ -11,11 +11,13 @@ without the body ever moving by it. Each step lost it (cmu-02-02-walk's sensed-l
 
 A heel that strikes while the body stands on the other foot's toes alone is therefore anchored
 at its solved position less the lag (horizontally): the body catches up with it through the new
-foot too. Only then: a foot that lands flat or on its toes (a skip, a crouch, a kick's return)
-lands after lags of other origins (a hand-over's disagreement, in height too), and moving its
-anchors made those clips worse (gen-skip's head 26.7 -> 44.6 cm IMU only). And only with the
-foot IMUs' point velocities (IMU only, offline), where the lag is drift alone; with a
-correction the swing foot is led to where the corrected body wants it (:mod:`.support`).
+foot too. Only then, and only for a lag without height, which anchors carried along the floor
+alone made: a foot that lands flat or on its toes (a skip, a crouch, a kick's return), or a heel
+after a hand-over's disagreement (in height too: amp-dance-spins' whirls, 16-24 mm), lands after
+lags of other origins, and moving its anchors made those clips worse (gen-skip's head 26.7 ->
+44.6 cm, amp-dance-spins' 5.9 -> 6.9 cm IMU only). And only with the foot IMUs' point
+velocities (IMU only, offline), where the lag is drift alone; with a correction the swing foot
+is led to where the corrected body wants it (:mod:`.support`).
 """
 
 from __future__ import annotations
@@ -38,10 +40,12 @@ def unlagged_landings(before: np.ndarray, state: ContactState, layout: FootLayou
         before: (k,) the points planted before this touch-down.
         state: The contact state after it.
         layout: The points' feet (heels: on a foot proper; toes: below it).
-        lag: (3,) the support's lag [m] (pelvis less where the reference foot puts it).
+        lag: (3,) the support's lag [m] (pelvis less where the reference foot puts it); one
+            with height is left alone.
         frame: The frame (with its points' velocities, IMU only; else ``state`` as it is).
     """
-    if not frame.points_velocity or len(before) != len(state.active) or not (lag[0] or lag[1]):
+    if not frame.points_velocity or len(before) != len(state.active) or lag[2] != 0.0 \
+            or not (lag[0] or lag[1]):
         return state
     landed = state.active & ~before
     heels = layout.stepping & ~layout.below_foot

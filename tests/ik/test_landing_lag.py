@@ -47,3 +47,7 @@ def test_other_landings_and_landings_with_a_correction_stay() -> None:
         state, planted = _landing(before, after)
         out = unlagged_landings(planted, state, LAYOUT, LAG, frame)
         np.testing.assert_array_equal(out.anchors, state.anchors)
+    # a lag with height is a hand-over's disagreement, not the carried toe's
+    state, planted = _landing([f, f, f, t], [t, f, f, t])
+    out = unlagged_landings(planted, state, LAYOUT, LAG + [0.0, 0.0, 0.002], IMU_ONLY)
+    np.testing.assert_array_equal(out.anchors, state.anchors)
