@@ -27,6 +27,7 @@ from .anchor_settling import held_again
 from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
 from .fast_math import any_true, min_of, true_indices
 from .frame import Frame
+from .landing_lag import unlagged_landings
 from .point_bits import point_bits
 from .point_evidence import stance_bits
 from .release import ANKLE, ReleaseEasing
@@ -123,10 +124,7 @@ class ContactTracker:
 
     def carry(self, frame: Frame, dt: float, R_heading: np.ndarray | None,
               v_body: np.ndarray, q: np.ndarray | None = None) -> None:
-        """Planted points that slide by their foot IMU carry their anchors along.
-
-        See :meth:`.anchor_carry.AnchorCarry.carry` (arguments as there, without the state).
-        """
+        """Points sliding by their foot IMU carry their anchors (:meth:`.AnchorCarry.carry`)."""
         anchors = self.carrier.carry(self.state, frame, dt, R_heading, v_body, q)
         if anchors is not None:
             self.state = replace(self.state, anchors=anchors)
@@ -279,12 +277,11 @@ class ContactTracker:
         return tasks
 
     def touch_down(self, frame: Frame, p_contacts: np.ndarray, p_root: np.ndarray) -> None:
-        """After solving: plant the points that reached the floor.
+        """After solving: plant the points that reached the floor (``frame``'s contact hints).
 
-        Args:
-            frame: The frame (contact hints).
-            p_contacts: (c, 3) solved contact points [m].
-            p_root: (3,) solved pelvis position [m].
+        ``p_contacts`` (c, 3) and ``p_root`` (3,) are the solved contact points and pelvis [m];
+        IMU only, a foot lands where the body without the support's lag puts it
+        (:mod:`.landing_lag`).
         """
         if not self.names:
             return
@@ -294,11 +291,13 @@ class ContactTracker:
         released, self._evidence = self._evidence, None
         still, moving = (released[1:] if released is not None and released[0] is frame
                          else (self._feet_still(frame), self._points_moving(frame)))
+        before = self.state.active
         self.state = touch_down(self.state, p_contacts, p_old, self._p_sensed,
                                 frame.time - t_old, self.thresholds, self._hints(frame),
                                 self._pitch, layout=self.layout, points_moving=moving,
                                 foot_still=still, needs_rest=self._needs_rest,
                                 v_sensed=self._v_sensed)
+        self.state = unlagged_landings(before, self.state, self.layout, self.support.lag, frame)
 
     def _hints(self, frame: Frame) -> Mapping[str, bool] | None:
         """The frame's contact hints; in flight (``frame.airborne``) every point is free.
