@@ -106,6 +106,8 @@ class ContactTracker:
         self._rising = 0  # the planted heels release() let rise (bits: :mod:`.point_bits`)
         # the IMU evidence of the frame being solved: (frame, feet still, points moving)
         self._evidence: tuple[Frame, np.ndarray | None, np.ndarray | None] | None = None
+        # the points the body last stood on; the points and lag of the last take-off
+        self._stood, self._flown = self.state.active, (self.state.active, np.zeros(3))
         self.support.reset()
         self.easing.reset()
         self.carrier.reset()
@@ -125,8 +127,7 @@ class ContactTracker:
     def carry(self, frame: Frame, dt: float, R_heading: np.ndarray | None,
               v_body: np.ndarray, q: np.ndarray | None = None) -> None:
         """Points sliding by their foot IMU carry their anchors (:meth:`.AnchorCarry.carry`)."""
-        anchors = self.carrier.carry(self.state, frame, dt, R_heading, v_body, q)
-        if anchors is not None:
+        if (anchors := self.carrier.carry(self.state, frame, dt, R_heading, v_body, q)) is not None:
             self.state = replace(self.state, anchors=anchors)
 
     # ------------------------------------------------------------------ per frame
@@ -244,7 +245,10 @@ class ContactTracker:
     def follow(self, p_sensed: np.ndarray, dt: float) -> np.ndarray | None:
         """The support offset (3,) [m] putting the sensed pose on its anchors; None in flight."""
         if any_true(self.state.active):
+            self._stood = self.state.active
             return self.support.follow(self.state.active, self.state.anchors, p_sensed, dt)
+        if any_true(self._stood):  # the take-off: its lag is kept for the landing
+            self._flown, self._stood = (self._stood, self.support.lag.copy()), self.state.active
         self.support.lose_support()
         return None
 
@@ -279,9 +283,8 @@ class ContactTracker:
     def touch_down(self, frame: Frame, p_contacts: np.ndarray, p_root: np.ndarray) -> None:
         """After solving: plant the points that reached the floor (``frame``'s contact hints).
 
-        ``p_contacts`` (c, 3) and ``p_root`` (3,) are the solved contact points and pelvis [m];
-        IMU only, a foot lands where the body without the support's lag puts it
-        (:mod:`.landing_lag`).
+        ``p_contacts`` (c, 3), ``p_root`` (3,): the solved contact points and pelvis [m]; IMU
+        only, a foot lands less the lag (even one its toes took off with: :mod:`.landing_lag`).
         """
         if not self.names:
             return
@@ -297,7 +300,8 @@ class ContactTracker:
                                 self._pitch, layout=self.layout, points_moving=moving,
                                 foot_still=still, needs_rest=self._needs_rest,
                                 v_sensed=self._v_sensed)
-        self.state = unlagged_landings(before, self.state, self.layout, self.support.lag, frame)
+        stood, lag = (before, self.support.lag) if any_true(before) else self._flown
+        self.state = unlagged_landings(stood, self.state, self.layout, lag, frame)
 
     def _hints(self, frame: Frame) -> Mapping[str, bool] | None:
         """The frame's contact hints; in flight (``frame.airborne``) every point is free.
