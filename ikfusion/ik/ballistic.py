@@ -80,7 +80,6 @@ class BallisticRoot:
         self.landed = False
         self._shift = np.zeros(3)  # moves the next target (and the path after it) [m]
         self._lever_world: np.ndarray | None = None  # the last frame's R_world_pelvis lever
-        self._a_last: np.ndarray | None = None  # the last frame's measured acceleration
 
     def shift(self, delta: np.ndarray) -> None:
         """Move the path by ``delta`` (3,) [m] from the next frame of flight on.
@@ -146,9 +145,8 @@ class BallisticRoot:
         self._lever_world = (None if self.lever is None or R_world_pelvis is None
                              else R_world_pelvis @ self.lever)
         measured = a_world is not None and _finite(a_world)
-        a_mean = self._interval_mean(a_world if measured else None)
         if not supported:  # in flight: the path's own velocity
-            a = a_mean if a_mean is not None else GRAVITY
+            a = a_world if measured and a_world is not None else GRAVITY
             self.velocity = self.velocity + a * max(dt, 0.0)
             return
         self.position = None
@@ -156,25 +154,12 @@ class BallisticRoot:
         if not measured or a_world is None or dt <= 0.0:
             self.velocity = np.asarray(v_solved, dtype=float) + (around / dt if dt > 0 else 0.0)
             return
-        predicted = self.velocity + (a_world if a_mean is None else a_mean) * dt
+        predicted = self.velocity + a_world * dt
         # the finite difference is the velocity half a frame back: bring it to this frame,
         # at the sensor
         v_now = v_solved + around / dt + 0.5 * a_world * dt
         gain = 1.0 if self.tau == 0.0 else min(1.0, dt / self.tau)
         self.velocity = predicted + gain * (v_now - predicted)
-
-    def _interval_mean(self, a_world: np.ndarray | None) -> np.ndarray | None:
-        """The mean acceleration [m/s^2] from the last frame to this one (trapezoid).
-
-        The accelerometer samples the acceleration at the frame's instant: adding this
-        frame's sample times ``dt`` ran the velocity half a frame ahead (``g dt / 2``, 8 cm/s
-        downward at 60 Hz, at every take-off). None without a measurement this frame; this
-        frame's sample alone after a frame without one.
-        """
-        last, self._a_last = self._a_last, None if a_world is None else np.asarray(a_world)
-        if a_world is None:
-            return None
-        return np.asarray(a_world) if last is None else 0.5 * (last + np.asarray(a_world))
 
     def _lever_step(self, R_world_pelvis: np.ndarray | None) -> np.ndarray:
         """(3,) how far [m] the accelerometer moved around the pelvis origin since the last frame.
