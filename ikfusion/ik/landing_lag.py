@@ -11,7 +11,10 @@ without the body ever moving by it. Each step lost it (cmu-02-02-walk's sensed-l
 
 A heel that strikes while the body stands on the other foot's toes alone is therefore anchored
 at its solved position less the lag (horizontally): the body catches up with it through the new
-foot too. Only then, and only for a lag without height, which anchors carried along the floor
+foot too. When those toes let go first (a lone toe pushing off, :mod:`.contacts`), the body flies
+a few frames and the support forgets its lag: the contact tracker keeps the points the body took
+off from and their lag, and passes them here at the landing in place of the planted points.
+Only then, and only for a lag without height, which anchors carried along the floor
 alone made: a foot that lands flat or on its toes (a skip, a crouch, a kick's return), or a heel
 after a hand-over's disagreement (in height too: amp-dance-spins' whirls, 16-24 mm), lands after
 lags of other origins, and moving its anchors made those clips worse (gen-skip's head 26.7 ->
@@ -37,11 +40,12 @@ def unlagged_landings(before: np.ndarray, state: ContactState, layout: FootLayou
     """``state`` with a heel that struck while the body stood on toes alone moved by ``-lag``.
 
     Args:
-        before: (k,) the points planted before this touch-down.
+        before: (k,) the points planted before this touch-down (after a flight: the points
+            the body took off from).
         state: The contact state after it.
         layout: The points' feet (heels: on a foot proper; toes: below it).
-        lag: (3,) the support's lag [m] (pelvis less where the reference foot puts it); one
-            with height is left alone.
+        lag: (3,) the support's lag [m] (pelvis less where the reference foot puts it; after
+            a flight, the one at its take-off); one with height is left alone.
         frame: The frame (with its points' velocities, IMU only; else ``state`` as it is).
     """
     if not frame.points_velocity or len(before) != len(state.active) or lag[2] != 0.0 \
