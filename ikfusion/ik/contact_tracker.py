@@ -126,8 +126,9 @@ class ContactTracker:
 
     def carry(self, frame: Frame, dt: float, R_heading: np.ndarray | None,
               v_body: np.ndarray, q: np.ndarray | None = None) -> None:
-        """Points sliding by their foot IMU carry their anchors (:meth:`.AnchorCarry.carry`)."""
+        """Points sliding by their foot IMU carry their anchors, the body its heels' (glide)."""
         if (anchors := self.carrier.carry(self.state, frame, dt, R_heading, v_body, q)) is not None:
+            self.support.shift(self.carrier.glide(anchors - self.state.anchors), placed=False)
             self.state = replace(self.state, anchors=anchors)
 
     # ------------------------------------------------------------------ per frame
@@ -185,8 +186,7 @@ class ContactTracker:
         step = self._p_sensed - previous  # [m]
         self._v_sensed = step / dt if dt > 0 else None
         self._pitch = a * self._pitch + (1.0 - a) * pitch
-        # read-only: the rules of this frame work out what they ask of them once
-        # (:class:`.point_masks.LastInput`)
+        # read-only: the rules work out what they ask of them once (:class:`.point_masks.LastInput`)
         self._p_sensed.setflags(write=False)
         self._pitch.setflags(write=False)
         z = self._p_sensed[:, 2]
@@ -333,8 +333,7 @@ class ContactTracker:
     def _feet_still(self, frame: Frame) -> np.ndarray | None:
         """1 where each point's foot stands still by its IMU, 0 moving, NaN unknown.
 
-        Read-only, kept per pattern of ``frame.feet_still`` (few: the feet's stance changes at
-        steps only).
+        Read-only, kept per pattern of ``frame.feet_still`` (few: stance changes at steps).
         """
         known = frame.feet_still
         if not known:

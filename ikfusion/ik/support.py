@@ -70,8 +70,7 @@ class SupportFollower:
         k = len(layout.on_foot)
         feet = [np.asarray(f, dtype=bool) for f in layout.feet]
         self._feet = tuple(feet + [np.zeros(k, dtype=bool)] * (2 - len(feet)))
-        # points and groups as the bits of ints (:mod:`.point_bits`): bit f of a groups' mask
-        # is the group (foot, knee, palm) ``_feet[f]``
+        # groups as bits of ints (:mod:`.point_bits`): bit f of a groups' mask is ``_feet[f]``
         self._bits = point_bits(layout)
         self._group_points = [self._bits.of(f) for f in self._feet]  # each group's points
         self._all_groups = (1 << len(self._feet)) - 1
@@ -116,9 +115,12 @@ class SupportFollower:
         self._step = np.array([float(offset[0]), float(offset[1]), 0.0])
         self._max_step = float(max_step)
 
-    def shift(self, delta: np.ndarray) -> None:
-        """The anchors moved by ``delta`` (3,) [m] on purpose: the body follows them at once."""
-        self._placed_by += delta
+    def shift(self, delta: np.ndarray, placed: bool = True) -> None:
+        """The anchors moved by ``delta`` (3,) [m] on purpose: the body follows them at once.
+
+        Not ``placed`` by a correction: (k, 3) anchors carried along the floor (a glide).
+        """
+        self._placed_by += delta if placed else 0.0
         if self._support is not None:
             self._support = (self._support[0], self._support[1] + delta)
 
@@ -304,8 +306,7 @@ class SupportFollower:
         if not self._has_goal[young]:  # not led: only its swing (a resumed one)
             out[self._feet[young]] = self.swing[young] if fresh else self._landed_swing[young]
             return out
-        # led from the pelvis (lag and lean on the foot the body stands on) plus its
-        # swing: the same placement :meth:`_settle_landings` records
+        # led from the pelvis (lag, lean) plus its swing: as :meth:`_settle_landings` records
         placed = self.displacement + self.swing[young] if fresh else self._placed_by[young]
         out[self._feet[young]] = placed - self._reference_placed()
         return out
