@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ikfusion.ik.contact_tracker import ContactTracker
 from ikfusion.ik.contacts import ContactState
 from ikfusion.ik.frame import Frame
 from ikfusion.ik.landing_lag import unlagged_landings
+from ikfusion.ik.settings import SolverSettings
 from ikfusion.model import HumanModel
 from ikfusion.model.topology import BodyTopology
 
@@ -51,3 +53,35 @@ def test_other_landings_and_landings_with_a_correction_stay() -> None:
     state, planted = _landing([f, f, f, t], [t, f, f, t])
     out = unlagged_landings(planted, state, LAYOUT, LAG + [0.0, 0.0, 0.002], IMU_ONLY)
     np.testing.assert_array_equal(out.anchors, state.anchors)
+
+
+def test_a_heel_landing_after_a_lone_toe_took_off_is_anchored_less_the_take_off_lag() -> None:
+    """Through the tracker: the body stands on its right toe alone with the pelvis lagging, the
+    toe lets go (a few frames of flight: the support forgets its lag) and the left heel lands.
+    The tracker kept the take-off's points and lag: the heel is anchored less that lag; a heel
+    landing after a take-off from a flat foot (a lag of another origin) stays where it was
+    solved."""
+    model = HumanModel.default()
+    q = model.neutral()
+    q[2] -= min(model.site_position(q, n)[2] for n in NAMES)
+    p = np.array([model.site_position(q, n) for n in NAMES])
+    settings = SolverSettings.load()
+    tracker = ContactTracker(model, BodyTopology.of(model), NAMES, settings)
+    velocity = dict.fromkeys(NAMES, np.zeros(3))  # IMU only: the feet's point velocities
+    for took_off_from, moved in (([False, False, False, True], True),
+                                 ([False, False, True, True], False)):
+        tracker.reset()
+        tracker.start(p, np.zeros(4))
+        tracker.state = ContactState(NAMES, np.array(took_off_from), p.copy(), np.full(4, 0.4))
+        tracker.follow(p, 1 / 60)  # the body stands on those points
+        tracker.support.lag = LAG.copy()
+        tracker.state = ContactState.empty(NAMES)
+        for _ in range(3):  # the flight: nothing planted, the support forgets its lag
+            assert tracker.follow(p, 1 / 60) is None
+        assert not tracker.support.lag.any()
+        hints = {"LeftHeel": True, "LeftToe": False, "RightHeel": False, "RightToe": False}
+        frame = Frame(time=1.0, contacts=hints, points_velocity=velocity)
+        tracker.touch_down(frame, p, q[:3])
+        assert tracker.state.active.tolist() == [True, False, False, False]
+        expected = p[0] - LAG if moved else p[0]
+        np.testing.assert_allclose(tracker.state.anchors[0], expected, atol=1e-12)
