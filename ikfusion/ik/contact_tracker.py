@@ -238,8 +238,8 @@ class ContactTracker:
             on, was = bits.of(self.state.active), bits.of(held)
             if was & ~on:
                 self.easing.release(bits.mask(was & ~on), bend)
-            if rising := was & on & self._rising & ~bits.of_optional(free_z):
-                self.easing.release(bits.mask(rising), bend, ANKLE)
+            if (up := was & on & self._rising) and (up := up & ~bits.of_optional(free_z)):
+                self.easing.release(bits.mask(up), bend, ANKLE)
         return self.easing.apply(R_world_sensed, dt)
 
     def follow(self, p_sensed: np.ndarray, dt: float) -> np.ndarray | None:
