@@ -24,14 +24,13 @@ def hinted_points(names: Sequence[str],
     return [(i, bool(hints[n])) for i, n in enumerate(names) if n in hints]
 
 
-def _heights_above_lowest(p_sensed: np.ndarray) -> np.ndarray:
-    """(k,) how far each point is above the lowest of ``p_sensed`` (k, 3) [m] (world z)."""
-    return p_sensed[:, 2] - min_of(p_sensed[:, 2])
+def heights_above_lowest(p_sensed: np.ndarray) -> np.ndarray:
+    """(k,) how far each point is above the lowest of ``p_sensed`` (k, 3) [m] (world z).
 
-
-#: :func:`_heights_above_lowest`, kept for the last read-only points (a frame's release and
-#: touch-down ask it of the same smoothed sensed pose)
-heights_above_lowest = LastInput(_heights_above_lowest)
+    Worked out once per frame (:func:`frame_evidence`), for the release and the touch-down.
+    """
+    z = p_sensed[:, 2]
+    return z - min_of(z)
 
 
 def _by_rest(needs_rest: np.ndarray, rest: float, other: float) -> np.ndarray:
