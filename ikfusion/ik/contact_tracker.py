@@ -186,7 +186,7 @@ class ContactTracker:
         step = self._p_sensed - previous  # [m]
         self._v_sensed = step / dt if dt > 0 else None
         self._pitch = a * self._pitch + (1.0 - a) * pitch
-        # read-only: this frame's rules work out what they ask of them once (:mod:`.point_masks`)
+        # read-only: every rule of this frame reads them (FrameEvidence), none may write them
         self._p_sensed.setflags(write=False)
         self._pitch.setflags(write=False)
         z = self._p_sensed[:, 2]
