@@ -29,7 +29,7 @@ from .fast_math import any_true, min_of, true_indices
 from .frame import Frame
 from .landing_lag import unlagged_landings
 from .point_bits import point_bits
-from .point_evidence import stance_bits
+from .point_evidence import FrameEvidence, frame_evidence
 from .release import ANKLE, ReleaseEasing
 from .settings import SolverSettings
 from .support import SupportFollower
@@ -41,6 +41,7 @@ from .tasks import PositionTask, Task
 FAR_FROM_FLOOR = 0.3
 
 _PATTERNS = 4096  # at most this many patterns of evidence are kept (a few dozen in practice)
+_Array = np.ndarray | None
 
 
 class ContactTracker:
@@ -72,7 +73,7 @@ class ContactTracker:
                                for f, steps in zip(self._foot_names, self.layout.stepping)],
                               dtype=int)
         self._has_foot = self._feet >= 0
-        self._heel_rise = math.radians(s.heel_rise_deg)  # [rad]
+        self._heel_rise, self._tilt = math.radians(s.heel_rise_deg), math.radians(s.tilt_deg)
         # the points of each foot, for the per-frame stance lookup
         self._points_of_foot = {f: np.array([i for i, g in enumerate(self._foot_names) if g == f])
                                 for f in dict.fromkeys(self._foot_names) if f is not None}
@@ -104,8 +105,8 @@ class ContactTracker:
         self.far_from_floor = np.zeros(len(self.names), dtype=bool)
         self._v_sensed: np.ndarray | None = None
         self._rising = 0  # the planted heels release() let rise (bits: :mod:`.point_bits`)
-        # the IMU evidence of the frame being solved: (frame, feet still, points moving)
-        self._evidence: tuple[Frame, np.ndarray | None, np.ndarray | None] | None = None
+        # the frame being solved's feet still, points moving and masks (touch_down reuses them)
+        self._evidence: tuple[Frame, _Array, _Array, FrameEvidence] | None = None
         # the points the body last stood on; the points and lag of the last take-off
         self._stood, self._flown = self.state.active, (self.state.active, np.zeros(3))
         self.support.reset()
@@ -186,31 +187,31 @@ class ContactTracker:
         step = self._p_sensed - previous  # [m]
         self._v_sensed = step / dt if dt > 0 else None
         self._pitch = a * self._pitch + (1.0 - a) * pitch
-        # read-only: the rules work out what they ask of them once (:class:`.point_masks.LastInput`)
+        # read-only: every rule of this frame reads them (FrameEvidence), none may write them
         self._p_sensed.setflags(write=False)
         self._pitch.setflags(write=False)
         z = self._p_sensed[:, 2]
         self.far_from_floor = self._needs_rest & (z > min_of(z) + FAR_FROM_FLOOR)
         still, moving = self._feet_still(frame), self._points_moving(frame)
-        self._evidence = (frame, still, moving)  # touch_down() of the same frame reuses it
-        self.state = release_contacts(self.state, self._p_sensed, self.thresholds,
-                                      self._hints(frame), self._pitch, still, self._history[-1][1],
-                                      self.support.placed_offsets(self.state.active),
-                                      layout=self.layout,
-                                      points_moving=self.carrier.relative_motion(self.state,
-                                                                                 moving),
-                                      needs_rest=self._needs_rest, v_sensed=self._v_sensed,
-                                      step_sensed=step,
-                                      toe_off=self.carrier.tip_speed > self.thresholds.enter_speed)
+        th = self.thresholds
+        evidence = frame_evidence(self._bits, self._p_sensed, self._pitch, still, self._needs_rest,
+                                  self._tilt, th.leave_relative, th.enter_relative)
+        self._evidence = (frame, still, moving, evidence)
+        tip = self.carrier.tip_speed  # lone toes' tips sliding (0: none, the usual frame)
+        self.state = release_contacts(
+            self.state, self._p_sensed, th, self._hints(frame), self._pitch, still,
+            self._history[-1][1], self.support.placed_offsets(self.state.active),
+            layout=self.layout, points_moving=self.carrier.relative_motion(self.state, moving),
+            needs_rest=self._needs_rest, v_sensed=self._v_sensed, step_sensed=step,
+            toe_off=tip > th.enter_speed if any_true(tip) else None, evidence=evidence)
         # a planted heel whose foot already rolls toe-down may rise (it still cannot slip),
         # unless its IMU says the foot stands still
         bits, on = self._bits, self._bits.of(self.state.active)  # (:mod:`.point_bits`)
-        rising = bits.heels & on & ~stance_bits(bits, still)[0]
+        rising = bits.heels & on & ~evidence.still
         if rising:
             rising &= bits.of(pitch > self._heel_rise)
         was, self._rising = self._rising, rising
         if again := was & ~rising & on:  # heels that rose in the last frame: held in height
-            th = self.thresholds
             anchors = held_again(self.state.anchors, self._history[-1][1][:, 2], bits.mask(again),
                                  th.settle_speed * max(dt, 0.0), th.floor_z)
             self.state = replace(self.state, anchors=anchors)
@@ -238,8 +239,8 @@ class ContactTracker:
             on, was = bits.of(self.state.active), bits.of(held)
             if was & ~on:
                 self.easing.release(bits.mask(was & ~on), bend)
-            if rising := was & on & self._rising & ~bits.of_optional(free_z):
-                self.easing.release(bits.mask(rising), bend, ANKLE)
+            if (up := was & on & self._rising) and (up := up & ~bits.of_optional(free_z)):
+                self.easing.release(bits.mask(up), bend, ANKLE)
         return self.easing.apply(R_world_sensed, dt)
 
     def follow(self, p_sensed: np.ndarray, dt: float) -> np.ndarray | None:
@@ -292,14 +293,14 @@ class ContactTracker:
         self.support.record(p_contacts, p_root)
         t_old, p_old = self._history[0]
         released, self._evidence = self._evidence, None
-        still, moving = (released[1:] if released is not None and released[0] is frame
-                         else (self._feet_still(frame), self._points_moving(frame)))
+        still, moving, evidence = (released[1:] if released is not None and released[0] is frame
+                                   else (self._feet_still(frame), self._points_moving(frame), None))
         before = self.state.active
         self.state = touch_down(self.state, p_contacts, p_old, self._p_sensed,
                                 frame.time - t_old, self.thresholds, self._hints(frame),
                                 self._pitch, layout=self.layout, points_moving=moving,
                                 foot_still=still, needs_rest=self._needs_rest,
-                                v_sensed=self._v_sensed)
+                                v_sensed=self._v_sensed, evidence=evidence)
         stood, lag = (before, self.support.lag) if any_true(before) else self._flown
         self.state = unlagged_landings(stood, self.state, self.layout, lag, frame)
 

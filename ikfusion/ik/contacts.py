@@ -36,14 +36,7 @@ from .fast_math import row_norms
 from .foot_pairs import drift_from_other_foot, landing_anchors
 from .handover import plant_anchors
 from .point_bits import PointBits, has, point_bits
-from .point_evidence import (
-    by_rest,
-    heights_above_lowest,
-    hinted_points,
-    motion_bits,
-    stance_bits,
-    tilted_bits,
-)
+from .point_evidence import FrameEvidence, by_rest, frame_evidence, hinted_points, motion_bits
 from .sweeping import sweeping_beside, sweeping_points
 from .trunk_roll import body_takers, pulled_points, roll_on_segment
 
@@ -115,7 +108,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
                      needs_rest: np.ndarray | None = None,
                      v_sensed: np.ndarray | None = None,
                      step_sensed: np.ndarray | None = None,
-                     toe_off: np.ndarray | None = None) -> ContactState:
+                     toe_off: np.ndarray | None = None,
+                     evidence: FrameEvidence | None = None) -> ContactState:
     """Let go of planted points the current frame's sensed pose lifts (run before solving).
 
     With ``foot_still``, also plant the points of still feet and hand the body over to them.
@@ -154,6 +148,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
             (a point taking the body over: :mod:`.handover`).
         toe_off: (k,) lone toes sliding by their foot IMU (:class:`.anchor_carry.AnchorCarry`):
             they let go even holding the body alone (it flies; held, it fell back 3-5 mm).
+        evidence: The :func:`.point_evidence.frame_evidence` of these arguments, when the
+            caller worked it out already (None: worked out here).
 
     Returns:
         A new state: the same anchors for the points that stay, fewer active points, and
@@ -164,11 +160,9 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     # masks as the bits of ints (:mod:`.point_bits`): bit i is point i
     bits = point_bits(layout)
     on = bits.of(active)  # planted
-    height_rel = heights_above_lowest(p_sensed)
-    tilted = tilted_bits(bits, foot_pitch, math.radians(th.tilt_deg))
-    still, foot_moves = stance_bits(bits, foot_still)
+    ev = evidence or _evidence(bits, p_sensed, foot_pitch, foot_still, needs_rest, th)
+    height_rel, tilted, still, rest = ev.height_rel, ev.tilted, ev.still, ev.rest
     moving_point, settled = motion_bits(bits, points_moving)
-    rest = bits.of_optional(needs_rest)
     pushing_off = bits.of_optional(toe_off)  # lone toes pushing off: they let go
     handed_over = plant = 0
     if foot_still is not None:
@@ -178,7 +172,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         plant = still & ~on & ~tilted
         if plant:
             plant &= bits.of(height_rel < _plant_height(th, needs_rest)) & bits.other_foot(on)
-        moving = on & foot_moves
+        moving = on & ev.foot_moves
         if moving:  # ... handed over to the other foot, planted still or planted now
             handed_over = moving & bits.other_foot((on & still) | plant) & ~settled
     staying = on & ~handed_over
@@ -193,7 +187,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
                              bits.of(state.age >= other_age), staying, rest)
     # a resting knee or palm (calm accelerometer) is weaker evidence than a still foot: the
     # sensed pose may still lift it
-    lifted = (bits.of(height_rel > th.leave_relative) | tilted) & ~(still & bits.stepping)
+    lifted = (ev.high | tilted) & ~(still & bits.stepping)
     leave = staying & (lifted | pulled | pushing_off) | handed_over
     if points_moving is not None:  # while a still point of the other foot holds the body
         leave |= staying & moving_point & bits.other_foot(staying & ~moving_point)
@@ -236,6 +230,14 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     return ContactState(state.names, held_now, anchors, age, released)
 
 
+def _evidence(bits: PointBits, p_sensed: np.ndarray, foot_pitch: np.ndarray | None,
+              foot_still: np.ndarray | None, needs_rest: np.ndarray | None,
+              th: ContactThresholds) -> FrameEvidence:
+    """The :func:`.point_evidence.frame_evidence` of a frame under thresholds ``th``."""
+    return frame_evidence(bits, p_sensed, foot_pitch, foot_still, needs_rest,
+                          math.radians(th.tilt_deg), th.leave_relative, th.enter_relative)
+
+
 def _plant_height(th: ContactThresholds, needs_rest: np.ndarray | None) -> np.ndarray | float:
     """How far above the lowest point [m] a still point is planted at once, per point."""
     if needs_rest is None:
@@ -250,7 +252,8 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
                points_moving: np.ndarray | None = None,
                foot_still: np.ndarray | None = None,
                needs_rest: np.ndarray | None = None,
-               v_sensed: np.ndarray | None = None) -> ContactState:
+               v_sensed: np.ndarray | None = None,
+               evidence: FrameEvidence | None = None) -> ContactState:
     """Plant the points that reached the floor this frame (run after solving).
 
     A point enters contact when it is near the floor, slow, among the lowest points of the
@@ -275,6 +278,7 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
             segment's IMU says it moves (``foot_still`` 0; unknown: the kinematics decide).
         v_sensed: See :func:`release_contacts`: a point sweeping beside a planted point whose
             IMU says it does not move does not touch down.
+        evidence: See :func:`release_contacts` (the same frame's).
 
     Returns:
         A new state; anchors above the floor settle toward it at ``settle_speed``
@@ -285,14 +289,13 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     bits = point_bits(layout)
     on = bits.of(was)  # planted (bits: :mod:`.point_bits`)
     step = max(dt, 0.0)
-    height_rel = heights_above_lowest(p_sensed)
+    ev = evidence or _evidence(bits, p_sensed, foot_pitch, foot_still, needs_rest, th)
     released = np.where(was, state.released, state.released + step)
     # near the floor and among the lowest points: the candidates (few frames have any)
-    enter = (bits.of(p_solved[:, 2] < th.floor_z + th.enter_height)
-             & bits.of(height_rel < th.enter_relative) & ~on)
+    enter = bits.of(p_solved[:, 2] < th.floor_z + th.enter_height) & ev.low & ~on
     if enter:
-        enter &= _may_enter(bits, on, p_solved, p_solved_previous, dt, height_rel, released, th,
-                            foot_pitch, points_moving, foot_still, needs_rest)
+        enter &= _may_enter(bits, on, p_solved, p_solved_previous, dt, ev, released, th,
+                            points_moving)
         enter &= ~sweeping_beside(bits, v_sensed, on, points_moving, th.enter_speed)
     for i, hinted in hinted_points(state.names, hints):
         enter = enter | 1 << i if not on & 1 << i and hinted else enter & ~(1 << i)
@@ -315,17 +318,16 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
 
 
 def _may_enter(bits: PointBits, on: int, p_solved: np.ndarray, p_solved_previous: np.ndarray,
-               dt: float, height_rel: np.ndarray, released: np.ndarray,
-               th: ContactThresholds, foot_pitch: np.ndarray | None,
-               points_moving: np.ndarray | None, foot_still: np.ndarray | None,
-               needs_rest: np.ndarray | None) -> int:
+               dt: float, ev: FrameEvidence, released: np.ndarray, th: ContactThresholds,
+               points_moving: np.ndarray | None) -> int:
     """The points (bits) :func:`touch_down` lets land, its other rules than height.
 
     Slow (or known not to move, or as low as a support that moves), not ruled out by the foot
     pitch, not let go just now (toe-off), not a moving point while a point of the other foot
     that does not move holds the body, not a trunk point whose segment moves. ``on``: the
-    planted points.
+    planted points; ``ev``: the frame's evidence.
     """
+    height_rel = ev.height_rel
     moving_point, settled = motion_bits(bits, points_moving)
     speed = (row_norms(p_solved - p_solved_previous) / dt if dt > 0
              else np.zeros(len(p_solved)))
@@ -339,12 +341,10 @@ def _may_enter(bits: PointBits, on: int, p_solved: np.ndarray, p_solved_previous
     # as low as the planted points.
     support_moving = (bits.of(height_rel <= np.min(height_rel[bits.mask(on)], initial=np.inf))
                       if on and not on & ~moving_point else 0)
-    ok = ((bits.of(speed < th.enter_speed) | settled | support_moving)
-          & ~tilted_bits(bits, foot_pitch, math.radians(th.tilt_deg))
+    ok = ((bits.of(speed < th.enter_speed) | settled | support_moving) & ~ev.tilted
           & (bits.of(released >= th.reenter_delay) | settled))
     if points_moving is not None:  # see release_contacts
         ok &= ~(moving_point & bits.other_foot(on & ~moving_point))
-    if needs_rest is not None:  # a trunk point whose segment's IMU says it moves (NaN: unknown)
-        ok &= ~(bits.of(np.asarray(needs_rest)) & stance_bits(bits, foot_still)[1])
-    return ok
+    # a trunk point whose segment's IMU says it moves (NaN: unknown)
+    return ok & ~(ev.rest & ev.foot_moves)
 

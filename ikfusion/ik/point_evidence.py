@@ -7,6 +7,7 @@ contact points; the masks they combine as the bits of ints (:mod:`.point_bits`).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from typing import NamedTuple
 
 import numpy as np
 
@@ -23,14 +24,13 @@ def hinted_points(names: Sequence[str],
     return [(i, bool(hints[n])) for i, n in enumerate(names) if n in hints]
 
 
-def _heights_above_lowest(p_sensed: np.ndarray) -> np.ndarray:
-    """(k,) how far each point is above the lowest of ``p_sensed`` (k, 3) [m] (world z)."""
-    return p_sensed[:, 2] - min_of(p_sensed[:, 2])
+def heights_above_lowest(p_sensed: np.ndarray) -> np.ndarray:
+    """(k,) how far each point is above the lowest of ``p_sensed`` (k, 3) [m] (world z).
 
-
-#: :func:`_heights_above_lowest`, kept for the last read-only points (a frame's release and
-#: touch-down ask it of the same smoothed sensed pose)
-heights_above_lowest = LastInput(_heights_above_lowest)
+    Worked out once per frame (:func:`frame_evidence`), for the release and the touch-down.
+    """
+    z = p_sensed[:, 2]
+    return z - min_of(z)
 
 
 def _by_rest(needs_rest: np.ndarray, rest: float, other: float) -> np.ndarray:
@@ -81,3 +81,52 @@ def _known_bits(bits: PointBits, name: str, evidence: np.ndarray | None) -> tupl
     value = np.asarray(evidence, dtype=float)
     return bits.memo(name, value.tobytes(),
                      lambda: (bits.of(value == 1.0), bits.of(value == 0.0)))
+
+
+class FrameEvidence(NamedTuple):
+    """What one frame's sensed pose and IMUs say of each contact point, worked out once.
+
+    The release before the solve (:func:`.contacts.release_contacts`) and the touch-down after
+    it (:func:`.contacts.touch_down`) read the same smoothed sensed points, foot pitches and
+    feet stance (:class:`.contact_tracker.ContactTracker` keeps them for the frame), so their
+    masks are computed here once per frame; none depends on the solve of the frame. (A named
+    tuple: made every frame, it costs a tenth of a frozen dataclass.)
+
+    Attributes:
+        height_rel: (k,) [m] how far each point is above the lowest of the sensed pose.
+        tilted: Points (bits) their foot's pitch rules out (:func:`tilted_bits`).
+        still: Points whose foot's IMU says it stands still; ``foot_moves``: ... it moves.
+        rest: The ``needs_rest`` points (the trunk; bits).
+        high: Points more than ``leave_relative`` above the lowest.
+        low: Points less than ``enter_relative`` above the lowest.
+    """
+
+    height_rel: np.ndarray
+    tilted: int
+    still: int
+    foot_moves: int
+    rest: int
+    high: int
+    low: int
+
+
+def frame_evidence(bits: PointBits, p_sensed: np.ndarray, foot_pitch: np.ndarray | None,
+                   foot_still: np.ndarray | None, needs_rest: np.ndarray | None,
+                   tilt: float, leave_relative: float, enter_relative: float) -> FrameEvidence:
+    """The :class:`FrameEvidence` of sensed points ``p_sensed`` (k, 3) [m] and the rest.
+
+    Args:
+        bits: The points' :class:`PointBits`.
+        p_sensed: (k, 3) contact points of the (smoothed) sensed pose [m] (any translation).
+        foot_pitch: (k,) each point's foot pitch [rad] (toe down positive, NaN unknown).
+        foot_still: (k,) 1 its foot stands still by its IMU, 0 moves, NaN unknown.
+        needs_rest: (k,) the points where the body rests only lying or sitting.
+        tilt: The pitch [rad] past which a heel or toe is ruled out.
+        leave_relative: ``high``'s height above the lowest point [m].
+        enter_relative: ``low``'s height above the lowest point [m].
+    """
+    height_rel = heights_above_lowest(p_sensed)
+    still, foot_moves = stance_bits(bits, foot_still)
+    return FrameEvidence(height_rel, tilted_bits(bits, foot_pitch, tilt), still, foot_moves,
+                         bits.of_optional(needs_rest), bits.of(height_rel > leave_relative),
+                         bits.of(height_rel < enter_relative))
