@@ -9,7 +9,7 @@
  * packed: H (n x n, row-major, symmetric: its lower triangle read), c (n), G (m_in x n), h (m_in),
  * A (m_eq x n), b (m_eq), as ikfusion.ik.qp.QpBuffer lays them out.
  * off: the lower-triangle offsets (row * n + column) of H outside the tree pattern, n_off of them.
- * x: the minimiser (n), work: at least n * n + 2 n + m_eq * (n + m_eq + 2) doubles.
+ * x: the minimiser (n), work: at least ptr[n] + 2 n + m_eq * (n + m_eq + 2) doubles.
  *
  * Returns 0: x is the minimiser and satisfies G x <= h; 1: x is the minimiser but crosses a row
  * of G x <= h; 2: H is not positive definite or the equality rows are (nearly) dependent (the
@@ -18,46 +18,54 @@
  */
 #include <math.h>
 
-static void upper_solve(int n, const int *ptr, const int *anc, const double *F, double *z)
+/* U is stored packed: column k's entries U[anc[i], k] at L[i] for i in ptr[k] .. ptr[k+1]-1
+ * (the nearest ancestor first). An ancestor's own ancestors are the rest of the list
+ * (anc[ptr[a] ..] == anc[i + 1 .. ptr[k+1]) for a = anc[i]), so updating column a from
+ * column k runs over two contiguous ranges. */
+
+static void upper_solve(int n, const int *ptr, const int *anc, const double *L, double *z)
 {   /* z <- U^-1 z, leaves first (z[k] is final once every descendant of k is done) */
     for (int k = n - 1; k >= 0; --k) {
         const double zk = z[k];
         if (zk == 0.0) continue;
-        const double *row = F + (long)k * n;
-        for (int i = ptr[k]; i < ptr[k + 1]; ++i) z[anc[i]] -= row[anc[i]] * zk;
+        for (int i = ptr[k]; i < ptr[k + 1]; ++i) z[anc[i]] -= L[i] * zk;
     }
 }
 
-static void upper_transpose_solve(int n, const int *ptr, const int *anc, const double *F,
+static void upper_transpose_solve(int n, const int *ptr, const int *anc, const double *L,
                                   double *y)
 {   /* y <- U^-T y, root first */
     for (int k = 0; k < n; ++k) {
-        const double *row = F + (long)k * n;
         double s = y[k];
-        for (int i = ptr[k]; i < ptr[k + 1]; ++i) s -= row[anc[i]] * y[anc[i]];
+        for (int i = ptr[k]; i < ptr[k + 1]; ++i) s -= L[i] * y[anc[i]];
         y[k] = s;
     }
 }
 
-static int factor(int n, const int *ptr, const int *anc, const double *H, double *F, double *D)
-{   /* F's lower triangle <- the tree entries of H, then U (strict lower: U^T) and D */
+static int factor(int n, const int *ptr, const int *anc, const double *H,
+                  double *restrict L, double *restrict D, double *restrict t)
+{   /* L and D <- the tree entries of H's lower triangle, then U (packed) and D; t: n scratch */
     for (int k = 0; k < n; ++k) {
-        F[(long)k * n + k] = H[(long)k * n + k];
-        for (int i = ptr[k]; i < ptr[k + 1]; ++i) F[(long)k * n + anc[i]] = H[(long)k * n + anc[i]];
+        const double *row = H + (long)k * n;
+        D[k] = row[k];
+        for (int i = ptr[k]; i < ptr[k + 1]; ++i) L[i] = row[anc[i]];
     }
     for (int k = n - 1; k >= 0; --k) {
-        const double d = F[(long)k * n + k];
+        const double d = D[k];
         if (!(d > 0.0)) return 0;
-        D[k] = d;
-        double *row = F + (long)k * n;
-        for (int i = ptr[k]; i < ptr[k + 1]; ++i) {
-            const int a = anc[i];
-            const double t = row[a];        /* H_ak after the deeper columns */
-            const double u = t / d;
-            double *ra = F + (long)a * n;
-            for (int j = i; j < ptr[k + 1]; ++j) ra[anc[j]] -= u * row[anc[j]];
+        const int first = ptr[k], count = ptr[k + 1] - first;
+        double *restrict Lk = L + first;
+        for (int i = 0; i < count; ++i) {  /* H_ak after the deeper columns, and U_ak */
+            t[i] = Lk[i];
+            Lk[i] /= d;                     /* independent divisions: pipelined */
         }
-        for (int i = ptr[k]; i < ptr[k + 1]; ++i) row[anc[i]] /= d;
+        for (int i = 0; i < count; ++i) {
+            const int a = anc[first + i];
+            const double u = Lk[i];
+            D[a] -= u * t[i];
+            double *restrict La = L + ptr[a];  /* its count - i - 1 entries */
+            for (int j = i + 1; j < count; ++j) La[j - i - 1] -= u * t[j];
+        }
     }
     return 1;
 }
@@ -70,9 +78,9 @@ int ik_tree_closed_form(int n, int m_in, int m_eq, const int *ptr, const int *an
     const double *A = h + m_in, *b = A + (long)m_eq * n;
     for (int i = 0; i < n_off; ++i)
         if (H[off[i]] != 0.0) return 3;
-    double *F = work, *D = F + (long)n * n, *g = D + n, *V = g + n, *S = V + (long)m_eq * n;
+    double *F = work, *D = F + ptr[n], *g = D + n, *V = g + n, *S = V + (long)m_eq * n;
     double *r = S + (long)m_eq * m_eq, *lambda = r + m_eq;
-    if (!factor(n, ptr, anc, H, F, D)) return 2;
+    if (!factor(n, ptr, anc, H, F, D, g)) return 2;
     for (int k = 0; k < n; ++k) x[k] = -c[k];
     upper_solve(n, ptr, anc, F, x);
     for (int k = 0; k < n; ++k) x[k] /= D[k];

@@ -15,18 +15,21 @@ back to LAPACK), so the answer never depends on the tasks keeping to it.
 from __future__ import annotations
 
 import ctypes
+import os
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
 from .equality_qp import DEPENDENT_ROWS
+from .native import cache_dir, find_compiler
 from .native_kernel import native_kernel
 
 #: The kernel's answers (see ``tree_solve.c``).
 SOLVED, CROSSES, FAILED, NOT_TREE = 0, 1, 2, 3
 
-_LIBRARY: list[ctypes.CDLL | None] = []  # loaded once per process
+#: (cache folder, compiler, IKFUSION_NO_COMPILE) -> the kernel loaded (None: not built)
+_LIBRARIES: dict[tuple[str, str | None, str | None], ctypes.CDLL | None] = {}
 _WARNINGS: list[str] = []
 
 
@@ -124,12 +127,13 @@ def tree_closed_form(model: pin.Model) -> TreeClosedForm | None:
     None without a C compiler, with ``IKFUSION_NO_COMPILE``, or after a failed build
     (:func:`kernel_warnings` says why): LAPACK solves the closed form then.
     """
-    if not _LIBRARY:
+    key = (str(cache_dir()), find_compiler(), os.environ.get("IKFUSION_NO_COMPILE"))
+    if key not in _LIBRARIES:  # once per process and setting (a failed build is not retried)
         library, warning = native_kernel(Path(__file__).with_name("tree_solve.c"))
-        _LIBRARY.append(library)
+        _LIBRARIES[key] = library
         if warning is not None:
             _WARNINGS.append(warning)
-    library = _LIBRARY[0]
+    library = _LIBRARIES[key]
     return None if library is None else TreeClosedForm(library, column_parents(model))
 
 
