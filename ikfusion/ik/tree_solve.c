@@ -8,8 +8,9 @@
  *
  * packed: H (n x n, row-major, symmetric: its lower triangle read), c (n), G (m_in x n), h (m_in),
  * A (m_eq x n), b (m_eq), as ikfusion.ik.qp.QpBuffer lays them out.
- * off: the lower-triangle offsets (row * n + column) of H outside the tree pattern, n_off of them.
- * x: the minimiser (n), work: at least ptr[n] + 2 n + m_eq * (n + m_eq + 2) doubles.
+ * The plan: ptr and anc, off: the lower-triangle offsets (row * n + column) of H outside the tree
+ * pattern (n_off of them), x: the minimiser (n), work: at least ptr[n] + 2 n +
+ * m_eq * (2 n + m_eq + 2) doubles.
  *
  * Returns 0: x is the minimiser and satisfies G x <= h; 1: x is the minimiser but crosses a row
  * of G x <= h; 2: H is not positive definite or the equality rows are (nearly) dependent (the
@@ -70,15 +71,27 @@ static int factor(int n, const int *ptr, const int *anc, const double *H,
     return 1;
 }
 
-int ik_tree_closed_form(int n, int m_in, int m_eq, const int *ptr, const int *anc,
-                        const long *off, int n_off, double dependent_rows,
-                        const double *packed, double *x, double *work)
+/* What stays from call to call (ikfusion.ik.tree_solve.TreeClosedForm._Plan, same layout). */
+struct plan {
+    const int *ptr, *anc;
+    const long *off;
+    double *x, *work;
+    double dependent_rows;
+    int n, n_off;
+};
+
+int ik_tree_closed_form(const struct plan *p, int m_in, int m_eq, const double *packed)
 {
+    const int n = p->n, n_off = p->n_off, *ptr = p->ptr, *anc = p->anc;
+    const long *off = p->off;
+    const double dependent_rows = p->dependent_rows;
+    double *x = p->x, *work = p->work;
     const double *H = packed, *c = H + (long)n * n, *G = c + n, *h = G + (long)m_in * n;
     const double *A = h + m_in, *b = A + (long)m_eq * n;
     for (int i = 0; i < n_off; ++i)
         if (H[off[i]] != 0.0) return 3;
-    double *F = work, *D = F + ptr[n], *g = D + n, *V = g + n, *S = V + (long)m_eq * n;
+    double *F = work, *D = F + ptr[n], *g = D + n, *V = g + n, *W = V + (long)m_eq * n;
+    double *S = W + (long)m_eq * n;
     double *r = S + (long)m_eq * m_eq, *lambda = r + m_eq;
     if (!factor(n, ptr, anc, H, F, D, g)) return 2;
     for (int k = 0; k < n; ++k) x[k] = -c[k];
@@ -92,12 +105,14 @@ int ik_tree_closed_form(int n, int m_in, int m_eq, const int *ptr, const int *an
             for (int k = 0; k < n; ++k) { v[k] = A[(long)i * n + k]; s += v[k] * x[k]; }
             r[i] = s;                                   /* A x0 - b */
             upper_solve(n, ptr, anc, F, v);
+            double *w = W + (long)i * n;
+            for (int k = 0; k < n; ++k) w[k] = v[k] / D[k];  /* W = D^-1 V */
         }
         for (int i = 0; i < m_eq; ++i)                  /* S = V^T D^-1 V, lower triangle */
             for (int j = 0; j <= i; ++j) {
-                const double *vi = V + (long)i * n, *vj = V + (long)j * n;
+                const double *vi = V + (long)i * n, *wj = W + (long)j * n;
                 double s = 0.0;
-                for (int k = 0; k < n; ++k) s += vi[k] * vj[k] / D[k];
+                for (int k = 0; k < n; ++k) s += vi[k] * wj[k];
                 S[(long)i * m_eq + j] = s;
             }
         for (int i = 0; i < m_eq; ++i)
@@ -128,8 +143,7 @@ int ik_tree_closed_form(int n, int m_in, int m_eq, const int *ptr, const int *an
         }
         for (int k = 0; k < n; ++k) g[k] = 0.0;         /* x -= H^-1 A^T lambda */
         for (int i = 0; i < m_eq; ++i)
-            for (int k = 0; k < n; ++k) g[k] += V[(long)i * n + k] * lambda[i];
-        for (int k = 0; k < n; ++k) g[k] /= D[k];
+            for (int k = 0; k < n; ++k) g[k] += W[(long)i * n + k] * lambda[i];
         upper_transpose_solve(n, ptr, anc, F, g);
         for (int k = 0; k < n; ++k) x[k] -= g[k];
     }

@@ -58,6 +58,15 @@ def ancestors(parents: np.ndarray) -> list[list[int]]:
     return chains
 
 
+class _Plan(ctypes.Structure):
+    """What the kernel keeps from call to call (``struct plan`` of ``tree_solve.c``)."""
+
+    _fields_ = [("ptr", ctypes.c_void_p), ("anc", ctypes.c_void_p), ("off", ctypes.c_void_p),
+                ("x", ctypes.c_void_p), ("work", ctypes.c_void_p),
+                ("dependent_rows", ctypes.c_double), ("n", ctypes.c_int),
+                ("n_off", ctypes.c_int)]
+
+
 class TreeClosedForm:
     """The native closed-form step of one model (:func:`tree_closed_form`).
 
@@ -80,16 +89,12 @@ class TreeClosedForm:
         #: The last minimiser (overwritten by the next call).
         self.x = np.zeros(n)
         self._work = np.zeros(0)
+        self._plan = _Plan(self._ptr.ctypes.data, self._anc.ctypes.data, self._off.ctypes.data,
+                           self.x.ctypes.data, None, DEPENDENT_ROWS, n, len(self._off))
+        self._plan_at = ctypes.addressof(self._plan)
         self._kernel = library.ik_tree_closed_form
         self._kernel.restype = ctypes.c_int
-        self._kernel.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_int, ctypes.c_void_p,
-                                 ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int,
-                                 ctypes.c_double, ctypes.c_void_p, ctypes.c_void_p,
-                                 ctypes.c_void_p]
-        self._fixed = (self._ptr.ctypes.data, self._anc.ctypes.data, self._off.ctypes.data,
-                       len(self._off), DEPENDENT_ROWS)
-        self._x_at = self.x.ctypes.data
-        self._work_at = 0
+        self._kernel.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_int, ctypes.c_void_p]
         # id of a packed array -> (the array, kept alive so its id stays its own; its address)
         self._addresses: dict[int, tuple[np.ndarray, int]] = {}
 
@@ -108,17 +113,18 @@ class TreeClosedForm:
             :data:`NOT_TREE` (``H`` off the tree's pattern: nothing solved).
         """
         n = self.n
-        size = n * n + 2 * n + m_eq * (n + m_eq + 2)
+        size = int(self._ptr[-1]) + 2 * n + m_eq * (2 * n + m_eq + 2)
         if len(self._work) < size:
             self._work = np.zeros(2 * size)
-            self._work_at = self._work.ctypes.data
+            self._plan.work = self._work.ctypes.data
         known = self._addresses.get(id(packed))
         if known is None:  # a buffer's views are made once per size: their addresses too
+            if not packed.flags.c_contiguous or len(packed) < n * n + n + (m_in + m_eq) * (n + 1):
+                raise ValueError("not a packed QP of this size")
             if len(self._addresses) > 64:
                 self._addresses.clear()
             known = self._addresses[id(packed)] = (packed, packed.ctypes.data)
-        return int(self._kernel(n, m_in, m_eq, *self._fixed, known[1], self._x_at,
-                                self._work_at))
+        return int(self._kernel(self._plan_at, m_in, m_eq, known[1]))
 
 
 def tree_closed_form(model: pin.Model) -> TreeClosedForm | None:
