@@ -26,7 +26,7 @@ from .fast_math import add_to_diagonal, sum_of
 from .limits.base import Equality, Inequality
 from .qp_backends import call_daqp, installed, qpsolvers_module, solver_options
 from .tasks.base import Task
-from .tree_solve import NOT_TREE, SOLVED, TreeClosedForm
+from .tree_solve import NOT_FINITE, NOT_TREE, SOLVED, TreeClosedForm
 
 
 @dataclass(frozen=True)
@@ -239,11 +239,17 @@ def solve_unrelaxed(problem: QpProblem, backend: str, settings: QpSettings,
         SolverError: A problem holding NaN or infinite numbers (no backend is tried).
     """
     p = problem
-    _check_finite(p)
+    native = p.tree is not None and p.packed is not None and backend == "daqp" and \
+        (hint is None or not hint.skip)
+    if not native or p.lb is not None or p.ub is not None:
+        _check_finite(p)
     closed_form = True
-    if p.tree is not None and p.packed is not None and backend == "daqp" and \
-            (hint is None or not hint.skip):  # in one native call (what _call does in NumPy)
+    if native:  # the finite check and the closed form in one native call (_call's in NumPy)
+        assert p.tree is not None and p.packed is not None
         answer = p.tree.solve(p.packed, len(p.h), len(p.b))
+        if answer == NOT_FINITE:
+            _check_finite(p)  # names what is not finite (an overflowing sum of finite numbers
+            # passes, as it does there)
         if answer == SOLVED and satisfies(p.tree.x, None, None, p.lb, p.ub):
             return QpSolution(p.tree.x.copy())
         closed_form = answer == NOT_TREE

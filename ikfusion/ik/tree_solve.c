@@ -15,7 +15,9 @@
  * Returns 0: x is the minimiser and satisfies G x <= h; 1: x is the minimiser but crosses a row
  * of G x <= h; 2: H is not positive definite or the equality rows are (nearly) dependent (the
  * smallest squared pivot of S below dependent_rows times its largest diagonal entry), or x is
- * not finite; 3: H has a nonzero outside the tree pattern (nothing solved).
+ * not finite; 3: H has a nonzero outside the tree pattern (nothing solved); 4: the sum of every
+ * packed number is not finite (a NaN or an infinity, or finite numbers overflowing it; nothing
+ * solved).
  */
 #include <math.h>
 
@@ -88,6 +90,9 @@ int ik_tree_closed_form(const struct plan *p, int m_in, int m_eq, const double *
     double *x = p->x, *work = p->work;
     const double *H = packed, *c = H + (long)n * n, *G = c + n, *h = G + (long)m_in * n;
     const double *A = h + m_in, *b = A + (long)m_eq * n;
+    double total = 0.0;
+    for (const double *v = packed; v < b + m_eq; ++v) total += *v;
+    if (!isfinite(total)) return 4;
     for (int i = 0; i < n_off; ++i)
         if (H[off[i]] != 0.0) return 3;
     double *F = work, *D = F + ptr[n], *g = D + n, *V = g + n, *W = V + (long)m_eq * n;
@@ -147,7 +152,7 @@ int ik_tree_closed_form(const struct plan *p, int m_in, int m_eq, const double *
         upper_transpose_solve(n, ptr, anc, F, g);
         for (int k = 0; k < n; ++k) x[k] -= g[k];
     }
-    double total = 0.0;
+    total = 0.0;
     for (int k = 0; k < n; ++k) total += x[k];
     if (!isfinite(total)) return 2;
     for (int i = 0; i < m_in; ++i) {

@@ -26,7 +26,7 @@ from .native import cache_dir, find_compiler
 from .native_kernel import native_kernel
 
 #: The kernel's answers (see ``tree_solve.c``).
-SOLVED, CROSSES, FAILED, NOT_TREE = 0, 1, 2, 3
+SOLVED, CROSSES, FAILED, NOT_TREE, NOT_FINITE = 0, 1, 2, 3, 4
 
 #: (cache folder, compiler, IKFUSION_NO_COMPILE) -> the kernel loaded (None: not built)
 _LIBRARIES: dict[tuple[str, str | None, str | None], ctypes.CDLL | None] = {}
@@ -109,8 +109,10 @@ class TreeClosedForm:
         Returns:
             :data:`SOLVED` (:attr:`x` is the minimiser on the equality rows and satisfies the
             inequality rows), :data:`CROSSES` (it does not), :data:`FAILED` (``H`` or the
-            equality rows' Gram matrix not numerically positive definite, or not finite) or
-            :data:`NOT_TREE` (``H`` off the tree's pattern: nothing solved).
+            equality rows' Gram matrix not numerically positive definite, or not finite),
+            :data:`NOT_TREE` (``H`` off the tree's pattern: nothing solved) or
+            :data:`NOT_FINITE` (the sum of the packed numbers is not finite, as
+            :func:`.qp._check_finite` tests it: nothing solved).
         """
         n = self.n
         size = int(self._ptr[-1]) + 2 * n + m_eq * (2 * n + m_eq + 2)

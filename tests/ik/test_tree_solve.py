@@ -171,3 +171,17 @@ def test_the_kernel_is_built_once_said_so_and_a_tampered_copy_is_rebuilt(
 def test_without_a_compiler_there_is_no_kernel(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("IKFUSION_NO_COMPILE", "1")
     assert native_kernel(SOURCE) == (None, None)
+
+
+def test_a_problem_holding_nan_is_refused_by_name_through_the_kernel(tree, model) -> None:
+    from ikfusion.errors import SolverError
+    from ikfusion.ik.qp import solve_qp
+    from ikfusion.ik.settings import SolverSettings
+
+    H, c, A, b = _tree_problem(np.random.default_rng(3), model, 3)
+    c[4] = np.nan
+    assert _solve(tree, H, c, A, b) == tree_solve.NOT_FINITE
+    p = QpBuffer(len(c), tree).views(0, 3)
+    p.H[:], p.c[:], p.A[:], p.b[:] = H, c, A, b
+    with pytest.raises(SolverError, match="c \\(targets\\)"):
+        solve_qp(p, "daqp", SolverSettings.load().qp)
