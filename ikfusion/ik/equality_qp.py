@@ -81,7 +81,7 @@ def independent_solve(S: np.ndarray, r: np.ndarray) -> np.ndarray | None:
     rows), where the solution loses its accuracy.
     """
     factor, info = dpotrf(S, lower=1, clean=0)
-    if info != 0 or factor.diagonal().min() ** 2 < _DEPENDENT_ROWS * S.diagonal().max():
+    if info != 0 or factor.diagonal().min() ** 2 < DEPENDENT_ROWS * S.diagonal().max():
         return None
     y, info = dpotrs(factor, r, lower=1)
     return np.asarray(y) if info == 0 else None
@@ -100,4 +100,4 @@ def satisfies(x: np.ndarray, G: np.ndarray | None, h: np.ndarray | None,
 
 #: Smallest squared Cholesky pivot of a Gram matrix relative to its largest diagonal entry
 #: before its rows count as dependent (:func:`independent_solve`).
-_DEPENDENT_ROWS = 1e-12
+DEPENDENT_ROWS = 1e-12

@@ -36,6 +36,7 @@ from .tasks import (
     PostureTask,
     Task,
 )
+from .tree_solve import tree_closed_form
 
 
 @dataclass
@@ -165,7 +166,8 @@ def compiled_step(model: HumanModel, tasks: FrameTasks,
                                          sensed, tasks.even_chain.pairs,
                                          tasks.contact.frame_ids)
         nv = model.model.nv
-        return CompiledStep(kinematics, kinematics.geometry(model.model), QpBuffer(nv),
+        return CompiledStep(kinematics, kinematics.geometry(model.model),
+                            QpBuffer(nv, tree_closed_form(model.model)),
                             empty_inequality(nv), empty_equality(nv),
                             rate_rows(kinematics.function.sparsity_out(7)))
     except NotImplementedError:

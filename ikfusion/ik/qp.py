@@ -26,6 +26,7 @@ from .fast_math import add_to_diagonal, sum_of
 from .limits.base import Equality, Inequality
 from .qp_backends import call_daqp, installed, qpsolvers_module, solver_options
 from .tasks.base import Task
+from .tree_solve import NOT_FINITE, NOT_TREE, SOLVED, TreeClosedForm
 
 
 @dataclass(frozen=True)
@@ -65,6 +66,8 @@ class QpProblem:
     #: H, c, G, h, A and b as consecutive views of this one array (:class:`QpBuffer`), so that
     #: their finite check is one sum; None when they are separate arrays.
     packed: np.ndarray | None = None
+    #: The native closed-form step of :attr:`packed` (:mod:`.tree_solve`), or None.
+    tree: TreeClosedForm | None = None
 
 
 @dataclass
@@ -121,10 +124,12 @@ class QpBuffer:
 
     Args:
         nv: Tangent-space dimension (the number of variables).
+        tree: The native closed-form step its problems are solved with first (DAQP), or None.
     """
 
-    def __init__(self, nv: int) -> None:
+    def __init__(self, nv: int, tree: TreeClosedForm | None = None) -> None:
         self.nv = nv
+        self.tree = tree
         self._flat = np.empty(nv * nv + nv)
         # (m_in, m_eq) -> the packed buffer and its views H, c, G, h, A, b: made once per size
         self._views: dict[tuple[int, int], tuple[np.ndarray, ...]] = {}
@@ -154,7 +159,7 @@ class QpBuffer:
         if made is None:
             made = self._views[m_in, m_eq] = self._made_views(m_in, m_eq)
         packed, H, c, G, h, A, b = made
-        return QpProblem(H, c, G, h, A, b, packed=packed)
+        return QpProblem(H, c, G, h, A, b, packed=packed, tree=self.tree)
 
     def _made_views(self, m_in: int, m_eq: int) -> tuple[np.ndarray, ...]:
         """The packed buffer of a problem of this size and its six views (:meth:`views`)."""
@@ -188,15 +193,19 @@ def _stacked_rows(M: np.ndarray, v: np.ndarray,
 def _call(backend: str, settings: QpSettings, H: np.ndarray, c: np.ndarray,
           G: np.ndarray | None, h: np.ndarray | None, A: np.ndarray | None,
           b: np.ndarray | None, lb: np.ndarray | None, ub: np.ndarray | None,
-          hint: ClosedFormHint | None = None) -> np.ndarray | None:
-    """The step by ``backend`` (DAQP: in closed form first unless ``hint`` says skip)."""
+          hint: ClosedFormHint | None = None, closed_form: bool = True) -> np.ndarray | None:
+    """The step by ``backend``.
+
+    DAQP tries the closed form first unless ``hint`` says skip or ``closed_form`` is False (the
+    caller tried it, :mod:`.tree_solve`).
+    """
     if not installed(backend):
         raise SolverError(
             f"QP backend {backend!r} is not installed; available: "
             f"{', '.join(qpsolvers_module().available_solvers)}")
     if backend == "daqp":
         # most steps touch no limit: their optimum in closed form, DAQP when one binds
-        if hint is None or not hint.skip:
+        if closed_form and (hint is None or not hint.skip):
             x = equality_optimum(H, c, A, b)
             if x is not None and satisfies(x, G, h, lb, ub):
                 return x
@@ -230,12 +239,25 @@ def solve_unrelaxed(problem: QpProblem, backend: str, settings: QpSettings,
         SolverError: A problem holding NaN or infinite numbers (no backend is tried).
     """
     p = problem
-    _check_finite(p)
+    native = p.tree is not None and p.packed is not None and backend == "daqp" and \
+        (hint is None or not hint.skip)
+    if not native or p.lb is not None or p.ub is not None:
+        _check_finite(p)
+    closed_form = True
+    if native:  # the finite check and the closed form in one native call (_call's in NumPy)
+        assert p.tree is not None and p.packed is not None
+        answer = p.tree.solve(p.packed, len(p.h), len(p.b))
+        if answer == NOT_FINITE:
+            _check_finite(p)  # names what is not finite (an overflowing sum of finite numbers
+            # passes, as it does there)
+        if answer == SOLVED and satisfies(p.tree.x, None, None, p.lb, p.ub):
+            return QpSolution(p.tree.x.copy())
+        closed_form = answer == NOT_TREE
     G = p.G if len(p.h) else None
     h = p.h if len(p.h) else None
     A = p.A if len(p.b) else None
     b = p.b if len(p.b) else None
-    x = _call(backend, settings, p.H, p.c, G, h, A, b, p.lb, p.ub, hint)
+    x = _call(backend, settings, p.H, p.c, G, h, A, b, p.lb, p.ub, hint, closed_form)
     if x is not None:
         return QpSolution(x)
     # A numerical failure on a degenerate but feasible step (a limit active exactly where a

@@ -1,0 +1,164 @@
+/* The closed-form optimum of a step's QP on the kinematic tree's sparsity (ikfusion.ik.tree_solve).
+ *
+ * minimise 1/2 x^T H x + c^T x subject to A x = b, with H factored leaves first as
+ * H = U D U^T (U unit upper triangular, D diagonal): column k of U holds the tree ancestors of
+ * tangent column k only (anc[ptr[k]] .. anc[ptr[k+1]-1], in decreasing order), so no entry fills
+ * in. The equality rows go through the Schur complement S = A H^-1 A^T = V^T D^-1 V with
+ * V = U^-1 A^T, factored by a dense Cholesky S = L L^T.
+ *
+ * packed: H (n x n, row-major, symmetric: its lower triangle read), c (n), G (m_in x n), h (m_in),
+ * A (m_eq x n), b (m_eq), as ikfusion.ik.qp.QpBuffer lays them out.
+ * The plan: ptr and anc, off: the lower-triangle offsets (row * n + column) of H outside the tree
+ * pattern (n_off of them), x: the minimiser (n), work: at least ptr[n] + 2 n +
+ * m_eq * (2 n + m_eq + 2) doubles.
+ *
+ * Returns 0: x is the minimiser and satisfies G x <= h; 1: x is the minimiser but crosses a row
+ * of G x <= h; 2: H is not positive definite or the equality rows are (nearly) dependent (the
+ * smallest squared pivot of S below dependent_rows times its largest diagonal entry), or x is
+ * not finite; 3: H has a nonzero outside the tree pattern (nothing solved); 4: the sum of every
+ * packed number is not finite (a NaN or an infinity, or finite numbers overflowing it; nothing
+ * solved).
+ */
+#include <math.h>
+
+/* U is stored packed: column k's entries U[anc[i], k] at L[i] for i in ptr[k] .. ptr[k+1]-1
+ * (the nearest ancestor first). An ancestor's own ancestors are the rest of the list
+ * (anc[ptr[a] ..] == anc[i + 1 .. ptr[k+1]) for a = anc[i]), so updating column a from
+ * column k runs over two contiguous ranges. */
+
+static void upper_solve(int n, const int *ptr, const int *anc, const double *L, double *z)
+{   /* z <- U^-1 z, leaves first (z[k] is final once every descendant of k is done) */
+    for (int k = n - 1; k >= 0; --k) {
+        const double zk = z[k];
+        if (zk == 0.0) continue;
+        for (int i = ptr[k]; i < ptr[k + 1]; ++i) z[anc[i]] -= L[i] * zk;
+    }
+}
+
+static void upper_transpose_solve(int n, const int *ptr, const int *anc, const double *L,
+                                  double *y)
+{   /* y <- U^-T y, root first */
+    for (int k = 0; k < n; ++k) {
+        double s = y[k];
+        for (int i = ptr[k]; i < ptr[k + 1]; ++i) s -= L[i] * y[anc[i]];
+        y[k] = s;
+    }
+}
+
+static int factor(int n, const int *ptr, const int *anc, const double *H,
+                  double *restrict L, double *restrict D, double *restrict t)
+{   /* L and D <- the tree entries of H's lower triangle, then U (packed) and D; t: n scratch */
+    for (int k = 0; k < n; ++k) {
+        const double *row = H + (long)k * n;
+        D[k] = row[k];
+        for (int i = ptr[k]; i < ptr[k + 1]; ++i) L[i] = row[anc[i]];
+    }
+    for (int k = n - 1; k >= 0; --k) {
+        const double d = D[k];
+        if (!(d > 0.0)) return 0;
+        const int first = ptr[k], count = ptr[k + 1] - first;
+        double *restrict Lk = L + first;
+        for (int i = 0; i < count; ++i) {  /* H_ak after the deeper columns, and U_ak */
+            t[i] = Lk[i];
+            Lk[i] /= d;                     /* independent divisions: pipelined */
+        }
+        for (int i = 0; i < count; ++i) {
+            const int a = anc[first + i];
+            const double u = Lk[i];
+            D[a] -= u * t[i];
+            double *restrict La = L + ptr[a];  /* its count - i - 1 entries */
+            for (int j = i + 1; j < count; ++j) La[j - i - 1] -= u * t[j];
+        }
+    }
+    return 1;
+}
+
+/* What stays from call to call (ikfusion.ik.tree_solve.TreeClosedForm._Plan, same layout). */
+struct plan {
+    const int *ptr, *anc;
+    const long *off;
+    double *x, *work;
+    double dependent_rows;
+    int n, n_off;
+};
+
+int ik_tree_closed_form(const struct plan *p, int m_in, int m_eq, const double *packed)
+{
+    const int n = p->n, n_off = p->n_off, *ptr = p->ptr, *anc = p->anc;
+    const long *off = p->off;
+    const double dependent_rows = p->dependent_rows;
+    double *x = p->x, *work = p->work;
+    const double *H = packed, *c = H + (long)n * n, *G = c + n, *h = G + (long)m_in * n;
+    const double *A = h + m_in, *b = A + (long)m_eq * n;
+    double total = 0.0;
+    for (const double *v = packed; v < b + m_eq; ++v) total += *v;
+    if (!isfinite(total)) return 4;
+    for (int i = 0; i < n_off; ++i)
+        if (H[off[i]] != 0.0) return 3;
+    double *F = work, *D = F + ptr[n], *g = D + n, *V = g + n, *W = V + (long)m_eq * n;
+    double *S = W + (long)m_eq * n;
+    double *r = S + (long)m_eq * m_eq, *lambda = r + m_eq;
+    if (!factor(n, ptr, anc, H, F, D, g)) return 2;
+    for (int k = 0; k < n; ++k) x[k] = -c[k];
+    upper_solve(n, ptr, anc, F, x);
+    for (int k = 0; k < n; ++k) x[k] /= D[k];
+    upper_transpose_solve(n, ptr, anc, F, x);          /* x = -H^-1 c */
+    if (m_eq > 0) {
+        double largest = 0.0, smallest = INFINITY;
+        for (int i = 0; i < m_eq; ++i) {
+            double *v = V + (long)i * n, s = -b[i];
+            for (int k = 0; k < n; ++k) { v[k] = A[(long)i * n + k]; s += v[k] * x[k]; }
+            r[i] = s;                                   /* A x0 - b */
+            upper_solve(n, ptr, anc, F, v);
+            double *w = W + (long)i * n;
+            for (int k = 0; k < n; ++k) w[k] = v[k] / D[k];  /* W = D^-1 V */
+        }
+        for (int i = 0; i < m_eq; ++i)                  /* S = V^T D^-1 V, lower triangle */
+            for (int j = 0; j <= i; ++j) {
+                const double *vi = V + (long)i * n, *wj = W + (long)j * n;
+                double s = 0.0;
+                for (int k = 0; k < n; ++k) s += vi[k] * wj[k];
+                S[(long)i * m_eq + j] = s;
+            }
+        for (int i = 0; i < m_eq; ++i)
+            if (S[(long)i * m_eq + i] > largest) largest = S[(long)i * m_eq + i];
+        for (int j = 0; j < m_eq; ++j) {                /* S = L L^T in place (lower) */
+            double d = S[(long)j * m_eq + j];
+            for (int k = 0; k < j; ++k) d -= S[(long)j * m_eq + k] * S[(long)j * m_eq + k];
+            if (!(d > 0.0)) return 2;
+            if (d < smallest) smallest = d;
+            const double l = sqrt(d);
+            S[(long)j * m_eq + j] = l;
+            for (int i = j + 1; i < m_eq; ++i) {
+                double s = S[(long)i * m_eq + j];
+                for (int k = 0; k < j; ++k) s -= S[(long)i * m_eq + k] * S[(long)j * m_eq + k];
+                S[(long)i * m_eq + j] = s / l;
+            }
+        }
+        if (smallest < dependent_rows * largest) return 2;
+        for (int i = 0; i < m_eq; ++i) {                /* lambda = S^-1 r */
+            double s = r[i];
+            for (int k = 0; k < i; ++k) s -= S[(long)i * m_eq + k] * lambda[k];
+            lambda[i] = s / S[(long)i * m_eq + i];
+        }
+        for (int i = m_eq - 1; i >= 0; --i) {
+            double s = lambda[i];
+            for (int k = i + 1; k < m_eq; ++k) s -= S[(long)k * m_eq + i] * lambda[k];
+            lambda[i] = s / S[(long)i * m_eq + i];
+        }
+        for (int k = 0; k < n; ++k) g[k] = 0.0;         /* x -= H^-1 A^T lambda */
+        for (int i = 0; i < m_eq; ++i)
+            for (int k = 0; k < n; ++k) g[k] += W[(long)i * n + k] * lambda[i];
+        upper_transpose_solve(n, ptr, anc, F, g);
+        for (int k = 0; k < n; ++k) x[k] -= g[k];
+    }
+    total = 0.0;
+    for (int k = 0; k < n; ++k) total += x[k];
+    if (!isfinite(total)) return 2;
+    for (int i = 0; i < m_in; ++i) {
+        double s = 0.0;
+        for (int k = 0; k < n; ++k) s += G[(long)i * n + k] * x[k];
+        if (!(s <= h[i])) return 1;
+    }
+    return 0;
+}
