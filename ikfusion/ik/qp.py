@@ -194,11 +194,7 @@ def _call(backend: str, settings: QpSettings, H: np.ndarray, c: np.ndarray,
           G: np.ndarray | None, h: np.ndarray | None, A: np.ndarray | None,
           b: np.ndarray | None, lb: np.ndarray | None, ub: np.ndarray | None,
           hint: ClosedFormHint | None = None, closed_form: bool = True) -> np.ndarray | None:
-    """The step by ``backend``.
-
-    DAQP tries the closed form first unless ``hint`` says skip or ``closed_form`` is False (the
-    caller tried it, :mod:`.tree_solve`).
-    """
+    """The step by ``backend``; DAQP: closed form first unless ``hint``/``closed_form`` skip."""
     if not installed(backend):
         raise SolverError(
             f"QP backend {backend!r} is not installed; available: "
