@@ -5,11 +5,12 @@ kinematic tree (every task's Jacobian row of a frame lies on that frame's ancest
 posture, chain and damping terms on a joint and its neighbours): factored leaves first,
 ``H = U D U^T`` with ``U``'s column ``k`` on ``k``'s ancestors only, nothing fills in, and the
 factorisation costs a few thousand operations instead of a dense Cholesky's ``nv^3 / 6``. The
-kernel (``tree_solve.c``, compiled once like the step function, :func:`.native.native_kernel`)
-reads the step's packed QP (:class:`.qp.QpBuffer`) in place and returns the minimiser on the
-equality rows with whether it satisfies the inequality rows: one call where the NumPy path
-makes a dozen. An ``H`` with a nonzero outside the tree's pattern is refused (the caller falls
-back to LAPACK), so the answer never depends on the tasks keeping to it.
+kernel (``tree_solve.c``, compiled once like the step function,
+:func:`.native_kernel.native_kernel`) reads the step's packed QP (:class:`.qp.QpBuffer`) in
+place and returns the minimiser on the equality rows with whether it satisfies the inequality
+rows: one call where the NumPy path makes a dozen. An ``H`` with a nonzero outside the tree's
+pattern is refused (the caller falls back to LAPACK), so the answer never depends on the tasks
+keeping to it.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import numpy as np
 import pinocchio as pin
 
 from .equality_qp import DEPENDENT_ROWS
-from .native import cache_dir, find_compiler
+from .native_build import cache_dir, find_compiler
 from .native_kernel import native_kernel
 
 #: The kernel's answers (see ``tree_solve.c``).

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import pytest
 
+from ikfusion.ik.native_build import find_compiler
 from ikfusion.mocap.model_motion import TruthMotion
 from ikfusion.model import HumanModel
 from ikfusion.sim.capture import motion_from_bvh
@@ -23,3 +25,14 @@ def human() -> HumanModel:
 def cartwheels() -> TruthMotion:
     """Two cartwheels of the motion library (CMU 49_08, 4.8 s at 60 Hz)."""
     return motion_from_bvh(CARTWHEELS, rate=60.0)
+
+
+@pytest.fixture
+def compile_cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """An empty native-code cache of this test (``$IKFUSION_CACHE``), a C compiler required."""
+    if find_compiler() is None or shutil.which("cc") is None:
+        pytest.skip("no C compiler on this machine")
+    folder = tmp_path / "cache"
+    monkeypatch.setenv("IKFUSION_CACHE", str(folder))
+    monkeypatch.delenv("IKFUSION_NO_COMPILE", raising=False)
+    return folder

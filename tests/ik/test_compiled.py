@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 from pathlib import Path
 
@@ -300,19 +299,8 @@ def _compile_directly(function: ca.Function, library: Path) -> None:
                    check=True, capture_output=True)
 
 
-@pytest.fixture
-def cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
-    """An empty compile cache of this test, with a C compiler required."""
-    if native.find_compiler() is None or shutil.which("cc") is None:
-        pytest.skip("no C compiler on this machine")
-    folder = tmp_path / "cache"
-    monkeypatch.setenv("IKFUSION_CACHE", str(folder))
-    monkeypatch.delenv("IKFUSION_NO_COMPILE", raising=False)
-    return folder
-
-
 def test_first_build_says_so_once_and_the_second_run_loads_it(
-        cache: Path, capsys: pytest.CaptureFixture[str]) -> None:
+        compile_cache: Path, capsys: pytest.CaptureFixture[str]) -> None:
     functions, warning = native.native_functions([_scaling(2.0)], "probe")
     assert warning is None and functions is not None
     np.testing.assert_allclose(np.asarray(functions[0]([1.0, 2.0])).ravel(), [2.0, 4.0])
@@ -323,12 +311,12 @@ def test_first_build_says_so_once_and_the_second_run_loads_it(
 
 
 def test_a_tampered_cached_library_is_rebuilt_not_loaded(
-        cache: Path, capsys: pytest.CaptureFixture[str]) -> None:
+        compile_cache: Path, capsys: pytest.CaptureFixture[str]) -> None:
     native.native_functions([_scaling(2.0)], "probe")
-    (library,) = cache.glob("*.so")
+    (library,) = compile_cache.glob("*.so")
     # A valid library under the same name and symbol that computes something else.
-    _compile_directly(_scaling(3.0), cache / "other.so")
-    os.replace(cache / "other.so", library)
+    _compile_directly(_scaling(3.0), compile_cache / "other.so")
+    os.replace(compile_cache / "other.so", library)
     capsys.readouterr()
     functions, warning = native.native_functions([_scaling(2.0)], "probe")
     assert warning is None and functions is not None
@@ -339,22 +327,24 @@ def test_a_tampered_cached_library_is_rebuilt_not_loaded(
 
 
 def test_the_cache_key_changes_when_the_generating_source_changes(
-        cache: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+        compile_cache: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
     compiler = str(native.find_compiler())
-    before = native.library_path(cache, "probe", compiler)
+    before = native.library_path(compile_cache, "probe", compiler)
     assert ca.CasadiMeta.version() in before.name
     native.native_functions([_scaling(2.0)], "probe")
     monkeypatch.setattr(native, "generator_fingerprint", lambda: "edited source")
-    after = native.library_path(cache, "probe", compiler)
+    after = native.library_path(compile_cache, "probe", compiler)
     assert after != before
     capsys.readouterr()
     native.native_functions([_scaling(2.0)], "probe")
     assert "compiling" in capsys.readouterr().err  # built anew, the old one not reused
-    assert sorted(cache.glob("*.so")) == sorted([before, after])
+    assert sorted(compile_cache.glob("*.so")) == sorted([before, after])
 
 
 @pytest.mark.parametrize("module", ["rotations_casadi", "rotations", "ik.compiled",
-                                    "ik.casadi_kinematics", "ik.native"])
+                                    "ik.casadi_kinematics", "ik.native",
+                                    "ik.native_build"])
 def test_the_cache_key_covers_the_rotation_modules(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, module: str) -> None:
     """The step's expressions live in these modules (SO(3) maps, the kinematics graph, the
@@ -370,7 +360,7 @@ def test_the_cache_key_covers_the_rotation_modules(
 
 
 def test_a_failed_compile_is_a_warning_of_the_solve(
-        cache: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, human: HumanModel,
+        compile_cache: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, human: HumanModel,
         capsys: pytest.CaptureFixture[str]) -> None:
     fake = tmp_path / "bin"
     fake.mkdir()
@@ -385,4 +375,4 @@ def test_a_failed_compile_is_a_warning_of_the_solve(
     frame = Frame(0.0, {s: np.eye(3) for s in SENSOR_SEGMENTS})
     motion = solver.solve([frame])
     assert any("compiling the solver's step function failed" in w for w in motion.warnings)
-    assert not list(cache.glob("*.so"))
+    assert not list(compile_cache.glob("*.so"))

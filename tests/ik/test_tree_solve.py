@@ -4,7 +4,6 @@ linear algebra (the KKT system solved by NumPy) and against the LAPACK path of t
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 from pathlib import Path
 
@@ -13,7 +12,7 @@ import pytest
 
 import ikfusion.ik.tree_solve as tree_solve
 from ikfusion.ik import Solver
-from ikfusion.ik.native_kernel import native_kernel
+from ikfusion.ik.native_kernel import kernel_path, native_kernel
 from ikfusion.ik.qp import QpBuffer
 from ikfusion.ik.tree_solve import (
     CROSSES,
@@ -135,26 +134,15 @@ def test_the_solver_gives_the_lapack_paths_poses(tree, model) -> None:
         assert np.abs(poses[0] - poses[1]).max() < 1e-9
 
 
-@pytest.fixture
-def cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
-    """An empty compile cache of this test, with a C compiler required."""
-    if shutil.which("cc") is None:
-        pytest.skip("no C compiler on this machine")
-    folder = tmp_path / "cache"
-    monkeypatch.setenv("IKFUSION_CACHE", str(folder))
-    monkeypatch.delenv("IKFUSION_NO_COMPILE", raising=False)
-    return folder
-
-
 def test_the_kernel_is_built_once_said_so_and_a_tampered_copy_is_rebuilt(
-        cache: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+        compile_cache: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     library, warning = native_kernel(SOURCE)
     assert library is not None and warning is None
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and "compiling" in lines[0]
     again, _ = native_kernel(SOURCE)
     assert again is not None and capsys.readouterr().err == ""
-    (built,) = cache.glob("tree_solve_*.so")
+    (built,) = compile_cache.glob("tree_solve_*.so")
     other = tmp_path / "other.c"  # a valid library with the same symbol doing something else
     other.write_text("int ik_tree_closed_form(void) { return 7; }\n")
     subprocess.run(["cc", "-shared", "-fPIC", str(other), "-o", str(tmp_path / "other.so")],
@@ -166,6 +154,20 @@ def test_the_kernel_is_built_once_said_so_and_a_tampered_copy_is_rebuilt(
     packed = np.concatenate([np.diag([2.0, 4.0, 8.0]).ravel(), [2.0, 2.0, 2.0]])
     assert chain.solve(packed, 0, 0) == SOLVED
     np.testing.assert_allclose(chain.x, [-1.0, -0.5, -0.25])
+
+
+@pytest.mark.parametrize("module", ["ik.native_kernel", "ik.native_build"])
+def test_the_kernels_cache_key_covers_its_build_code(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, module: str) -> None:
+    """Editing the code that builds the kernel builds it anew (a new library name)."""
+    import importlib
+
+    target = importlib.import_module(f"ikfusion.{module}")
+    before = kernel_path(SOURCE, tmp_path, "cc")
+    edited = tmp_path / "edited.py"
+    edited.write_bytes(Path(str(target.__file__)).read_bytes() + b"\n# edited\n")
+    monkeypatch.setattr(target, "__file__", str(edited))
+    assert kernel_path(SOURCE, tmp_path, "cc") != before
 
 
 def test_without_a_compiler_there_is_no_kernel(monkeypatch: pytest.MonkeyPatch) -> None:
