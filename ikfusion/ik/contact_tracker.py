@@ -129,7 +129,7 @@ class ContactTracker:
               v_body: np.ndarray, q: np.ndarray | None = None) -> None:
         """Points sliding by their foot IMU carry their anchors, the body its heels' (glide)."""
         if (anchors := self.carrier.carry(self.state, frame, dt, R_heading, v_body, q)) is not None:
-            self.support.shift(self.carrier.glide(anchors - self.state.anchors), placed=False)
+            self.support.carry_held(self.carrier.glide(anchors - self.state.anchors))
             self.state = replace(self.state, anchors=anchors)
 
     # ------------------------------------------------------------------ per frame

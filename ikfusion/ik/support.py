@@ -77,8 +77,7 @@ class SupportFollower:
         self._planted_of: dict[int, int] = {}  # _planted's, per pattern of points
         # only feet proper are led through a swing; knees and palms land where the body puts them
         self._steps = [bool((f & layout.stepping).any()) for f in self._feet]
-        # the swing foot is led by its heels: points on the foot itself, not on the unsensed toes
-        self._led = np.asarray(layout.on_foot, dtype=bool)
+        self._led = np.asarray(layout.on_foot, dtype=bool)  # led by its heels, not unsensed toes
         self.reset()
 
     def reset(self) -> None:
@@ -115,12 +114,13 @@ class SupportFollower:
         self._step = np.array([float(offset[0]), float(offset[1]), 0.0])
         self._max_step = float(max_step)
 
-    def shift(self, delta: np.ndarray, placed: bool = True) -> None:
-        """The anchors moved by ``delta`` (3,) [m] on purpose: the body follows them at once.
+    def shift(self, delta: np.ndarray) -> None:
+        """The anchors moved by ``delta`` (3,) [m] on purpose: the body follows them at once."""
+        self._placed_by += delta
+        self.carry_held(delta)
 
-        Not ``placed`` by a correction: (k, 3) anchors carried along the floor (a glide).
-        """
-        self._placed_by += delta if placed else 0.0
+    def carry_held(self, delta: np.ndarray) -> None:
+        """Held anchors moved by ``delta`` (3,)/(k, 3) [m], not placed (a glide): the body goes."""
         if self._support is not None:
             self._support = (self._support[0], self._support[1] + delta)
 

@@ -37,16 +37,11 @@ _WARNINGS: list[str] = []
 def column_parents(model: pin.Model) -> np.ndarray:
     """(nv,) the parent of each tangent column in the kinematic tree (-1 for the first).
 
-    A joint's columns form a chain (each the parent of the next); its first column's parent is
-    the last column of its parent joint.
+    Pinocchio's ``Data.parents_fromRow`` (the row structure its own sparse Cholesky of the
+    joint-space inertia factors on): a joint's columns form a chain, its first column's parent
+    is the last column of its parent joint.
     """
-    parents = np.full(model.nv, -1, dtype=int)
-    for j in range(1, model.njoints):
-        first, count = model.joints[j].idx_v, model.joints[j].nv
-        parent = model.parents[j]
-        above = model.joints[parent].idx_v + model.joints[parent].nv - 1 if parent > 0 else -1
-        parents[first:first + count] = [above, *range(first, first + count - 1)]
-    return parents
+    return np.array(pin.Data(model).parents_fromRow, dtype=int)
 
 
 def ancestors(parents: np.ndarray) -> list[list[int]]:
