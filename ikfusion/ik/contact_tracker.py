@@ -269,7 +269,7 @@ class ContactTracker:
         weight = (1.0 - share) * s.continuity + share * s.continuity_placed
         target = support.pelvis_target(q[:3])
         if weight > 0 and support.moves_pelvis():
-            root.set_targets(target[None], [weight])
+            root.set_target(target, weight)
             tasks.append(root)
         p_led = support.led_points(p_warm)
         if not support.leads():  # the usual frame: no swing foot led

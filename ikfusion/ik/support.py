@@ -289,11 +289,11 @@ class SupportFollower:
                                                    self.swing_speed * dt, self._buffer))
             self._swing[f] = vec3.sub(swing, moved)
 
-    def pelvis_target(self, p_warm: np.ndarray) -> np.ndarray:
+    def pelvis_target(self, p_warm: np.ndarray) -> Vec3:
         """Where the pelvis should be (3,) [m], its warm start ``p_warm`` plus lag and lean."""
         x, y, z = p_warm.tolist()
         self._target = vec3.add(vec3.add((x, y, z), self._lag), self._lean)
-        return np.array(self._target)
+        return self._target
 
     def record(self, p_solved: np.ndarray, p_pelvis: np.ndarray) -> None:
         """After solving: how far the contact points and the pelvis are from where they were led.
