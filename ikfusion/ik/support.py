@@ -304,8 +304,8 @@ class SupportFollower:
         """
         if self._base is not None:
             self._deviation = p_solved - self._base
-        self._off_target = (ZERO if self._target is None else
-                            vec3.sub(tuple(p_pelvis.tolist()), self._target))  # type: ignore[arg-type]
+        x, y, z = p_pelvis.tolist()
+        self._off_target = ZERO if self._target is None else vec3.sub((x, y, z), self._target)
         self._base = self._target = None
 
     def placed_offsets(self, active: np.ndarray) -> np.ndarray | None:

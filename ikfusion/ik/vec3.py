@@ -30,6 +30,8 @@ def sub(a: Vec3, b: Vec3) -> Vec3:
 
 def norm(v: Vec3, buffer: np.ndarray) -> float:
     """``np.linalg.norm(v)``: ``sqrt(v.dot(v))`` by NumPy's dot on ``buffer`` (3,)."""
+    if not (v[0] or v[1] or v[2]):  # zeros (signed or not: their squares are +0)
+        return 0.0
     buffer[0], buffer[1], buffer[2] = v
     return math.sqrt(float(buffer.dot(buffer)))
 
