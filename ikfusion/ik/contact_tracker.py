@@ -268,10 +268,10 @@ class ContactTracker:
         share = support.placed_share
         weight = (1.0 - share) * s.continuity + share * s.continuity_placed
         target = support.pelvis_target(q[:3])
-        if weight > 0 and (any_true(support.lag) or any_true(support.lean)):
-            root.set_targets(target[None], [weight])
+        if weight > 0 and support.moves_pelvis():
+            root.set_target(target, weight)
             tasks.append(root)
-        p_led = p_warm + support.lag + support.lean
+        p_led = support.led_points(p_warm)
         if not support.leads():  # the usual frame: no swing foot led
             support.keep_base(p_led)
             return tasks

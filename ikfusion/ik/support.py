@@ -22,9 +22,10 @@ there while the body stands on one toe), lands high and lifts the body at each h
 It lets the height go where the sensed leg puts the foot under the floor: the floor lifts that
 foot, and a heel held at its sensed height while the floor lifts the toe pitches the foot about
 the ankle, which springs back when the toe rises (a pop). It lets it go for the whole swing when
-the heel left the floor away from the sensed leg's height (by ``_UNDER_FLOOR_BAND`` or more): a
-sensed leg that disagreed with the floor in height would pull the body up after lift-off and
-down before landing (a run's legs, with feet the sensors put centimetres under the floor).
+the heel left the floor away from the sensed leg's height (by ``swing_lead.UNDER_FLOOR_BAND``
+or more): a sensed leg that disagreed with the floor in height would pull the body up after
+lift-off and down before landing (a run's legs, with feet the sensors put centimetres under the
+floor).
 Meanwhile the pelvis leans toward the correction by at most ``lean_max``; the lean passes into
 the lag when the body is handed to a foot that was placed leaning.
 """
@@ -34,13 +35,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..model.topology import FootLayout
-from .fast_math import any_true, clip_norm, mean_rows, shrink
+from . import vec3
+from .fast_math import mean_rows
 from .point_bits import indices, point_bits
-
-_HORIZONTAL = np.diag([1.0, 1.0, 0.0])  # information of a lead on the x and y axes
-_VERTICAL = np.diag([0.0, 0.0, 1.0])  # ... and on the z axis
-_UNDER_FLOOR_BAND = 0.01  # [m] the lead lets a heel's height go as its foot sinks this far
-# under the floor, or as the heel lifts off this far from the sensed leg's height
+from .swing_lead import band_share, lead_targets
+from .vec3 import ZERO, ArrayView, Vec3
 
 
 class SupportFollower:
@@ -57,6 +56,11 @@ class SupportFollower:
         floor_z: Height of the floor [m] (world z): a swing foot whose sensed points sink under
             it is led horizontally only.
     """
+
+    lag = ArrayView()  # the pelvis's lag (3,) [m] (read: a new array)
+    lean = ArrayView()  # its lean toward the correction (3,) [m]
+    swing = ArrayView()  # each foot's swing offset (n, 3) [m]
+    landed = ArrayView()  # swing offsets of the feet that touched down this frame, summed (3,)
 
     def __init__(self, layout: FootLayout, lag_speed: float, lag_max: float,
                  swing_speed: float, lean_max: float, lean_speed: float,
@@ -78,29 +82,27 @@ class SupportFollower:
         # only feet proper are led through a swing; knees and palms land where the body puts them
         self._steps = [bool((f & layout.stepping).any()) for f in self._feet]
         self._led = np.asarray(layout.on_foot, dtype=bool)  # led by its heels, not unsensed toes
+        self._buffer = np.zeros(3)  # for :mod:`.vec3`'s norms
         self.reset()
 
     def reset(self) -> None:
         """Forget the support, the lag and every offset."""
+        # the 3-vectors [m] as tuples of floats (:mod:`.vec3`); :attr:`lag` ... give arrays
         self._support: tuple[int, np.ndarray] | None = None  # (points (bits), anchors)
-        self.lag = np.zeros(3)
+        self._lag = self._lean = self._step = self._off_target = self._landed = ZERO
         self._allowance = 0.0
-        self.lean = np.zeros(3)
-        self._step = np.zeros(3)
         self._max_step = 0.0
         n = len(self._feet)
         self._swinging = [False] * n
-        self._height_trust = np.ones(n)  # how far a swing heel is held at its sensed height
-        self._goal = np.zeros((n, 3))
-        self._has_goal = [False] * n  # any_true(self._goal[f]), kept with it
-        self.swing = np.zeros((n, 3))
-        self._landed_swing = np.zeros((n, 3))
+        self._height_trust = [1.0] * n  # how far a swing heel is held at its sensed height
+        self._goal = [ZERO] * n
+        self._has_goal = [False] * n  # any(self._goal[f]), kept with it
+        self._swing = [ZERO] * n
+        self._landed_swing = [ZERO] * n
         self._base: np.ndarray | None = None
-        self._target: np.ndarray | None = None
-        self._off_target = np.zeros(3)
+        self._target: Vec3 | None = None
         self._deviation = np.zeros((len(self._led), 3))
-        self._planted_for = np.zeros(n)
-        self.landed = np.zeros(3)
+        self._planted_for = [0.0] * n
         self._placed_by = np.zeros((n, 3))  # how far each foot's anchors were moved on purpose
         self._reference_feet = self._all_groups  # the groups (bits) the body stands on
 
@@ -111,7 +113,7 @@ class SupportFollower:
         A foot that lifts off is led by this correction less what the pelvis will still move
         (:attr:`pending`), at most ``max_step``.
         """
-        self._step = np.array([float(offset[0]), float(offset[1]), 0.0])
+        self._step = (float(offset[0]), float(offset[1]), 0.0)
         self._max_step = float(max_step)
 
     def shift(self, delta: np.ndarray) -> None:
@@ -130,7 +132,7 @@ class SupportFollower:
 
         The intended placement of the foot the body stands on, plus the lag and the lean.
         """
-        return self._reference_placed() + self.lag + self.lean
+        return self._reference_placed() + self._lag + self._lean
 
     def _reference_placed(self) -> np.ndarray:
         """How far the groups the body stands on were placed on purpose, on average (3,) [m]."""
@@ -153,9 +155,17 @@ class SupportFollower:
         return min(max((self._allowance - self.lag_max) / self.lag_max, 0.0), 1.0)
 
     @property
-    def pending(self) -> np.ndarray:
+    def pending(self) -> Vec3:
         """How far the lag will still move the pelvis (3,) [m] (horizontal)."""
-        return np.array([-self.lag[0], -self.lag[1], 0.0])
+        return (-self._lag[0], -self._lag[1], 0.0)
+
+    def moves_pelvis(self) -> bool:
+        """Whether the lag or the lean is not zero (the pelvis is held to its target)."""
+        return any(self._lag) or any(self._lean)
+
+    def led_points(self, p_warm: np.ndarray) -> np.ndarray:
+        """Points (c, 3) [m] moved by the lag and the lean: ``p_warm + lag + lean``."""
+        return p_warm + self._lag + self._lean
 
     # ------------------------------------------------------------------ per frame
     def follow(self, active: np.ndarray, anchors: np.ndarray, p_sensed: np.ndarray,
@@ -172,30 +182,33 @@ class SupportFollower:
         planted = self._planted(on)
         self._settle_landings(planted, dt)
         reference = self._reference(on, planted)
-        offset = mean_rows((anchors - p_sensed)[self._bits.mask(reference)])
-        moved = np.zeros(3)  # how far the pelvis target moves to where the pelvis was solved
+        offset = vec3.mean_rows(anchors, indices(reference), p_sensed)
+        moved = ZERO  # how far the pelvis target moves to where the pelvis was solved
+        lag, lean, buffer = self._lag, self._lean, self._buffer
         if self._support is not None:
             was, held = self._support
             if was:
                 # what the last frame's support says now, minus what this frame's says
-                self.lag += mean_rows((held - p_sensed)[self._bits.mask(was)]) - offset
+                lag = vec3.add(lag, vec3.sub(vec3.mean_rows(held, indices(was), p_sensed), offset))
             if not was & reference:
                 # the body is handed to a foot that was placed leaning: the lean is in it now;
                 # and the pelvis goes on from where it was solved, not from its soft target
-                self.lag += self.lean + self._off_target
-                moved = self._off_target
-                self.lean = np.zeros(3)
+                lag = vec3.add(lag, vec3.add(lean, self._off_target))
+                moved, lean = self._off_target, ZERO
                 # what the correction placed on purpose is caught up with, never jumped over
-                self._allowance = self.lag_max + float(np.linalg.norm(
-                    self._landed_swing[self._foot_of(reference)]))
+                self._allowance = self.lag_max + vec3.norm(
+                    self._landed_swing[self._foot_of(reference)], buffer)
         self._allowance = max(self.lag_max, self._allowance - self.lag_speed * dt)
-        self.lag = clip_norm(shrink(self.lag, self.lag_speed * dt), self._allowance)
-        wanted = clip_norm(self.lean + self._step - self.pending, self.lean_max)
-        self.lean += clip_norm(wanted - self.lean, self.lean_speed * dt)
+        self._lag = vec3.clip_norm(vec3.shrink(lag, self.lag_speed * dt, buffer), self._allowance,
+                                   buffer)
+        wanted = vec3.clip_norm(vec3.sub(vec3.add(lean, self._step), self.pending),
+                                self.lean_max, buffer)
+        self._lean = vec3.add(lean, vec3.clip_norm(vec3.sub(wanted, lean),
+                                                   self.lean_speed * dt, buffer))
         self._support = (reference, anchors.copy())
         self._reference_feet = self._planted(reference)
         self._update_swing(planted, dt, moved)
-        return offset
+        return np.array(offset)
 
     def _foot_of(self, points: int) -> int:
         """The foot (index in the layout's feet) of the first of ``points`` (bits)."""
@@ -216,31 +229,31 @@ class SupportFollower:
         landed, led away from where the sensed legs put it, takes the body over only when the
         other foot lets go, so the leg that leaves the floor carries no strain that would snap.
         """
-        age, on = self._planted_for.tolist(), indices(planted)
+        age, on = self._planted_for, indices(planted)
         longest = max([age[f] for f in on])
         return sum(self._group_points[f] for f in on if age[f] == longest) & active
 
     def lose_support(self) -> None:
         """No point is planted (flight): the ballistic path takes over; nothing lags."""
         self._support = None
-        self.lag = np.zeros(3)
+        self._lag = ZERO
 
     def _settle_landings(self, planted: int, dt: float) -> None:
         """Groups ``planted`` (bits) that touched down stay where they were led (``landed``)."""
-        self.landed = np.zeros(3)
+        self._landed = ZERO
         for f in indices(planted):
             if self._swinging[f]:
                 self._swinging[f] = False
-                self._landed_swing[f] = self.swing[f]
+                self._landed_swing[f] = swing = self._swing[f]
                 self._planted_for[f] = 0.0
-                self.landed += self.swing[f]
+                self._landed = vec3.add(self._landed, swing)
                 # led from the pelvis, which stood where the reference foot and lag put it
-                self._placed_by[f] = self.displacement + self.swing[f]
+                self._placed_by[f] = self.displacement + swing
             else:
                 self._planted_for[f] += dt
-            self.swing[f] = 0.0
+            self._swing[f] = ZERO
 
-    def _update_swing(self, planted: int, dt: float, moved: np.ndarray) -> None:
+    def _update_swing(self, planted: int, dt: float, moved: Vec3) -> None:
         """Latch the offset of feet that lifted off and move swinging feet.
 
         Swing feet are led relative to the pelvis target: when it ``moved`` (3,) [m] to
@@ -258,23 +271,28 @@ class SupportFollower:
                 continue
             if not self._swinging[f]:
                 self._swinging[f] = True
-                if self._planted_for[f] < self.confirm and any_true(self._landed_swing[f]):
-                    self.landed -= self._landed_swing[f]  # not counted; its goal is kept
-                else:
-                    self._goal[f] = clip_norm(self._step - self.pending, self._max_step)
-                    self._has_goal[f] = any_true(self._goal[f])
+                if self._planted_for[f] < self.confirm and any(self._landed_swing[f]):
+                    self._landed = vec3.sub(self._landed, self._landed_swing[f])  # not counted
+                else:  # (a resumed swing keeps its goal)
+                    self._goal[f] = vec3.clip_norm(vec3.sub(self._step, self.pending),
+                                                   self._max_step, self._buffer)
+                    self._has_goal[f] = any(self._goal[f])
                 # the heel leaves the floor where it is, not where the sensed leg puts it (nor
                 # where it was led before a short touch-down: the body moved under it since)
-                self.swing[f] = mean_rows(self._deviation[points & self._led])
+                swing = self._swing[f] = tuple(  # type: ignore[assignment]
+                    mean_rows(self._deviation[points & self._led]).tolist())
                 # a sensed leg that disagreed with the floor's height does not set the heel's
-                self._height_trust[f] = _band_share(-abs(float(self.swing[f][2])))
-                self._landed_swing[f] = 0.0
-            self.swing[f] += clip_norm(self._goal[f] - self.swing[f], self.swing_speed * dt)
-            self.swing[f] -= moved
+                self._height_trust[f] = band_share(-abs(swing[2]))
+                self._landed_swing[f] = ZERO
+            swing = self._swing[f]
+            swing = vec3.add(swing, vec3.clip_norm(vec3.sub(self._goal[f], swing),
+                                                   self.swing_speed * dt, self._buffer))
+            self._swing[f] = vec3.sub(swing, moved)
 
-    def pelvis_target(self, p_warm: np.ndarray) -> np.ndarray:
+    def pelvis_target(self, p_warm: np.ndarray) -> Vec3:
         """Where the pelvis should be (3,) [m], its warm start ``p_warm`` plus lag and lean."""
-        self._target = p_warm + self.lag + self.lean
+        x, y, z = p_warm.tolist()
+        self._target = vec3.add(vec3.add((x, y, z), self._lag), self._lean)
         return self._target
 
     def record(self, p_solved: np.ndarray, p_pelvis: np.ndarray) -> None:
@@ -286,7 +304,8 @@ class SupportFollower:
         """
         if self._base is not None:
             self._deviation = p_solved - self._base
-        self._off_target = p_pelvis - self._target if self._target is not None else np.zeros(3)
+        x, y, z = p_pelvis.tolist()
+        self._off_target = ZERO if self._target is None else vec3.sub((x, y, z), self._target)
         self._base = self._target = None
 
     def placed_offsets(self, active: np.ndarray) -> np.ndarray | None:
@@ -300,14 +319,14 @@ class SupportFollower:
             return None
         out = np.zeros((len(active), 3))
         # a foot that touched down since the last frame swings until the body follows: the youngest
-        age = [-1.0 if self._swinging[f] else t for f, t in enumerate(self._planted_for.tolist())]
+        age = [-1.0 if self._swinging[f] else t for f, t in enumerate(self._planted_for)]
         young = min(indices(planted), key=age.__getitem__)  # the first of the youngest
         fresh = self._swinging[young]
         if not self._has_goal[young]:  # not led: only its swing (a resumed one)
-            out[self._feet[young]] = self.swing[young] if fresh else self._landed_swing[young]
+            out[self._feet[young]] = self._swing[young] if fresh else self._landed_swing[young]
             return out
         # led from the pelvis (lag, lean) plus its swing: as :meth:`_settle_landings` records
-        placed = self.displacement + self.swing[young] if fresh else self._placed_by[young]
+        placed = self.displacement + self._swing[young] if fresh else self._placed_by[young]
         out[self._feet[young]] = placed - self._reference_placed()
         return out
 
@@ -320,31 +339,12 @@ class SupportFollower:
         self._base = p_points
 
     def swing_targets(self, p_points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Targets (k, 3) [m] and information (k, 3, 3) for the heels of swing feet.
+        """Targets (k, 3) [m] and information (k, 3, 3) of the heels of swing feet led now.
 
-        The information of a led heel is 1 on the horizontal axes; on the vertical axis it is 1
-        while the foot's targets are on or above the floor and falls to 0 as the lowest of them
-        sinks ``_UNDER_FLOOR_BAND`` under it (the floor, not the lead, sets that foot's height),
-        and as the heel left the floor up to ``_UNDER_FLOOR_BAND`` away from its sensed height
-        (the sensed leg's height is not to be trusted then). Every other point has none.
-
-        Args:
-            p_points: (k, 3) contact points of the warm start (the sensed pose on the support,
-                plus the lag) [m].
+        ``p_points``: (k, 3) contact points of the warm start (the sensed pose on the support,
+        plus the lag) [m]. See :func:`.swing_lead.lead_targets`.
         """
         self._base = p_points.copy()
-        targets = p_points.copy()
-        info = np.zeros((len(p_points), 3, 3))
-        for f, points in enumerate(self._feet):
-            if self._swinging[f] and self._has_goal[f]:
-                targets[points] += self.swing[f]
-                sunk = self.floor_z - float(targets[points, 2].min())
-                height = min(_band_share(-sunk), self._height_trust[f])
-                info[points & self._led] = _HORIZONTAL + height * _VERTICAL
-        return targets, info
-
-
-def _band_share(height: float) -> float:
-    """1 at or above 0, falling to 0 at ``-_UNDER_FLOOR_BAND`` [m] and below."""
-    return min(max(1.0 + height / _UNDER_FLOOR_BAND, 0.0), 1.0)
-
+        led = [(points, self._swing[f], self._height_trust[f])
+               for f, points in enumerate(self._feet) if self._swinging[f] and self._has_goal[f]]
+        return lead_targets(p_points, led, self._led, self.floor_z)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -13,6 +14,7 @@ from .base import Task
 
 _IDENTITY = np.eye(3)
 _IDENTITY.setflags(write=False)
+_IDENTITY_1 = _IDENTITY[None]  # (1, 3, 3)
 
 
 class PositionTask(Task):
@@ -53,6 +55,19 @@ class PositionTask(Task):
         bad = ~np.isfinite(p).all(axis=1)
         self.targets = np.where(bad[:, None], 0.0, p)
         self.information = np.where(bad[:, None, None], 0.0, info)
+
+    def set_target(self, p_world_target: tuple[float, float, float], weight: float) -> None:
+        """The target (3,) [m] (floats) of a one-frame task, a scalar weight.
+
+        ``set_targets([p_world_target], [weight])``, the same arrays without its conversions.
+        """
+        if not math.isfinite(sum(p_world_target, 0.0) + weight):
+            self.set_targets([p_world_target], [weight])
+            return
+        self.targets = np.array([p_world_target])
+        self._information = weight * _IDENTITY_1
+        self._active = np.array([weight != 0.0])
+        self._scalar = np.array([weight], dtype=float)
 
     @property
     def information(self) -> np.ndarray:

@@ -1,0 +1,45 @@
+"""Targets and information of the heels of swing feet led by the ``no-slide`` correction.
+
+The lead (:class:`.support.SupportFollower`) moves a swing foot's heels by its swing offset
+(3,) [m]. Their information is 1 on the horizontal axes; on the vertical axis it is 1 while the
+foot's targets are on or above the floor and falls to 0 as the lowest of them sinks
+``UNDER_FLOOR_BAND`` under it (the floor, not the lead, sets that foot's height), and as the heel
+left the floor up to ``UNDER_FLOOR_BAND`` away from its sensed height (the sensed leg's height is
+not to be trusted then: the foot's *height trust*). Every other point has none.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+_HORIZONTAL = np.diag([1.0, 1.0, 0.0])  # information of a lead on the x and y axes
+_VERTICAL = np.diag([0.0, 0.0, 1.0])  # ... and on the z axis
+UNDER_FLOOR_BAND = 0.01  # [m] the lead lets a heel's height go as its foot sinks this far
+# under the floor, or as the heel lifts off this far from the sensed leg's height
+
+
+def lead_targets(p_points: np.ndarray, led: Sequence[tuple[np.ndarray, tuple[float, ...], float]],
+                 heels: np.ndarray, floor_z: float) -> tuple[np.ndarray, np.ndarray]:
+    """Targets (k, 3) [m] and information (k, 3, 3) of the led feet (see the module docstring).
+
+    Args:
+        p_points: (k, 3) contact points of the warm start [m].
+        led: Per led foot: its points (k,) (a mask), its swing offset (3,) [m] and height trust.
+        heels: (k,) the points a foot is led by (on the foot itself, not on its toes).
+        floor_z: Height of the floor [m] (world z).
+    """
+    targets = p_points.copy()
+    info = np.zeros((len(p_points), 3, 3))
+    for points, swing, trust in led:
+        targets[points] += swing
+        sunk = floor_z - float(targets[points, 2].min())
+        height = min(band_share(-sunk), trust)
+        info[points & heels] = _HORIZONTAL + height * _VERTICAL
+    return targets, info
+
+
+def band_share(height: float) -> float:
+    """1 at or above 0, falling to 0 at ``-UNDER_FLOOR_BAND`` [m] and below."""
+    return min(max(1.0 + height / UNDER_FLOOR_BAND, 0.0), 1.0)

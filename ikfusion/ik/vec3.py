@@ -1,0 +1,94 @@
+"""3-vectors [m] as tuples of floats: NumPy's arithmetic on (3,) arrays without its call overhead.
+
+Each function computes what the NumPy expression it names computes, the same operations in the
+same order, so bit for bit the same numbers (a sum or product of two floats is one IEEE operation
+either way; NumPy's ``np.add.reduce(rows, axis=0)`` adds the rows one by one to 0.0). The
+squared norm is the exception: NumPy's ``v.dot(v)`` goes through BLAS, whose kernel fuses
+multiply-adds (``x * x + y * y + z * z`` differs in the last bit), so it is still NumPy's, on a
+(3,) ``buffer`` its caller owns (one per instance: no buffer shared between threads).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+Vec3 = tuple[float, float, float]
+ZERO: Vec3 = (0.0, 0.0, 0.0)
+
+
+def add(a: Vec3, b: Vec3) -> Vec3:
+    """``a + b``."""
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
+
+
+def sub(a: Vec3, b: Vec3) -> Vec3:
+    """``a - b``."""
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+def norm(v: Vec3, buffer: np.ndarray) -> float:
+    """``np.linalg.norm(v)``: ``sqrt(v.dot(v))`` by NumPy's dot on ``buffer`` (3,)."""
+    if not (v[0] or v[1] or v[2]):  # zeros (signed or not: their squares are +0)
+        return 0.0
+    buffer[0], buffer[1], buffer[2] = v
+    return math.sqrt(float(buffer.dot(buffer)))
+
+
+def shrink(v: Vec3, by: float, buffer: np.ndarray) -> Vec3:
+    """:func:`.fast_math.shrink`: ``v`` shortened by ``by`` (never past zero)."""
+    return _shortened(v, by, norm(v, buffer))
+
+
+def clip_norm(v: Vec3, limit: float, buffer: np.ndarray) -> Vec3:
+    """:func:`.fast_math.clip_norm`: ``v`` shortened to at most ``limit`` long."""
+    n = norm(v, buffer)
+    if n <= limit < math.inf:
+        return (v[0] + 0.0, v[1] + 0.0, v[2] + 0.0)
+    return sub(v, _shortened(v, limit, n))
+
+
+def _shortened(v: Vec3, by: float, n: float) -> Vec3:
+    """How much of ``v`` (``n`` long) is left shortened by ``by``: ``v * max(0, 1 - by / n)``."""
+    if n > 0:
+        s = max(0.0, 1.0 - by / n)
+        return (v[0] * s, v[1] * s, v[2] * s)
+    return (v[0] * 0.0, v[1] * 0.0, v[2] * 0.0)
+
+
+def mean_rows(a: np.ndarray, rows: tuple[int, ...], b: np.ndarray | None = None) -> Vec3:
+    """``np.mean(a[rows], axis=0)`` of a (k, 3) array (``(a - b)[rows]`` with ``b``).
+
+    ``rows``: at least one index, in increasing order.
+    """
+    x = y = z = 0.0
+    for i in rows:
+        ax, ay, az = a[i].tolist()
+        if b is not None:
+            bx, by, bz = b[i].tolist()
+            ax, ay, az = ax - bx, ay - by, az - bz
+        x, y, z = x + ax, y + ay, z + az
+    n = len(rows)
+    return (x / n, y / n, z / n)
+
+
+class ArrayView:
+    """An attribute ``name`` of floats kept as ``_name`` (tuples), read as a new NumPy array.
+
+    Setting it (from an array of any shape) stores its floats as nested tuples.
+    """
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self._private = "_" + name
+
+    def __get__(self, instance: object, owner: type | None = None) -> np.ndarray:
+        return np.array(getattr(instance, self._private))
+
+    def __set__(self, instance: object, value: np.ndarray) -> None:
+        setattr(instance, self._private, _tuples(np.asarray(value, dtype=float).tolist()))
+
+
+def _tuples(value: object) -> object:
+    """Lists (nested) as tuples."""
+    return tuple(map(_tuples, value)) if isinstance(value, list) else value

@@ -1,0 +1,73 @@
+"""The support's float 3-vectors compute NumPy's numbers bit for bit (:mod:`ikfusion.ik.vec3`)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ikfusion.ik import fast_math, vec3
+from ikfusion.ik.tasks.position import PositionTask
+
+RNG = np.random.default_rng(7)
+# vectors of every scale the support meets, zero ones and ones with negative zeros among them
+VECTORS = [RNG.standard_normal(3) * s for s in (1e-4, 1e-2, 0.3, 1.0, 7.0) for _ in range(200)]
+VECTORS += [np.zeros(3), np.array([-0.0, 0.0, -0.0]), np.array([0.0, 1e-300, 0.0])]
+
+
+def _bits(v: np.ndarray | tuple[float, ...]) -> bytes:
+    return np.asarray(v, dtype=float).tobytes()
+
+
+def test_norms_clips_and_shrinks_are_numpys_numbers() -> None:
+    buffer = np.zeros(3)
+    for v in VECTORS:
+        t = tuple(v.tolist())
+        assert vec3.norm(t, buffer) == float(np.linalg.norm(v))
+        for limit in (0.0, 1e-3, 0.05, 1.0, math.inf):
+            assert _bits(vec3.clip_norm(t, limit, buffer)) == _bits(fast_math.clip_norm(v, limit))
+            assert _bits(vec3.shrink(t, limit, buffer)) == _bits(fast_math.shrink(v, limit))
+
+
+def test_sums_and_means_are_numpys_numbers() -> None:
+    a, b = RNG.standard_normal((14, 3)), RNG.standard_normal((14, 3))
+    a[3] = -0.0  # a sum of negative zeros is +0 in NumPy's reduction (it starts from 0.0)
+    for rows in [(3,), (0, 1), (2, 3, 5), (0, 1, 2, 3), tuple(range(14)), (1, 3, 4, 8, 9, 13)]:
+        mask = np.zeros(14, dtype=bool)
+        mask[list(rows)] = True
+        assert _bits(vec3.mean_rows(a, rows)) == _bits(np.mean(a[mask], axis=0))
+        assert _bits(vec3.mean_rows(a, rows, b)) == _bits(np.mean((a - b)[mask], axis=0))
+    u, w = tuple(a[0].tolist()), tuple(b[0].tolist())
+    assert _bits(vec3.add(u, w)) == _bits(a[0] + b[0])
+    assert _bits(vec3.sub(u, w)) == _bits(a[0] - b[0])
+
+
+def test_an_array_view_reads_and_sets_its_floats() -> None:
+    class Holder:
+        lag = vec3.ArrayView()
+
+        def __init__(self) -> None:
+            self._lag = vec3.ZERO
+
+    h = Holder()
+    h.lag = np.array([0.1, -0.2, 0.3])
+    assert h._lag == (0.1, -0.2, 0.3) and all(type(x) is float for x in h._lag)
+    view = h.lag
+    view[0] = 5.0  # a new array: the holder's floats stay
+    assert h.lag.tolist() == [0.1, -0.2, 0.3]
+
+
+@pytest.mark.parametrize("weight", [0.0, 2.5])
+@pytest.mark.parametrize("target", [(0.1, -0.2, 0.9), (math.nan, 0.0, 1.0)])
+def test_one_target_is_set_as_set_targets_sets_it(weight: float,
+                                                  target: tuple[float, float, float]) -> None:
+    one, many = PositionTask([3], ["root"]), PositionTask([3], ["root"])
+    one.set_target(target, weight)
+    many.set_targets(np.array(target)[None], [weight])
+    assert _bits(one.targets) == _bits(many.targets)
+    assert _bits(one.information) == _bits(many.information)
+    assert np.array_equal(one._active, many._active)
+    assert (one._scalar is None) == (many._scalar is None)
+    if one._scalar is not None:
+        assert _bits(one._scalar) == _bits(many._scalar)
