@@ -33,7 +33,7 @@ import numpy as np
 from ..model.topology import FootLayout
 from .anchor_settling import settled_heights
 from .fast_math import row_norms
-from .foot_pairs import drift_from_other_foot, landing_anchors
+from .foot_pairs import drift_from_other_foot, landing_anchors, other_foot_age
 from .handover import plant_anchors
 from .point_bits import PointBits, has, point_bits
 from .point_evidence import FrameEvidence, by_rest, frame_evidence, hinted_points, motion_bits
@@ -181,10 +181,12 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     pulled = 0  # one foot planted: no drift from another (nothing pulled, as leave_distance >= 0)
     if staying & bits.other_foot(staying) or th.leave_distance < 0:
         held = state.anchors if placed is None else state.anchors - placed
-        drift, other_age = drift_from_other_foot(layout, bits.mask(staying), held, p_sensed,
-                                                 state.age)
-        pulled = pulled_points(bits, bits.of(drift > th.leave_distance),
-                             bits.of(state.age >= other_age), staying, rest)
+        planted = bits.mask(staying)
+        # only a planted point that disagrees may be pulled (the ages of the rare frame)
+        if disagrees := bits.of(drift_from_other_foot(layout, planted, held, p_sensed)
+                                > th.leave_distance) & staying:
+            older = bits.of(state.age >= other_foot_age(layout, planted, state.age))
+            pulled = pulled_points(bits, disagrees, older, staying, rest)
     # a resting knee or palm (calm accelerometer) is weaker evidence than a still foot: the
     # sensed pose may still lift it
     lifted = (ev.high | tilted) & ~(still & bits.stepping)
@@ -214,18 +216,22 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
             plant |= 1 << lowest
         elif not has(pushing_off, kept):  # a toe pushing off flies
             leave &= ~(1 << kept)
-    anchors, age = state.anchors.copy(), state.age.copy()
+    # the new state shares the arrays nothing changed (states are replaced, never written to)
+    anchors, age, released = state.anchors, state.age, state.released
     if plant:
+        anchors, age = anchors.copy(), age.copy()
         plant_anchors(anchors, bits.mask(plant), active, bits.mask(on & ~leave), handover,
                        p_sensed, p_solved, step_sensed, layout, th.floor_z)
         age[bits.mask(plant)] = 0.0
-    released = state.released.copy()
     if leave:
+        released = released.copy()
         released[bits.mask(leave)] = 0.0
     now = on & ~leave | plant
-    held_now = bits.array(now)
+    held_now = active if now == on else bits.array(now)
     if not hints and now & rest & bits.shares_segment:
-        # a planted trunk point rolls onto a lower point of its segment
+        # a planted trunk point rolls onto a lower point of its segment (in place: copies)
+        held_now, anchors, age, released = (held_now.copy(), anchors.copy(), age.copy(),
+                                            released.copy())
         roll_on_segment(held_now, anchors, age, released, p_sensed, needs_rest, layout, th.floor_z)
     return ContactState(state.names, held_now, anchors, age, released)
 
@@ -301,16 +307,19 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
         enter = enter | 1 << i if not on & 1 << i and hinted else enter & ~(1 << i)
     if not on and not enter and not hints:
         enter = 1 << int(np.argmin(p_sensed[:, 2]))
-    anchors = state.anchors.copy()
+    anchors, active = state.anchors, was  # (shared while unchanged, as release_contacts's)
     if enter:
         entering = bits.mask(enter)
+        anchors = anchors.copy()
         anchors[entering] = landing_anchors(layout, was, anchors, p_solved, entering)
         active = bits.array(on | enter)
         anchors[entering, 2] = np.maximum(anchors[entering, 2], th.floor_z)
-    else:
-        active = was.copy()
-    anchors[:, 2] = settled_heights(anchors[:, 2], active, layout.same_segment,
-                                    th.settle_speed * step, th.floor_z, layout.shares_segment)
+    z = anchors[:, 2]
+    settled = settled_heights(z, active, layout.same_segment, th.settle_speed * step, th.floor_z,
+                              layout.shares_segment)
+    if settled is not z:
+        anchors = anchors.copy() if anchors is state.anchors else anchors
+        anchors[:, 2] = settled
     age = np.where(active, state.age + step, 0.0)
     if enter:
         age[entering] = 0.0

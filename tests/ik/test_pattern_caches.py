@@ -101,7 +101,7 @@ def test_reference_points_are_the_oldest_groups_whatever_the_ages(human: HumanMo
 
 def test_other_foot_and_drift_follow_every_pattern_back_and_forth(
         human: HumanModel, rng: np.random.Generator) -> None:
-    from ikfusion.ik.foot_pairs import drift_from_other_foot, other_foot
+    from ikfusion.ik.foot_pairs import drift_from_other_foot, other_foot, other_foot_age
 
     layout = _tracker(human).layout
     k = len(layout.on_foot)
@@ -112,7 +112,8 @@ def test_other_foot_and_drift_follow_every_pattern_back_and_forth(
                                       (other & active[None, :]).any(axis=1))
         assert not other_foot(layout, active).flags.writeable
         anchors, p_sensed, age = rng.normal(size=(k, 3)), rng.normal(size=(k, 3)), rng.random(k)
-        drift, other_age = drift_from_other_foot(layout, active, anchors, p_sensed, age)
+        drift = drift_from_other_foot(layout, active, anchors, p_sensed)
+        other_age = other_foot_age(layout, active, age)
         for i in range(k):  # plain: align on the other foot's planted points, per point
             others = active & other[i] & active[i]
             if not others.any():
