@@ -26,17 +26,26 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..model.topology import FootLayout
 from .anchor_settling import settled_heights
+from .contact_thresholds import ContactThresholds
 from .fast_math import row_norms
 from .foot_pairs import drift_from_other_foot, landing_anchors, other_foot_age
 from .handover import plant_anchors
 from .point_bits import PointBits, has, point_bits
-from .point_evidence import FrameEvidence, by_rest, frame_evidence, hinted_points, motion_bits
+from .point_evidence import (
+    FrameEvidence,
+    by_rest,
+    frame_evidence,
+    heights_above_lowest,
+    hinted_points,
+    motion_bits,
+    stance_bits,
+)
 from .sweeping import sweeping_beside, sweeping_points
 from .trunk_roll import body_takers, pulled_points, roll_on_segment
 
@@ -51,6 +60,9 @@ class ContactState:
         anchors: (k, 3) [m] where each point is held while in contact.
         age: (k,) [s] how long each point has been in contact.
         released: (k,) [s] how long ago each point left contact (inf: never in contact).
+
+    A state is replaced, never written to: successive states share the arrays that did not
+    change.
     """
 
     names: list[str]
@@ -72,31 +84,6 @@ class ContactState:
     def as_dict(self) -> dict[str, bool]:
         """Name -> in contact."""
         return {n: bool(a) for n, a in zip(self.names, self.active)}
-
-
-@dataclass(frozen=True)
-class ContactThresholds:
-    """Hysteresis thresholds [m, m/s, deg, rad/s].
-
-    Their defaults live in ``configs/solver.yaml`` (section contacts) and
-    :class:`ikfusion.ik.SolverSettings`.
-    """
-
-    floor_z: float
-    enter_height: float
-    enter_speed: float
-    enter_relative: float
-    leave_relative: float
-    leave_distance: float
-    settle_speed: float
-    tilt_deg: float
-    still_relative: float
-    reenter_delay: float
-
-    @classmethod
-    def from_settings(cls, settings: object) -> ContactThresholds:
-        """The thresholds of a :class:`ikfusion.ik.SolverSettings`."""
-        return cls(**{f.name: getattr(settings, f.name) for f in fields(cls)})
 
 
 def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: ContactThresholds,
@@ -216,7 +203,6 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
             plant |= 1 << lowest
         elif not has(pushing_off, kept):  # a toe pushing off flies
             leave &= ~(1 << kept)
-    # the new state shares the arrays nothing changed (states are replaced, never written to)
     anchors, age, released = state.anchors, state.age, state.released
     if plant:
         anchors, age = anchors.copy(), age.copy()
@@ -240,7 +226,8 @@ def _evidence(bits: PointBits, p_sensed: np.ndarray, foot_pitch: np.ndarray | No
               foot_still: np.ndarray | None, needs_rest: np.ndarray | None,
               th: ContactThresholds) -> FrameEvidence:
     """The :func:`.point_evidence.frame_evidence` of a frame under thresholds ``th``."""
-    return frame_evidence(bits, p_sensed, foot_pitch, foot_still, needs_rest,
+    return frame_evidence(bits, heights_above_lowest(p_sensed), foot_pitch,
+                          stance_bits(bits, foot_still), bits.of_optional(needs_rest),
                           math.radians(th.tilt_deg), th.leave_relative, th.enter_relative)
 
 

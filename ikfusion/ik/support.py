@@ -230,7 +230,7 @@ class SupportFollower:
         other foot lets go, so the leg that leaves the floor carries no strain that would snap.
         """
         age, on = self._planted_for, indices(planted)
-        longest = max([age[f] for f in on])
+        longest = max([age[f] for f in on]) if len(on) > 1 else age[on[0]]  # (one: itself)
         return sum(self._group_points[f] for f in on if age[f] == longest) & active
 
     def lose_support(self) -> None:

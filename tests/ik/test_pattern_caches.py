@@ -52,13 +52,13 @@ def test_feet_stance_follows_every_pattern_back_and_forth(human: HumanModel) -> 
     stances = [dict(zip(feet, flags)) for flags in itertools.product([True, False], repeat=4)]
     stances += [{"RightFoot": True}, {"LeftFoot": False, "T8": True}]
     for stance in stances + stances[::-1]:
-        still = tracker._feet_still(Frame(0.0, feet_still=stance))
+        still = tracker._stance.feet_still(Frame(0.0, feet_still=stance))[0]
         assert still is not None
         expected = [np.nan if f is None or f not in stance else float(stance[f])
                     for f in tracker._foot_names]
         np.testing.assert_array_equal(still, expected)
         assert not still.flags.writeable
-    assert tracker._feet_still(Frame(0.0)) is None
+    assert tracker._stance.feet_still(Frame(0.0))[0] is None
 
 
 def test_foot_pitch_is_nan_without_a_foot_and_fresh_each_frame(human: HumanModel,
