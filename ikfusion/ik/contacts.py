@@ -36,7 +36,7 @@ from .contact_thresholds import ContactThresholds
 from .fast_math import row_norms
 from .foot_pairs import drift_from_other_foot, landing_anchors, other_foot_age
 from .handover import plant_anchors
-from .point_bits import PointBits, has, point_bits
+from .point_bits import PointBits, below, has, indices, point_bits
 from .point_evidence import (
     FrameEvidence,
     by_rest,
@@ -285,7 +285,8 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     ev = evidence or _evidence(bits, p_sensed, foot_pitch, foot_still, needs_rest, th)
     released = np.where(was, state.released, state.released + step)
     # near the floor and among the lowest points: the candidates (few frames have any)
-    enter = bits.of(p_solved[:, 2] < th.floor_z + th.enter_height) & ev.low & ~on
+    if enter := ev.low & ~on:
+        enter = below(p_solved[:, 2].tolist(), th.floor_z + th.enter_height, indices(enter))
     if enter:
         enter &= _may_enter(bits, on, p_solved, p_solved_previous, dt, ev, released, th,
                             points_moving)

@@ -12,7 +12,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .fast_math import min_of
-from .point_bits import PointBits
+from .point_bits import PointBits, above, below, indices
 from .point_masks import LastInput
 
 
@@ -57,9 +57,8 @@ def tilted_bits(bits: PointBits, foot_pitch: np.ndarray | None, limit: float) ->
     """
     if foot_pitch is None:
         return 0
-    pitch = foot_pitch if isinstance(foot_pitch, np.ndarray) \
-        else np.asarray(foot_pitch, dtype=float)  # NaN (unknown) compares False: not tilted
-    return bits.heels & bits.of(pitch > limit) | bits.toes & bits.of(pitch < -limit)
+    pitch = np.asarray(foot_pitch, dtype=float).tolist()  # NaN (unknown) compares False
+    return above(pitch, limit, indices(bits.heels)) | below(pitch, -limit, indices(bits.toes))
 
 
 def motion_bits(bits: PointBits, points_moving: np.ndarray | None) -> tuple[int, int]:
@@ -128,6 +127,6 @@ def frame_evidence(bits: PointBits, height_rel: np.ndarray, foot_pitch: np.ndarr
         leave_relative: ``high``'s height above the lowest point [m].
         enter_relative: ``low``'s height above the lowest point [m].
     """
+    heights = height_rel.tolist()
     return FrameEvidence(height_rel, tilted_bits(bits, foot_pitch, tilt), stance[0], stance[1],
-                         rest, bits.of(height_rel > leave_relative),
-                         bits.of(height_rel < enter_relative))
+                         rest, above(heights, leave_relative), below(heights, enter_relative))
