@@ -274,11 +274,10 @@ class ContactTracker:
         if weight > 0 and support.moves_pelvis():
             root.set_target(target, weight)
             tasks.append(root)
-        p_led = support.led_points(p_warm)
         if not support.leads():  # the usual frame: no swing foot led
-            support.keep_base(p_led)
+            support.keep_base(p_warm)
             return tasks
-        targets, weights = support.swing_targets(p_led)
+        targets, weights = support.swing_targets(support.led_points(p_warm))
         if any_true(weights):
             swing.set_targets(targets, weights)
             tasks.append(swing)
