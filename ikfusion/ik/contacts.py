@@ -33,9 +33,9 @@ import numpy as np
 from ..model.topology import FootLayout
 from .anchor_settling import settled_heights
 from .contact_thresholds import ContactThresholds
-from .fast_math import row_norms
 from .foot_pairs import drift_from_other_foot, landing_anchors, other_foot_age
 from .handover import plant_anchors
+from .landing_rules import may_land
 from .point_bits import PointBits, below, has, indices, point_bits
 from .point_evidence import (
     FrameEvidence,
@@ -288,7 +288,7 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     if enter := ev.low & ~on:
         enter = below(p_solved[:, 2].tolist(), th.floor_z + th.enter_height, indices(enter))
     if enter:
-        enter &= _may_enter(bits, on, p_solved, p_solved_previous, dt, ev, released, th,
+        enter &= may_land(bits, on, enter, p_solved, p_solved_previous, dt, ev, released, th,
                             points_moving)
         enter &= ~sweeping_beside(bits, v_sensed, on, points_moving, th.enter_speed)
     for i, hinted in hinted_points(state.names, hints):
@@ -312,36 +312,3 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     if enter:
         age[entering] = 0.0
     return ContactState(state.names, active, anchors, age, released)
-
-
-def _may_enter(bits: PointBits, on: int, p_solved: np.ndarray, p_solved_previous: np.ndarray,
-               dt: float, ev: FrameEvidence, released: np.ndarray, th: ContactThresholds,
-               points_moving: np.ndarray | None) -> int:
-    """The points (bits) :func:`touch_down` lets land, its other rules than height.
-
-    Slow (or known not to move, or as low as a support that moves), not ruled out by the foot
-    pitch, not let go just now (toe-off), not a moving point while a point of the other foot
-    that does not move holds the body, not a trunk point whose segment moves. ``on``: the
-    planted points; ``ev``: the frame's evidence.
-    """
-    height_rel = ev.height_rel
-    moving_point, settled = motion_bits(bits, points_moving)
-    speed = (row_norms(p_solved - p_solved_previous) / dt if dt > 0
-             else np.zeros(len(p_solved)))
-    # a point that just let go (toe-off) does not come back down at once while it is low,
-    # unless its foot IMU says it no longer moves (a landing heel let go while it skidded).
-    # A point its foot IMU says does not move is slow whatever its solved speed: that speed
-    # is relative to the planted points, and a planted point that truly slides (a toe dragged
-    # at push-off) moves the whole solved body, the landing foot with it. For the same reason
-    # the solved speed says nothing while the IMUs say every planted point moves (a body held
-    # on a toe that lifts): the sensed pose decides then, a point taking the body once it is
-    # as low as the planted points.
-    support_moving = (bits.of(height_rel <= np.min(height_rel[bits.mask(on)], initial=np.inf))
-                      if on and not on & ~moving_point else 0)
-    ok = ((bits.of(speed < th.enter_speed) | settled | support_moving) & ~ev.tilted
-          & (bits.of(released >= th.reenter_delay) | settled))
-    if points_moving is not None:  # see release_contacts
-        ok &= ~(moving_point & bits.other_foot(on & ~moving_point))
-    # a trunk point whose segment's IMU says it moves (NaN: unknown)
-    return ok & ~(ev.rest & ev.foot_moves)
-
