@@ -159,8 +159,9 @@ class ContactTracker:
         key = tracked.tobytes()
         rows = self._untracked.get(key)
         if rows is None:
-            rows = self._untracked[key] = tuple(
-                true_indices(~np.asarray(tracked, dtype=bool)[self._foot_rows]).tolist())
+            rows = tuple(true_indices(~np.asarray(tracked, dtype=bool)[self._foot_rows]).tolist())
+            if len(self._untracked) < 64:  # (a few patterns: sensors dropping out, coming back)
+                self._untracked[key] = rows
         return rows
 
     def start(self, p_sensed: np.ndarray, pitch: np.ndarray) -> None:
