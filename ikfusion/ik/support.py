@@ -65,10 +65,8 @@ class SupportFollower:
     def __init__(self, layout: FootLayout, lag_speed: float, lag_max: float,
                  swing_speed: float, lean_max: float, lean_speed: float,
                  confirm: float, floor_z: float = 0.0) -> None:
-        self.floor_z = floor_z
-        self.lag_speed = lag_speed
-        self.lag_max = lag_max
-        self.swing_speed = swing_speed
+        self.floor_z, self.swing_speed = floor_z, swing_speed
+        self.lag_speed, self.lag_max = lag_speed, lag_max
         self.lean_max, self.lean_speed = lean_max, lean_speed
         self.confirm = confirm
         k = len(layout.on_foot)
@@ -228,7 +226,9 @@ class SupportFollower:
         other foot lets go, so the leg that leaves the floor carries no strain that would snap.
         """
         age, on = self._planted_for, indices(planted)
-        longest = max([age[f] for f in on]) if len(on) > 1 else age[on[0]]  # (one: itself)
+        if len(on) == 1:  # the usual frame: one foot planted
+            return self._group_points[on[0]] & active
+        longest = max([age[f] for f in on])
         return sum(self._group_points[f] for f in on if age[f] == longest) & active
 
     def lose_support(self) -> None:
