@@ -6,6 +6,8 @@ world z up.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from .fast_math import any_true
@@ -31,13 +33,24 @@ def settled_heights(z: np.ndarray, active: np.ndarray, same_segment: np.ndarray,
         shares_segment: (k,) points with another point on their segment
             (:attr:`FootLayout.shares_segment`), when the caller has it: while none of them
             is planted every point settles alone (the usual case, feet only).
+
+    Returns:
+        The settled heights; ``z`` itself when every anchor is on the floor already.
     """
+    if drop >= 0.0 and z.tobytes() == _on_floor(len(z), floor_z):
+        return z  # every anchor on the floor (bit for bit): nothing settles (the usual frame)
     own = np.minimum(np.maximum(z - floor_z, 0.0), drop)  # np.clip's result, without its wrapper
     if shares_segment is not None and not any_true(active & shares_segment):
         return np.maximum(z - own, floor_z)  # each point its own segment's least room
     together = same_segment & active[:, None] & active[None, :]
     shared = np.where(together, own[None, :], np.inf).min(axis=1)  # inf: no planted partner
     return np.maximum(z - np.minimum(own, shared), floor_z)
+
+
+@functools.cache
+def _on_floor(k: int, floor_z: float) -> bytes:
+    """The bytes of ``k`` heights [m] at ``floor_z`` exactly (:func:`settled_heights`'s test)."""
+    return np.full(k, floor_z, dtype=float).tobytes()
 
 
 def risen_heights(z: np.ndarray, z_solved: np.ndarray, risen: np.ndarray,

@@ -53,6 +53,9 @@ if TYPE_CHECKING:
     from ..model.human_model import HumanModel
 
 GRAVITY = np.array([0.0, 0.0, -9.81])  #: [m/s^2] in the world frame (Z up)
+_NO_SHIFT = np.zeros(3)  # :meth:`BallisticRoot.shift`'s start (read-only: shifts make new arrays)
+_NO_SHIFT.setflags(write=False)
+_ZERO_MOVE = _NO_SHIFT  # no motion of the sensor around the origin
 
 
 class BallisticRoot:
@@ -78,7 +81,7 @@ class BallisticRoot:
         self.position: np.ndarray | None = None  # on the path in flight, None on the ground
         #: the path came down onto the floor and follows the feet there
         self.landed = False
-        self._shift = np.zeros(3)  # moves the next target (and the path after it) [m]
+        self._shift = _NO_SHIFT  # moves the next target (and the path after it) [m]
         self._lever_world: np.ndarray | None = None  # the last frame's R_world_pelvis lever
 
     def shift(self, delta: np.ndarray) -> None:
@@ -119,7 +122,7 @@ class BallisticRoot:
         if lowest_z is not None and self._shift[2] < 0.0:
             # a shift may lower the path onto the landing height, never under it
             self.position[2] = max(float(self.position[2]), min(float(free[2]), lowest_z))
-        self._shift = np.zeros(3)
+        self._shift = _NO_SHIFT
         descending = self.velocity[2] * dt <= around[2]  # the origin's velocity
         self.landed = (lowest_z is not None and descending
                        and (self.landed or bool(self.position[2] < lowest_z)))
@@ -140,35 +143,59 @@ class BallisticRoot:
             supported: Whether a planted point carried the body this frame.
             R_world_pelvis: (3, 3) the frame's pelvis orientation, as given to :meth:`target`.
         """
-        self._shift = np.zeros(3)  # a shift is for the frame after the one it was given in
-        around = self._lever_step(R_world_pelvis)
-        self._lever_world = (None if self.lever is None or R_world_pelvis is None
-                             else R_world_pelvis @ self.lever)
-        measured = a_world is not None and _finite(a_world)
+        self._shift = _NO_SHIFT  # a shift is for the frame after the one it was given in
+        lever_now = self._lever_world_of(R_world_pelvis)
+        around = _ZERO_MOVE if lever_now is None or self._lever_world is None \
+            else lever_now - self._lever_world
+        self._lever_world = lever_now
+        a = None if a_world is None else np.asarray(a_world, dtype=float).ravel().tolist()
+        measured = a is not None and all(map(math.isfinite, a))
         if not supported:  # in flight: the path's own velocity
-            a = a_world if measured and a_world is not None else GRAVITY
-            self.velocity = self.velocity + a * max(dt, 0.0)
+            a_flight = a_world if measured and a_world is not None else GRAVITY
+            self.velocity = self.velocity + a_flight * max(dt, 0.0)
             return
         self.position = None
         self.landed = False
-        if not measured or a_world is None or dt <= 0.0:
+        if not measured or a is None or dt <= 0.0:
             self.velocity = np.asarray(v_solved, dtype=float) + (around / dt if dt > 0 else 0.0)
             return
-        predicted = self.velocity + a_world * dt
-        # the finite difference is the velocity half a frame back: bring it to this frame,
-        # at the sensor
-        v_now = v_solved + around / dt + 0.5 * a_world * dt
-        gain = 1.0 if self.tau == 0.0 else min(1.0, dt / self.tau)
-        self.velocity = predicted + gain * (v_now - predicted)
+        self.velocity = np.array(_filtered(self.velocity.tolist(),
+                                           np.asarray(v_solved, dtype=float).tolist(),
+                                           around.tolist(), a, dt, self.tau))
+
+    def _lever_world_of(self, R_world_pelvis: np.ndarray | None) -> np.ndarray | None:
+        """(3,) the accelerometer's offset from the pelvis origin in the world [m], or None."""
+        if self.lever is None or R_world_pelvis is None:
+            return None
+        return np.asarray(R_world_pelvis @ self.lever)
 
     def _lever_step(self, R_world_pelvis: np.ndarray | None) -> np.ndarray:
         """(3,) how far [m] the accelerometer moved around the pelvis origin since the last frame.
 
         Zero without a lever arm or an orientation for this frame or the last one.
         """
-        if self.lever is None or R_world_pelvis is None or self._lever_world is None:
+        lever_now = self._lever_world_of(R_world_pelvis)
+        if lever_now is None or self._lever_world is None:
             return np.zeros(3)
-        return np.asarray(R_world_pelvis @ self.lever - self._lever_world)
+        return np.asarray(lever_now - self._lever_world)
+
+
+def _filtered(v: list[float], v_solved: list[float], around: list[float], a: list[float],
+              dt: float, tau: float) -> tuple[float, ...]:
+    """The standing filter's velocity [m/s], per axis with floats (NumPy's numbers on (3,)).
+
+    ``v``: the kept velocity, ``v_solved``: the solve's finite difference [m/s], ``around``:
+    the sensor's motion around the origin [m], ``a``: the acceleration [m/s^2], over ``dt`` > 0
+    [s] with time constant ``tau`` [s]: ``v + a dt`` pulled towards ``v_solved + around / dt +
+    a dt / 2`` (the finite difference is the velocity half a frame back, at the origin).
+    """
+    gain = 1.0 if tau == 0.0 else min(1.0, dt / tau)
+    out = []
+    for vi, si, ri, ai in zip(v, v_solved, around, a):
+        predicted = vi + ai * dt
+        v_now = si + ri / dt + 0.5 * ai * dt
+        out.append(predicted + gain * (v_now - predicted))
+    return tuple(out)
 
 
 def sensor_lever(model: HumanModel, segment: str = "Pelvis") -> np.ndarray | None:

@@ -27,9 +27,10 @@ from .anchor_settling import held_again
 from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
 from .fast_math import any_true, min_of, true_indices
 from .frame import Frame
+from .frame_stance import FrameStance
 from .landing_lag import unlagged_landings
 from .point_bits import point_bits
-from .point_evidence import FrameEvidence, frame_evidence
+from .point_evidence import FrameEvidence, frame_evidence, heights_above_lowest
 from .release import ANKLE, ReleaseEasing
 from .settings import SolverSettings
 from .support import SupportFollower
@@ -40,7 +41,6 @@ from .tasks import PositionTask, Task
 #: running cost nothing for the points of a lying body).
 FAR_FROM_FLOOR = 0.3
 
-_PATTERNS = 4096  # at most this many patterns of evidence are kept (a few dozen in practice)
 _Array = np.ndarray | None
 
 
@@ -80,10 +80,9 @@ class ContactTracker:
         self._foot_rows = self._feet[self._has_foot]  # the segment of each point with a foot
         self._foot_points = true_indices(self._has_foot)  # ... and the point
         self._no_pitch = np.full(len(self._feet), np.nan)  # foot_pitch's start: no foot
-        self._still_of: dict[tuple[tuple[str, bool], ...], np.ndarray] = {}  # _feet_still's
-        self._moving_of: dict[tuple[tuple[str, bool], ...], np.ndarray] = {}  # _points_moving's
-        self._tracked: np.ndarray | None = None  # the last foot_pitch's tracked segments ...
-        self._untracked = np.zeros(0, dtype=int)  # ... and its rows without a target
+        self._stance = FrameStance(self.names, self._foot_names, self._bits)
+        self._rest = self._bits.of(self._needs_rest)  # the trunk points, as bits
+        self._untracked: dict[bytes, tuple[int, ...]] = {}  # _untracked_feet's, per pattern
         self.support = SupportFollower(self.layout, s.lag_speed, s.lag_max, s.swing_speed,
                                        s.lean_max, s.lean_speed, s.touchdown_confirm,
                                        self.thresholds.floor_z)
@@ -151,16 +150,19 @@ class ContactTracker:
                                               np.hypot(forward[:, 0], forward[:, 1]))
         return pitch
 
-    def _untracked_feet(self, tracked: np.ndarray) -> np.ndarray:
+    def _untracked_feet(self, tracked: np.ndarray) -> tuple[int, ...]:
         """Rows of ``_foot_rows`` whose foot has no target in ``tracked`` (n,) bool.
 
-        Kept while the caller passes the same read-only array (the targets' weighting is the
-        same from frame to frame until a sensor drops out or comes back).
+        Kept per pattern of ``tracked`` (the targets' weighting is the same from frame to frame
+        until a sensor drops out or comes back).
         """
-        if tracked is not self._tracked or tracked.flags.writeable:
-            self._tracked = tracked
-            self._untracked = true_indices(~tracked[self._foot_rows])
-        return self._untracked
+        key = tracked.tobytes()
+        rows = self._untracked.get(key)
+        if rows is None:
+            rows = tuple(true_indices(~np.asarray(tracked, dtype=bool)[self._foot_rows]).tolist())
+            if len(self._untracked) < 64:  # (a few patterns: sensors dropping out, coming back)
+                self._untracked[key] = rows
+        return rows
 
     def start(self, p_sensed: np.ndarray, pitch: np.ndarray) -> None:
         """The first frame's sensed contact points (c, 3) [m] and foot pitches (c,) [rad]."""
@@ -191,11 +193,13 @@ class ContactTracker:
         self._p_sensed.setflags(write=False)
         self._pitch.setflags(write=False)
         z = self._p_sensed[:, 2]
-        self.far_from_floor = self._needs_rest & (z > min_of(z) + FAR_FROM_FLOOR)
-        still, moving = self._feet_still(frame), self._points_moving(frame)
+        lowest = min_of(z)
+        self.far_from_floor = self._needs_rest & (z > lowest + FAR_FROM_FLOOR)
+        (still, stance), moving = self._stance.feet_still(frame), self._stance.points_moving(frame)
         th = self.thresholds
-        evidence = frame_evidence(self._bits, self._p_sensed, self._pitch, still, self._needs_rest,
-                                  self._tilt, th.leave_relative, th.enter_relative)
+        evidence = frame_evidence(self._bits, heights_above_lowest(self._p_sensed, lowest),
+                                  self._pitch, stance, self._rest, self._tilt, th.leave_relative,
+                                  th.enter_relative)
         self._evidence = (frame, still, moving, evidence)
         tip = self.carrier.tip_speed  # lone toes' tips sliding (0: none, the usual frame)
         self.state = release_contacts(
@@ -271,11 +275,10 @@ class ContactTracker:
         if weight > 0 and support.moves_pelvis():
             root.set_target(target, weight)
             tasks.append(root)
-        p_led = support.led_points(p_warm)
         if not support.leads():  # the usual frame: no swing foot led
-            support.keep_base(p_led)
+            support.keep_base(p_warm)
             return tasks
-        targets, weights = support.swing_targets(p_led)
+        targets, weights = support.swing_targets(support.led_points(p_warm))
         if any_true(weights):
             swing.set_targets(targets, weights)
             tasks.append(swing)
@@ -294,15 +297,17 @@ class ContactTracker:
         t_old, p_old = self._history[0]
         released, self._evidence = self._evidence, None
         still, moving, evidence = (released[1:] if released is not None and released[0] is frame
-                                   else (self._feet_still(frame), self._points_moving(frame), None))
+                                   else (self._stance.feet_still(frame)[0],
+                                         self._stance.points_moving(frame), None))
         before = self.state.active
         self.state = touch_down(self.state, p_contacts, p_old, self._p_sensed,
                                 frame.time - t_old, self.thresholds, self._hints(frame),
                                 self._pitch, layout=self.layout, points_moving=moving,
                                 foot_still=still, needs_rest=self._needs_rest,
                                 v_sensed=self._v_sensed, evidence=evidence)
-        stood, lag = (before, self.support.lag) if any_true(before) else self._flown
-        self.state = unlagged_landings(stood, self.state, self.layout, lag, frame)
+        if frame.points_velocity:  # (none: no landing is unlagged)
+            stood, lag = (before, self.support.lag) if any_true(before) else self._flown
+            self.state = unlagged_landings(stood, self.state, self.layout, lag, frame)
 
     def _hints(self, frame: Frame) -> Mapping[str, bool] | None:
         """The frame's contact hints; in flight (``frame.airborne``) every point is free.
@@ -313,38 +318,3 @@ class ContactTracker:
         if frame.airborne:
             return {**dict.fromkeys(self.names, False), **(frame.contacts or {})}
         return frame.contacts
-
-    def _points_moving(self, frame: Frame) -> np.ndarray | None:
-        """Per point: 1 moves by its foot's IMU (``frame.points_moving``), 0 not, NaN unknown.
-
-        Read-only, kept per pattern of ``frame.points_moving`` (as :meth:`_feet_still`).
-        """
-        known = frame.points_moving
-        if not known:
-            return None
-        key = tuple(known.items())
-        moving = self._moving_of.get(key)
-        if moving is None:
-            moving = np.array([float(known[n]) if n in known else np.nan for n in self.names])
-            moving.setflags(write=False)
-            if len(self._moving_of) < _PATTERNS:
-                self._moving_of[key] = moving
-        return moving
-
-    def _feet_still(self, frame: Frame) -> np.ndarray | None:
-        """1 where each point's foot stands still by its IMU, 0 moving, NaN unknown.
-
-        Read-only, kept per pattern of ``frame.feet_still`` (few: stance changes at steps).
-        """
-        known = frame.feet_still
-        if not known:
-            return None
-        key = tuple(known.items())
-        still = self._still_of.get(key)
-        if still is None:
-            nan = math.nan
-            still = np.array([nan if f is None or (s := known.get(f)) is None else float(s)
-                              for f in self._foot_names])
-            still.setflags(write=False)
-            self._still_of[key] = still
-        return still

@@ -26,17 +26,26 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..model.topology import FootLayout
 from .anchor_settling import settled_heights
-from .fast_math import row_norms
-from .foot_pairs import drift_from_other_foot, landing_anchors
+from .contact_thresholds import ContactThresholds
+from .foot_pairs import drift_from_other_foot, landing_anchors, other_foot_age
 from .handover import plant_anchors
-from .point_bits import PointBits, has, point_bits
-from .point_evidence import FrameEvidence, by_rest, frame_evidence, hinted_points, motion_bits
+from .landing_rules import may_land
+from .point_bits import PointBits, below, has, indices, point_bits
+from .point_evidence import (
+    FrameEvidence,
+    by_rest,
+    frame_evidence,
+    heights_above_lowest,
+    hinted_points,
+    motion_bits,
+    stance_bits,
+)
 from .sweeping import sweeping_beside, sweeping_points
 from .trunk_roll import body_takers, pulled_points, roll_on_segment
 
@@ -51,6 +60,9 @@ class ContactState:
         anchors: (k, 3) [m] where each point is held while in contact.
         age: (k,) [s] how long each point has been in contact.
         released: (k,) [s] how long ago each point left contact (inf: never in contact).
+
+    A state is replaced, never written to: successive states share the arrays that did not
+    change.
     """
 
     names: list[str]
@@ -72,31 +84,6 @@ class ContactState:
     def as_dict(self) -> dict[str, bool]:
         """Name -> in contact."""
         return {n: bool(a) for n, a in zip(self.names, self.active)}
-
-
-@dataclass(frozen=True)
-class ContactThresholds:
-    """Hysteresis thresholds [m, m/s, deg, rad/s].
-
-    Their defaults live in ``configs/solver.yaml`` (section contacts) and
-    :class:`ikfusion.ik.SolverSettings`.
-    """
-
-    floor_z: float
-    enter_height: float
-    enter_speed: float
-    enter_relative: float
-    leave_relative: float
-    leave_distance: float
-    settle_speed: float
-    tilt_deg: float
-    still_relative: float
-    reenter_delay: float
-
-    @classmethod
-    def from_settings(cls, settings: object) -> ContactThresholds:
-        """The thresholds of a :class:`ikfusion.ik.SolverSettings`."""
-        return cls(**{f.name: getattr(settings, f.name) for f in fields(cls)})
 
 
 def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: ContactThresholds,
@@ -181,10 +168,12 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     pulled = 0  # one foot planted: no drift from another (nothing pulled, as leave_distance >= 0)
     if staying & bits.other_foot(staying) or th.leave_distance < 0:
         held = state.anchors if placed is None else state.anchors - placed
-        drift, other_age = drift_from_other_foot(layout, bits.mask(staying), held, p_sensed,
-                                                 state.age)
-        pulled = pulled_points(bits, bits.of(drift > th.leave_distance),
-                             bits.of(state.age >= other_age), staying, rest)
+        planted = bits.mask(staying)
+        # only a planted point that disagrees may be pulled (the ages of the rare frame)
+        if disagrees := bits.of(drift_from_other_foot(layout, planted, held, p_sensed)
+                                > th.leave_distance) & staying:
+            older = bits.of(state.age >= other_foot_age(layout, planted, state.age))
+            pulled = pulled_points(bits, disagrees, older, staying, rest)
     # a resting knee or palm (calm accelerometer) is weaker evidence than a still foot: the
     # sensed pose may still lift it
     lifted = (ev.high | tilted) & ~(still & bits.stepping)
@@ -214,18 +203,21 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
             plant |= 1 << lowest
         elif not has(pushing_off, kept):  # a toe pushing off flies
             leave &= ~(1 << kept)
-    anchors, age = state.anchors.copy(), state.age.copy()
+    anchors, age, released = state.anchors, state.age, state.released
     if plant:
+        anchors, age = anchors.copy(), age.copy()
         plant_anchors(anchors, bits.mask(plant), active, bits.mask(on & ~leave), handover,
                        p_sensed, p_solved, step_sensed, layout, th.floor_z)
         age[bits.mask(plant)] = 0.0
-    released = state.released.copy()
     if leave:
+        released = released.copy()
         released[bits.mask(leave)] = 0.0
     now = on & ~leave | plant
-    held_now = bits.array(now)
+    held_now = active if now == on else bits.array(now)
     if not hints and now & rest & bits.shares_segment:
-        # a planted trunk point rolls onto a lower point of its segment
+        # a planted trunk point rolls onto a lower point of its segment (in place: copies)
+        held_now, anchors, age, released = (held_now.copy(), anchors.copy(), age.copy(),
+                                            released.copy())
         roll_on_segment(held_now, anchors, age, released, p_sensed, needs_rest, layout, th.floor_z)
     return ContactState(state.names, held_now, anchors, age, released)
 
@@ -234,7 +226,8 @@ def _evidence(bits: PointBits, p_sensed: np.ndarray, foot_pitch: np.ndarray | No
               foot_still: np.ndarray | None, needs_rest: np.ndarray | None,
               th: ContactThresholds) -> FrameEvidence:
     """The :func:`.point_evidence.frame_evidence` of a frame under thresholds ``th``."""
-    return frame_evidence(bits, p_sensed, foot_pitch, foot_still, needs_rest,
+    return frame_evidence(bits, heights_above_lowest(p_sensed), foot_pitch,
+                          stance_bits(bits, foot_still), bits.of_optional(needs_rest),
                           math.radians(th.tilt_deg), th.leave_relative, th.enter_relative)
 
 
@@ -292,59 +285,30 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     ev = evidence or _evidence(bits, p_sensed, foot_pitch, foot_still, needs_rest, th)
     released = np.where(was, state.released, state.released + step)
     # near the floor and among the lowest points: the candidates (few frames have any)
-    enter = bits.of(p_solved[:, 2] < th.floor_z + th.enter_height) & ev.low & ~on
+    if enter := ev.low & ~on:
+        enter = below(p_solved[:, 2].tolist(), th.floor_z + th.enter_height, indices(enter))
     if enter:
-        enter &= _may_enter(bits, on, p_solved, p_solved_previous, dt, ev, released, th,
+        enter &= may_land(bits, on, enter, p_solved, p_solved_previous, dt, ev, released, th,
                             points_moving)
         enter &= ~sweeping_beside(bits, v_sensed, on, points_moving, th.enter_speed)
     for i, hinted in hinted_points(state.names, hints):
         enter = enter | 1 << i if not on & 1 << i and hinted else enter & ~(1 << i)
     if not on and not enter and not hints:
         enter = 1 << int(np.argmin(p_sensed[:, 2]))
-    anchors = state.anchors.copy()
+    anchors, active = state.anchors, was  # (shared while unchanged, as release_contacts's)
     if enter:
         entering = bits.mask(enter)
+        anchors = anchors.copy()
         anchors[entering] = landing_anchors(layout, was, anchors, p_solved, entering)
         active = bits.array(on | enter)
         anchors[entering, 2] = np.maximum(anchors[entering, 2], th.floor_z)
-    else:
-        active = was.copy()
-    anchors[:, 2] = settled_heights(anchors[:, 2], active, layout.same_segment,
-                                    th.settle_speed * step, th.floor_z, layout.shares_segment)
+    z = anchors[:, 2]
+    settled = settled_heights(z, active, layout.same_segment, th.settle_speed * step, th.floor_z,
+                              layout.shares_segment)
+    if settled is not z:
+        anchors = anchors.copy() if anchors is state.anchors else anchors
+        anchors[:, 2] = settled
     age = np.where(active, state.age + step, 0.0)
     if enter:
         age[entering] = 0.0
     return ContactState(state.names, active, anchors, age, released)
-
-
-def _may_enter(bits: PointBits, on: int, p_solved: np.ndarray, p_solved_previous: np.ndarray,
-               dt: float, ev: FrameEvidence, released: np.ndarray, th: ContactThresholds,
-               points_moving: np.ndarray | None) -> int:
-    """The points (bits) :func:`touch_down` lets land, its other rules than height.
-
-    Slow (or known not to move, or as low as a support that moves), not ruled out by the foot
-    pitch, not let go just now (toe-off), not a moving point while a point of the other foot
-    that does not move holds the body, not a trunk point whose segment moves. ``on``: the
-    planted points; ``ev``: the frame's evidence.
-    """
-    height_rel = ev.height_rel
-    moving_point, settled = motion_bits(bits, points_moving)
-    speed = (row_norms(p_solved - p_solved_previous) / dt if dt > 0
-             else np.zeros(len(p_solved)))
-    # a point that just let go (toe-off) does not come back down at once while it is low,
-    # unless its foot IMU says it no longer moves (a landing heel let go while it skidded).
-    # A point its foot IMU says does not move is slow whatever its solved speed: that speed
-    # is relative to the planted points, and a planted point that truly slides (a toe dragged
-    # at push-off) moves the whole solved body, the landing foot with it. For the same reason
-    # the solved speed says nothing while the IMUs say every planted point moves (a body held
-    # on a toe that lifts): the sensed pose decides then, a point taking the body once it is
-    # as low as the planted points.
-    support_moving = (bits.of(height_rel <= np.min(height_rel[bits.mask(on)], initial=np.inf))
-                      if on and not on & ~moving_point else 0)
-    ok = ((bits.of(speed < th.enter_speed) | settled | support_moving) & ~ev.tilted
-          & (bits.of(released >= th.reenter_delay) | settled))
-    if points_moving is not None:  # see release_contacts
-        ok &= ~(moving_point & bits.other_foot(on & ~moving_point))
-    # a trunk point whose segment's IMU says it moves (NaN: unknown)
-    return ok & ~(ev.rest & ev.foot_moves)
-

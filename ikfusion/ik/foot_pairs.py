@@ -47,22 +47,31 @@ def landing_anchors(layout: FootLayout, active: np.ndarray, anchors: np.ndarray,
 
 
 def drift_from_other_foot(layout: FootLayout, active: np.ndarray, anchors: np.ndarray,
-                           p_sensed: np.ndarray, age: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                          p_sensed: np.ndarray) -> np.ndarray:
     """How far each planted point is pulled from its anchor by the other foot.
 
     The sensed pose is aligned on the planted points of the *other* foot; the horizontal
     distance of the point from its anchor then says how much the two feet disagree [m] (0 when
-    the other foot has no planted point). Also returns the longest contact age of the other
-    foot's planted points [s] (+inf when none).
+    the other foot has no planted point).
     """
     pairs = layout_memo(layout, "planted_pairs", _planted_pairs)(active)
     if pairs is None:  # the usual case: one foot planted
-        return _no_drift(len(active))
+        return _no_drift(len(active))[0]
     others, has, count = pairs
     offset = (others @ (anchors - p_sensed)) / count
-    drift = np.where(has, row_norms((p_sensed + offset - anchors)[:, :2]), 0.0)
-    other_age = np.where(has, np.where(others, age[None, :], -np.inf).max(axis=1), np.inf)
-    return drift, other_age
+    return np.where(has, row_norms((p_sensed + offset - anchors)[:, :2]), 0.0)
+
+
+def other_foot_age(layout: FootLayout, active: np.ndarray, age: np.ndarray) -> np.ndarray:
+    """The longest contact age [s] of the other foot's planted points (+inf when none).
+
+    ``active``: (k,) the planted points; ``age``: (k,) how long each has been planted [s].
+    """
+    pairs = layout_memo(layout, "planted_pairs", _planted_pairs)(active)
+    if pairs is None:
+        return _no_drift(len(active))[1]
+    others, has, _ = pairs
+    return np.where(has, np.where(others, age[None, :], -np.inf).max(axis=1), np.inf)
 
 
 def _planted_pairs(layout: FootLayout, active: np.ndarray
@@ -70,13 +79,14 @@ def _planted_pairs(layout: FootLayout, active: np.ndarray
     """:func:`drift_from_other_foot`'s pairs of planted points, once per pattern of ``active``.
 
     None while one foot holds the planted points, else the (k, k) planted points of the other
-    foot of each point (row i), whether it has any (k,) and how many (k, 1), at least 1.
+    foot of each point (row i; 1.0 or 0.0, the matrix the product takes), whether it has any
+    (k,) and how many (k, 1), at least 1.
     """
     if not any_true(active & other_foot(layout, active)):
         return None
     others = active[:, None] & active[None, :] & layout.other_foot  # row i: the other foot's
     count = others.sum(axis=1)
-    return others, count > 0, np.maximum(count, 1)[:, None]
+    return others.astype(float), count > 0, np.maximum(count, 1)[:, None]
 
 
 @functools.cache

@@ -15,7 +15,7 @@ mask handed out here is ``0 <= m < 2**k``.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
@@ -122,6 +122,28 @@ def indices(bits: int) -> tuple[int, ...]:
 
 
 _INDICES: dict[int, tuple[int, ...]] = {}
+
+
+def above(values: list[float], limit: float, rows: Sequence[int] | None = None) -> int:
+    """The bits of ``values[i] > limit`` (NaN: not), over ``rows`` (None: every index).
+
+    ``bits.of(np.array(values) > limit)`` on floats: the same comparisons, without NumPy's
+    array and look-up for the few entries of a frame.
+    """
+    out = 0
+    for i in range(len(values)) if rows is None else rows:
+        if values[i] > limit:
+            out |= 1 << i
+    return out
+
+
+def below(values: list[float], limit: float, rows: Sequence[int] | None = None) -> int:
+    """The bits of ``values[i] < limit`` (NaN: not), over ``rows`` (None: every index)."""
+    out = 0
+    for i in range(len(values)) if rows is None else rows:
+        if values[i] < limit:
+            out |= 1 << i
+    return out
 
 
 def first(bits: int) -> int:

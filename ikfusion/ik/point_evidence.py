@@ -12,7 +12,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .fast_math import min_of
-from .point_bits import PointBits
+from .point_bits import PointBits, above, below, indices
 from .point_masks import LastInput
 
 
@@ -24,13 +24,14 @@ def hinted_points(names: Sequence[str],
     return [(i, bool(hints[n])) for i, n in enumerate(names) if n in hints]
 
 
-def heights_above_lowest(p_sensed: np.ndarray) -> np.ndarray:
+def heights_above_lowest(p_sensed: np.ndarray, lowest: float | None = None) -> np.ndarray:
     """(k,) how far each point is above the lowest of ``p_sensed`` (k, 3) [m] (world z).
 
     Worked out once per frame (:func:`frame_evidence`), for the release and the touch-down.
+    ``lowest``: that lowest height [m] when the caller has it (``min_of`` of the heights).
     """
     z = p_sensed[:, 2]
-    return z - min_of(z)
+    return z - (min_of(z) if lowest is None else lowest)
 
 
 def _by_rest(needs_rest: np.ndarray, rest: float, other: float) -> np.ndarray:
@@ -56,9 +57,8 @@ def tilted_bits(bits: PointBits, foot_pitch: np.ndarray | None, limit: float) ->
     """
     if foot_pitch is None:
         return 0
-    pitch = foot_pitch if isinstance(foot_pitch, np.ndarray) \
-        else np.asarray(foot_pitch, dtype=float)  # NaN (unknown) compares False: not tilted
-    return bits.heels & bits.of(pitch > limit) | bits.toes & bits.of(pitch < -limit)
+    pitch = np.asarray(foot_pitch, dtype=float).tolist()  # NaN (unknown) compares False
+    return above(pitch, limit, indices(bits.heels)) | below(pitch, -limit, indices(bits.toes))
 
 
 def motion_bits(bits: PointBits, points_moving: np.ndarray | None) -> tuple[int, int]:
@@ -110,23 +110,23 @@ class FrameEvidence(NamedTuple):
     low: int
 
 
-def frame_evidence(bits: PointBits, p_sensed: np.ndarray, foot_pitch: np.ndarray | None,
-                   foot_still: np.ndarray | None, needs_rest: np.ndarray | None,
-                   tilt: float, leave_relative: float, enter_relative: float) -> FrameEvidence:
-    """The :class:`FrameEvidence` of sensed points ``p_sensed`` (k, 3) [m] and the rest.
+def frame_evidence(bits: PointBits, height_rel: np.ndarray, foot_pitch: np.ndarray | None,
+                   stance: tuple[int, int], rest: int, tilt: float, leave_relative: float,
+                   enter_relative: float) -> FrameEvidence:
+    """The :class:`FrameEvidence` of one frame's sensed points.
 
     Args:
         bits: The points' :class:`PointBits`.
-        p_sensed: (k, 3) contact points of the (smoothed) sensed pose [m] (any translation).
+        height_rel: (k,) how far each point is above the lowest (:func:`heights_above_lowest`
+            of the smoothed sensed pose) [m].
         foot_pitch: (k,) each point's foot pitch [rad] (toe down positive, NaN unknown).
-        foot_still: (k,) 1 its foot stands still by its IMU, 0 moves, NaN unknown.
-        needs_rest: (k,) the points where the body rests only lying or sitting.
+        stance: The points whose foot stands still by its IMU and those whose foot moves
+            (:func:`stance_bits`).
+        rest: The points where the body rests only lying or sitting (bits).
         tilt: The pitch [rad] past which a heel or toe is ruled out.
         leave_relative: ``high``'s height above the lowest point [m].
         enter_relative: ``low``'s height above the lowest point [m].
     """
-    height_rel = heights_above_lowest(p_sensed)
-    still, foot_moves = stance_bits(bits, foot_still)
-    return FrameEvidence(height_rel, tilted_bits(bits, foot_pitch, tilt), still, foot_moves,
-                         bits.of_optional(needs_rest), bits.of(height_rel > leave_relative),
-                         bits.of(height_rel < enter_relative))
+    heights = height_rel.tolist()
+    return FrameEvidence(height_rel, tilted_bits(bits, foot_pitch, tilt), stance[0], stance[1],
+                         rest, above(heights, leave_relative), below(heights, enter_relative))

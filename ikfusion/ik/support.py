@@ -38,7 +38,7 @@ from ..model.topology import FootLayout
 from . import vec3
 from .fast_math import mean_rows
 from .point_bits import indices, point_bits
-from .swing_lead import band_share, lead_targets
+from .swing_lead import LedBase, band_share, lead_targets
 from .vec3 import ZERO, ArrayView, Vec3
 
 
@@ -65,10 +65,8 @@ class SupportFollower:
     def __init__(self, layout: FootLayout, lag_speed: float, lag_max: float,
                  swing_speed: float, lean_max: float, lean_speed: float,
                  confirm: float, floor_z: float = 0.0) -> None:
-        self.floor_z = floor_z
-        self.lag_speed = lag_speed
-        self.lag_max = lag_max
-        self.swing_speed = swing_speed
+        self.floor_z, self.swing_speed = floor_z, swing_speed
+        self.lag_speed, self.lag_max = lag_speed, lag_max
         self.lean_max, self.lean_speed = lean_max, lean_speed
         self.confirm = confirm
         k = len(layout.on_foot)
@@ -97,11 +95,9 @@ class SupportFollower:
         self._height_trust = [1.0] * n  # how far a swing heel is held at its sensed height
         self._goal = [ZERO] * n
         self._has_goal = [False] * n  # any(self._goal[f]), kept with it
-        self._swing = [ZERO] * n
-        self._landed_swing = [ZERO] * n
-        self._base: np.ndarray | None = None
+        self._swing, self._landed_swing = [ZERO] * n, [ZERO] * n
+        self._led_base = LedBase(len(self._led))  # where the contact points were led
         self._target: Vec3 | None = None
-        self._deviation = np.zeros((len(self._led), 3))
         self._planted_for = [0.0] * n
         self._placed_by = np.zeros((n, 3))  # how far each foot's anchors were moved on purpose
         self._reference_feet = self._all_groups  # the groups (bits) the body stands on
@@ -230,6 +226,8 @@ class SupportFollower:
         other foot lets go, so the leg that leaves the floor carries no strain that would snap.
         """
         age, on = self._planted_for, indices(planted)
+        if len(on) == 1:  # the usual frame: one foot planted
+            return self._group_points[on[0]] & active
         longest = max([age[f] for f in on])
         return sum(self._group_points[f] for f in on if age[f] == longest) & active
 
@@ -280,7 +278,7 @@ class SupportFollower:
                 # the heel leaves the floor where it is, not where the sensed leg puts it (nor
                 # where it was led before a short touch-down: the body moved under it since)
                 swing = self._swing[f] = tuple(  # type: ignore[assignment]
-                    mean_rows(self._deviation[points & self._led]).tolist())
+                    mean_rows(self._led_base.deviation()[points & self._led]).tolist())
                 # a sensed leg that disagreed with the floor's height does not set the heel's
                 self._height_trust[f] = band_share(-abs(swing[2]))
                 self._landed_swing[f] = ZERO
@@ -302,11 +300,10 @@ class SupportFollower:
             p_solved: (k, 3) solved contact points [m].
             p_pelvis: (3,) solved pelvis position [m].
         """
-        if self._base is not None:
-            self._deviation = p_solved - self._base
+        self._led_base.record(p_solved)
         x, y, z = p_pelvis.tolist()
         self._off_target = ZERO if self._target is None else vec3.sub((x, y, z), self._target)
-        self._base = self._target = None
+        self._target = None
 
     def placed_offsets(self, active: np.ndarray) -> np.ndarray | None:
         """(k, 3) [m]: how far each planted point was placed from where the sensed legs put it.
@@ -334,9 +331,12 @@ class SupportFollower:
         """Whether a swinging foot is led now (:meth:`swing_targets` gives it information)."""
         return any(map(bool.__and__, self._swinging, self._has_goal))  # lists of bools
 
-    def keep_base(self, p_points: np.ndarray) -> None:
-        """Keep the contact points (k, 3) [m] led this frame for :meth:`record` (no swing)."""
-        self._base = p_points
+    def keep_base(self, p_warm: np.ndarray) -> None:
+        """Keep the contact points (k, 3) [m] of the warm start for :meth:`record` (no swing).
+
+        They are led by this frame's lag and lean (:meth:`led_points`, worked out at a lift-off).
+        """
+        self._led_base.keep(p_warm, self._lag, self._lean)
 
     def swing_targets(self, p_points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Targets (k, 3) [m] and information (k, 3, 3) of the heels of swing feet led now.
@@ -344,7 +344,7 @@ class SupportFollower:
         ``p_points``: (k, 3) contact points of the warm start (the sensed pose on the support,
         plus the lag) [m]. See :func:`.swing_lead.lead_targets`.
         """
-        self._base = p_points.copy()
+        self._led_base.keep(p_points.copy())
         led = [(points, self._swing[f], self._height_trust[f])
                for f, points in enumerate(self._feet) if self._swinging[f] and self._has_goal[f]]
         return lead_targets(p_points, led, self._led, self.floor_z)

@@ -16,6 +16,8 @@ import numpy as np
 
 _HORIZONTAL = np.diag([1.0, 1.0, 0.0])  # information of a lead on the x and y axes
 _VERTICAL = np.diag([0.0, 0.0, 1.0])  # ... and on the z axis
+#: (points, lag or None, lean) of :class:`LedBase`
+_Led = tuple[np.ndarray, tuple[float, ...] | None, tuple[float, ...]]
 UNDER_FLOOR_BAND = 0.01  # [m] the lead lets a heel's height go as its foot sinks this far
 # under the floor, or as the heel lifts off this far from the sensed leg's height
 
@@ -43,3 +45,39 @@ def lead_targets(p_points: np.ndarray, led: Sequence[tuple[np.ndarray, tuple[flo
 def band_share(height: float) -> float:
     """1 at or above 0, falling to 0 at ``-UNDER_FLOOR_BAND`` [m] and below."""
     return min(max(1.0 + height / UNDER_FLOOR_BAND, 0.0), 1.0)
+
+
+class LedBase:
+    """Where the contact points were led in the last solved frame, and how far it put them off.
+
+    The deviation (solved less led, (k, 3) [m]) is read only when a foot lifts off (its heel
+    leaves the floor where it is, :class:`.support.SupportFollower`), a few times a walk: the
+    led points ``points + lag + lean`` are kept as their terms and added up then (the same
+    sums as when kept added up).
+
+    Args:
+        k: Number of contact points.
+    """
+
+    def __init__(self, k: int) -> None:
+        self._k = k
+        self._base: _Led | None = None
+        self._recorded: tuple[np.ndarray, _Led] | None = None
+
+    def keep(self, points: np.ndarray, lag: tuple[float, ...] | None = None,
+             lean: tuple[float, ...] = (0.0, 0.0, 0.0)) -> None:
+        """This frame's points (k, 3) [m], led by ``lag`` then ``lean`` (3,) [m] (None: led)."""
+        self._base = (points, lag, lean)
+
+    def record(self, p_solved: np.ndarray) -> None:
+        """After solving: the solved points (k, 3) [m] of the frame kept (none kept: no change)."""
+        if self._base is not None:
+            self._recorded, self._base = (p_solved, self._base), None
+
+    def deviation(self) -> np.ndarray:
+        """(k, 3) [m] the last recorded solved points less where they were led (zeros: none)."""
+        if self._recorded is None:
+            return np.zeros((self._k, 3))
+        p_solved, (points, lag, lean) = self._recorded
+        return p_solved - (points if lag is None else points + lag + lean)
+

@@ -52,13 +52,13 @@ def test_feet_stance_follows_every_pattern_back_and_forth(human: HumanModel) -> 
     stances = [dict(zip(feet, flags)) for flags in itertools.product([True, False], repeat=4)]
     stances += [{"RightFoot": True}, {"LeftFoot": False, "T8": True}]
     for stance in stances + stances[::-1]:
-        still = tracker._feet_still(Frame(0.0, feet_still=stance))
+        still = tracker._stance.feet_still(Frame(0.0, feet_still=stance))[0]
         assert still is not None
         expected = [np.nan if f is None or f not in stance else float(stance[f])
                     for f in tracker._foot_names]
         np.testing.assert_array_equal(still, expected)
         assert not still.flags.writeable
-    assert tracker._feet_still(Frame(0.0)) is None
+    assert tracker._stance.feet_still(Frame(0.0))[0] is None
 
 
 def test_foot_pitch_is_nan_without_a_foot_and_fresh_each_frame(human: HumanModel,
@@ -101,7 +101,7 @@ def test_reference_points_are_the_oldest_groups_whatever_the_ages(human: HumanMo
 
 def test_other_foot_and_drift_follow_every_pattern_back_and_forth(
         human: HumanModel, rng: np.random.Generator) -> None:
-    from ikfusion.ik.foot_pairs import drift_from_other_foot, other_foot
+    from ikfusion.ik.foot_pairs import drift_from_other_foot, other_foot, other_foot_age
 
     layout = _tracker(human).layout
     k = len(layout.on_foot)
@@ -112,7 +112,8 @@ def test_other_foot_and_drift_follow_every_pattern_back_and_forth(
                                       (other & active[None, :]).any(axis=1))
         assert not other_foot(layout, active).flags.writeable
         anchors, p_sensed, age = rng.normal(size=(k, 3)), rng.normal(size=(k, 3)), rng.random(k)
-        drift, other_age = drift_from_other_foot(layout, active, anchors, p_sensed, age)
+        drift = drift_from_other_foot(layout, active, anchors, p_sensed)
+        other_age = other_foot_age(layout, active, age)
         for i in range(k):  # plain: align on the other foot's planted points, per point
             others = active & other[i] & active[i]
             if not others.any():
