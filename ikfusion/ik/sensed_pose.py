@@ -180,6 +180,7 @@ class Persistence:
         self.model = model
         self.weight = weight
         self.task = DampingTask(np.zeros(model.nv))
+        self._weights: tuple[np.ndarray | None, np.ndarray] = (None, self.task.weights)
 
     def hold(self, q_warm: np.ndarray, sensed_joints: np.ndarray,
              bent: np.ndarray | None) -> None:
@@ -190,8 +191,13 @@ class Persistence:
             sensed_joints: Tangent columns of the joints between two sensed segments.
             bent: The last frame's bend (nv) [rad]; None: nothing kept (the first frame).
         """
-        weights = np.zeros(self.model.nv)
-        weights[sensed_joints] = self.weight
+        kept, weights = self._weights
+        if sensed_joints is not kept:  # kept while the same read-only columns (the weighting's)
+            weights = np.zeros(self.model.nv)
+            weights[sensed_joints] = self.weight
+            weights.setflags(write=False)
+            if not sensed_joints.flags.writeable:
+                self._weights = (sensed_joints, weights)
         self.task.weights = weights
         self.task.set_reference(None if self.weight <= 0 or bent is None
                                 else pin.integrate(self.model, q_warm, bent))
