@@ -164,9 +164,10 @@ def _fixed(layout: _Layout, rows: np.ndarray, whole: np.ndarray) -> str:
     table, (field, runs) = layout.row_table(n, width)
     np.multiply(np.signbit(rows), _MINUS, out=field[:, :, 0], dtype=np.uint8)
     digits = _ascii_digits(scaled, int_digits + d)
-    field[:, :, 1:1 + int_digits] = digits[:, :, :int_digits]
-    for place in range(1, int_digits):  # leading zeros of the integer part
-        field[:, :, int_digits - place][scaled < 10 ** (place + d)] = _NUL
+    for i in range(int_digits - 1):  # leading zeros of the integer part become NUL
+        np.multiply(digits[:, :, i], scaled >= 10 ** (int_digits - 1 - i + d),
+                    out=field[:, :, 1 + i])
+    field[:, :, int_digits] = digits[:, :, int_digits - 1]
     if d:
         field[:, :, 1 + int_digits] = _POINT
         field[:, :, 2 + int_digits:] = digits[:, :, int_digits:]
