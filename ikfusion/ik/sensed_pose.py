@@ -54,7 +54,7 @@ class SensedPose:
             self.toe_flexion[k] = (axis, np.radians(flex.lower_deg), np.radians(flex.upper_deg))
         self.segment_frames = list(segment_frames)
         self.contact_frames = list(contact_frames)
-        self._data = model.model.createData()
+        self._data = pin.Data(model.model)
         self._compiled: tuple[CompiledKinematics, np.ndarray] | None = None  # and geometry
         self._tracked: tuple[np.ndarray | None, np.ndarray] = (None, np.zeros(0))  # as floats
 
