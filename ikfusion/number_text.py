@@ -83,6 +83,12 @@ def format_rows(row_format: str, table: np.ndarray) -> str:
 BLOCK_VALUES = 32768
 
 
+#: A row's field slots: the (n, k, width) array the fields are written in, and where its slots
+#: go in the row table (None: it is a view into the table, nothing to copy), as runs
+#: ``(table view (n, m, width), first slot, end slot)`` of evenly spaced slots.
+_Slots = tuple[np.ndarray, list[tuple[np.ndarray, int, int]] | None]
+
+
 class _Layout:
     """A row format's literals and decimals, and the byte tables its blocks are written in.
 
@@ -94,14 +100,10 @@ class _Layout:
         self.decimals = decimals
         self.scale = 10.0 ** decimals
         self.lengths = [len(part) for part in self.encoded[:-1]]
-        self.tables: dict[tuple[int, int], tuple[np.ndarray, np.ndarray, np.ndarray | None]] = {}
+        self.tables: dict[tuple[int, int], tuple[np.ndarray, _Slots]] = {}
 
-    def row_table(self, n: int, width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """An (n, row bytes) table holding the literals, and its (n, k, width) field slots.
-
-        The third item: the table columns of the slots when they are a separate array (copied
-        into the table once filled), else None (the slots are a view into the table).
-        """
+    def row_table(self, n: int, width: int) -> tuple[np.ndarray, _Slots]:
+        """An (n, row bytes) table holding the literals, and its field slots (:data:`_Slots`)."""
         if (n, width) not in self.tables:
             self.tables[(n, width)] = _row_table(self.encoded, self.lengths, n, width)
         return self.tables[(n, width)]
@@ -159,36 +161,54 @@ def _fixed(layout: _Layout, rows: np.ndarray, whole: np.ndarray) -> str:
     scaled = whole.astype(np.uint64)
     int_digits = max(1, len(str(int(scaled.max()) // 10 ** d)))
     width = 1 + int_digits + (1 + d if d else 0)
-    table, field, columns = layout.row_table(n, width)
+    table, (field, runs) = layout.row_table(n, width)
     np.multiply(np.signbit(rows), _MINUS, out=field[:, :, 0], dtype=np.uint8)
     digits = _ascii_digits(scaled, int_digits + d)
-    field[:, :, 1:1 + int_digits] = digits[:, :, :int_digits]
-    for place in range(1, int_digits):  # leading zeros of the integer part
-        field[:, :, int_digits - place][scaled < 10 ** (place + d)] = _NUL
+    for i in range(int_digits - 1):  # leading zeros of the integer part become NUL
+        np.multiply(digits[:, :, i], scaled >= 10 ** (int_digits - 1 - i + d),
+                    out=field[:, :, 1 + i])
+    field[:, :, int_digits] = digits[:, :, int_digits - 1]
     if d:
         field[:, :, 1 + int_digits] = _POINT
         field[:, :, 2 + int_digits:] = digits[:, :, int_digits:]
-    if columns is not None:
-        table[:, columns] = field.reshape(n, -1)
+    for view, first, end in runs or ():
+        view[...] = field[:, first:end]
     flat = table.ravel()
     return flat[flat != _NUL].tobytes().decode()
 
 
 def _row_table(encoded: list[bytes], lengths: list[int], n: int,
-               width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """:meth:`_Layout.row_table` made."""
-    k = len(lengths)
+               width: int) -> tuple[np.ndarray, _Slots]:
+    """:meth:`_Layout.row_table` made.
+
+    Slots spaced evenly along the row (one literal between any two, e.g. ``,``) are a strided
+    view of the table, written in place; otherwise (a name column between some) the fields
+    are written in an array of their own and copied into the table run by run, each run a
+    strided view of evenly spaced slots (a few per row, not one index per byte).
+    """
     template = b"".join(part + bytes(width) for part in encoded[:-1]) + encoded[-1]
     table = np.empty((n, len(template)), np.uint8)
     table[:] = np.frombuffer(template, np.uint8)
-    starts = np.cumsum(lengths) + width * np.arange(k)
-    if k == 1 or all(length == lengths[1] for length in lengths[1:]):  # evenly spaced slots
-        step = int(starts[1] - starts[0]) if k > 1 else width
-        view = np.lib.stride_tricks.as_strided(table[:, starts[0]:], (n, k, width),
-                                               (table.strides[0], step, 1))
-        return table, view, None
-    columns = (starts[:, None] + np.arange(width)).ravel()
-    return table, np.empty((n, k, width), np.uint8), columns
+    starts = (np.cumsum(lengths) + width * np.arange(len(lengths))).tolist()
+    views = [(np.lib.stride_tricks.as_strided(table[:, start:], (n, end - first, width),
+                                              (table.strides[0], step, 1)), first, end)
+             for first, end, start, step in _even_runs(starts, width)]
+    if len(views) == 1:
+        return table, (views[0][0], None)
+    return table, (np.empty((n, len(starts), width), np.uint8), views)
+
+
+def _even_runs(starts: list[int], width: int) -> list[tuple[int, int, int, int]]:
+    """Runs ``(first slot, end slot, first byte, byte step)`` of evenly spaced ``starts``."""
+    runs, first = [], 0
+    while first < len(starts):
+        end = first + 1
+        step = starts[end] - starts[first] if end < len(starts) else width
+        while end < len(starts) and starts[end] - starts[end - 1] == step:
+            end += 1
+        runs.append((first, end, starts[first], step))
+        first = end
+    return runs
 
 
 def _ascii_digits(values: np.ndarray, count: int) -> np.ndarray:

@@ -41,6 +41,15 @@ def test_names_percent_signs_and_blocks(rng) -> None:
     assert format_rows(row_format, table) == percent(row_format, table)
 
 
+@pytest.mark.parametrize("row_format", ["%.3f\n", "%.3f%.3f\n", "a%.3f,%.3f,%.3f;b%.3f\n",
+                                        "%.3f,name,%.3f,%.3f,%.3f\n%.3f,n,%.3f,%.3f,%.3f\n"])
+def test_runs_of_evenly_spaced_fields(row_format: str, rng) -> None:
+    """One field, adjacent fields, and runs of evenly spaced fields broken by longer literals."""
+    k = row_format.count("%")
+    table = rng.normal(size=(300, k)) * 10.0 ** rng.integers(-2, 5, (300, k))
+    assert format_rows(row_format, table) == percent(row_format, table)
+
+
 def test_other_formats_are_written_by_percent(rng) -> None:
     table = np.column_stack([np.arange(20) / 100.0, rng.normal(size=20),
                              rng.integers(0, 9, 20)]).astype(float)

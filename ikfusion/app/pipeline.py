@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
@@ -122,35 +123,42 @@ def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str]
     if pelvis is not None and pelvis.acc is not None:
         a_pelvis = world_acceleration(pelvis.R_world_sensor, pelvis.acc)
         a_pelvis[~pelvis.valid] = np.nan
-    # per-sample lists made once (indexing NumPy arrays sample by sample costs more)
-    rows = {s: list(R) for s, R in R_segment.items()}
-    tracked_rows = {s: v.tolist() for s, v in tracked.items()}
-    known = {s: np.isfinite(v).tolist() for s, v in still.items()}
-    still_rows = {s: (v != 0).tolist() for s, v in still.items()}
-    moving_known = {p: np.isfinite(v).tolist() for p, v in moving.items()}
-    moving_rows = {p: (v == 1.0).tolist() for p, v in moving.items()}
-    velocity_known = {p: np.isfinite(v).all(axis=1).tolist() if carry_anchors else []
-                      for p, v in velocity.items()}
-    velocity_rows = {p: list(v) for p, v in velocity.items()} if carry_anchors else {}
-    frames = []
-    for k, t in enumerate(recording.time.tolist()):
-        frames.append(Frame(t, {s: R[k] for s, R in rows.items() if tracked_rows[s][k]},
-                            feet_still={s: v[k] for s, v in still_rows.items()
-                                        if known[s][k]},
-                            points_moving={p: v[k] for p, v in moving_rows.items()
-                                           if moving_known[p][k]},
-                            points_velocity={p: v[k] for p, v in velocity_rows.items()
-                                             if velocity_known[p][k]},
-                            airborne=airborne[k],
-                            root_acceleration=_finite_or_none(a_pelvis, k)))
-    return frames
+    # per-sample dicts made together (indexing NumPy arrays sample by sample costs more)
+    n = len(recording.time)
+    orientations = _by_sample({s: list(R) for s, R in R_segment.items()}, tracked, n)
+    feet_still = _by_sample({s: (v != 0).tolist() for s, v in still.items()},
+                            {s: np.isfinite(v) for s, v in still.items()}, n)
+    points_moving = _by_sample({p: (v == 1.0).tolist() for p, v in moving.items()},
+                               {p: np.isfinite(v) for p, v in moving.items()}, n)
+    points_velocity = _by_sample(
+        {p: list(v) for p, v in velocity.items()} if carry_anchors else {},
+        {p: np.isfinite(v).all(axis=1) for p, v in velocity.items()}, n)
+    a_root: list[np.ndarray | None] = [None] * n
+    if a_pelvis is not None:
+        a_root = [a if ok else None
+                  for a, ok in zip(a_pelvis, np.isfinite(a_pelvis).all(axis=1).tolist())]
+    return [Frame(t, o, feet_still=f, points_moving=m, points_velocity=v, airborne=air,
+                  root_acceleration=a)
+            for t, o, f, m, v, air, a in zip(recording.time.tolist(), orientations, feet_still,
+                                             points_moving, points_velocity, airborne, a_root)]
 
 
-def _finite_or_none(values: np.ndarray | None, k: int) -> np.ndarray | None:
-    """Row ``k`` of ``values`` when it is finite, else None."""
-    if values is None or not np.isfinite(values[k]).all():
-        return None
-    return values[k]
+def _by_sample(values: Mapping[str, list[Any]], known: Mapping[str, np.ndarray],
+               n: int) -> list[dict[str, Any]]:
+    """Per sample k, ``{name: values[name][k]}`` over the names ``known[name][k]`` (in order).
+
+    Args:
+        values: Name -> its n per-sample values.
+        known: Name -> (n,) bool, whether the sample's value is known.
+        n: The number of samples.
+    """
+    names = list(values)
+    if not names:
+        return [{} for _ in range(n)]
+    flags = zip(*(known[name].tolist() for name in names))
+    return [dict(zip(names, row)) if all(ok) else
+            {name: v for name, v, on in zip(names, row, ok) if on}
+            for row, ok in zip(zip(*(values[name] for name in names)), flags)]
 
 
 def flight_phases(recording: ImuRecording, streams: Mapping[str, SensorStream],

@@ -24,7 +24,7 @@ class Configuration:
 
     def __init__(self, model: pin.Model, q: npt.ArrayLike) -> None:
         self.model = model
-        self.data = model.createData()
+        self.data = pin.Data(model)  # (createData() builds the same, several times slower)
         self._placements: dict[int, pin.SE3] = {}
         self._jacobians: dict[int, np.ndarray] = {}
         self._points: dict[tuple[int, ...], np.ndarray] = {}

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -21,9 +22,8 @@ from .settings import SolverSettings
 from .tasks import PositionTask
 
 
-@dataclass(frozen=True)
-class FrameTargets:
-    """What a frame's targets say, as the solver's steps use it.
+class FrameTargets(NamedTuple):
+    """What a frame's targets say, as the solver's steps use it (made every frame: a tuple).
 
     Attributes:
         R_sensed: (n, 3, 3) the segments' orientation targets ``R_world_segment`` as sensed
@@ -110,7 +110,7 @@ class TargetLoader:
             w = w.copy()  # and shank; the rows' weights are read-only)
             for i, R_assumed in self.assumed.targets(R, w > 0):
                 R[i], w[i] = R_assumed, self.assumed_weight
-        tasks.orientation.set_targets(R, w)
+        tasks.orientation.set_targets(R, w, owned=True)  # R is this call's own array
         if frame.positions or self._positions_set:
             self._load_sites(self.tasks.position, frame.positions, frame.position_weights)
             self.tasks.position.reach = frame.position_reach

@@ -54,7 +54,7 @@ class SensedPose:
             self.toe_flexion[k] = (axis, np.radians(flex.lower_deg), np.radians(flex.upper_deg))
         self.segment_frames = list(segment_frames)
         self.contact_frames = list(contact_frames)
-        self._data = model.model.createData()
+        self._data = pin.Data(model.model)
         self._compiled: tuple[CompiledKinematics, np.ndarray] | None = None  # and geometry
         self._tracked: tuple[np.ndarray | None, np.ndarray] = (None, np.zeros(0))  # as floats
 
@@ -180,6 +180,9 @@ class Persistence:
         self.model = model
         self.weight = weight
         self.task = DampingTask(np.zeros(model.nv))
+        # the last sensed columns given (read-only: the frame weighting's), their weights, mask
+        self._columns: tuple[np.ndarray | None, np.ndarray, np.ndarray] = (
+            None, self.task.weights, np.zeros(model.nv, dtype=bool))
 
     def hold(self, q_warm: np.ndarray, sensed_joints: np.ndarray,
              bent: np.ndarray | None) -> None:
@@ -190,17 +193,30 @@ class Persistence:
             sensed_joints: Tangent columns of the joints between two sensed segments.
             bent: The last frame's bend (nv) [rad]; None: nothing kept (the first frame).
         """
-        weights = np.zeros(self.model.nv)
-        weights[sensed_joints] = self.weight
-        self.task.weights = weights
+        self.task.weights = self._on(sensed_joints)[0]
         self.task.set_reference(None if self.weight <= 0 or bent is None
                                 else pin.integrate(self.model, q_warm, bent))
 
     def bend(self, q_warm: np.ndarray, q: np.ndarray, sensed_joints: np.ndarray) -> np.ndarray:
         """``q ⊖ q_warm`` (nv) on the ``sensed_joints`` columns, zero elsewhere."""
-        bent = np.zeros(self.model.nv)
-        bent[sensed_joints] = pin.difference(self.model, q_warm, q)[sensed_joints]
-        return bent
+        return np.where(self._on(sensed_joints)[1], pin.difference(self.model, q_warm, q), 0.0)
+
+    def _on(self, sensed_joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The task's weights (nv,) and the mask (nv,) of the ``sensed_joints`` columns.
+
+        Kept while the columns are the same read-only array (a frame weighting's); read-only.
+        """
+        kept, weights, mask = self._columns
+        if sensed_joints is not kept:
+            weights = np.zeros(self.model.nv)
+            weights[sensed_joints] = self.weight
+            mask = np.zeros(self.model.nv, dtype=bool)
+            mask[sensed_joints] = True
+            weights.setflags(write=False)
+            mask.setflags(write=False)
+            if not sensed_joints.flags.writeable:
+                self._columns = (sensed_joints, weights, mask)
+        return weights, mask
 
     def largest(self, bent: np.ndarray) -> float:
         """The largest turn of one joint in ``bent`` (nv, from :meth:`bend`) [rad].

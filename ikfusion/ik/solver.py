@@ -26,8 +26,8 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, replace
-from typing import Any
+from dataclasses import replace
+from typing import Any, NamedTuple
 
 import numpy as np
 from tqdm import tqdm
@@ -52,9 +52,8 @@ from .tasks import Task
 from .world_offset import WorldOffset
 
 
-@dataclass(frozen=True)
-class SolvedFrame:
-    """What the next frame takes from a solved one.
+class SolvedFrame(NamedTuple):
+    """What the next frame takes from a solved one (made every frame: a tuple).
 
     Attributes:
         time: Its time [s].
@@ -170,8 +169,8 @@ class Solver:
         q, iterations, relaxed = self._solve(frame, targets, q, active,
                                              self.settings.max_iterations)
         # a rising heel is held against slipping but no longer stands on the floor
-        contacts_now = dict(zip(self.contact_names,
-                                (tasks.contact.active & ~tasks.contact.free_z).tolist()))
+        contacts_now = {name: on and not free for name, on, free in zip(
+            self.contact_names, tasks.contact.active.tolist(), tasks.contact.free_z.tolist())}
         self._touch_down(frame, q)
         velocity = (q[:3] - last.q[:3]) / dt if dt > 0 else last.root_velocity
         self.ballistic.update(velocity, dt, a_root, offset is not None, targets.R_root)
@@ -221,7 +220,7 @@ class Solver:
             if kind == "all" and self._last is not None:
                 q = self._last.q.copy()
                 q[:3] += delta
-                self._last = replace(self._last, q=q)
+                self._last = self._last._replace(q=q)
 
     def _touch_down(self, frame: Frame, q: np.ndarray) -> None:
         """Plant the points that reached the floor at ``q`` (no kinematics without points)."""

@@ -117,7 +117,7 @@ class HumanModel:
     def data(self) -> pin.Data:
         """The internal ``pinocchio.Data`` of the convenience queries (created on first use)."""
         if self._data is None:
-            self._data = self.model.createData()
+            self._data = pin.Data(self.model)
         return self._data
 
     # ------------------------------------------------------------------ construction

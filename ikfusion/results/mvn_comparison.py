@@ -32,7 +32,7 @@ def _rms(values: np.ndarray) -> float:
 def _solved_rotations(motion: Motion, segments: list[str], frames: np.ndarray) -> np.ndarray:
     """``R_world_segment`` (F, S, 3, 3) of the solve at the given frame indices."""
     model = motion.model
-    data = model.model.createData()
+    data = pin.Data(model.model)
     ids = [model.segment_frame_id(s) for s in segments]
     out = np.empty((len(frames), len(segments), 3, 3))
     for row, k in enumerate(frames):

@@ -280,7 +280,9 @@ def test_a_persistence_weighing_the_root_is_summed_in_numpy(human: HumanModel,
     def hold_the_root_too(self: Persistence, q_warm: np.ndarray, sensed_joints: np.ndarray,
                           bent: np.ndarray | None) -> None:
         hold(self, q_warm, sensed_joints, None if bent is None else bent + 0.01)
-        self.task.weights[:6] = 5.0
+        weights = self.task.weights.copy()  # (hold's weights are shared from frame to frame)
+        weights[:6] = 5.0
+        self.task.weights = weights
 
     monkeypatch.setattr(Persistence, "hold", hold_the_root_too)
     truth = generate_gait(human, GaitParameters(duration=0.5, stand=0.2), rate=60.0)

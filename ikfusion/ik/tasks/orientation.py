@@ -36,12 +36,17 @@ class OrientationTask(Task):
         self.targets = np.tile(np.eye(3), (len(self.frame_ids), 1, 1))
         self.weights = np.zeros(len(self.frame_ids))
 
-    def set_targets(self, R_world_target: npt.ArrayLike, weights: npt.ArrayLike) -> None:
-        """Set targets (k, 3, 3) and per-frame weights (k,) (0 = not tracked this frame)."""
+    def set_targets(self, R_world_target: npt.ArrayLike, weights: npt.ArrayLike,
+                    owned: bool = False) -> None:
+        """Set targets (k, 3, 3) and per-frame weights (k,) (0 = not tracked this frame).
+
+        With ``owned`` the caller hands over float arrays it no longer changes (they are kept
+        without a copy; ``weights`` may be read-only).
+        """
         R = np.asarray(R_world_target, dtype=float).reshape(-1, 3, 3)
         w = np.asarray(weights, dtype=float).reshape(-1)
         if math.isfinite(sum_of(R)):  # every target finite (one sum: the usual frame, fast)
-            self.targets, self.weights = R.copy(), w.copy()
+            self.targets, self.weights = (R, w) if owned else (R.copy(), w.copy())
             return
         bad = ~np.isfinite(R).all(axis=(1, 2))
         self.targets = np.where(bad[:, None, None], np.eye(3), R)
