@@ -262,6 +262,32 @@ def test_the_step_without_sites_is_the_step_bit_for_bit(human: HumanModel, rng) 
                 assert np.array_equal(bare.output(i), full[i], equal_nan=True), name
 
 
+def test_the_step_with_the_contacts_only_is_the_step_bit_for_bit(human: HumanModel,
+                                                                  rng) -> None:
+    """The step function with only the contact points' and the root's sites gives their rows
+    of the sites and every other output bit for bit as the full one (the same operations)."""
+    solver = Solver(human)
+    assert solver.compiled is not None and solver.compiled.contacts_only
+    kinematics, geometry = solver.compiled.kinematics, solver.compiled.geometry
+    rows = kinematics.point_rows
+    assert rows is not None and rows[:-1] == solver.tasks.contact_rows.tolist()
+    assert rows[-1] == len(kinematics.site_frames) - 1  # the root
+    k, j = len(kinematics.segment_frames), len(human.ball_joints)
+    for _ in range(3):
+        q = human.random_configuration(rng, p_world_pelvis=rng.normal(size=3))
+        inputs = (q, random_rotations(k, rng), geometry, rng.uniform(0.0, 2.0, 3 * k),
+                  rng.uniform(0.0, 2.0, 3 * j), random_rotations(j, rng),
+                  (-rng.uniform(0.1, 2.0, 3 * j), rng.uniform(0.1, 2.0, 3 * j)))
+        full = [o.copy() for o in kinematics(*inputs)]
+        few = kinematics.evaluate(*inputs, sites=None)
+        for i, name in enumerate(kinematics.function.name_out()):
+            expected = full[i]
+            if name in ("p_sites", "J_sites"):
+                expected = expected.reshape(len(kinematics.site_frames), 3, -1)[rows]
+            assert np.array_equal(few.output(i).reshape(expected.shape), expected,
+                                  equal_nan=True), name
+
+
 def test_compiled_sensed_pose_equals_numpy(human: HumanModel, rng) -> None:
     """The sensed pose and its contact points: the compiled function and the NumPy version."""
     solver = Solver(human)
