@@ -46,7 +46,6 @@ failed build says so on stderr and becomes a warning of the solve).
 
 from __future__ import annotations
 
-import hashlib
 from collections.abc import Sequence
 from typing import Any
 
@@ -71,7 +70,8 @@ from .casadi_kinematics import (
     symbolic_placements,
 )
 from .compiled_joint_tasks import chain_objective, joint_columns, persistence_objective
-from .compiled_points import point_kinematics, points_function
+from .compiled_key import structure_key as structure_key  # re-exported (retarget)
+from .compiled_points import point_kinematics, point_rows, points_function, rows_only
 from .compiled_ranges import range_rows
 from .compiled_sensed import SensedPoseSpec, sensed_pose_function
 from .native import cached_functions, native_functions
@@ -98,9 +98,11 @@ class CompiledKinematics:
         NotImplementedError: For joint types the graph does not cover.
     """
 
-    #: The names of the step function, the sensed-pose function, the points function and the
-    #: step function without the sites (:attr:`function_no_sites`).
-    FUNCTION_NAMES = ("ik_step_objective", "ik_sensed_pose", "ik_points", "ik_step_no_sites")
+    #: The names of the step function, the sensed-pose function, the points function, the
+    #: step function without the sites (:attr:`function_no_sites`) and the one with only the
+    #: points and the root (:attr:`function_points`).
+    FUNCTION_NAMES = ("ik_step_objective", "ik_sensed_pose", "ik_points", "ik_step_no_sites",
+                      "ik_step_points")
 
     def __init__(self, model: pin.Model, segment_frames: Sequence[int],
                  ball_joints: Sequence[BallJoint], site_frames: Sequence[int],
@@ -122,7 +124,10 @@ class CompiledKinematics:
         self.persistence_excluded = np.flatnonzero(~joint_columns(model))
         self.sensed_function: ca.Function | None = None
         self.points_function: ca.Function | None = None
-        self._steps: dict[bool, BoundFunction] = {}
+        #: The sites of :attr:`function_points`: the points' rows, then the root's (the last).
+        self.point_rows = point_rows(self.site_frames, self.point_frames)
+        self.function_points: ca.Function | None = None
+        self._steps: dict[bool | None, BoundFunction] = {}
         if loaded is not None:
             self.use_functions(loaded)
             return
@@ -202,11 +207,15 @@ class CompiledKinematics:
             self.FUNCTION_NAMES[n], inputs, [ca.SX(*o.shape) if n and i in (5, 6) else o
                                              for i, o in enumerate(outputs)], *names,
             {"cse": True}) for n in (0, 3))
+        if self.point_rows is not None:
+            self.function_points = ca.Function(self.FUNCTION_NAMES[4], inputs,
+                                               rows_only(outputs, self.point_rows), *names,
+                                               {"cse": True})
 
     def functions(self) -> list[ca.Function]:
         """The functions built, in :attr:`FUNCTION_NAMES` order."""
         return [f for f in (self.function, self.sensed_function, self.points_function,
-                            self.function_no_sites) if f is not None]
+                            self.function_no_sites, self.function_points) if f is not None]
 
     def use_functions(self, functions: Sequence[ca.Function]) -> None:
         """Evaluate with ``functions`` (e.g. natively compiled), matched by name."""
@@ -215,6 +224,7 @@ class CompiledKinematics:
         self.sensed_function = by_name.get(self.FUNCTION_NAMES[1])
         self.points_function = by_name.get(self.FUNCTION_NAMES[2])
         self.function_no_sites = by_name[self.FUNCTION_NAMES[3]]
+        self.function_points = by_name.get(self.FUNCTION_NAMES[4])
         self._steps = {}
 
     def geometry(self, model: pin.Model) -> np.ndarray:
@@ -235,7 +245,7 @@ class CompiledKinematics:
                  w_chain: np.ndarray | None = None,
                  share: tuple[np.ndarray, np.ndarray] | None = None,
                  persist: tuple[np.ndarray, np.ndarray] | None = None,
-                 sites: bool = True) -> BoundFunction:
+                 sites: bool | None = True) -> BoundFunction:
         """Evaluate the step function at ``q`` (one call, 1-D inputs copied at once).
 
         Args:
@@ -252,7 +262,8 @@ class CompiledKinematics:
             persist: Persistence weights (nv,) [1/rad^2] (0 on :attr:`persistence_excluded`)
                 and reference (nq,); off when omitted.
             sites: Whether ``p_sites`` and ``J_sites`` are wanted (else they are zeros, from
-                :attr:`function_no_sites`).
+                :attr:`function_no_sites`); None: only the rows :attr:`point_rows`, from
+                :attr:`function_points` (all of them when there is none).
 
         Returns:
             The evaluated function: ``output(i)`` in the module docstring's order, overwritten
@@ -260,8 +271,9 @@ class CompiledKinematics:
         """
         step = self._steps.get(sites)
         if step is None:
-            step = self._steps[sites] = BoundFunction(
-                self.function if sites else self.function_no_sites)
+            chosen = self.function_no_sites if sites is False else \
+                self.function_points if sites is None else None
+            step = self._steps[sites] = BoundFunction(self.function if chosen is None else chosen)
         lower, upper = limits if limits is not None else (np.zeros(len(w_posture)),) * 2
         w_share, q_previous = (self._no_chain, q) if share is None else share
         w_persist, q_persist = (self._no_persist, q) if persist is None else persist
@@ -289,29 +301,6 @@ class CompiledKinematics:
         return q_sensed[:, 0].copy(), points.reshape(-1, 3).copy()
 
 
-def structure_key(model: pin.Model, segment_frames: Sequence[int],
-                  ball_joints: Sequence[BallJoint], site_frames: Sequence[int],
-                  sensed: SensedPoseSpec | None = None,
-                  chain_pairs: Sequence[tuple[BallJoint, BallJoint]] = (),
-                  points: Sequence[int] = ()) -> str:
-    """A string identifying the compiled structure (not the geometry) of a step function."""
-    parts = [
-        "objective-v10",
-        ",".join(f"{a.idx_q}:{b.idx_q}" for a, b in chain_pairs),
-        ",".join(f"{f}:{model.frames[f].parentJoint}" for f in points),
-        repr(sensed),
-        ",".join(model.joints[j].shortname() for j in range(1, model.njoints)),
-        ",".join(str(p) for p in model.parents),
-        ",".join(str(model.frames[f].parentJoint) for f in (*segment_frames, *site_frames)),
-        ",".join(str(f) for f in (*segment_frames, *site_frames)),
-        ",".join(f"{j.idx_q}:{j.spec.sequence}:{j.spec.signs.tolist()}" for j in ball_joints),
-    ]
-    for j in range(1, model.njoints):
-        if model.joints[j].shortname() == "JointModelRevoluteUnaligned":
-            parts.append(str(np.round(model.joints[j].extract().axis, 12).tolist()))
-    return hashlib.sha256("|".join(parts).encode()).hexdigest()[:20]
-
-
 _BUILT: dict[str, CompiledKinematics] = {}
 
 
@@ -331,7 +320,8 @@ def compiled_kinematics(model: pin.Model, segment_frames: Sequence[int],
     built = _BUILT.get(key)
     if built is None:
         names = [n for n, wanted in zip(CompiledKinematics.FUNCTION_NAMES,
-                                        (True, sensed is not None, len(points) > 0, True))
+                                        (True, sensed is not None, len(points) > 0, True,
+                                         point_rows(site_frames, points) is not None))
                  if wanted]
         cached = cached_functions(key, names)
         if cached is not None:

@@ -60,6 +60,9 @@ class CompiledStep:
         rate_rows: (ranges, 3) where each row's structural nonzeros lie among those of the
             step's ``G_ranges`` (the rates of an angle to its joint's three tangent columns);
             None when its rows do not hold three each.
+        contacts_only: Whether the step function with only the contact points' and the
+            root's sites (:attr:`.CompiledKinematics.function_points`) serves the steps that
+            weigh no site target.
     """
 
     kinematics: CompiledKinematics
@@ -68,6 +71,7 @@ class CompiledStep:
     no_floor: Inequality
     no_contact: Equality
     rate_rows: np.ndarray | None
+    contacts_only: bool
 
 
 @dataclass
@@ -169,7 +173,9 @@ def compiled_step(model: HumanModel, tasks: FrameTasks,
         return CompiledStep(kinematics, kinematics.geometry(model.model),
                             QpBuffer(nv, tree_closed_form(model.model)),
                             empty_inequality(nv), empty_equality(nv),
-                            rate_rows(kinematics.function.sparsity_out(7)))
+                            rate_rows(kinematics.function.sparsity_out(7)),
+                            kinematics.point_rows is not None and kinematics.point_rows[:-1]
+                            == tasks.contact_rows.tolist())
     except NotImplementedError:
         return None
 
@@ -240,20 +246,25 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     # the outputs (:mod:`.compiled`) this step reads: H, c, the sites and the ranges, read in
     # place (valid until the next evaluation, after this step's solve); the sites only when a
     # task or a limit weighs them (with contact points or site targets): otherwise from the
-    # step function without them
+    # step function without them; without site targets, only the contact points and the root
     shape = tasks.shape in active and tasks.shape.has_targets()
-    sites = len(tasks.contact_rows) > 0 or tasks.root in active or shape or \
-        tasks.position.has_targets()
+    targets = shape or tasks.position.has_targets()
+    sites = len(tasks.contact_rows) > 0 or tasks.root in active or targets
+    few = compiled.contacts_only and not targets
     step = compiled.kinematics.evaluate(
         conf.q, tasks.orientation.targets, compiled.geometry, *row_weights,
-        tasks.posture.R_reference, (limits.lower, limits.upper), chain, share, persist, sites)
+        tasks.posture.R_reference, (limits.lower, limits.upper), chain, share, persist,
+        None if few else sites)
     if sites:
         P = step.output(5).reshape(-1, 3)
         J = step.output(6).reshape(-1, 3, nv)
     ranges = evaluated_ranges(step, compiled.rate_rows, limits)
     up, down = ranges.near(limits.margin)
-    if len(tasks.contact_rows):
+    if few:  # the contact points' rows, then the root's
+        Pc, Jc = P[:-1], J[:-1]
+    elif len(tasks.contact_rows):
         Pc, Jc = P.take(tasks.contact_rows, axis=0), J.take(tasks.contact_rows, axis=0)
+    if len(tasks.contact_rows):
         floor, contact = tasks.floor.rows(Pc, Jc), tasks.contact.rows(Pc, Jc)
     else:
         floor, contact = compiled.no_floor, compiled.no_contact
@@ -264,12 +275,12 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     H, c = qp.H, qp.c
     step.output_into(0, H)
     step.output_into(1, c[:, None])
-    if sites:
+    if sites and not few:  # (few: no site target)
         tasks.position.add_rows(P[:-1], J[:-1], H, c)
         if shape:
             tasks.shape.add_rows(P[:-1], J[:-1], H, c)
-        if tasks.root in active:
-            tasks.root.add_rows(P[-1:], J[-1:], H, c)
+    if sites and tasks.root in active:
+        tasks.root.add_rows(P[-1:], J[-1:], H, c)
     same = tasks.damping.q_reference is previous
     tasks.damping.add_objective(conf, H, c, moved if same else None)
     if numpy_persistence:

@@ -241,18 +241,24 @@ def test_solvers_agree_with_a_posture_reference(
     assert np.abs(plain.q - reference.q).max() > 1e-3  # the reference matters
 
 
+def _random_step_inputs(human: HumanModel, kinematics, geometry: np.ndarray,
+                        rng: np.random.Generator) -> tuple:
+    """Inputs of the step function at a random configuration, targets, weights and ranges."""
+    k, j = len(kinematics.segment_frames), len(human.ball_joints)
+    q = human.random_configuration(rng, p_world_pelvis=rng.normal(size=3))
+    return (q, random_rotations(k, rng), geometry, rng.uniform(0.0, 2.0, 3 * k),
+            rng.uniform(0.0, 2.0, 3 * j), random_rotations(j, rng),
+            (-rng.uniform(0.1, 2.0, 3 * j), rng.uniform(0.1, 2.0, 3 * j)))
+
+
 def test_the_step_without_sites_is_the_step_bit_for_bit(human: HumanModel, rng) -> None:
     """The step function without the sites (a step weighing none, orientations alone) gives
     every other output bit for bit as the full one (the same operations), the sites zero."""
     solver = Solver(human, contacts=False)
     assert solver.compiled is not None
     kinematics, geometry = solver.compiled.kinematics, solver.compiled.geometry
-    k, j = len(kinematics.segment_frames), len(human.ball_joints)
     for _ in range(3):
-        q = human.random_configuration(rng, p_world_pelvis=rng.normal(size=3))
-        inputs = (q, random_rotations(k, rng), geometry, rng.uniform(0.0, 2.0, 3 * k),
-                  rng.uniform(0.0, 2.0, 3 * j), random_rotations(j, rng),
-                  (-rng.uniform(0.1, 2.0, 3 * j), rng.uniform(0.1, 2.0, 3 * j)))
+        inputs = _random_step_inputs(human, kinematics, geometry, rng)
         full = [o.copy() for o in kinematics(*inputs)]
         bare = kinematics.evaluate(*inputs, sites=False)
         for i, name in enumerate(kinematics.function.name_out()):
@@ -260,6 +266,28 @@ def test_the_step_without_sites_is_the_step_bit_for_bit(human: HumanModel, rng) 
                 assert not bare.output(i).any()
             else:
                 assert np.array_equal(bare.output(i), full[i], equal_nan=True), name
+
+
+def test_the_step_with_the_contacts_only_is_the_step_bit_for_bit(human: HumanModel,
+                                                                  rng) -> None:
+    """The step function with only the contact points' and the root's sites gives their rows
+    of the sites and every other output bit for bit as the full one (the same operations)."""
+    solver = Solver(human)
+    assert solver.compiled is not None and solver.compiled.contacts_only
+    kinematics, geometry = solver.compiled.kinematics, solver.compiled.geometry
+    rows = kinematics.point_rows
+    assert rows is not None and rows[:-1] == solver.tasks.contact_rows.tolist()
+    assert rows[-1] == len(kinematics.site_frames) - 1  # the root
+    for _ in range(3):
+        inputs = _random_step_inputs(human, kinematics, geometry, rng)
+        full = [o.copy() for o in kinematics(*inputs)]
+        few = kinematics.evaluate(*inputs, sites=None)
+        for i, name in enumerate(kinematics.function.name_out()):
+            expected = full[i]
+            if name in ("p_sites", "J_sites"):
+                expected = expected.reshape(len(kinematics.site_frames), 3, -1)[rows]
+            assert np.array_equal(few.output(i).reshape(expected.shape), expected,
+                                  equal_nan=True), name
 
 
 def test_compiled_sensed_pose_equals_numpy(human: HumanModel, rng) -> None:
