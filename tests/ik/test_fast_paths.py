@@ -146,6 +146,22 @@ def test_planted_slide_is_slide_m_without_the_free_points(human: HumanModel) -> 
         assert np.array_equal(given, fresh)
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_slides_is_any_planted_slide_beyond_the_tolerance(human: HumanModel, seed: int) -> None:
+    """The projection's Python-float test against ``planted_slide_m`` in NumPy, at tolerances
+    just below, at and just above each planted point's own slide (and with a NaN position)."""
+    rng = np.random.default_rng(seed)
+    names = human.sites_of_kind("contact")[:4]
+    contact = ContactConstraint([human.site_frame_id(n) for n in names], names)
+    P = Configuration(human.model, random_configuration(human, rng)).positions(contact.frame_ids)
+    contact.set_anchors(rng.random(4) < 0.7, P + rng.normal(scale=1e-4, size=P.shape),
+                        rng.random(4) < 0.5)
+    for positions in (P, np.where(rng.random(P.shape) < 0.2, np.nan, P)):
+        slide = contact.planted_slide_m(positions)
+        for tolerance in [*slide, *np.nextafter(slide, 0.0), *np.nextafter(slide, 1.0), 0.0]:
+            assert contact.slides(positions, tolerance) == any_true(slide > tolerance)
+
+
 def test_qp_settings_are_made_once() -> None:
     settings = SolverSettings.load()
     assert settings.qp is settings.qp
