@@ -20,7 +20,7 @@ from ikfusion.ik.fast_math import (
     row_norms,
     true_indices,
 )
-from ikfusion.ik.limits import ContactConstraint
+from ikfusion.ik.limits import ContactConstraint, FloorLimit
 from ikfusion.ik.tasks import PositionTask
 from ikfusion.ik.tasks.position import add_products
 from ikfusion.model import HumanModel
@@ -143,6 +143,26 @@ def test_planted_slide_is_slide_m_without_the_free_points(human: HumanModel) -> 
     # the projection hands its positions to the rows: the same rows as from the kinematics
     for given, fresh in zip(contact.equality(conf, P),
                             contact.equality(Configuration(human.model, conf.q))):
+        assert np.array_equal(given, fresh)
+
+
+def test_the_projection_qp_rows_are_the_kinematics_rows(human: HumanModel) -> None:
+    """The projection's QP takes the contact and floor rows from every point's positions and
+    Jacobians (a view of the points function's output): the very rows of
+    :meth:`ContactConstraint.equality` and :meth:`FloorLimit.inequality`."""
+    rng = np.random.default_rng(5)
+    names = human.sites_of_kind("contact")
+    frames = [human.site_frame_id(n) for n in names]
+    contact, floor = ContactConstraint(frames, names), FloorLimit(frames, -0.1)
+    conf = Configuration(human.model, random_configuration(human, rng))
+    P = conf.positions(frames)
+    planted = rng.random(len(frames)) < 0.5
+    contact.set_anchors(planted, P + rng.normal(scale=0.01, size=P.shape), planted & (rng.random(
+        len(frames)) < 0.5))
+    floor.enabled = ~planted | contact.free_z
+    J = conf.linear_jacobians(frames)
+    for given, fresh in [*zip(contact.rows(P, J), contact.equality(conf)),
+                         *zip(floor.rows(P, J), floor.inequality(conf))]:
         assert np.array_equal(given, fresh)
 
 
