@@ -15,7 +15,6 @@ import numpy as np
 from ..errors import SolverError
 from .configuration import Configuration
 from .equality_qp import independent_solve
-from .fast_math import min_of
 from .least_distance import identity
 from .limits import ContactConstraint, FloorLimit
 from .limits.base import Inequality
@@ -91,7 +90,8 @@ def project_with_limits(conf: Configuration, contact: ContactConstraint, floor: 
         P = conf.positions(contact_frames)
         if not contact.slides(P, tolerance):
             break
-        J = conf.linear_jacobians(contact_frames)
+        J = conf.linear_jacobians(contact_frames)  # valid until the next update
+        # assembled on a zero H (the shared identity is never written), then H = I
         problem = assemble_qp(np.zeros((conf.model.nv, conf.model.nv)), np.zeros(conf.model.nv),
                               [ranges.inequality(conf), floor.rows(P, J)],
                               [contact.rows(P, J)], None, 0.0)
@@ -120,7 +120,7 @@ def minimum_norm_step(A: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def above_floor(p_contacts: np.ndarray, floor_z: float, tolerance: float) -> bool:
     """No contact point (c, 3) [m] below the floor ``floor_z`` [m] by more than ``tolerance``."""
-    return bool(min_of(p_contacts[:, 2]) >= floor_z - tolerance)
+    return bool(p_contacts[:, 2].min() >= floor_z - tolerance)
 
 
 def place_on_floor(conf: Configuration, q: np.ndarray, contact_frames: Sequence[int],
