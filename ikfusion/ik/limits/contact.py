@@ -136,9 +136,9 @@ class ContactConstraint:
             return any_true(self.planted_slide_m(p_world) > tolerance)
         planted = self._planted
         if planted is None:
-            planted = self._planted = [
-                (int(i), *self.anchors[i].tolist(), not self.free_z[i])
-                for i in true_indices(self.active)]
+            anchors, free_z = self.anchors.tolist(), self.free_z.tolist()
+            planted = self._planted = [(i, *anchors[i], not free_z[i])
+                                       for i in true_indices(self.active).tolist()]
         rows = p_world.tolist()
         for i, ax, ay, az, z_held in planted:
             x, y, z = rows[i]
