@@ -18,6 +18,7 @@ import numpy as np
 from scipy.linalg.lapack import dposv, dpotrf, dpotrs
 
 from .fast_math import sum_of
+from .least_distance import identity
 
 
 @dataclass
@@ -43,7 +44,8 @@ def equality_optimum(H: np.ndarray, c: np.ndarray, A: np.ndarray | None,
     """``argmin 1/2 x^T H x + c^T x`` subject to ``A x = b`` (inequalities ignored).
 
     Args:
-        H: (n, n) the objective's Hessian, symmetric positive definite.
+        H: (n, n) the objective's Hessian, symmetric positive definite
+            (:func:`.least_distance.identity` itself: not factored).
         c: (n,) the objective's gradient at ``x = 0``.
         A: (m, n) equality rows, or None.
         b: (m,) their right-hand sides, or None.
@@ -54,15 +56,17 @@ def equality_optimum(H: np.ndarray, c: np.ndarray, A: np.ndarray | None,
     """
     # dposv: LAPACK's dpotrf then dpotrs (the same numbers) in one call
     rows = A if A is not None and b is not None and len(b) else None
+    shared_identity = H is identity(len(c))  # H^-1 = I: nothing to solve
     if rows is None:  # no equality rows (no planted point): one solve, nothing to stack
-        _, x, info = dposv(H, np.negative(c), lower=1, overwrite_b=1)
+        _, x, info = (None, np.negative(c), 0) if shared_identity else \
+            dposv(H, np.negative(c), lower=1, overwrite_b=1)
         return x if info == 0 and math.isfinite(sum_of(x)) else None
     m = len(rows)
     # one solve for every right-hand side: -c, then the equality rows (H^-1 A^T)
     rhs = np.empty((len(c), 1 + m), order="F")
     rhs[:, 0] = -c
     rhs[:, 1:] = rows.T
-    _, X, info = dposv(H, rhs, lower=1, overwrite_b=1)
+    _, X, info = (None, rhs, 0) if shared_identity else dposv(H, rhs, lower=1, overwrite_b=1)
     if info != 0 or b is None:
         return None
     Y = X[:, 1:]

@@ -83,7 +83,8 @@ def least_distance_daqp(daqp: Any, max_iterations: int, H: np.ndarray, c: np.nda
     Args:
         daqp: The imported ``daqp`` module.
         max_iterations: DAQP's iteration limit.
-        H: (n, n) Hessian, symmetric positive definite (not changed).
+        H: (n, n) Hessian, symmetric positive definite (not changed); :func:`identity`
+            itself is not factored.
         c: (n,) gradient at ``x = 0``.
         G: (m_in, n) inequality rows ``G x <= h``, or None.
         h: (m_in,) their bounds, or None.
@@ -98,7 +99,8 @@ def least_distance_daqp(daqp: Any, max_iterations: int, H: np.ndarray, c: np.nda
         find the optimum (the caller then calls DAQP on the problem as it is).
     """
     n = len(c)
-    L, info = dpotrf(H, lower=1, clean=0)  # the lower triangle is all that is read
+    shared_identity = H is identity(n)  # L = I: no factorisation, no triangular solves
+    L, info = (H, 0) if shared_identity else dpotrf(H, lower=1, clean=0)  # lower triangle read
     if info != 0:
         return None
     n_box = n if lb is not None or ub is not None else 0
@@ -107,12 +109,12 @@ def least_distance_daqp(daqp: Any, max_iterations: int, H: np.ndarray, c: np.nda
     rhs = np.empty((n, 1 + end_in + (0 if b is None else len(b))), order="F")
     rhs[:, 0] = c
     if n_box:
-        rhs[:, 1:1 + n_box] = _identity(n)
+        rhs[:, 1:1 + n_box] = identity(n)
     if n_in:
         rhs[:, 1 + n_box:1 + end_in] = G.T  # type: ignore[union-attr]
     if A is not None and b is not None and len(b):
         rhs[:, 1 + end_in:] = A.T
-    Y, info = dtrtrs(L, rhs, lower=1)  # L^-1 [c, C^T]: Fortran order
+    Y, info = (rhs, 0) if shared_identity else dtrtrs(L, rhs, lower=1)  # L^-1 [c, C^T]
     if info != 0:
         return None
     v = Y[:, 0]
@@ -123,19 +125,27 @@ def least_distance_daqp(daqp: Any, max_iterations: int, H: np.ndarray, c: np.nda
     lower += Mv
     sense = np.zeros(len(upper), dtype=np.intc)
     sense[end_in:] = EQUALITY
-    u, _, exitflag, result = daqp.solve(_identity(n), _zeros(n), M, upper, lower, sense,
+    u, _, exitflag, result = daqp.solve(identity(n), _zeros(n), M, upper, lower, sense,
                                         iter_limit=max_iterations)
     if exitflag <= 0:
         return None
-    x, info = dtrtrs(L, np.subtract(u, v), lower=1, trans=1)
+    x, info = (np.subtract(u, v), 0) if shared_identity else \
+        dtrtrs(L, np.subtract(u, v), lower=1, trans=1)
     if info != 0 or not np.isfinite(x.sum()):
         return None
     return np.asarray(x), bool(np.count_nonzero(result["lam"][:end_in]))
 
 
 @cache
-def _identity(n: int) -> np.ndarray:
-    """The (n, n) identity: the least-distance problem's Hessian (DAQP reads it, writes none)."""
+def identity(n: int) -> np.ndarray:
+    """The shared (n, n) identity: the least-distance problem's Hessian (never written).
+
+    Writable only because DAQP's interface takes writable arrays (it reads this one). A QP
+    whose ``H`` is this very array (the projection's, :mod:`.projection`) skips the
+    factorisation of ``H`` and the solves with its factor, in :func:`least_distance_daqp` and
+    :func:`.equality_qp.equality_optimum`: they would return their right-hand sides' numbers
+    (up to the sign of a zero).
+    """
     return np.eye(n)
 
 

@@ -85,7 +85,15 @@ class PointsConfiguration(Configuration):
         return P
 
     def linear_jacobians(self, frame_ids: Sequence[int]) -> np.ndarray:
-        """World linear-velocity Jacobians of frame origins, shape (k, 3, nv)."""
+        """World linear-velocity Jacobians of frame origins, shape (k, 3, nv).
+
+        Those of every point, in order, are a read-only view of the output buffer, valid until
+        the next :meth:`update` (the projection takes its rows at once); others a copy.
+        """
+        if tuple(frame_ids) == self._all:
+            J = self._point_jacobians()[:]
+            J.setflags(write=False)
+            return J
         rows = self._rows(frame_ids)
         if rows is None:
             return super().linear_jacobians(frame_ids)

@@ -15,10 +15,10 @@ import numpy as np
 from ..errors import SolverError
 from .configuration import Configuration
 from .equality_qp import independent_solve
-from .fast_math import any_true
+from .least_distance import identity
 from .limits import ContactConstraint, FloorLimit
 from .limits.base import Inequality
-from .qp import QpSettings, build_qp, solve_qp
+from .qp import QpSettings, assemble_qp, solve_qp
 
 
 class RangeRows(Protocol):
@@ -62,7 +62,7 @@ def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: 
     q_start = conf.q  # read-only: update() replaces it
     for _ in range(max_steps):  # the residual is second order: minimum-norm steps suffice
         P = conf.positions(contact_frames)
-        if not any_true(contact.planted_slide_m(P) > tolerance):
+        if not contact.slides(P, tolerance):
             if above_floor(P, floor.floor_z, tolerance):
                 return False
             break
@@ -71,13 +71,31 @@ def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: 
         A, b = contact.rows(P, conf.linear_jacobians(contact_frames))
         conf.update(conf.integrate(minimum_norm_step(A, b)))
     conf.update(q_start)
+    return project_with_limits(conf, contact, floor, ranges, contact_frames, tolerance,
+                               max_steps, backend, qp)
+
+
+def project_with_limits(conf: Configuration, contact: ContactConstraint, floor: FloorLimit,
+                        ranges: RangeRows, contact_frames: Sequence[int], tolerance: float,
+                        max_steps: int, backend: str, qp: QpSettings) -> bool:
+    """:func:`project_on_contacts`' QPs: only the constraints, the ranges, the floor, ``|dq|^2``.
+
+    The contact and floor rows come from the points' positions and Jacobians (the same rows
+    as :meth:`.ContactConstraint.equality` and :meth:`.FloorLimit.inequality`); ``H`` is the
+    shared identity, whose factorisations the solvers skip (:func:`.least_distance.identity`).
+    Arguments and return as :func:`project_on_contacts` (``conf`` updated in place).
+    """
     relaxed = False
-    for _ in range(max_steps):  # ... unless they fail: the QP with the limits
-        if not any_true(contact.planted_slide_m(conf.positions(contact_frames)) > tolerance):
+    for _ in range(max_steps):
+        P = conf.positions(contact_frames)
+        if not contact.slides(P, tolerance):
             break
-        problem = build_qp(conf, [], [ranges.inequality(conf), floor.inequality(conf)],
-                           [contact.equality(conf)], None, 0.0)
-        problem.H = np.eye(conf.model.nv)
+        J = conf.linear_jacobians(contact_frames)  # valid until the next update
+        # assembled on a zero H (the shared identity is never written), then H = I
+        problem = assemble_qp(np.zeros((conf.model.nv, conf.model.nv)), np.zeros(conf.model.nv),
+                              [ranges.inequality(conf), floor.rows(P, J)],
+                              [contact.rows(P, J)], None, 0.0)
+        problem.H = identity(conf.model.nv)
         try:
             solution = solve_qp(problem, backend, qp)
         except SolverError:

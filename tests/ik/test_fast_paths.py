@@ -20,7 +20,7 @@ from ikfusion.ik.fast_math import (
     row_norms,
     true_indices,
 )
-from ikfusion.ik.limits import ContactConstraint
+from ikfusion.ik.limits import ContactConstraint, FloorLimit
 from ikfusion.ik.tasks import PositionTask
 from ikfusion.ik.tasks.position import add_products
 from ikfusion.model import HumanModel
@@ -144,6 +144,42 @@ def test_planted_slide_is_slide_m_without_the_free_points(human: HumanModel) -> 
     for given, fresh in zip(contact.equality(conf, P),
                             contact.equality(Configuration(human.model, conf.q))):
         assert np.array_equal(given, fresh)
+
+
+def test_the_projection_qp_rows_are_the_kinematics_rows(human: HumanModel) -> None:
+    """The projection's QP takes the contact and floor rows from every point's positions and
+    Jacobians (a view of the points function's output): the very rows of
+    :meth:`ContactConstraint.equality` and :meth:`FloorLimit.inequality`."""
+    rng = np.random.default_rng(5)
+    names = human.sites_of_kind("contact")
+    frames = [human.site_frame_id(n) for n in names]
+    contact, floor = ContactConstraint(frames, names), FloorLimit(frames, -0.1)
+    conf = Configuration(human.model, random_configuration(human, rng))
+    P = conf.positions(frames)
+    planted = rng.random(len(frames)) < 0.5
+    contact.set_anchors(planted, P + rng.normal(scale=0.01, size=P.shape), planted & (rng.random(
+        len(frames)) < 0.5))
+    floor.enabled = ~planted | contact.free_z
+    J = conf.linear_jacobians(frames)
+    for given, fresh in [*zip(contact.rows(P, J), contact.equality(conf)),
+                         *zip(floor.rows(P, J), floor.inequality(conf))]:
+        assert np.array_equal(given, fresh)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_slides_is_any_planted_slide_beyond_the_tolerance(human: HumanModel, seed: int) -> None:
+    """The projection's Python-float test against ``planted_slide_m`` in NumPy, at tolerances
+    just below, at and just above each planted point's own slide (and with a NaN position)."""
+    rng = np.random.default_rng(seed)
+    names = human.sites_of_kind("contact")[:4]
+    contact = ContactConstraint([human.site_frame_id(n) for n in names], names)
+    P = Configuration(human.model, random_configuration(human, rng)).positions(contact.frame_ids)
+    contact.set_anchors(rng.random(4) < 0.7, P + rng.normal(scale=1e-4, size=P.shape),
+                        rng.random(4) < 0.5)
+    for positions in (P, np.where(rng.random(P.shape) < 0.2, np.nan, P)):
+        slide = contact.planted_slide_m(positions)
+        for tolerance in [*slide, *np.nextafter(slide, 0.0), *np.nextafter(slide, 1.0), 0.0]:
+            assert contact.slides(positions, tolerance) == any_true(slide > tolerance)
 
 
 def test_qp_settings_are_made_once() -> None:

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import ikfusion.ik.qp_backends as backends
-from ikfusion.ik.least_distance import COUNTS, _identity, least_distance_daqp
+from ikfusion.ik.equality_qp import equality_optimum
+from ikfusion.ik.least_distance import COUNTS, identity, least_distance_daqp
 from ikfusion.model import HumanModel
 
 N = 30
@@ -53,7 +54,21 @@ def test_the_step_and_its_binding_rows_are_daqps(seed: int, bounds: bool) -> Non
     if bounds:
         assert np.all(x >= lb - 1e-6) and np.all(x <= ub + 1e-6)  # type: ignore[operator]
     np.testing.assert_array_equal(H, H_before)  # the Hessian is left alone
-    np.testing.assert_array_equal(_identity(N), np.eye(N))  # and so is the shared identity
+    np.testing.assert_array_equal(identity(N), np.eye(N))  # and so is the shared identity
+
+
+@pytest.mark.parametrize("bounds", [False, True])
+def test_the_shared_identity_is_not_factored_and_gives_the_same_step(rng, bounds: bool) -> None:
+    """The projection's ``H = I`` (the shared identity) skips LAPACK: the very numbers of a
+    separate identity, which LAPACK factors (the closed form's too)."""
+    _, _, G, h, A, b, lb, ub = _problem(rng, bounds)
+    c = np.zeros(N)
+    shared = least_distance_daqp(daqp, 1000, identity(N), c, G, h, A, b, lb, ub)
+    factored = least_distance_daqp(daqp, 1000, np.eye(N), c, G, h, A, b, lb, ub)
+    assert shared is not None and factored is not None
+    assert np.array_equal(shared[0], factored[0]) and shared[1] == factored[1]
+    x, expected = equality_optimum(identity(N), c, A, b), equality_optimum(np.eye(N), c, A, b)
+    assert x is not None and expected is not None and np.array_equal(x, expected)
 
 
 def test_a_hessian_that_is_not_positive_definite_goes_to_daqp_as_given(rng) -> None:

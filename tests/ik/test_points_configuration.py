@@ -52,7 +52,9 @@ def test_points_are_pinocchios_frame_positions_and_jacobians(rng, height: float)
         assert not got.flags.writeable
         np.testing.assert_allclose(got, P, atol=1e-12)
         np.testing.assert_allclose(conf.positions(ids), P[subset], atol=1e-12)
-        np.testing.assert_allclose(conf.linear_jacobians(points), J, atol=1e-12)
+        every = conf.linear_jacobians(points)  # a view of the output buffer: read-only
+        assert not every.flags.writeable
+        np.testing.assert_allclose(every, J, atol=1e-12)
         np.testing.assert_allclose(conf.linear_jacobians(ids), J[subset], atol=1e-12)
         np.testing.assert_allclose(conf.positions([other, points[0]]),
                                    [data.oMf[other].translation, P[0]], atol=1e-12)

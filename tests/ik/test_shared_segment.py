@@ -194,3 +194,20 @@ def test_rows_follow_the_planted_points_from_call_to_call(human: HumanModel) -> 
         # the second blade on T8 is held across the line from the first only (two rows)
         assert len(reused.equality(conf).b) == 3 * len(planted) - len(rising) - (
             1 if len(planted) == 3 else 0)
+
+
+def test_the_rows_from_positions_are_the_equality_rows_on_a_shared_segment(
+        human: HumanModel) -> None:
+    """The projection's QP takes the rows from every point's positions and Jacobians
+    (:meth:`ContactConstraint.rows`): on a lying body's shared segments, too, the very numbers
+    of :meth:`ContactConstraint.equality`."""
+    rng = np.random.default_rng(6)
+    conf = Configuration(human.model, human.random_configuration(rng, margin_deg=20.0))
+    contact = constraint(human, BACK)
+    P = conf.positions(contact.frame_ids)
+    planted = rng.random(len(BACK)) < 0.8
+    contact.set_anchors(planted, settled(P, BACK, ("RightShoulderBlade",)))
+    assert contact._basis is not None  # points sharing a segment: rows along their own axes
+    for fresh, given in zip(contact.equality(conf),
+                            contact.rows(P, conf.linear_jacobians(contact.frame_ids))):
+        assert np.array_equal(fresh, given)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -42,6 +43,8 @@ class ContactConstraint:
         self._basis: np.ndarray | None = None
         # (active, free_z) of the rows held now when they are along the world axes
         self._world_axes_key: tuple[bytes, bytes] | None = None
+        # :meth:`slides`' planted points (index, anchor x, y, z, z held), made when first asked
+        self._planted: list[tuple[int, float, float, float, bool]] | None = None
 
     def set_anchors(self, active: npt.ArrayLike, anchors: npt.ArrayLike,
                     free_z: npt.ArrayLike | None = None) -> None:
@@ -56,6 +59,7 @@ class ContactConstraint:
         self.anchors = np.asarray(anchors, dtype=float).reshape(-1, 3).copy()
         self.free_z = (np.zeros_like(self.active) if free_z is None
                        else np.asarray(free_z, dtype=bool) & self.active)
+        self._planted = None
         key = (self.active.tobytes(), self.free_z.tobytes())
         if key == self._world_axes_key:  # the same points held along the world axes as before
             return
@@ -119,6 +123,30 @@ class ContactConstraint:
             return row_norms(np.where(self._held, p_world - self.anchors, 0.0))[on]
         d = self._along_held(p_world[on] - self.anchors[on], on)
         return row_norms(np.where(self._held[on], d, 0.0))
+
+    def slides(self, p_world: np.ndarray, tolerance: float) -> bool:
+        """Whether a planted point is further than ``tolerance`` [m] from its anchor.
+
+        ``any(planted_slide_m(p_world) > tolerance)`` for the points' positions (k, 3) [m]:
+        with the rows along the world axes (the usual case), the same differences, squares,
+        sums and square roots in the same order in Python floats, cheaper than NumPy's calls
+        on a frame's few planted points.
+        """
+        if self._basis is not None:
+            return any_true(self.planted_slide_m(p_world) > tolerance)
+        planted = self._planted
+        if planted is None:
+            anchors, free_z = self.anchors.tolist(), self.free_z.tolist()
+            planted = self._planted = [(i, *anchors[i], not free_z[i])
+                                       for i in true_indices(self.active).tolist()]
+        rows = p_world.tolist()
+        for i, ax, ay, az, z_held in planted:
+            x, y, z = rows[i]
+            dx, dy = x - ax, y - ay
+            dz = z - az if z_held else 0.0
+            if math.sqrt(dx * dx + dy * dy + dz * dz) > tolerance:
+                return True
+        return False
 
     def slide_m(self, configuration: Configuration,
                 p_world: np.ndarray | None = None) -> np.ndarray:
