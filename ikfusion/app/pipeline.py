@@ -126,6 +126,12 @@ def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str]
     # per-sample dicts made together (indexing NumPy arrays sample by sample costs more)
     n = len(recording.time)
     orientations = _by_sample({s: list(R) for s, R in R_segment.items()}, tracked, n)
+    # samples with every segment tracked carry their orientations stacked (views of one array)
+    stacked: list[np.ndarray | None] = [None] * n
+    if R_segment:
+        every = np.logical_and.reduce(list(tracked.values())).tolist()
+        stacked = [R if on else None
+                   for R, on in zip(np.stack(list(R_segment.values()), axis=1), every)]
     feet_still = _by_sample({s: (v != 0).tolist() for s, v in still.items()},
                             {s: np.isfinite(v) for s, v in still.items()}, n)
     points_moving = _by_sample({p: (v == 1.0).tolist() for p, v in moving.items()},
@@ -138,9 +144,10 @@ def frames_from_recording(recording: ImuRecording, sensor_map: Mapping[str, str]
         a_root = [a if ok else None
                   for a, ok in zip(a_pelvis, np.isfinite(a_pelvis).all(axis=1).tolist())]
     return [Frame(t, o, feet_still=f, points_moving=m, points_velocity=v, airborne=air,
-                  root_acceleration=a)
-            for t, o, f, m, v, air, a in zip(recording.time.tolist(), orientations, feet_still,
-                                             points_moving, points_velocity, airborne, a_root)]
+                  root_acceleration=a, orientations_stacked=R)
+            for t, o, f, m, v, air, a, R in zip(recording.time.tolist(), orientations,
+                                                feet_still, points_moving, points_velocity,
+                                                airborne, a_root, stacked)]
 
 
 def _by_sample(values: Mapping[str, list[Any]], known: Mapping[str, np.ndarray],

@@ -55,6 +55,17 @@ class BoundFunction:
             flat_dense[flat] = nz
         return self._dense
 
+    def input_slot(self, i: int) -> np.ndarray:
+        """Input ``i``'s buffer (1-D, written in place): what it holds, :meth:`run` reads.
+
+        For a caller that writes only the inputs that changed, straight into their slots.
+        """
+        return self._inputs[i]
+
+    def run(self) -> None:
+        """Evaluate at the inputs as they stand (read the outputs with :meth:`output`)."""
+        self._evaluate()
+
     def set_input(self, i: int, value: np.ndarray) -> None:
         """Set input ``i``; it keeps this value while calls pass fewer inputs."""
         self._inputs[i][:] = value

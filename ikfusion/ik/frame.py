@@ -51,6 +51,9 @@ class Frame:
         root_acceleration: ``a_world_pelvis`` (3,) [m/s^2], the pelvis IMU's acceleration in
             the world frame (gravity removed), when recorded: it keeps the pelvis velocity
             honest across take-offs (:mod:`ikfusion.ik.ballistic`).
+        orientations_stacked: The values of ``orientations`` (k, 3, 3) stacked in its order,
+            when whoever makes the frame holds them so (the solver then need not stack them
+            every frame); None: the solver stacks them.
     """
 
     time: float
@@ -70,3 +73,4 @@ class Frame:
     points_velocity: Mapping[str, np.ndarray] = field(default_factory=dict)
     airborne: bool = False
     root_acceleration: np.ndarray | None = None
+    orientations_stacked: np.ndarray | None = None

@@ -99,7 +99,9 @@ class TargetLoader:
         names = tuple(frame.orientations)
         rows, w, assumed = self._rows.get(names) or self._new_rows(names)
         if names:  # one assignment of all the rows instead of one per segment
-            targets = np.array(list(frame.orientations.values()), dtype=float)
+            targets = frame.orientations_stacked
+            if targets is None:
+                targets = np.array(list(frame.orientations.values()), dtype=float)
             R[rows] = targets if R_heading is None else R_heading @ targets
         weights = frame.orientation_weights
         if weights:  # the weights given (else 1 on every row: the one array of these rows)

@@ -18,6 +18,7 @@ import pinocchio as pin
 from ..model.human_model import HumanModel
 from ..model.topology import BodyTopology
 from ..rotations import log_so3, matrix_to_quat_wxyz, wxyz_to_xyzw
+from .bound_function import BoundFunction
 from .compiled import CompiledKinematics
 from .compiled_sensed import SensedPoseSpec
 from .fast_math import any_true
@@ -55,8 +56,7 @@ class SensedPose:
         self.segment_frames = list(segment_frames)
         self.contact_frames = list(contact_frames)
         self._data = pin.Data(model.model)
-        self._compiled: tuple[CompiledKinematics, np.ndarray] | None = None  # and geometry
-        self._tracked: tuple[np.ndarray | None, np.ndarray] = (None, np.zeros(0))  # as floats
+        self._compiled: _CompiledPose | None = None
 
     def spec(self) -> SensedPoseSpec:
         """What :meth:`configuration` does, for the compiled sensed-pose function."""
@@ -78,7 +78,7 @@ class SensedPose:
     def use_compiled(self, kinematics: CompiledKinematics, geometry: np.ndarray) -> None:
         """Evaluate :meth:`pose` with the compiled function of ``kinematics`` when it has one."""
         if kinematics.sensed_function is not None:
-            self._compiled = (kinematics, geometry)
+            self._compiled = _CompiledPose(BoundFunction(kinematics.sensed_function), geometry)
 
     def both_tracked(self, tracked: np.ndarray) -> np.ndarray:
         """(joints,) joints whose parent and child segments are both tracked."""
@@ -97,13 +97,7 @@ class SensedPose:
             tracked: (n,) which segments are tracked.
         """
         if self._compiled is not None:
-            kinematics, geometry = self._compiled
-            kept, as_float = self._tracked
-            if tracked is not kept:  # kept while the same read-only set (the frame targets')
-                as_float = tracked.astype(float)
-                if not tracked.flags.writeable:
-                    self._tracked = (tracked, as_float)
-            return kinematics.sensed_pose(q, R_world_target, geometry, as_float)
+            return self._compiled(q, R_world_target, tracked)
         return (self.configuration(q, R_world_target, tracked, level_toes=False),
                 self.contact_positions(self.configuration(q, R_world_target, tracked)))
 
@@ -161,6 +155,38 @@ class SensedPose:
         R_solved = np.array([pin.updateFramePlacement(self.model.model, data, f).rotation
                              for f in ids]).reshape(-1, 3, 3)
         return log_so3(np.swapaxes(R_world_sensed[segments], 1, 2) @ R_solved)
+
+
+class _CompiledPose:
+    """:meth:`SensedPose.pose` by the compiled function (:class:`.compiled_sensed.SensedPoseSpec`).
+
+    Called every frame: the geometry is written once, the tracked set when it changes (kept
+    while the same read-only array: the frame targets'), ``q`` and the targets every call,
+    each straight into its input slot (the transposed targets flattened in C order are their
+    column-major vector, as the function reads them).
+
+    Args:
+        call: The sensed-pose function bound to its buffers.
+        geometry: Its geometry input (:meth:`.compiled.CompiledKinematics.geometry`).
+    """
+
+    def __init__(self, call: BoundFunction, geometry: np.ndarray) -> None:
+        self.call = call
+        call.input_slot(2)[:] = geometry
+        self._q = call.input_slot(0)
+        self._R = call.input_slot(1).reshape(-1, 3, 3)  # a view: the slot's 3 x 3 blocks
+        self._tracked: np.ndarray | None = None  # the read-only set in the slot
+
+    def __call__(self, q: np.ndarray, R_world_target: np.ndarray,
+                 tracked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The sensed configuration (nq,) and the contact points (c, 3) [m] (new arrays)."""
+        if tracked is not self._tracked:
+            self.call.input_slot(3)[:] = tracked
+            self._tracked = None if tracked.flags.writeable else tracked
+        self._q[:] = q
+        self._R[:] = R_world_target.transpose(0, 2, 1)
+        self.call.run()
+        return self.call.output(0)[:, 0].copy(), self.call.output(1).reshape(-1, 3).copy()
 
 
 class Persistence:

@@ -39,7 +39,7 @@ class PoseKinematics:
 
     def __init__(self, model: HumanModel) -> None:
         self.model = model
-        self._data = model.model.createData()
+        self._data = pin.Data(model.model)  # (createData(): the same, several times slower)
         self._segments = [model.segment_frame_id(n) for n in model.segment_names]
         self._sites = [model.site_frame_id(n) for n in model.site_names]
         parents = segment_parent_indices(model)

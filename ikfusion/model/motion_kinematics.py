@@ -136,7 +136,7 @@ def frame_placements(model: pin.Model, q: np.ndarray, frame_ids: Sequence[int],
     p_out = np.empty((n, len(ids), 3))
     R_out = np.empty((n, len(ids), 3, 3))
     if any(model.joints[j].shortname() not in _SUPPORTED for j in range(1, model.njoints)):
-        data = model.createData()
+        data = pin.Data(model)  # (createData() builds the same, several times slower)
         for k, qk in enumerate(Q):
             pin.framesForwardKinematics(model, data, qk)
             for i, f in enumerate(ids):

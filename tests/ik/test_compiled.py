@@ -309,6 +309,33 @@ def test_compiled_sensed_pose_equals_numpy(human: HumanModel, rng) -> None:
             atol=1e-10)
 
 
+def test_sensed_pose_keeps_a_read_only_tracked_set_until_another_comes(human: HumanModel,
+                                                                        rng) -> None:
+    """The compiled sensed pose writes the tracked set only when it changes (a read-only
+    array is kept): switching between two sets gives each set's pose, the writeable set is
+    read afresh every call, and a returned pose is not overwritten by the next call."""
+    sensed = Solver(human).sensed
+    n = len(human.segment_names)
+    q = human.random_configuration(rng, p_world_pelvis=rng.normal(size=3))
+    T = random_rotations(n, rng)
+    every, some = np.ones(n, dtype=bool), rng.random(n) < 0.5
+    for mask in (every, some):
+        mask.setflags(write=False)
+    free = some.copy()
+    first = sensed.pose(q, T, every)
+    kept = [a.copy() for a in first]
+    for tracked in (some, every, free, some):
+        got = sensed.pose(q, T, tracked)
+        np.testing.assert_allclose(got[0], sensed.configuration(q, T, tracked, False),
+                                   atol=1e-10)
+        np.testing.assert_allclose(
+            got[1], sensed.contact_positions(sensed.configuration(q, T, tracked)), atol=1e-10)
+    free[:] = True  # changed in place: read again
+    assert np.array_equal(sensed.pose(q, T, free)[0], sensed.pose(q, T, every)[0])
+    for mine, before in zip(first, kept):
+        assert np.array_equal(mine, before)
+
+
 # --------------------------------------------------------------------------- the disk cache
 def _scaling(factor: float) -> ca.Function:
     """A tiny function to compile quickly: x -> factor * x."""

@@ -360,6 +360,23 @@ def test_frame_targets_follow_the_segments_each_frame_holds(human: HumanModel) -
         solver.targets.load(Frame(0.0, {"Pelvis": R["Pelvis"], "Tail": R["Head"]}), None)
 
 
+def test_stacked_orientations_load_the_targets_of_the_dict(human: HumanModel) -> None:
+    """A frame that carries its orientations stacked (``Frame.orientations_stacked``) loads
+    the very targets of one that does not, heading turned or not."""
+    from ikfusion.ik import Frame, Solver
+
+    rng = np.random.default_rng(19)
+    names = ["Pelvis", "LeftFoot", "Head", "RightLowerLeg"]
+    R = random_rotations(len(names), rng)
+    plain, stacked = Solver(human, contacts=False), Solver(human, contacts=False)
+    for heading in (None, random_rotations(1, rng)[0]):
+        got = stacked.targets.load(Frame(0.0, dict(zip(names, R)), orientations_stacked=R),
+                                   heading)
+        want = plain.targets.load(Frame(0.0, dict(zip(names, R))), heading)
+        assert np.array_equal(got.R_sensed, want.R_sensed)
+        assert np.array_equal(got.tracked, want.tracked)
+
+
 def test_frame_weighting_is_kept_while_the_segments_stay(human: HumanModel) -> None:
     """Frames with the same tracked segments share one weighting (row weights, posture
     weights, sensed joints: worked out once); a sensor that drops out or comes back gets what a
