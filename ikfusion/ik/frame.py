@@ -53,7 +53,9 @@ class Frame:
             honest across take-offs (:mod:`ikfusion.ik.ballistic`).
         orientations_stacked: The values of ``orientations`` (k, 3, 3) stacked in its order,
             when whoever makes the frame holds them so (the solver then need not stack them
-            every frame); None: the solver stacks them.
+            every frame); None: the solver stacks them. A frame replaced with other
+            orientations must leave it None (``dataclasses.replace(frame, orientations=...,
+            orientations_stacked=None)``): the solver reads these values, not the mapping's.
     """
 
     time: float

@@ -100,7 +100,7 @@ class TargetLoader:
         rows, w, assumed = self._rows.get(names) or self._new_rows(names)
         if names:  # one assignment of all the rows instead of one per segment
             targets = frame.orientations_stacked
-            if targets is None:
+            if targets is None or len(targets) != len(names):
                 targets = np.array(list(frame.orientations.values()), dtype=float)
             R[rows] = targets if R_heading is None else R_heading @ targets
         weights = frame.orientation_weights
