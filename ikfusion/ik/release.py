@@ -106,8 +106,8 @@ def _exp_rows(w: np.ndarray) -> np.ndarray:
     theta = row_norms(w)  # np.linalg.norm's own formula
     if any_true(theta < SMALL_ANGLE):
         return exp_so3(w)
-    K = np.zeros((len(w), 9))
-    K[:, _SKEW_AT] = w.take(_SKEW_FROM, axis=1) * _SKEW_SIGN
-    K = K.reshape(-1, 3, 3)
+    flat = np.zeros((len(w), 9))
+    flat[:, _SKEW_AT] = w.take(_SKEW_FROM, axis=1) * _SKEW_SIGN
+    K = flat.reshape(-1, 3, 3)
     t = theta[:, None, None]
     return _EYE + np.sin(t) / t * K + (1.0 - np.cos(t)) / t**2 * (K @ K)
