@@ -29,7 +29,7 @@ from .fast_math import any_true, min_of, true_indices
 from .frame import Frame
 from .frame_stance import FrameStance
 from .landing_lag import unlagged_landings
-from .point_bits import point_bits
+from .point_bits import above, indices, point_bits
 from .point_evidence import FrameEvidence, frame_evidence, heights_above_lowest
 from .release import ANKLE, ReleaseEasing
 from .settings import SolverSettings
@@ -82,6 +82,8 @@ class ContactTracker:
         self._no_pitch = np.full(len(self._feet), np.nan)  # foot_pitch's start: no foot
         self._stance = FrameStance(self.names, self._foot_names, self._bits)
         self._rest = self._bits.of(self._needs_rest)  # the trunk points, as bits
+        self._rest_rows = indices(self._rest)
+        self._all = (1 << len(self.names)) - 1  # every point, as bits
         self._untracked: dict[bytes, tuple[int, ...]] = {}  # _untracked_feet's, per pattern
         self.support = SupportFollower(self.layout, s.lag_speed, s.lag_max, s.swing_speed,
                                        s.lean_max, s.lean_speed, s.touchdown_confirm,
@@ -102,6 +104,8 @@ class ContactTracker:
         self._p_sensed = np.zeros((len(self.names), 3))
         self._pitch = np.zeros(len(self.names))
         self.far_from_floor = np.zeros(len(self.names), dtype=bool)
+        self._far = 0  # far_from_floor's bits
+        self._on_of = (self.state.active, 0)  # :meth:`planted`'s array and its bits
         self._v_sensed: np.ndarray | None = None
         self._rising = 0  # the planted heels release() let rise (bits: :mod:`.point_bits`)
         # the frame being solved's feet still, points moving and masks (touch_down reuses them)
@@ -194,7 +198,8 @@ class ContactTracker:
         self._pitch.setflags(write=False)
         z = self._p_sensed[:, 2]
         lowest = min_of(z)
-        self.far_from_floor = self._needs_rest & (z > lowest + FAR_FROM_FLOOR)
+        self._far = above(z.tolist(), lowest + FAR_FROM_FLOOR, self._rest_rows)
+        self.far_from_floor = self._bits.mask(self._far)  # (read-only, shared)
         (still, stance), moving = self._stance.feet_still(frame), self._stance.points_moving(frame)
         th = self.thresholds
         evidence = frame_evidence(self._bits, heights_above_lowest(self._p_sensed, lowest),
@@ -210,7 +215,7 @@ class ContactTracker:
             toe_off=tip > th.enter_speed if any_true(tip) else None, evidence=evidence)
         # a planted heel whose foot already rolls toe-down may rise (it still cannot slip),
         # unless its IMU says the foot stands still
-        bits, on = self._bits, self._bits.of(self.state.active)  # (:mod:`.point_bits`)
+        bits, on = self._bits, self.planted()  # (:mod:`.point_bits`)
         rising = bits.heels & on & ~evidence.still
         if rising:
             rising &= bits.of(pitch > self._heel_rise)
@@ -240,12 +245,31 @@ class ContactTracker:
         """
         if self.names:
             bits = self._bits
-            on, was = bits.of(self.state.active), bits.of(held)
+            on, was = self.planted(), bits.of(held)
             if was & ~on:
                 self.easing.release(bits.mask(was & ~on), bend)
             if (up := was & on & self._rising) and (up := up & ~bits.of_optional(free_z)):
                 self.easing.release(bits.mask(up), bend, ANKLE)
         return self.easing.apply(R_world_sensed, dt)
+
+    def planted(self) -> int:
+        """The planted points ``state.active`` as bits, worked out once per state's array.
+
+        (A state's arrays are never written to: :class:`.contacts.ContactState`.)
+        """
+        active, on = self._on_of
+        if active is not self.state.active:
+            active = self.state.active
+            self._on_of = (active, on := self._bits.of(active))
+        return on
+
+    def floor_points(self) -> np.ndarray:
+        """(c,) read-only: the points the floor holds up this frame (one floor row each).
+
+        Those not held at their anchors in height (free, or heels that :meth:`release` let
+        rise) and not far above it (:attr:`far_from_floor`).
+        """
+        return self._bits.mask(self._all & ~(self.planted() & ~self._rising) & ~self._far)
 
     def follow(self, p_sensed: np.ndarray, dt: float) -> np.ndarray | None:
         """The support offset (3,) [m] putting the sensed pose on its anchors; None in flight."""

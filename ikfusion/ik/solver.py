@@ -234,8 +234,7 @@ class Solver:
             return
         state, tasks = self.contacts.state, self.tasks
         tasks.contact.set_anchors(state.active, state.anchors, rising)
-        # a point far above the floor has no floor row (ContactTracker.far_from_floor)
-        tasks.floor.enabled = (~state.active | tasks.contact.free_z) & ~self.contacts.far_from_floor
+        tasks.floor.enabled = self.contacts.floor_points()  # (none far above the floor)
 
     def _base_tasks(self, frame: Frame) -> list[Task]:
         """The tasks of every frame, with the pelvis at its aiding position when it has one."""
