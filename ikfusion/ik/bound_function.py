@@ -35,11 +35,20 @@ class BoundFunction:
         self._dense: list[np.ndarray] = []
         # output -> (its dense array flattened, where its nonzeros go, the nonzeros)
         self._scattered: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        # the dense vector outputs, one after the other in one array (:meth:`vectors`)
+        vector = [function.sparsity_out(i).is_dense() and min(function.size_out(i)) == 1
+                  for i in range(function.n_out())]
+        self._vectors = np.zeros(sum(function.nnz_out(i) for i, v in enumerate(vector) if v))
+        self._vector_at: dict[int, tuple[int, int]] = {}  # output -> (start, size)
+        self._stacked: dict[tuple[int, int], np.ndarray] = {}
+        at = 0
         for i in range(function.n_out()):
             sp = function.sparsity_out(i)
             dense = np.zeros((sp.size1(), sp.size2()))
-            if sp.is_dense() and min(sp.size1(), sp.size2()) == 1:
-                # a dense vector: CasADi's column-major nonzeros are the array itself
+            if vector[i]:  # a dense vector: CasADi's column-major nonzeros are the array itself
+                dense = self._vectors[at:at + sp.nnz()].reshape(dense.shape)
+                self._vector_at[i] = (at, sp.nnz())
+                at += sp.nnz()
                 self._buffer.set_res(i, memoryview(dense))  # type: ignore[arg-type,call-arg]
             else:
                 nz = np.zeros(sp.nnz())
@@ -98,6 +107,25 @@ class BoundFunction:
         """
         scattered = self._scattered.get(i)
         return self._dense[i].reshape(-1) if scattered is None else scattered[2]
+
+    def vectors(self, first: int, count: int) -> np.ndarray:
+        """Outputs ``first`` .. ``first + count - 1`` of the last call as rows of one array.
+
+        (count, size): a view of the outputs (no copy), overwritten by the next call.
+
+        Raises:
+            ValueError: One of them is not a dense vector, or their sizes differ.
+        """
+        stacked = self._stacked.get((first, count))
+        if stacked is None:
+            spans = [self._vector_at.get(i) for i in range(first, first + count)]
+            if None in spans or len({size for _, size in spans}) != 1:  # type: ignore[misc]
+                raise ValueError(f"outputs {first}..{first + count - 1} are not dense vectors "
+                                 "of one size")
+            start, size = spans[0]  # type: ignore[misc]
+            stacked = self._stacked[first, count] = \
+                self._vectors[start:start + count * size].reshape(count, size)
+        return stacked
 
     def output_into(self, i: int, out: np.ndarray) -> None:
         """Output ``i`` of the last :meth:`evaluate`, dense, written into ``out`` (its shape).

@@ -21,7 +21,7 @@ from .compiled_sensed import SensedPoseSpec
 from .configuration import Configuration
 from .fast_math import add_to_diagonal, any_true, count_true
 from .limits import ContactConstraint, FloorLimit, JointRangeLimit, VelocityLimit
-from .limits.base import Equality, Inequality, empty_equality, empty_inequality
+from .limits.base import Equality, Inequality, empty_inequality
 from .points_configuration import PointsConfiguration
 from .qp import QpBuffer, QpProblem, build_qp
 from .settings import SolverSettings
@@ -56,7 +56,6 @@ class CompiledStep:
         geometry: The model's geometry input.
         buffer: Where each step's QP is built (overwritten by the next step).
         no_floor: The floor rows of a body without contact points (none).
-        no_contact: Its contact rows (none).
         rate_rows: (ranges, 3) where each row's structural nonzeros lie among those of the
             step's ``G_ranges`` (the rates of an angle to its joint's three tangent columns);
             None when its rows do not hold three each.
@@ -69,7 +68,6 @@ class CompiledStep:
     geometry: np.ndarray
     buffer: QpBuffer
     no_floor: Inequality
-    no_contact: Equality
     rate_rows: np.ndarray | None
     contacts_only: bool
 
@@ -172,7 +170,7 @@ def compiled_step(model: HumanModel, tasks: FrameTasks,
         nv = model.model.nv
         return CompiledStep(kinematics, kinematics.geometry(model.model),
                             QpBuffer(nv, tree_closed_form(model.model)),
-                            empty_inequality(nv), empty_equality(nv),
+                            empty_inequality(nv),
                             rate_rows(kinematics.function.sparsity_out(7)),
                             kinematics.point_rows is not None and kinematics.point_rows[:-1]
                             == tasks.contact_rows.tolist())
@@ -259,19 +257,23 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
         P = step.output(5).reshape(-1, 3)
         J = step.output(6).reshape(-1, 3, nv)
     ranges = evaluated_ranges(step, compiled.rate_rows, limits)
-    up, down = ranges.near(limits.margin)
+    close = ranges.near(limits.margin)
+    up, down = close[0], close[1]
     if few:  # the contact points' rows, then the root's
         Pc, Jc = P[:-1], J[:-1]
     elif len(tasks.contact_rows):
         Pc, Jc = P.take(tasks.contact_rows, axis=0), J.take(tasks.contact_rows, axis=0)
+    n_floor, n_contact = 0, 0
     if len(tasks.contact_rows):
-        floor, contact = tasks.floor.rows(Pc, Jc), tasks.contact.rows(Pc, Jc)
-    else:
-        floor, contact = compiled.no_floor, compiled.no_contact
-    n_up, n_down = count_true(up), count_true(down)
-    below = n_up + n_down
+        n_floor, n_contact = len(tasks.floor.z_rows()), tasks.contact.count()
+    n_up, below = count_true(up), count_true(close)
     # what assemble_qp makes of these blocks, built in one packed buffer (a step every frame)
-    qp = compiled.buffer.views(below + len(floor.h), len(contact.b))
+    qp = compiled.buffer.views(below + n_floor, n_contact)
+    if len(tasks.contact_rows):  # the floor's and the contacts' rows written in place
+        floor = tasks.floor.rows(Pc, Jc, Inequality(qp.G[below:], qp.h[below:]))
+        tasks.contact.rows(Pc, Jc, Equality(qp.A, qp.b))
+    else:
+        floor = compiled.no_floor
     H, c = qp.H, qp.c
     step.output_into(0, H)
     step.output_into(1, c[:, None])
@@ -290,15 +292,9 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     add_to_diagonal(H, levenberg_marquardt)
     if n_up:  # the arrays' own compress: np.compress without its dispatch
         ranges.G.compress(up, axis=0, out=qp.G[:n_up])
-        ranges.room_up.compress(up, out=qp.h[:n_up])
-    if n_down:
+    if below > n_up:
         np.negative(ranges.G.compress(down, axis=0, out=qp.G[n_up:below]),
                     out=qp.G[n_up:below])
-        ranges.room_down.compress(down, out=qp.h[n_up:below])
-    if len(floor.h):
-        qp.G[below:] = floor.G
-        qp.h[below:] = floor.h
-    if len(contact.b):
-        qp.A[:] = contact.A
-        qp.b[:] = contact.b
+    if below:  # both limits' rooms: room_up's then room_down's
+        ranges.rooms.compress(close.ravel(), out=qp.h[:below])
     return FrameProblem(qp, LimitRows(ranges, up, down, floor, bounds))

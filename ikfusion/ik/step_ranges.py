@@ -18,7 +18,8 @@ from .limits import JointRangeLimit
 from .limits.base import Inequality
 from .limits.joint_range import LinearisedRanges
 
-#: The step function's outputs: G_ranges, room_up, room_down (:mod:`.compiled`).
+#: The step function's outputs: G_ranges, room_up, room_down (:mod:`.compiled`), the last two
+#: one after the other.
 _G, _UP, _DOWN = 7, 8, 9
 
 
@@ -26,7 +27,7 @@ def evaluated_ranges(step: BoundFunction, rate_rows: np.ndarray | None,
                      limits: JointRangeLimit) -> LinearisedRanges:
     """The ranges of the evaluated ``step``, softened by ``limits`` (its soft wall).
 
-    ``G`` is read in place (valid until the step function's next evaluation).
+    ``G`` and the rooms are read in place (valid until the step function's next evaluation).
 
     Args:
         step: The evaluated step function.
@@ -40,8 +41,9 @@ def evaluated_ranges(step: BoundFunction, rate_rows: np.ndarray | None,
     if rate_rows is not None:
         # (logical_or.reduce: ndarray.any without its Python-level dispatch)
         still = np.logical_not(np.logical_or.reduce(step.nonzeros(_G).take(rate_rows), axis=1))
-    return limits.softened(LinearisedRanges(step.output(_G), step.output(_UP)[:, 0],
-                                            step.output(_DOWN)[:, 0]), still)
+    # room_up and room_down, one after the other: read in place as one array
+    return limits.softened(LinearisedRanges.stacked(step.output(_G), step.vectors(_UP, 2)),
+                           still)
 
 
 class StepRangeRows:

@@ -69,3 +69,22 @@ def test_an_output_written_into_an_array_is_the_dense_output() -> None:
         strided = np.full((expected.shape[0], 2 * expected.shape[1]), np.nan)[:, ::2]
         call.output_into(i, strided)
         assert np.array_equal(strided, expected)
+
+
+def test_adjacent_dense_vectors_read_as_one_array() -> None:
+    """Two dense vector outputs of one size, one after the other, read as the rows of one
+    array: the outputs themselves (a view); other outputs are refused."""
+    x = ca.SX.sym("x", 3)
+    sparse = ca.SX(3, 3)
+    sparse[0, 1] = x[0]
+    f = ca.Function("g", [x], [2.0 * x, x * x, ca.sum1(x), sparse])
+    call = BoundFunction(f)
+    x0 = np.array([1.0, -2.0, 0.5])
+    call.evaluate(x0)
+    both = call.vectors(0, 2)
+    np.testing.assert_array_equal(both, [2.0 * x0, x0 * x0])
+    call.evaluate(-x0)
+    np.testing.assert_array_equal(both, [-2.0 * x0, x0 * x0])  # overwritten in place
+    for first, count in [(1, 2), (2, 2)]:  # sizes that differ; a sparse output
+        with pytest.raises(ValueError, match="dense vectors"):
+            call.vectors(first, count)

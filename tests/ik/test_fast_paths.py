@@ -486,7 +486,7 @@ def test_a_step_copies_its_inputs_at_once_and_reads_only_its_outputs(
     read: set[int] = set()
     one_by_one: list[int] = []
     output, output_into = BoundFunction.output, BoundFunction.output_into
-    set_each = BoundFunction._set_each
+    vectors, set_each = BoundFunction.vectors, BoundFunction._set_each
 
     def counted_output(call: BoundFunction, i: int) -> np.ndarray:
         if call in kinematics._steps.values():
@@ -498,6 +498,11 @@ def test_a_step_copies_its_inputs_at_once_and_reads_only_its_outputs(
             read.add(i)
         output_into(call, i, out)
 
+    def counted_vectors(call: BoundFunction, first: int, count: int) -> np.ndarray:
+        if call in kinematics._steps.values():
+            read.update(range(first, first + count))
+        return vectors(call, first, count)
+
     def counted_set_each(call: BoundFunction, inputs: tuple[np.ndarray, ...]) -> None:
         if call in kinematics._steps.values():
             one_by_one.append(len(inputs))
@@ -505,6 +510,7 @@ def test_a_step_copies_its_inputs_at_once_and_reads_only_its_outputs(
 
     monkeypatch.setattr(BoundFunction, "output", counted_output)
     monkeypatch.setattr(BoundFunction, "output_into", counted_output_into)
+    monkeypatch.setattr(BoundFunction, "vectors", counted_vectors)
     monkeypatch.setattr(BoundFunction, "_set_each", counted_set_each)
     motion = fast.solve(frames)
     names = kinematics.function.name_out()

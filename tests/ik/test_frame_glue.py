@@ -9,6 +9,7 @@ import pytest
 from ikfusion.ik.anchor_settling import settled_heights
 from ikfusion.ik.configuration import Configuration
 from ikfusion.ik.limits import ContactConstraint, FloorLimit
+from ikfusion.ik.limits.base import Equality, Inequality
 from ikfusion.ik.release import ReleaseEasing
 from ikfusion.ik.support import SupportFollower
 from ikfusion.model import HumanModel
@@ -67,6 +68,17 @@ def test_contact_and_floor_rows_are_the_held_coordinates() -> None:
     below = [i for i in range(k) if not active[i]]
     np.testing.assert_array_equal(ineq.G, np.array([-J[i, 2] for i in below]))
     np.testing.assert_array_equal(ineq.h, np.array([p[i, 2] - 0.01 for i in below]))
+    # the same rows written into given arrays (a QP's buffer), bit for bit
+    into = Equality(np.full((contact.count(), nv), np.nan), np.full(contact.count(), np.nan))
+    assert contact.rows(p, J, into) is into
+    np.testing.assert_array_equal(into.A, eq.A)
+    np.testing.assert_array_equal(into.b, eq.b)
+    floor_into = Inequality(np.full((len(below), nv), np.nan), np.full(len(below), np.nan))
+    floor.rows(p, J, floor_into)
+    np.testing.assert_array_equal(floor_into.G, ineq.G)
+    np.testing.assert_array_equal(floor_into.h, ineq.h)
+    floor.enabled[below[0]] = False  # changed in place: its rows follow
+    np.testing.assert_array_equal(floor.z_rows(), np.array([3 * i + 2 for i in below[1:]]))
 
 
 def test_contact_equality_rows_are_the_held_coordinates() -> None:

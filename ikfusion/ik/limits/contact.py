@@ -101,15 +101,32 @@ class ContactConstraint:
                             (self.anchors[on] - p_planted).reshape(-1).take(rows))
         return Equality(J[held], self._along_held(self.anchors[on] - p_planted, on)[held])
 
-    def rows(self, p_world: np.ndarray, J_linear: np.ndarray) -> Equality:
-        """Rows from every point's position (k, 3) [m] and linear Jacobian (k, 3, nv)."""
+    def count(self) -> int:
+        """How many rows :meth:`rows` makes (the directions held)."""
+        return len(self._held_rows)
+
+    def rows(self, p_world: np.ndarray, J_linear: np.ndarray,
+             out: Equality | None = None) -> Equality:
+        """Rows from every point's position (k, 3) [m] and linear Jacobian (k, 3, nv).
+
+        ``out``: arrays of :meth:`count` rows to write them into (a QP's buffer), returned.
+        """
         if self._basis is None:  # the usual case: world axes, rows taken by index (faster)
             rows = self._held_rows
-            return Equality(J_linear.reshape(-1, J_linear.shape[2]).take(rows, axis=0),
-                            (self.anchors - p_world).reshape(-1).take(rows))
+            if out is None:
+                return Equality(J_linear.reshape(-1, J_linear.shape[2]).take(rows, axis=0),
+                                (self.anchors - p_world).reshape(-1).take(rows))
+            # mode "clip" (the rows are in range): take's "raise" would write out through a copy
+            J_linear.reshape(-1, J_linear.shape[2]).take(rows, axis=0, out=out.A, mode="clip")
+            (self.anchors - p_world).reshape(-1).take(rows, out=out.b, mode="clip")
+            return out
         held, every = self._held, slice(None)
-        return Equality(self._along_held(J_linear, every)[held],
+        made = Equality(self._along_held(J_linear, every)[held],
                         self._along_held(self.anchors - p_world, every)[held])
+        if out is None:
+            return made
+        out.A[:], out.b[:] = made
+        return out
 
     def planted_slide_m(self, p_world: np.ndarray) -> np.ndarray:
         """Distance of each point in contact from its anchor (active,) [m].
@@ -172,6 +189,7 @@ class FloorLimit:
         self.frame_ids = list(frame_ids)
         self.floor_z = float(floor_z)
         self.enabled = np.ones(len(self.frame_ids), dtype=bool)
+        self._z_rows: dict[bytes, np.ndarray] = {}  # enabled's bytes -> :meth:`z_rows`
 
     def inequality(self, configuration: Configuration) -> Inequality:
         """Rows ``-J_z dq <= z - floor_z`` for the enabled points."""
@@ -182,8 +200,31 @@ class FloorLimit:
         return Inequality(-configuration.linear_jacobians(on)[:, 2, :],
                           configuration.positions(on)[:, 2] - self.floor_z)
 
-    def rows(self, p_world: np.ndarray, J_linear: np.ndarray) -> Inequality:
-        """Rows from every point's position (k, 3) [m] and linear Jacobian (k, 3, nv)."""
-        rows = true_indices(self.enabled) * 3 + 2  # the z rows of the enabled points
-        return Inequality(-J_linear.reshape(-1, J_linear.shape[2]).take(rows, axis=0),
-                          p_world.reshape(-1).take(rows) - self.floor_z)
+    def z_rows(self) -> np.ndarray:
+        """The z rows of the enabled points among every point's coordinates (k * 3): indices.
+
+        Kept per mask of enabled points (a frame's few contact points: a few masks recur).
+        """
+        key = self.enabled.tobytes()
+        rows = self._z_rows.get(key)
+        if rows is None:
+            rows = self._z_rows[key] = true_indices(self.enabled) * 3 + 2
+        return rows
+
+    def rows(self, p_world: np.ndarray, J_linear: np.ndarray,
+             out: Inequality | None = None) -> Inequality:
+        """Rows from every point's position (k, 3) [m] and linear Jacobian (k, 3, nv).
+
+        ``out``: arrays of a row per enabled point (:meth:`z_rows`) to write them into (a
+        QP's buffer), returned.
+        """
+        rows = self.z_rows()
+        if out is None:
+            return Inequality(-J_linear.reshape(-1, J_linear.shape[2]).take(rows, axis=0),
+                              p_world.reshape(-1).take(rows) - self.floor_z)
+        G, h = out
+        # mode "clip" (the rows are in range): take's "raise" would write out through a copy
+        J_linear.reshape(-1, J_linear.shape[2]).take(rows, axis=0, out=G, mode="clip")
+        np.negative(G, out=G)
+        np.subtract(p_world.reshape(-1).take(rows, out=h, mode="clip"), self.floor_z, out=h)
+        return out

@@ -28,7 +28,6 @@ range (:mod:`.soft_wall`) instead of stopping dead while the true joint still tu
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -129,10 +128,9 @@ class JointRangeLimit:
             self._linearised = (a, ranges.G)
             self._solved = a
         room = self.wall.room(a)
-        if room is not None:
-            up, down = room
-            ranges = LinearisedRanges(ranges.G, ranges.room_up + up.reshape(-1),
-                                      ranges.room_down + down.reshape(-1))
+        if room is not None:  # both limits' rooms at once
+            ranges = LinearisedRanges.stacked(ranges.G,
+                                              ranges.rooms + room.reshape(ranges.rooms.shape))
         return ranges.without_still_angles(still)
 
     def took_step(self, dq: np.ndarray) -> None:
@@ -191,7 +189,8 @@ class JointRangeLimit:
             Einv[flipped, 1, :] *= -1.0
         G = np.zeros((a.size, nv))  # row 3j + m: angle m of joint j per unit tangent step
         G[self._rows, self._cols] = Einv.reshape(-1)
-        return LinearisedRanges(G, (self.upper - a).reshape(-1), (a - self.lower).reshape(-1))
+        rooms = np.stack((self.upper - a, a - self.lower)).reshape(2, -1)
+        return LinearisedRanges.stacked(G, rooms)
 
 
 def finite_rates(E_inv: np.ndarray) -> np.ndarray:
@@ -205,19 +204,30 @@ def finite_rates(E_inv: np.ndarray) -> np.ndarray:
     return np.where(steep, 0.0, E_inv)
 
 
-@dataclass
 class LinearisedRanges:
     """The ranges of motion linearised at one configuration.
 
     Attributes:
         G: (angles, nv) rate of each anatomical angle per unit tangent step.
-        room_up: (angles,) ``upper - a`` [rad] (negative beyond the limit).
-        room_down: (angles,) ``a - lower`` [rad].
+        rooms: (2, angles) ``room_up`` then ``room_down``, one array (both limits' rows
+            selected with one comparison and one ``compress``).
+        room_up: (angles,) ``upper - a`` [rad] (negative beyond the limit), a view of ``rooms``.
+        room_down: (angles,) ``a - lower`` [rad], a view of ``rooms``.
     """
 
-    G: np.ndarray
-    room_up: np.ndarray
-    room_down: np.ndarray
+    def __init__(self, G: np.ndarray, room_up: np.ndarray, room_down: np.ndarray) -> None:
+        self._set(G, np.stack((room_up, room_down)))
+
+    @classmethod
+    def stacked(cls, G: np.ndarray, rooms: np.ndarray) -> LinearisedRanges:
+        """The ranges of ``G`` and the rooms (2, angles) [rad] (``rooms`` kept, not copied)."""
+        made = cls.__new__(cls)
+        made._set(G, rooms)
+        return made
+
+    def _set(self, G: np.ndarray, rooms: np.ndarray) -> None:
+        self.G, self.rooms = G, rooms
+        self.room_up, self.room_down = rooms[0], rooms[1]  # (indexed: faster than unpacked)
 
     def without_still_angles(self, still: np.ndarray | None = None) -> LinearisedRanges:
         """These ranges with endless room (no rows) for the angles whose rates are all 0.
@@ -230,12 +240,14 @@ class LinearisedRanges:
             still = ~np.any(self.G, axis=1)
         if not any_true(still):
             return self
-        return LinearisedRanges(self.G, np.where(still, np.inf, self.room_up),
-                                np.where(still, np.inf, self.room_down))
+        return LinearisedRanges.stacked(self.G, np.where(still, np.inf, self.rooms))
 
-    def near(self, margin: float) -> tuple[np.ndarray, np.ndarray]:
-        """Masks of the angles within ``margin`` [rad] of their upper and lower limits."""
-        return self.room_up < margin, self.room_down < margin
+    def near(self, margin: float) -> np.ndarray:
+        """Masks (2, angles) of the angles within ``margin`` [rad] of their limits.
+
+        Row 0: the upper limits, row 1: the lower ones (views of one array).
+        """
+        return self.rooms < margin
 
     def inequality(self, up: np.ndarray, down: np.ndarray) -> Inequality:
         """Rows ``G dq <= h`` for the upper limits in ``up`` and the lower ones in ``down``."""

@@ -86,8 +86,8 @@ class SoftWall:
         if sunk.max() > 0.0:  # else no angle reaches a limit: hard limits
             self._room = np.minimum(np.maximum(sunk, 0.0), self._depth)
 
-    def room(self, angles: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        """The room past the upper and the lower limits (joints, 3) [rad]; None: hard limits.
+    def room(self, angles: np.ndarray) -> np.ndarray | None:
+        """The room past the upper and the lower limits (2, joints, 3) [rad]; None: hard limits.
 
         ``angles`` (joints, 3) [rad] are where the step is linearised, each on its triple
         nearest the range. An angle on another triple than the previous frame's (the other
@@ -95,5 +95,4 @@ class SoftWall:
         """
         if self._room is None or self._previous is None:
             return None
-        room = self._room * (np.abs(angles - self._previous) < _SAME_TRIPLE)
-        return room[0], room[1]
+        return self._room * (np.abs(angles - self._previous) < _SAME_TRIPLE)
