@@ -86,7 +86,7 @@ class SupportFollower:
     def reset(self) -> None:
         """Forget the support, the lag and every offset."""
         # the 3-vectors [m] as tuples of floats (:mod:`.vec3`); :attr:`lag` ... give arrays
-        self._support: tuple[int, np.ndarray] | None = None  # (points (bits), anchors)
+        self._support: tuple[int, list[list[float]]] | None = None  # (points (bits), anchors)
         self._lag = self._lean = self._step = self._off_target = self._landed = ZERO
         self._allowance = 0.0
         self._max_step = 0.0
@@ -120,7 +120,7 @@ class SupportFollower:
     def carry_held(self, delta: np.ndarray) -> None:
         """Held anchors moved by ``delta`` (3,)/(k, 3) [m], not placed (a glide): the body goes."""
         if self._support is not None:
-            self._support = (self._support[0], self._support[1] + delta)
+            self._support = (self._support[0], (np.array(self._support[1]) + delta).tolist())
 
     @property
     def displacement(self) -> np.ndarray:
@@ -178,14 +178,15 @@ class SupportFollower:
         planted = self._planted(on)
         self._settle_landings(planted, dt)
         reference = self._reference(on, planted)
-        offset = vec3.mean_rows(anchors, indices(reference), p_sensed)
+        rows, sensed = anchors.tolist(), p_sensed.tolist()  # rows of floats (:mod:`.vec3`)
+        offset = vec3.mean_rows(rows, indices(reference), sensed)
         moved = ZERO  # how far the pelvis target moves to where the pelvis was solved
         lag, lean, buffer = self._lag, self._lean, self._buffer
         if self._support is not None:
             was, held = self._support
             if was:
                 # what the last frame's support says now, minus what this frame's says
-                lag = vec3.add(lag, vec3.sub(vec3.mean_rows(held, indices(was), p_sensed), offset))
+                lag = vec3.add(lag, vec3.sub(vec3.mean_rows(held, indices(was), sensed), offset))
             if not was & reference:
                 # the body is handed to a foot that was placed leaning: the lean is in it now;
                 # and the pelvis goes on from where it was solved, not from its soft target
@@ -201,8 +202,7 @@ class SupportFollower:
                                 self.lean_max, buffer)
         self._lean = vec3.add(lean, vec3.clip_norm(vec3.sub(wanted, lean),
                                                    self.lean_speed * dt, buffer))
-        self._support = (reference, anchors.copy())
-        self._reference_feet = self._planted(reference)
+        self._support, self._reference_feet = (reference, rows), self._planted(reference)
         self._update_swing(planted, dt, moved)
         return np.array(offset)
 
