@@ -77,8 +77,9 @@ class SupportFollower:
         self._group_points = [self._bits.of(f) for f in self._feet]  # each group's points
         self._all_groups = (1 << len(self._feet)) - 1
         self._planted_of: dict[int, int] = {}  # _planted's, per pattern of points
-        # only feet proper are led through a swing; knees and palms land where the body puts them
-        self._steps = [bool((f & layout.stepping).any()) for f in self._feet]
+        # only feet proper (bits of groups) are led through a swing; knees and palms land where
+        # the body puts them
+        self._steps = sum(1 << i for i, f in enumerate(self._feet) if (f & layout.stepping).any())
         self._led = np.asarray(layout.on_foot, dtype=bool)  # led by its heels, not unsensed toes
         self._buffer = np.zeros(3)  # for :mod:`.vec3`'s norms
         self.reset()
@@ -262,11 +263,10 @@ class SupportFollower:
         heel is (held while the body moved on, it is no longer where it was led: a swing
         resumed there jumped the heel by centimetres), and its landing is not counted.
         """
-        for f in indices(self._all_groups & ~planted):
-            points = self._feet[f]
-            if not self._steps[f]:
-                self._swinging[f] = True  # lifted, never led: lands with no swing offset
-                continue
+        lifted = self._all_groups & ~planted
+        for f in indices(lifted & ~self._steps):
+            self._swinging[f] = True  # lifted, never led: lands with no swing offset
+        for f in indices(lifted & self._steps):
             if not self._swinging[f]:
                 self._swinging[f] = True
                 if self._planted_for[f] < self.confirm and any(self._landed_swing[f]):
@@ -278,7 +278,7 @@ class SupportFollower:
                 # the heel leaves the floor where it is, not where the sensed leg puts it (nor
                 # where it was led before a short touch-down: the body moved under it since)
                 swing = self._swing[f] = tuple(  # type: ignore[assignment]
-                    mean_rows(self._led_base.deviation()[points & self._led]).tolist())
+                    mean_rows(self._led_base.deviation()[self._feet[f] & self._led]).tolist())
                 # a sensed leg that disagreed with the floor's height does not set the heel's
                 self._height_trust[f] = band_share(-abs(swing[2]))
                 self._landed_swing[f] = ZERO
