@@ -146,6 +146,17 @@ def below(values: list[float], limit: float, rows: Sequence[int] | None = None) 
     return out
 
 
+def below_above(values: list[float], low: float, high: float) -> tuple[int, int]:
+    """``(below(values, low), above(values, high))`` in one pass over every index (NaN: neither)."""
+    under = over = 0
+    for i, v in enumerate(values):
+        if v < low:
+            under |= 1 << i
+        if v > high:
+            over |= 1 << i
+    return under, over
+
+
 def first(bits: int) -> int:
     """The index of the lowest point in ``bits`` (non-zero): ``np.argmax(mask)``."""
     return (bits & -bits).bit_length() - 1

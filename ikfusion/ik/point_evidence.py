@@ -12,7 +12,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .fast_math import min_of
-from .point_bits import PointBits, above, below, indices
+from .point_bits import PointBits, above, below, below_above, indices
 from .point_masks import LastInput
 
 
@@ -127,6 +127,6 @@ def frame_evidence(bits: PointBits, height_rel: np.ndarray, foot_pitch: np.ndarr
         leave_relative: ``high``'s height above the lowest point [m].
         enter_relative: ``low``'s height above the lowest point [m].
     """
-    heights = height_rel.tolist()
+    low, high = below_above(height_rel.tolist(), enter_relative, leave_relative)
     return FrameEvidence(height_rel, tilted_bits(bits, foot_pitch, tilt), stance[0], stance[1],
-                         rest, above(heights, leave_relative), below(heights, enter_relative))
+                         rest, high, low)

@@ -77,8 +77,9 @@ class SupportFollower:
         self._group_points = [self._bits.of(f) for f in self._feet]  # each group's points
         self._all_groups = (1 << len(self._feet)) - 1
         self._planted_of: dict[int, int] = {}  # _planted's, per pattern of points
-        # only feet proper are led through a swing; knees and palms land where the body puts them
-        self._steps = [bool((f & layout.stepping).any()) for f in self._feet]
+        # only feet proper (bits of groups) are led through a swing; knees and palms land where
+        # the body puts them
+        self._steps = sum(1 << i for i, f in enumerate(self._feet) if (f & layout.stepping).any())
         self._led = np.asarray(layout.on_foot, dtype=bool)  # led by its heels, not unsensed toes
         self._buffer = np.zeros(3)  # for :mod:`.vec3`'s norms
         self.reset()
@@ -86,7 +87,7 @@ class SupportFollower:
     def reset(self) -> None:
         """Forget the support, the lag and every offset."""
         # the 3-vectors [m] as tuples of floats (:mod:`.vec3`); :attr:`lag` ... give arrays
-        self._support: tuple[int, np.ndarray] | None = None  # (points (bits), anchors)
+        self._support: tuple[int, list[list[float]]] | None = None  # (points (bits), anchors)
         self._lag = self._lean = self._step = self._off_target = self._landed = ZERO
         self._allowance = 0.0
         self._max_step = 0.0
@@ -120,7 +121,7 @@ class SupportFollower:
     def carry_held(self, delta: np.ndarray) -> None:
         """Held anchors moved by ``delta`` (3,)/(k, 3) [m], not placed (a glide): the body goes."""
         if self._support is not None:
-            self._support = (self._support[0], self._support[1] + delta)
+            self._support = (self._support[0], (np.array(self._support[1]) + delta).tolist())
 
     @property
     def displacement(self) -> np.ndarray:
@@ -178,14 +179,15 @@ class SupportFollower:
         planted = self._planted(on)
         self._settle_landings(planted, dt)
         reference = self._reference(on, planted)
-        offset = vec3.mean_rows(anchors, indices(reference), p_sensed)
+        rows, sensed = anchors.tolist(), p_sensed.tolist()  # rows of floats (:mod:`.vec3`)
+        offset = vec3.mean_rows(rows, indices(reference), sensed)
         moved = ZERO  # how far the pelvis target moves to where the pelvis was solved
         lag, lean, buffer = self._lag, self._lean, self._buffer
         if self._support is not None:
             was, held = self._support
             if was:
                 # what the last frame's support says now, minus what this frame's says
-                lag = vec3.add(lag, vec3.sub(vec3.mean_rows(held, indices(was), p_sensed), offset))
+                lag = vec3.add(lag, vec3.sub(vec3.mean_rows(held, indices(was), sensed), offset))
             if not was & reference:
                 # the body is handed to a foot that was placed leaning: the lean is in it now;
                 # and the pelvis goes on from where it was solved, not from its soft target
@@ -201,8 +203,7 @@ class SupportFollower:
                                 self.lean_max, buffer)
         self._lean = vec3.add(lean, vec3.clip_norm(vec3.sub(wanted, lean),
                                                    self.lean_speed * dt, buffer))
-        self._support = (reference, anchors.copy())
-        self._reference_feet = self._planted(reference)
+        self._support, self._reference_feet = (reference, rows), self._planted(reference)
         self._update_swing(planted, dt, moved)
         return np.array(offset)
 
@@ -262,11 +263,10 @@ class SupportFollower:
         heel is (held while the body moved on, it is no longer where it was led: a swing
         resumed there jumped the heel by centimetres), and its landing is not counted.
         """
-        for f in indices(self._all_groups & ~planted):
-            points = self._feet[f]
-            if not self._steps[f]:
-                self._swinging[f] = True  # lifted, never led: lands with no swing offset
-                continue
+        lifted = self._all_groups & ~planted
+        for f in indices(lifted & ~self._steps):
+            self._swinging[f] = True  # lifted, never led: lands with no swing offset
+        for f in indices(lifted & self._steps):
             if not self._swinging[f]:
                 self._swinging[f] = True
                 if self._planted_for[f] < self.confirm and any(self._landed_swing[f]):
@@ -278,7 +278,7 @@ class SupportFollower:
                 # the heel leaves the floor where it is, not where the sensed leg puts it (nor
                 # where it was led before a short touch-down: the body moved under it since)
                 swing = self._swing[f] = tuple(  # type: ignore[assignment]
-                    mean_rows(self._led_base.deviation()[points & self._led]).tolist())
+                    mean_rows(self._led_base.deviation()[self._feet[f] & self._led]).tolist())
                 # a sensed leg that disagreed with the floor's height does not set the heel's
                 self._height_trust[f] = band_share(-abs(swing[2]))
                 self._landed_swing[f] = ZERO

@@ -11,6 +11,7 @@ multiply-adds (``x * x + y * y + z * z`` differs in the last bit), so it is stil
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -57,16 +58,18 @@ def _shortened(v: Vec3, by: float, n: float) -> Vec3:
     return (v[0] * 0.0, v[1] * 0.0, v[2] * 0.0)
 
 
-def mean_rows(a: np.ndarray, rows: tuple[int, ...], b: np.ndarray | None = None) -> Vec3:
-    """``np.mean(a[rows], axis=0)`` of a (k, 3) array (``(a - b)[rows]`` with ``b``).
+def mean_rows(a: Sequence[Sequence[float]], rows: tuple[int, ...],
+              b: Sequence[Sequence[float]] | None = None) -> Vec3:
+    """``np.mean(a[rows], axis=0)`` of (k, 3) rows (``(a - b)[rows]`` with ``b``).
 
+    ``a``, ``b``: the rows as lists of floats (``array.tolist()``: one call for every row).
     ``rows``: at least one index, in increasing order.
     """
     x = y = z = 0.0
     for i in rows:
-        ax, ay, az = a[i].tolist()
+        ax, ay, az = a[i]
         if b is not None:
-            bx, by, bz = b[i].tolist()
+            bx, by, bz = b[i]
             ax, ay, az = ax - bx, ay - by, az - bz
         x, y, z = x + ax, y + ay, z + az
     n = len(rows)
