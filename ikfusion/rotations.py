@@ -282,6 +282,8 @@ def exp_so3(rotvec: npt.ArrayLike) -> np.ndarray:
     theta = np.linalg.norm(w, axis=-1)[..., None, None]
     K = skew(w)
     small = theta < SMALL_ANGLE
+    if not small.any():  # the same numbers as below, without the series' branch
+        return np.eye(3) + np.sin(theta) / theta * K + (1.0 - np.cos(theta)) / theta**2 * (K @ K)
     safe = np.where(small, 1.0, theta)
     a = np.where(small, 1.0 - theta**2 / 6.0, np.sin(safe) / safe)
     b = np.where(small, 0.5 - theta**2 / 24.0, (1.0 - np.cos(safe)) / safe**2)

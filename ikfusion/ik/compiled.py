@@ -61,7 +61,7 @@ from ..rotations_casadi import (
     right_jacobian_inverse,
     skew,
 )
-from .bound_function import BoundFunction, column_major
+from .bound_function import BoundFunction
 from .casadi_kinematics import (
     angular_objective,
     forward,
@@ -283,22 +283,6 @@ class CompiledKinematics:
                       self._no_chain if w_chain is None else w_chain, w_share, q_previous,
                       w_persist, q_persist)
         return step
-
-    def sensed_pose(self, q: np.ndarray, R_world_target: np.ndarray, geometry: np.ndarray,
-                    tracked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The sensed configuration and its points' world positions (points, 3) [m].
-
-        See :class:`SensedPoseSpec`; ``tracked`` is 0/1 per target.
-
-        Raises:
-            ValueError: When built without a sensed-pose spec.
-        """
-        if self.sensed_function is None:
-            raise ValueError("built without a SensedPoseSpec")
-        if not hasattr(self, "_sensed_call"):
-            self._sensed_call = BoundFunction(self.sensed_function)
-        q_sensed, points = self._sensed_call(q, column_major(R_world_target), geometry, tracked)
-        return q_sensed[:, 0].copy(), points.reshape(-1, 3).copy()
 
 
 _BUILT: dict[str, CompiledKinematics] = {}

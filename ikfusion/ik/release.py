@@ -18,7 +18,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ..rotations import SMALL_ANGLE, exp_so3
+from ..rotations import exp_so3
 from .fast_math import any_true, row_norms, true_indices
 
 #: How many segments of a leg, from its foot up, ease back to their sensors when its heel rises
@@ -84,30 +84,6 @@ class ReleaseEasing:
             self._easing = False
             return None
         R = R_world_sensed.copy()
-        R[moving] = R[moving] @ _exp_rows(self.offsets[moving])
+        R[moving] = R[moving] @ exp_so3(self.offsets[moving])
         return R
 
-
-#: :func:`_exp_rows`' ``[w]x`` flattened: where each rotation vector entry goes, and its sign
-_SKEW_AT = np.array([1, 2, 3, 5, 6, 7])
-_SKEW_FROM = np.array([2, 1, 2, 0, 1, 0])
-_SKEW_SIGN = np.array([-1.0, 1.0, 1.0, -1.0, -1.0, 1.0])
-_EYE = np.eye(3)
-_EYE.setflags(write=False)
-
-
-def _exp_rows(w: np.ndarray) -> np.ndarray:
-    """:func:`~ikfusion.rotations.exp_so3` of rotation vectors (m, 3) [rad]: (m, 3, 3).
-
-    The same operations on the same numbers (bit for bit the same matrices) at a little over
-    half the cost: no small-angle branch when no angle needs it (an easing leg's offsets are
-    degrees), ``[w]x`` built by one indexed assignment (a sign flip by ``* -1.0`` is exact).
-    """
-    theta = row_norms(w)  # np.linalg.norm's own formula
-    if any_true(theta < SMALL_ANGLE):
-        return exp_so3(w)
-    flat = np.zeros((len(w), 9))
-    flat[:, _SKEW_AT] = w.take(_SKEW_FROM, axis=1) * _SKEW_SIGN
-    K = flat.reshape(-1, 3, 3)
-    t = theta[:, None, None]
-    return _EYE + np.sin(t) / t * K + (1.0 - np.cos(t)) / t**2 * (K @ K)
