@@ -116,7 +116,7 @@ def minimum_norm_step(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     y = independent_solve(A @ A.T, b) if len(b) else None
     if y is None:
         return np.asarray(np.linalg.lstsq(A, b, rcond=None)[0])
-    return A.T @ y
+    return A.T.dot(y)  # BLAS's gemv as A.T @ y, without matmul's dispatch
 
 
 def above_floor(p_contacts: np.ndarray, floor_z: float, tolerance: float) -> bool:
