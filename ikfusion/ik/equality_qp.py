@@ -15,9 +15,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg.lapack import dposv, dpotrf, dpotrs
+from scipy.linalg.lapack import dposv
 
-from .fast_math import sum_of
+from .fast_math import min_of, sum_of
 from .least_distance import identity
 
 
@@ -84,11 +84,13 @@ def independent_solve(S: np.ndarray, r: np.ndarray) -> np.ndarray | None:
     is below ``1e-12`` of its largest diagonal entry (a condition number of about 1e6 of the
     rows), where the solution loses its accuracy.
     """
-    factor, info = dpotrf(S, lower=1, clean=0)
-    if info != 0 or factor.diagonal().min() ** 2 < DEPENDENT_ROWS * S.diagonal().max():
+    # dposv: dpotrf then dpotrs (the same numbers) in one call; its factor is checked after
+    # (the solve is wasted only on dependent rows, which are rare)
+    factor, y, info = dposv(S, r, lower=1)
+    if info != 0 or min_of(factor.diagonal()) ** 2 < \
+            DEPENDENT_ROWS * np.maximum.reduce(S.diagonal(), axis=None):
         return None
-    y, info = dpotrs(factor, r, lower=1)
-    return np.asarray(y) if info == 0 else None
+    return y
 
 
 def satisfies(x: np.ndarray, G: np.ndarray | None, h: np.ndarray | None,

@@ -21,12 +21,15 @@ one for all the rows.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cache
 from typing import Any
 
 import numpy as np
 from scipy.linalg.lapack import dpotrf, dtrtrs
+
+from .fast_math import any_true, sum_of
 
 #: DAQP's infinity: a bound beyond it is absent.
 INFINITE = 1e30
@@ -131,9 +134,9 @@ def least_distance_daqp(daqp: Any, max_iterations: int, H: np.ndarray, c: np.nda
         return None
     x, info = (np.subtract(u, v), 0) if shared_identity else \
         dtrtrs(L, np.subtract(u, v), lower=1, trans=1)
-    if info != 0 or not np.isfinite(x.sum()):
+    if info != 0 or not math.isfinite(sum_of(x)):
         return None
-    return np.asarray(x), bool(np.count_nonzero(result["lam"][:end_in]))
+    return x, any_true(result["lam"][:end_in])
 
 
 @cache

@@ -15,6 +15,7 @@ import numpy as np
 from ..errors import SolverError
 from .configuration import Configuration
 from .equality_qp import independent_solve
+from .fast_math import min_of
 from .least_distance import identity
 from .limits import ContactConstraint, FloorLimit
 from .limits.base import Inequality
@@ -115,12 +116,12 @@ def minimum_norm_step(A: np.ndarray, b: np.ndarray) -> np.ndarray:
     y = independent_solve(A @ A.T, b) if len(b) else None
     if y is None:
         return np.asarray(np.linalg.lstsq(A, b, rcond=None)[0])
-    return np.asarray(A.T @ y)
+    return A.T.dot(y)  # BLAS's gemv as A.T @ y, without matmul's dispatch
 
 
 def above_floor(p_contacts: np.ndarray, floor_z: float, tolerance: float) -> bool:
     """No contact point (c, 3) [m] below the floor ``floor_z`` [m] by more than ``tolerance``."""
-    return bool(p_contacts[:, 2].min() >= floor_z - tolerance)
+    return bool(min_of(p_contacts[:, 2]) >= floor_z - tolerance)
 
 
 def place_on_floor(conf: Configuration, q: np.ndarray, contact_frames: Sequence[int],

@@ -16,8 +16,8 @@
  * of G x <= h; 2: H is not positive definite or the equality rows are (nearly) dependent (the
  * smallest squared pivot of S below dependent_rows times its largest diagonal entry), or x is
  * not finite; 3: H has a nonzero outside the tree pattern (nothing solved); 4: the sum of every
- * packed number is not finite (a NaN or an infinity, or finite numbers overflowing it; nothing
- * solved).
+ * packed number, taken in NumPy's order (pairwise_sum), is not finite (a NaN or an infinity, or
+ * finite numbers overflowing it; nothing solved).
  */
 #include <math.h>
 
@@ -63,14 +63,41 @@ static int factor(int n, const int *ptr, const int *anc, const double *H,
             Lk[i] /= d;                     /* independent divisions: pipelined */
         }
         for (int i = 0; i < count; ++i) {
-            const int a = anc[first + i];
             const double u = Lk[i];
+            if (u == 0.0) continue;         /* most of U is zero on a step's H (about 240 of its
+                                             * 1116 entries on the real walk): subtracting 0 * t
+                                             * changes no number but the sign of a zero */
+            const int a = anc[first + i];
             D[a] -= u * t[i];
             double *restrict La = L + ptr[a];  /* its count - i - 1 entries */
             for (int j = i + 1; j < count; ++j) La[j - i - 1] -= u * t[j];
         }
     }
     return 1;
+}
+
+static double pairwise_sum(const double *a, long n)
+{   /* NumPy's add.reduce of a contiguous array (its pairwise sum: eight running sums over
+     * blocks of at most 128 numbers, longer spans halved), the sum qp._check_finite takes; its
+     * independent additions run several times faster than one running sum */
+    if (n < 8) {
+        double s = 0.0;
+        for (long i = 0; i < n; ++i) s += a[i];
+        return s;
+    }
+    if (n <= 128) {
+        double r[8];
+        long i;
+        for (int k = 0; k < 8; ++k) r[k] = a[k];
+        for (i = 8; i < n - n % 8; i += 8)
+            for (int k = 0; k < 8; ++k) r[k] += a[i + k];
+        double s = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]));
+        for (; i < n; ++i) s += a[i];
+        return s;
+    }
+    long half = n / 2;
+    half -= half % 8;
+    return pairwise_sum(a, half) + pairwise_sum(a + half, n - half);
 }
 
 /* What stays from call to call (ikfusion.ik.tree_solve.TreeClosedForm._Plan, same layout). */
@@ -90,9 +117,7 @@ int ik_tree_closed_form(const struct plan *p, int m_in, int m_eq, const double *
     double *x = p->x, *work = p->work;
     const double *H = packed, *c = H + (long)n * n, *G = c + n, *h = G + (long)m_in * n;
     const double *A = h + m_in, *b = A + (long)m_eq * n;
-    double total = 0.0;
-    for (const double *v = packed; v < b + m_eq; ++v) total += *v;
-    if (!isfinite(total)) return 4;
+    if (!isfinite(pairwise_sum(packed, (long)(b + m_eq - packed)))) return 4;
     for (int i = 0; i < n_off; ++i)
         if (H[off[i]] != 0.0) return 3;
     double *F = work, *D = F + ptr[n], *g = D + n, *V = g + n, *W = V + (long)m_eq * n;
@@ -152,7 +177,7 @@ int ik_tree_closed_form(const struct plan *p, int m_in, int m_eq, const double *
         upper_transpose_solve(n, ptr, anc, F, g);
         for (int k = 0; k < n; ++k) x[k] -= g[k];
     }
-    total = 0.0;
+    double total = 0.0;
     for (int k = 0; k < n; ++k) total += x[k];
     if (!isfinite(total)) return 2;
     for (int i = 0; i < m_in; ++i) {

@@ -75,6 +75,7 @@ class TreeClosedForm:
         n = len(parents)
         chains = ancestors(parents)
         self._ptr = np.cumsum([0] + [len(a) for a in chains]).astype(np.intc)
+        self._tree_entries = int(self._ptr[-1])  # U's entries (its work array's first part)
         self._anc = np.array([a for chain in chains for a in chain], dtype=np.intc)
         inside = np.eye(n, dtype=bool)
         for k, chain in enumerate(chains):
@@ -111,7 +112,7 @@ class TreeClosedForm:
             :func:`.qp._check_finite` tests it: nothing solved).
         """
         n = self.n
-        size = int(self._ptr[-1]) + 2 * n + m_eq * (2 * n + m_eq + 2)
+        size = self._tree_entries + 2 * n + m_eq * (2 * n + m_eq + 2)
         if len(self._work) < size:
             self._work = np.zeros(2 * size)
             self._plan.work = self._work.ctypes.data

@@ -3,6 +3,7 @@ linear algebra (the KKT system solved by NumPy) and against the LAPACK path of t
 
 from __future__ import annotations
 
+import math
 import os
 import subprocess
 from pathlib import Path
@@ -187,3 +188,20 @@ def test_a_problem_holding_nan_is_refused_by_name_through_the_kernel(tree, model
     p.H[:], p.c[:], p.A[:], p.b[:] = H, c, A, b
     with pytest.raises(SolverError, match="c \\(targets\\)"):
         solve_qp(p, "daqp", SolverSettings.load().qp)
+
+
+def test_the_kernels_finite_check_is_numpys_sum(tree, model) -> None:
+    """Finite numbers overflowing a running sum but not NumPy's pairwise one (the sum
+    qp._check_finite takes) are passed on; those overflowing NumPy's too are refused."""
+    H, c, A, b = _tree_problem(np.random.default_rng(4), model, 3)
+    p = QpBuffer(len(c), tree).views(0, 3)
+    p.H[:], p.c[:], p.A[:], p.b[:] = H, c, A, b
+    assert p.packed is not None
+    p.packed[[1, 2]] = 1e308  # H's upper triangle (never read): 1e308 + 1e308 overflows
+    p.packed[[9, 10]] = -1e308  # but NumPy adds each to one of these first
+    assert math.isfinite(np.add.reduce(p.packed))
+    assert tree.solve(p.packed, 0, 3) == SOLVED
+    p.packed[[9, 10]] = 1e308
+    with np.errstate(over="ignore"):
+        assert not math.isfinite(np.add.reduce(p.packed))
+    assert tree.solve(p.packed, 0, 3) == tree_solve.NOT_FINITE

@@ -256,5 +256,5 @@ class LinearisedRanges:
 
     def crossed(self, dq: np.ndarray, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
         """Masks of the limits (upper, lower) that the step ``dq`` would cross."""
-        rate = self.G @ dq
+        rate = self.G.dot(dq)  # BLAS's gemv as G @ dq, without matmul's dispatch
         return rate > self.room_up + tolerance, -rate > self.room_down + tolerance
