@@ -119,6 +119,12 @@ class MtManagerFile:
     header_line: int
     delimiter: str
     warnings: list[str] = field(default_factory=list)
+    _positions: dict[str, int] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        self._positions = {}
+        for k, name in enumerate(self.columns):  # the first column of a name, as list.index
+            self._positions.setdefault(name.lower(), k)
 
     def column(self, name: str) -> np.ndarray | None:
         """The values of one column (case-insensitive name), or None when absent."""
@@ -127,8 +133,7 @@ class MtManagerFile:
 
     def index(self, name: str) -> int | None:
         """Position of a column (case-insensitive name), or None."""
-        lowered = [c.lower() for c in self.columns]
-        return lowered.index(name.lower()) if name.lower() in lowered else None
+        return self._positions.get(name.lower())
 
 
 @dataclass
