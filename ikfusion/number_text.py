@@ -31,7 +31,7 @@ _ANY_FIELD = re.compile(r"%%|%[^%]*?[a-zA-Z]")
 _EXACT_LIMIT = 2.0 ** 52
 #: Relative distance from a half below which the rounding is left to ``%`` (a few ulps).
 _TIE_MARGIN = 2.0 ** -50
-_NUL, _MINUS, _POINT = 0, ord("-"), ord(".")
+_MINUS, _POINT = ord("-"), ord(".")
 
 
 def fixed_row_parts(row_format: str) -> tuple[list[str], int] | None:
@@ -173,8 +173,7 @@ def _fixed(layout: _Layout, rows: np.ndarray, whole: np.ndarray) -> str:
         field[:, :, 2 + int_digits:] = digits[:, :, int_digits:]
     for view, first, end in runs or ():
         view[...] = field[:, first:end]
-    flat = table.ravel()
-    return flat[flat != _NUL].tobytes().decode()
+    return table.tobytes().translate(None, b"\0").decode()  # NUL padding dropped
 
 
 def _row_table(encoded: list[bytes], lengths: list[int], n: int,
