@@ -58,6 +58,7 @@ from .table import (
     fit_fields,
     parse_block,
     parse_numeric,
+    repeated_byte,
     short_quote,
     split_header,
 )
@@ -205,8 +206,9 @@ def read_mtmanager_file(path: str | Path) -> MtManagerFile:
     _check_header(columns, delimiter, file, header_line)
     body = text[body_start:].rstrip("\n")
     data = None
-    if "//" not in body and "\n\n" not in body:
-        data = parse_block(body, delimiter, len(columns))
+    raw = np.frombuffer(body.encode(), np.uint8)
+    if not (repeated_byte(raw, ord("/")) or repeated_byte(raw, ord("\n"))):  # no comment or
+        data = parse_block(body, delimiter, len(columns))  # blank line: one call parses all
     warnings: list[str] = []
     if data is not None:
         numbers = header_line + 1 + np.arange(len(data), dtype=np.int64)
