@@ -31,7 +31,7 @@ _ANY_FIELD = re.compile(r"%%|%[^%]*?[a-zA-Z]")
 _EXACT_LIMIT = 2.0 ** 52
 #: Relative distance from a half below which the rounding is left to ``%`` (a few ulps).
 _TIE_MARGIN = 2.0 ** -50
-_NUL, _MINUS, _POINT = 0, ord("-"), ord(".")
+_MINUS, _POINT, _ZERO = ord("-"), ord("."), ord("0")
 
 
 def fixed_row_parts(row_format: str) -> tuple[list[str], int] | None:
@@ -173,8 +173,7 @@ def _fixed(layout: _Layout, rows: np.ndarray, whole: np.ndarray) -> str:
         field[:, :, 2 + int_digits:] = digits[:, :, int_digits:]
     for view, first, end in runs or ():
         view[...] = field[:, first:end]
-    flat = table.ravel()
-    return flat[flat != _NUL].tobytes().decode()
+    return table.tobytes().translate(None, b"\0").decode()  # NUL padding dropped
 
 
 def _row_table(encoded: list[bytes], lengths: list[int], n: int,
@@ -212,17 +211,30 @@ def _even_runs(starts: list[int], width: int) -> list[tuple[int, int, int, int]]
 
 
 def _ascii_digits(values: np.ndarray, count: int) -> np.ndarray:
-    """The last ``count`` digits of ``values`` (uint64 below 10**16) as ASCII bytes.
+    """The ``count`` digits of ``values`` (uint64 below ``10**count``, at most 10**16) as ASCII.
 
     Shape ``values.shape + (count,)``, most significant first.
 
     Eight digits at a time in one uint64 ("SIMD within a register"): split into two 4-digit
-    halves, each half into 2-digit pairs, each pair into digits, every lane at once.
+    halves, each half into 2-digit pairs, each pair into digits, every lane at once. Beyond
+    eight, one or two leading digits (degrees: ``123.456789``) are taken by division.
     """
-    words = [values] if count <= 8 else [values // 100_000_000, values % 100_000_000]
-    chunks = [_eight_digits(v) for v in words]
-    digits = chunks[0] if len(chunks) == 1 else np.concatenate(chunks, axis=-1)
-    return digits[..., -count:]
+    if count <= 8:
+        return _eight_digits(values)[..., -count:]
+    high = values // 100_000_000
+    low = values - high * 100_000_000
+    lead = count - 8
+    out = np.empty(values.shape + (count,), np.uint8)
+    out[..., lead:] = _eight_digits(low)
+    if lead > 2:
+        out[..., :lead] = _eight_digits(high)[..., -lead:]
+        return out
+    if lead == 2:
+        tens = high // 10
+        np.add(tens, _ZERO, out=out[..., 0], casting="unsafe")
+        high -= tens * 10
+    np.add(high, _ZERO, out=out[..., lead - 1], casting="unsafe")
+    return out
 
 
 class _LaneSplit(NamedTuple):

@@ -33,6 +33,19 @@ def test_every_magnitude_and_awkward_value_as_percent_writes_it(decimals: int, r
     assert format_rows(row_format, table) == percent(row_format, table)
 
 
+@pytest.mark.parametrize("digits", range(7, 12))
+def test_blocks_of_nine_to_eleven_digits_as_percent_writes_them(digits: int, rng) -> None:
+    # a block's largest value sets its digit count (decimals included): 9 and 10 digits take
+    # their leading ones by division, 11 and more by a second pass of eight
+    row_format = " ".join(["%.6f"] * 5) + "\n"
+    top = 10.0 ** (digits - 6)
+    table = rng.uniform(-top, top, (300, 5))
+    table[::7] = rng.normal(size=(43, 5))
+    table[0, 0] = np.nextafter(top, 0.0)
+    table[1, :4] = [-0.0, 0.5e-6, -(top - 0.5e-6), top / 10.0]
+    assert format_rows(row_format, table) == percent(row_format, table)
+
+
 def test_names_percent_signs_and_blocks(rng) -> None:
     """Literals of several lengths (a long table's names, ``%%``), over many blocks."""
     row_format = "%.6f,Pelvis,%.6f,%.6f\n%.6f,odd%%name,%.6f,%.6f\n%.6f\t%.6f x\n"

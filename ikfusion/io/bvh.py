@@ -964,8 +964,15 @@ def _conjugated(A: np.ndarray, R: np.ndarray) -> np.ndarray:
     if np.isin(A, (0.0, 1.0)).all() and (A.sum(axis=0) == 1.0).all() \
             and (A.sum(axis=1) == 1.0).all():
         p = np.argmax(A, axis=1)  # (A @ R @ A.T)[i, j] = R[p[i], p[j]]
+        if (p == np.arange(3)).all():  # the identity (a Z-up file): no reordering
+            return R + 0.0
         return R[..., p, :][..., :, p] + 0.0
     return A @ R @ A.T
+
+
+#: Relative distance from half a unit of the last digit within which ``%`` decides the rounding
+#: (far wider than the rounding of the threshold itself, about 1e-16).
+_HALF_MARGIN = 1e-12
 
 
 def _frame_text(values: np.ndarray, decimals: int | None) -> str:
@@ -976,10 +983,16 @@ def _frame_text(values: np.ndarray, decimals: int | None) -> str:
         return ""
     number = f"%.{decimals}f"
     flat = np.array(values, dtype=float).reshape(-1)
-    # Values that would print as -0.000 (negative, |v| below one unit of the last digit, or
-    # -0.0 itself) are written as 0.000: only those few are formatted one by one to decide.
+    # Values that would print as -0.000 (negative and rounding to zero, or -0.0 itself) are
+    # written as 0.000. Those clearly below half a unit of the last digit round to zero, those
+    # clearly above do not; only the few within rounding of the half are formatted to decide.
+    half = 0.5 * 10.0 ** -decimals
+    negative = np.flatnonzero(np.signbit(flat) & (flat > -2.0 * half))
+    size = -flat[negative]
+    flat[negative[size < half * (1.0 - _HALF_MARGIN)]] = 0.0
     negative_zero = "-" + number % 0.0
-    for i in np.flatnonzero(np.signbit(flat) & (flat > -(10.0 ** -decimals))):
+    for i in negative[(size >= half * (1.0 - _HALF_MARGIN))
+                      & (size <= half * (1.0 + _HALF_MARGIN))].tolist():
         if number % flat[i] == negative_zero:
             flat[i] = 0.0
     return format_rows(" ".join([number] * values.shape[1]) + "\n", flat.reshape(values.shape))

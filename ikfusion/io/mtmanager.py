@@ -58,6 +58,7 @@ from .table import (
     fit_fields,
     parse_block,
     parse_numeric,
+    repeated_byte,
     short_quote,
     split_header,
 )
@@ -119,6 +120,12 @@ class MtManagerFile:
     header_line: int
     delimiter: str
     warnings: list[str] = field(default_factory=list)
+    _positions: dict[str, int] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        self._positions = {}
+        for k, name in enumerate(self.columns):  # the first column of a name, as list.index
+            self._positions.setdefault(name.lower(), k)
 
     def column(self, name: str) -> np.ndarray | None:
         """The values of one column (case-insensitive name), or None when absent."""
@@ -127,8 +134,7 @@ class MtManagerFile:
 
     def index(self, name: str) -> int | None:
         """Position of a column (case-insensitive name), or None."""
-        lowered = [c.lower() for c in self.columns]
-        return lowered.index(name.lower()) if name.lower() in lowered else None
+        return self._positions.get(name.lower())
 
 
 @dataclass
@@ -200,8 +206,9 @@ def read_mtmanager_file(path: str | Path) -> MtManagerFile:
     _check_header(columns, delimiter, file, header_line)
     body = text[body_start:].rstrip("\n")
     data = None
-    if "//" not in body and "\n\n" not in body:
-        data = parse_block(body, delimiter, len(columns))
+    raw = np.frombuffer(body.encode(), np.uint8)
+    if not (repeated_byte(raw, ord("/")) or repeated_byte(raw, ord("\n"))):  # no comment or
+        data = parse_block(body, delimiter, len(columns))  # blank line: one call parses all
     warnings: list[str] = []
     if data is not None:
         numbers = header_line + 1 + np.arange(len(data), dtype=np.int64)

@@ -101,9 +101,7 @@ def R_from_matrix(rows: np.ndarray) -> tuple[np.ndarray, list[str]]:
     error = np.full(len(R), np.inf)
     gram = np.swapaxes(R[finite], 1, 2) @ R[finite]
     error[finite] = np.abs(gram - np.eye(3)).max(axis=(1, 2))
-    det = np.full(len(R), np.nan)
-    det[finite] = np.linalg.det(R[finite])
-    bad = finite & ((error > NOT_A_ROTATION) | (det < 0))
+    bad = finite & ((error > NOT_A_ROTATION) | (_determinant(R) < 0))
     fix = finite & ~bad & (error > _ROUNDING)
     if fix.any():
         U, _, Vt = np.linalg.svd(R[fix])
@@ -115,6 +113,19 @@ def R_from_matrix(rows: np.ndarray) -> tuple[np.ndarray, list[str]]:
         notes.append(f"{int(bad.sum())} matrix row(s) are not rotations (|R^T R - I| > "
                      f"{NOT_A_ROTATION} or det < 0); those samples are invalid")
     return R, notes
+
+
+def _determinant(R: np.ndarray) -> np.ndarray:
+    """Determinants (r,) of matrices (r, 3, 3) by cofactors (NaN where R holds NaN).
+
+    Only its sign is used, where ``|R^T R - I| <= NOT_A_ROTATION``: there ``|det|`` is near 1,
+    so the sign is the one any way of computing it gives.
+    """
+    a, b, c = R[:, 0, 0], R[:, 0, 1], R[:, 0, 2]
+    d, e, f = R[:, 1, 0], R[:, 1, 1], R[:, 1, 2]
+    g, h, i = R[:, 2, 0], R[:, 2, 1], R[:, 2, 2]
+    with np.errstate(invalid="ignore", over="ignore"):
+        return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
 
 
 def R_from_euler(roll_pitch_yaw_deg: np.ndarray) -> np.ndarray:

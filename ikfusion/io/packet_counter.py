@@ -38,7 +38,19 @@ _LOCAL = 8
 
 def signed_step(step: np.ndarray, wrap: int) -> np.ndarray:
     """Steps of a wrapping counter read as the nearest signed step in [-wrap/2, wrap/2)."""
-    return np.mod(step + wrap // 2, wrap) - wrap // 2
+    return _mod(step + wrap // 2, wrap) - wrap // 2
+
+
+def _mod(x: np.ndarray, wrap: int) -> np.ndarray:
+    """``np.mod(x, wrap)``, the same values; floats by a power of two without ``fmod``.
+
+    ``x - wrap * floor(x / wrap)`` rounds once, as ``np.mod`` does (``fmod`` is exact, then
+    ``+ wrap`` rounds for a negative remainder): dividing and multiplying by a power of two
+    are exact. Several times faster than ``np.mod`` on floats (SampleTimeFine steps).
+    """
+    if x.dtype.kind != "f" or wrap & (wrap - 1) or not 0 < wrap < 2**1000:
+        return np.mod(x, wrap)
+    return x - wrap * np.floor(x / wrap)
 
 
 def unplaceable_lines(lines: np.ndarray, rows: np.ndarray) -> str:

@@ -120,8 +120,9 @@ def trial_rate(files: Sequence[_TimedFile], rate: float | None, warnings: list[s
     if rate is not None and (not np.isfinite(rate) or rate <= 0):
         raise InputError(f"the rate must be a positive number of Hz, not {rate!r}",
                          field="--rate")
-    measured = {"SampleTimeFine": [r for r in map(fine_rate, files) if r is not None],
-                "UTC": [r for r in map(utc_rate, files) if r is not None]}
+    rates = [(fine_rate(f), utc_rate(f)) for f in files]  # per file, once
+    measured = {"SampleTimeFine": [fine for fine, _ in rates if fine is not None],
+                "UTC": [utc for _, utc in rates if utc is not None]}
     if declared:
         hz, source = declared.pop(), "Update Rate"
         note = f"the files declare `// Update Rate: {hz:g}Hz`"
@@ -140,13 +141,15 @@ def trial_rate(files: Sequence[_TimedFile], rate: float | None, warnings: list[s
         return float("nan"), "unknown"
     if rate is not None and abs(rate - hz) > 1e-3 * hz:
         warnings.append(f"{note}; the rate given ({rate:g} Hz) is not used")
-    _cross_check(files, hz, warnings)
+    _cross_check(files, rates, hz, warnings)
     return hz, source
 
 
-def _cross_check(files: Sequence[_TimedFile], hz: float, warnings: list[str]) -> None:
-    for f in files:
-        for name, r in (("SampleTimeFine", fine_rate(f)), ("UTC", utc_rate(f))):
+def _cross_check(files: Sequence[_TimedFile], rates: list[tuple[float | None, float | None]],
+                 hz: float, warnings: list[str]) -> None:
+    """Warn of files whose (SampleTimeFine, UTC) ``rates`` [Hz] are 2 % off ``hz``."""
+    for f, (fine, utc) in zip(files, rates):
+        for name, r in (("SampleTimeFine", fine), ("UTC", utc)):
             if r is not None and abs(r - hz) > 0.02 * hz:
                 warnings.append(f"{f.path.name}: {name} steps say {r:.4g} Hz but the "
                                 f"recording rate is {hz:g} Hz")

@@ -20,7 +20,6 @@ import numpy as np
 
 from ..atomic import atomic_folder
 from ..ik.pose import Motion
-from ..rotations import matrix_to_quat_wxyz
 from .bvh_export import write_motion_bvh
 from .opensim_export import write_motion_mot
 from .result_kinematics import ResultKinematics
@@ -78,7 +77,7 @@ def write_result_folder(motion: Motion, out_dir: str | Path, bvh_up: str = "z",
     """
     model = motion.model
     kinematics = ResultKinematics.of(motion)
-    quat_seg = matrix_to_quat_wxyz(kinematics.R_world_segment)
+    quat_seg = kinematics.segment_quats_wxyz()
     with atomic_folder(out_dir, "solve", force) as tmp:
         write_csv(tmp / "joint_angles.csv", ["time", *model.angle_columns],
                   ["%.6f"] * (1 + len(model.angle_columns)),
