@@ -166,7 +166,7 @@ class SupportFollower:
 
     # ------------------------------------------------------------------ per frame
     def follow(self, active: np.ndarray, anchors: np.ndarray, p_sensed: np.ndarray,
-               dt: float) -> np.ndarray:
+               dt: float, on: int | None = None) -> np.ndarray:
         """The support offset (3,) [m] of this frame; updates the lag and the swing feet.
 
         Args:
@@ -174,8 +174,9 @@ class SupportFollower:
             anchors: (k, 3) their anchors [m].
             p_sensed: (k, 3) contact points of this frame's sensed pose (any translation) [m].
             dt: Time since the last frame [s].
+            on: ``active`` as bits (:mod:`.point_bits`) when the caller has them.
         """
-        on = self._bits.of(active)
+        on = self._bits.of(active) if on is None else on
         planted = self._planted(on)
         self._settle_landings(planted, dt)
         reference = self._reference(on, planted)
@@ -305,13 +306,14 @@ class SupportFollower:
         self._off_target = ZERO if self._target is None else vec3.sub((x, y, z), self._target)
         self._target = None
 
-    def placed_offsets(self, active: np.ndarray) -> np.ndarray | None:
+    def placed_offsets(self, active: np.ndarray, on: int | None = None) -> np.ndarray | None:
         """(k, 3) [m]: how far each planted point was placed from where the sensed legs put it.
 
         While two feet (or knees, palms) are planted, the youngest was led by its swing offset:
         they disagree by that much on purpose, not drift. None while fewer are planted.
+        ``on``: ``active`` as bits (:mod:`.point_bits`) when the caller has them.
         """
-        planted = self._planted(self._bits.of(active))
+        planted = self._planted(self._bits.of(active) if on is None else on)
         if planted.bit_count() < 2:
             return None
         out = np.zeros((len(active), 3))
