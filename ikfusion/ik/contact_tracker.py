@@ -213,7 +213,7 @@ class ContactTracker:
         self.state = release_contacts(
             self.state, self._p_sensed, th, self._hints(frame), self._pitch, still,
             self._history[-1][1],
-            self.support.placed_offsets(self.state.active, on) if two_feet else None,
+            self.support.placed_offsets(on) if two_feet else None,
             layout=self.layout, points_moving=self.carrier.relative_motion(self.state, moving),
             needs_rest=self._needs_rest, v_sensed=self._v_sensed, step_sensed=step,
             toe_off=tip > th.enter_speed if any_true(tip) else None, evidence=evidence, on=on)
@@ -279,8 +279,7 @@ class ContactTracker:
         """The support offset (3,) [m] putting the sensed pose on its anchors; None in flight."""
         if any_true(self.state.active):
             self._stood = self.state.active
-            return self.support.follow(self.state.active, self.state.anchors, p_sensed, dt,
-                                       self.planted())
+            return self.support.follow(self.planted(), self.state.anchors, p_sensed, dt)
         if any_true(self._stood):  # the take-off: its lag is kept for the landing
             self._flown, self._stood = (self._stood, self.support.lag.copy()), self.state.active
         self.support.lose_support()
