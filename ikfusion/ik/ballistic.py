@@ -45,6 +45,7 @@ from its sensors and the landing straightened it in one frame (issue #19).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -55,7 +56,7 @@ if TYPE_CHECKING:
 GRAVITY = np.array([0.0, 0.0, -9.81])  #: [m/s^2] in the world frame (Z up)
 _NO_SHIFT = np.zeros(3)  # :meth:`BallisticRoot.shift`'s start (read-only: shifts make new arrays)
 _NO_SHIFT.setflags(write=False)
-_ZERO_MOVE = _NO_SHIFT  # no motion of the sensor around the origin
+_ZERO_FLOATS = [0.0, 0.0, 0.0]  # no motion of the sensor around the origin [m] (never written)
 
 
 class BallisticRoot:
@@ -83,6 +84,9 @@ class BallisticRoot:
         self.landed = False
         self._shift = _NO_SHIFT  # moves the next target (and the path after it) [m]
         self._lever_world: np.ndarray | None = None  # the last frame's R_world_pelvis lever
+        self._lever_floats: list[float] | None = None  # ... as floats
+        #: the velocity array :meth:`update` made last and its floats (a new array each frame)
+        self._velocity_floats: tuple[np.ndarray | None, Sequence[float]] = (None, ())
 
     def shift(self, delta: np.ndarray) -> None:
         """Move the path by ``delta`` (3,) [m] from the next frame of flight on.
@@ -145,9 +149,11 @@ class BallisticRoot:
         """
         self._shift = _NO_SHIFT  # a shift is for the frame after the one it was given in
         lever_now = self._lever_world_of(R_world_pelvis)
-        around = _ZERO_MOVE if lever_now is None or self._lever_world is None \
-            else lever_now - self._lever_world
-        self._lever_world = lever_now
+        now = None if lever_now is None else lever_now.tolist()
+        was, self._lever_world, self._lever_floats = self._lever_floats, lever_now, now
+        # the sensor's motion around the origin [m], in floats (NumPy's differences)
+        around = _ZERO_FLOATS if now is None or was is None else [
+            now[0] - was[0], now[1] - was[1], now[2] - was[2]]
         a = None if a_world is None else np.asarray(a_world, dtype=float).ravel().tolist()
         measured = a is not None and all(map(math.isfinite, a))
         if not supported:  # in flight: the path's own velocity
@@ -157,11 +163,14 @@ class BallisticRoot:
         self.position = None
         self.landed = False
         if not measured or a is None or dt <= 0.0:
-            self.velocity = np.asarray(v_solved, dtype=float) + (around / dt if dt > 0 else 0.0)
+            self.velocity = np.asarray(v_solved, dtype=float) + (
+                np.array(around) / dt if dt > 0 else 0.0)
             return
-        self.velocity = np.array(_filtered(self.velocity.tolist(),
-                                           np.asarray(v_solved, dtype=float).tolist(),
-                                           around.tolist(), a, dt, self.tau))
+        kept, floats = self._velocity_floats
+        filtered = _filtered(floats if kept is self.velocity else self.velocity.tolist(),
+                             np.asarray(v_solved, dtype=float).tolist(), around, a, dt, self.tau)
+        self.velocity = np.array(filtered)
+        self._velocity_floats = (self.velocity, filtered)  # its floats, for the next frame
 
     def _lever_world_of(self, R_world_pelvis: np.ndarray | None) -> np.ndarray | None:
         """(3,) the accelerometer's offset from the pelvis origin in the world [m], or None."""
@@ -180,7 +189,7 @@ class BallisticRoot:
         return np.asarray(lever_now - self._lever_world)
 
 
-def _filtered(v: list[float], v_solved: list[float], around: list[float], a: list[float],
+def _filtered(v: Sequence[float], v_solved: list[float], around: list[float], a: list[float],
               dt: float, tau: float) -> tuple[float, ...]:
     """The standing filter's velocity [m/s], per axis with floats (NumPy's numbers on (3,)).
 

@@ -207,15 +207,19 @@ class ContactTracker:
                                   th.enter_relative)
         self._evidence = (frame, still, moving, evidence)
         tip = self.carrier.tip_speed  # lone toes' tips sliding (0: none, the usual frame)
+        bits, on = self._bits, self.planted()  # (:mod:`.point_bits`)
+        # the placed offsets matter only while two feet are planted (release_contacts's drift)
+        two_feet = on & bits.other_foot(on) or th.leave_distance < 0
         self.state = release_contacts(
             self.state, self._p_sensed, th, self._hints(frame), self._pitch, still,
-            self._history[-1][1], self.support.placed_offsets(self.state.active),
+            self._history[-1][1],
+            self.support.placed_offsets(on) if two_feet else None,
             layout=self.layout, points_moving=self.carrier.relative_motion(self.state, moving),
             needs_rest=self._needs_rest, v_sensed=self._v_sensed, step_sensed=step,
-            toe_off=tip > th.enter_speed if any_true(tip) else None, evidence=evidence)
+            toe_off=tip > th.enter_speed if any_true(tip) else None, evidence=evidence, on=on)
         # a planted heel whose foot already rolls toe-down may rise (it still cannot slip),
         # unless its IMU says the foot stands still
-        bits, on = self._bits, self.planted()  # (:mod:`.point_bits`)
+        on = self.planted()
         rising = bits.heels & on & ~evidence.still
         if rising:
             rising &= bits.of(pitch > self._heel_rise)
@@ -275,7 +279,7 @@ class ContactTracker:
         """The support offset (3,) [m] putting the sensed pose on its anchors; None in flight."""
         if any_true(self.state.active):
             self._stood = self.state.active
-            return self.support.follow(self.state.active, self.state.anchors, p_sensed, dt)
+            return self.support.follow(self.planted(), self.state.anchors, p_sensed, dt)
         if any_true(self._stood):  # the take-off: its lag is kept for the landing
             self._flown, self._stood = (self._stood, self.support.lag.copy()), self.state.active
         self.support.lose_support()
@@ -328,7 +332,7 @@ class ContactTracker:
                                 frame.time - t_old, self.thresholds, self._hints(frame),
                                 self._pitch, layout=self.layout, points_moving=moving,
                                 foot_still=still, needs_rest=self._needs_rest,
-                                v_sensed=self._v_sensed, evidence=evidence)
+                                v_sensed=self._v_sensed, evidence=evidence, on=self.planted())
         if frame.points_velocity:  # (none: no landing is unlagged)
             stood, lag = (before, self.support.lag) if any_true(before) else self._flown
             self.state = unlagged_landings(stood, self.state, self.layout, lag, frame)

@@ -96,7 +96,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
                      v_sensed: np.ndarray | None = None,
                      step_sensed: np.ndarray | None = None,
                      toe_off: np.ndarray | None = None,
-                     evidence: FrameEvidence | None = None) -> ContactState:
+                     evidence: FrameEvidence | None = None,
+                     on: int | None = None) -> ContactState:
     """Let go of planted points the current frame's sensed pose lifts (run before solving).
 
     With ``foot_still``, also plant the points of still feet and hand the body over to them.
@@ -137,6 +138,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
             they let go even holding the body alone (it flies; held, it fell back 3-5 mm).
         evidence: The :func:`.point_evidence.frame_evidence` of these arguments, when the
             caller worked it out already (None: worked out here).
+        on: ``state.active`` as bits (:mod:`.point_bits`), when the caller has them.
 
     Returns:
         A new state: the same anchors for the points that stay, fewer active points, and
@@ -146,7 +148,7 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     active = state.active  # read only: the new state's is built at the end
     # masks as the bits of ints (:mod:`.point_bits`): bit i is point i
     bits = point_bits(layout)
-    on = bits.of(active)  # planted
+    on = bits.of(active) if on is None else on  # planted
     ev = evidence or _evidence(bits, p_sensed, foot_pitch, foot_still, needs_rest, th)
     height_rel, tilted, still, rest = ev.height_rel, ev.tilted, ev.still, ev.rest
     moving_point, settled = motion_bits(bits, points_moving)
@@ -219,6 +221,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         held_now, anchors, age, released = (held_now.copy(), anchors.copy(), age.copy(),
                                             released.copy())
         roll_on_segment(held_now, anchors, age, released, p_sensed, needs_rest, layout, th.floor_z)
+    elif held_now is active and anchors is state.anchors and not leave:
+        return state  # nothing let go nor planted (the usual frame): the same state
     return ContactState(state.names, held_now, anchors, age, released)
 
 
@@ -246,7 +250,8 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
                foot_still: np.ndarray | None = None,
                needs_rest: np.ndarray | None = None,
                v_sensed: np.ndarray | None = None,
-               evidence: FrameEvidence | None = None) -> ContactState:
+               evidence: FrameEvidence | None = None,
+               on: int | None = None) -> ContactState:
     """Plant the points that reached the floor this frame (run after solving).
 
     A point enters contact when it is near the floor, slow, among the lowest points of the
@@ -272,6 +277,7 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
         v_sensed: See :func:`release_contacts`: a point sweeping beside a planted point whose
             IMU says it does not move does not touch down.
         evidence: See :func:`release_contacts` (the same frame's).
+        on: See :func:`release_contacts`.
 
     Returns:
         A new state; anchors above the floor settle toward it at ``settle_speed``
@@ -280,7 +286,7 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     th = thresholds
     was = state.active
     bits = point_bits(layout)
-    on = bits.of(was)  # planted (bits: :mod:`.point_bits`)
+    on = bits.of(was) if on is None else on  # planted (bits: :mod:`.point_bits`)
     step = max(dt, 0.0)
     ev = evidence or _evidence(bits, p_sensed, foot_pitch, foot_still, needs_rest, th)
     released = np.where(was, state.released, state.released + step)

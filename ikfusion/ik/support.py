@@ -68,8 +68,7 @@ class SupportFollower:
         self.floor_z, self.swing_speed = floor_z, swing_speed
         self.lag_speed, self.lag_max = lag_speed, lag_max
         self.lean_max, self.lean_speed = lean_max, lean_speed
-        self.confirm = confirm
-        k = len(layout.on_foot)
+        self.confirm, k = confirm, len(layout.on_foot)
         feet = [np.asarray(f, dtype=bool) for f in layout.feet]
         self._feet = tuple(feet + [np.zeros(k, dtype=bool)] * (2 - len(feet)))
         # groups as bits of ints (:mod:`.point_bits`): bit f of a groups' mask is ``_feet[f]``
@@ -89,8 +88,7 @@ class SupportFollower:
         # the 3-vectors [m] as tuples of floats (:mod:`.vec3`); :attr:`lag` ... give arrays
         self._support: tuple[int, list[list[float]]] | None = None  # (points (bits), anchors)
         self._lag = self._lean = self._step = self._off_target = self._landed = ZERO
-        self._allowance = 0.0
-        self._max_step = 0.0
+        self._allowance = self._max_step = 0.0
         n = len(self._feet)
         self._swinging = [False] * n
         self._height_trust = [1.0] * n  # how far a swing heel is held at its sensed height
@@ -165,17 +163,17 @@ class SupportFollower:
         return p_warm + self._lag + self._lean
 
     # ------------------------------------------------------------------ per frame
-    def follow(self, active: np.ndarray, anchors: np.ndarray, p_sensed: np.ndarray,
+    def follow(self, active: np.ndarray | int, anchors: np.ndarray, p_sensed: np.ndarray,
                dt: float) -> np.ndarray:
         """The support offset (3,) [m] of this frame; updates the lag and the swing feet.
 
         Args:
-            active: (k,) planted points (at least one).
+            active: (k,) planted points (at least one), or their bits (:mod:`.point_bits`).
             anchors: (k, 3) their anchors [m].
             p_sensed: (k, 3) contact points of this frame's sensed pose (any translation) [m].
             dt: Time since the last frame [s].
         """
-        on = self._bits.of(active)
+        on = active if isinstance(active, int) else self._bits.of(active)
         planted = self._planted(on)
         self._settle_landings(planted, dt)
         reference = self._reference(on, planted)
@@ -185,9 +183,10 @@ class SupportFollower:
         lag, lean, buffer = self._lag, self._lean, self._buffer
         if self._support is not None:
             was, held = self._support
-            if was:
-                # what the last frame's support says now, minus what this frame's says
-                lag = vec3.add(lag, vec3.sub(vec3.mean_rows(held, indices(was), sensed), offset))
+            if was:  # the last frame's support now, less this frame's (equal rows: one mean)
+                then = offset if was == reference and held == rows else vec3.mean_rows(
+                    held, indices(was), sensed)
+                lag = vec3.add(lag, vec3.sub(then, offset))
             if not was & reference:
                 # the body is handed to a foot that was placed leaning: the lean is in it now;
                 # and the pelvis goes on from where it was solved, not from its soft target
@@ -305,16 +304,17 @@ class SupportFollower:
         self._off_target = ZERO if self._target is None else vec3.sub((x, y, z), self._target)
         self._target = None
 
-    def placed_offsets(self, active: np.ndarray) -> np.ndarray | None:
+    def placed_offsets(self, active: np.ndarray | int) -> np.ndarray | None:
         """(k, 3) [m]: how far each planted point was placed from where the sensed legs put it.
 
-        While two feet (or knees, palms) are planted, the youngest was led by its swing offset:
-        they disagree by that much on purpose, not drift. None while fewer are planted.
+        While two feet (or knees, palms) are planted (``active``: (k,) or bits), the youngest was
+        led by its swing offset: they disagree by that much on purpose, not drift. None while
+        fewer are planted.
         """
-        planted = self._planted(self._bits.of(active))
+        planted = self._planted(active if isinstance(active, int) else self._bits.of(active))
         if planted.bit_count() < 2:
             return None
-        out = np.zeros((len(active), 3))
+        out = np.zeros((self._bits.k, 3))
         # a foot that touched down since the last frame swings until the body follows: the youngest
         age = [-1.0 if self._swinging[f] else t for f, t in enumerate(self._planted_for)]
         young = min(indices(planted), key=age.__getitem__)  # the first of the youngest
