@@ -37,7 +37,8 @@ class PointsConfiguration(Configuration):
         self._row = {f: i for i, f in enumerate(frame_ids)}
         self._all = tuple(frame_ids)
         self._call = BoundFunction(points_function)
-        self._call.set_input(1, geometry)  # kept: calls pass q only
+        self._call.set_input(1, geometry)  # kept: each call writes q only
+        self._q_input = self._call.input_slot(0)
         self._P: np.ndarray | None = None
         self._J: np.ndarray | None = None
         super().__init__(model, q)
@@ -50,7 +51,8 @@ class PointsConfiguration(Configuration):
     def _point_positions(self) -> np.ndarray:
         """Every point's ``p_world_point`` (n, 3) [m], read-only."""
         if self._P is None:
-            self._call.evaluate(self._q)
+            self._q_input[:] = self._q
+            self._call.run()
             self._J = None  # scattered from this evaluation when asked for
             P = self._call.output(0).reshape(-1, 3).copy()
             P.setflags(write=False)
