@@ -45,7 +45,6 @@ from its sensors and the landing straightened it in one frame (issue #19).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -85,8 +84,6 @@ class BallisticRoot:
         self._shift = _NO_SHIFT  # moves the next target (and the path after it) [m]
         self._lever_world: np.ndarray | None = None  # the last frame's R_world_pelvis lever
         self._lever_floats: list[float] | None = None  # ... as floats
-        #: the velocity array :meth:`update` made last and its floats (a new array each frame)
-        self._velocity_floats: tuple[np.ndarray | None, Sequence[float]] = (None, ())
 
     def shift(self, delta: np.ndarray) -> None:
         """Move the path by ``delta`` (3,) [m] from the next frame of flight on.
@@ -166,11 +163,9 @@ class BallisticRoot:
             self.velocity = np.asarray(v_solved, dtype=float) + (
                 np.array(around) / dt if dt > 0 else 0.0)
             return
-        kept, floats = self._velocity_floats
-        filtered = _filtered(floats if kept is self.velocity else self.velocity.tolist(),
-                             np.asarray(v_solved, dtype=float).tolist(), around, a, dt, self.tau)
-        self.velocity = np.array(filtered)
-        self._velocity_floats = (self.velocity, filtered)  # its floats, for the next frame
+        self.velocity = np.array(_filtered(self.velocity.tolist(),
+                                           np.asarray(v_solved, dtype=float).tolist(),
+                                           around, a, dt, self.tau))
 
     def _lever_world_of(self, R_world_pelvis: np.ndarray | None) -> np.ndarray | None:
         """(3,) the accelerometer's offset from the pelvis origin in the world [m], or None."""
@@ -189,7 +184,7 @@ class BallisticRoot:
         return np.asarray(lever_now - self._lever_world)
 
 
-def _filtered(v: Sequence[float], v_solved: list[float], around: list[float], a: list[float],
+def _filtered(v: list[float], v_solved: list[float], around: list[float], a: list[float],
               dt: float, tau: float) -> tuple[float, ...]:
     """The standing filter's velocity [m/s], per axis with floats (NumPy's numbers on (3,)).
 
