@@ -77,6 +77,8 @@ class StepRangeRows:
         self._references = np.tile(np.eye(3), (joints, 1, 1))
         self._w_orient = np.zeros(3 * segments)
         self._w_posture = np.zeros(3 * joints)
+        for kept in (self._targets, self._references, self._w_orient, self._w_posture):
+            kept.setflags(write=False)  # left in the step function's slots while they stand
 
     def inequality(self, configuration: Configuration) -> Inequality:
         """Rows ``G dq <= h`` for the angles near or beyond a limit at ``configuration``."""
