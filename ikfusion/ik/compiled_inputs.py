@@ -26,13 +26,11 @@ from .bound_function import BoundFunction
 
 
 def memory_owner(value: Any) -> np.ndarray | None:
-    """The array owning ``value``'s memory when it is read-only (else None: not kept)."""
+    """The array owning ``value``'s memory (None: not an array's, e.g. a buffer's)."""
     owner = value
     while isinstance(owner, np.ndarray) and not owner.flags.owndata:
         owner = owner.base
-    if not isinstance(owner, np.ndarray) or owner.flags.writeable:
-        return None
-    return owner
+    return owner if isinstance(owner, np.ndarray) else None
 
 
 class SlotInputs:
@@ -73,7 +71,7 @@ class SlotInputs:
         held, owners = self._held, self._owners
         for i in self._kept:
             value = inputs[i]
-            if value is not held[i] or owners[i].flags.writeable:
+            if value is not held[i] or owners[i].flags.writeable:  # (its memory may change)
                 write(i, value)
                 owner = memory_owner(value)
                 held[i], owners[i] = (value, owner) if owner is not None else (None, None)
