@@ -33,6 +33,19 @@ def memory_owner(value: Any) -> np.ndarray | None:
     return owner if isinstance(owner, np.ndarray) else None
 
 
+def read_only(array: np.ndarray) -> np.ndarray:
+    """``array`` made read-only with the array owning its memory.
+
+    For an array made here: a view of a temporary (e.g. ``reshape``'s) would else stay
+    writeable through it, and be written into its slot at every call.
+    """
+    owner = memory_owner(array)
+    if owner is not None:
+        owner.setflags(write=False)
+    array.setflags(write=False)
+    return array
+
+
 class SlotInputs:
     """Inputs of ``call`` set by writing what changed into their slots.
 

@@ -13,6 +13,7 @@ import numpy as np
 
 from .bound_function import BoundFunction
 from .compiled import CompiledKinematics
+from .compiled_inputs import read_only
 from .configuration import Configuration
 from .fast_math import count_true
 from .limits import JointRangeLimit
@@ -116,7 +117,7 @@ class StepRangeRows:
         self._w_orient = np.zeros(3 * segments)
         self._w_posture = np.zeros(3 * joints)
         for kept in (self._targets, self._references, self._w_orient, self._w_posture):
-            kept.setflags(write=False)  # left in the step function's slots while they stand
+            read_only(kept)  # left in the step function's slots while they stand
 
     def inequality(self, configuration: Configuration) -> Inequality:
         """Rows ``G dq <= h`` for the angles near or beyond a limit at ``configuration``."""
