@@ -64,6 +64,11 @@ class BoundFunction:
             flat_dense[flat] = nz
         return self._dense
 
+    @property
+    def n_in(self) -> int:
+        """The number of inputs."""
+        return len(self._sizes)
+
     def input_slot(self, i: int) -> np.ndarray:
         """Input ``i``'s buffer (1-D, written in place): what it holds, :meth:`run` reads.
 

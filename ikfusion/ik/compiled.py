@@ -69,6 +69,7 @@ from .casadi_kinematics import (
     orientation_terms,
     symbolic_placements,
 )
+from .compiled_inputs import SlotInputs
 from .compiled_joint_tasks import chain_objective, joint_columns, persistence_objective
 from .compiled_key import structure_key as structure_key  # re-exported (retarget)
 from .compiled_points import point_kinematics, point_rows, points_function, rows_only
@@ -120,6 +121,8 @@ class CompiledKinematics:
         self._geometry_frames = frames
         self._no_chain = np.zeros(3 * len(chain_pairs))
         self._no_persist = np.zeros(model.nv)
+        for unset in (self._no_chain, self._no_persist):  # kept in their slots (read-only)
+            unset.setflags(write=False)
         #: Tangent columns the persistence twin leaves out (the root's): its weights must be 0.
         self.persistence_excluded = np.flatnonzero(~joint_columns(model))
         self.sensed_function: ca.Function | None = None
@@ -127,7 +130,8 @@ class CompiledKinematics:
         #: The sites of :attr:`function_points`: the points' rows, then the root's (the last).
         self.point_rows = point_rows(self.site_frames, self.point_frames)
         self.function_points: ca.Function | None = None
-        self._steps: dict[bool | None, BoundFunction] = {}
+        self._steps: dict[bool | None, SlotInputs] = {}
+        self._no_limits: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         if loaded is not None:
             self.use_functions(loaded)
             return
@@ -232,7 +236,9 @@ class CompiledKinematics:
 
         Bodies of another size share the compiled structure and only change this vector.
         """
-        return geometry_vector(model, self._geometry_frames)
+        geometry = geometry_vector(model, self._geometry_frames)
+        geometry.setflags(write=False)  # the same numbers while the same array (kept in a slot)
+        return geometry
 
     def __call__(self, *inputs: Any, **options: Any) -> list[np.ndarray]:
         """Every output of :meth:`evaluate` (same arguments), dense, overwritten by the next."""
@@ -246,7 +252,7 @@ class CompiledKinematics:
                  share: tuple[np.ndarray, np.ndarray] | None = None,
                  persist: tuple[np.ndarray, np.ndarray] | None = None,
                  sites: bool | None = True) -> BoundFunction:
-        """Evaluate the step function at ``q`` (one call, 1-D inputs copied at once).
+        """Evaluate the step function at ``q`` (the inputs that changed written into their slots).
 
         Args:
             q: Configuration (nq,).
@@ -271,18 +277,30 @@ class CompiledKinematics:
         """
         step = self._steps.get(sites)
         if step is None:
-            chosen = self.function_no_sites if sites is False else \
-                self.function_points if sites is None else None
-            step = self._steps[sites] = BoundFunction(self.function if chosen is None else chosen)
-        lower, upper = limits if limits is not None else (np.zeros(len(w_posture)),) * 2
+            step = self._steps[sites] = self._slot_inputs(sites)
+        if limits is None:
+            limits = self._no_limits.get(len(w_posture)) or self._zero_limits(len(w_posture))
         w_share, q_previous = (self._no_chain, q) if share is None else share
         w_persist, q_persist = (self._no_persist, q) if persist is None else persist
-        # the rotations' transposes flattened in C order: their column-major vectors
-        step.evaluate(q, np.swapaxes(R_world_target, 1, 2), geometry, w_orient, w_posture,
-                      np.swapaxes(R_reference, 1, 2), lower, upper,
-                      self._no_chain if w_chain is None else w_chain, w_share, q_previous,
-                      w_persist, q_persist)
-        return step
+        return step.set((q, R_world_target, geometry, w_orient, w_posture, R_reference,
+                         limits[0], limits[1], self._no_chain if w_chain is None else w_chain,
+                         w_share, q_previous, w_persist, q_persist))
+
+    def _slot_inputs(self, sites: bool | None) -> SlotInputs:
+        """The inputs of the step function that ``sites`` chooses (:meth:`evaluate`)."""
+        chosen = self.function_no_sites if sites is False else \
+            self.function_points if sites is None else None
+        # q, R_world_target, q_previous and q_persist are new at every step; the rotations
+        # (R_world_target, R_reference) go in as column-major vectors; the ranges' (j, 3)
+        return SlotInputs(BoundFunction(self.function if chosen is None else chosen),
+                          (0, 1, 10, 12), (1, 5), (6, 7))
+
+    def _zero_limits(self, size: int) -> tuple[np.ndarray, np.ndarray]:
+        """Zero ranges (lower, upper) of ``size`` angles (read-only, kept)."""
+        zeros = np.zeros(size)
+        zeros.setflags(write=False)
+        made = self._no_limits[size] = (zeros, zeros)
+        return made
 
 
 _BUILT: dict[str, CompiledKinematics] = {}

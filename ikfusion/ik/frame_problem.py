@@ -25,7 +25,7 @@ from .limits.base import Equality, Inequality, empty_inequality
 from .points_configuration import PointsConfiguration
 from .qp import QpBuffer, QpProblem, build_qp
 from .settings import SolverSettings
-from .step_ranges import evaluated_ranges
+from .step_ranges import RateRows, evaluated_ranges
 from .tasks import (
     ChainShareTask,
     ColumnShapeTask,
@@ -56,9 +56,9 @@ class CompiledStep:
         geometry: The model's geometry input.
         buffer: Where each step's QP is built (overwritten by the next step).
         no_floor: The floor rows of a body without contact points (none).
-        rate_rows: (ranges, 3) where each row's structural nonzeros lie among those of the
-            step's ``G_ranges`` (the rates of an angle to its joint's three tangent columns);
-            None when its rows do not hold three each.
+        rate_rows: Where each row's structural nonzeros lie among those of the step's
+            ``G_ranges`` (the rates of an angle to its joint's three tangent columns,
+            :class:`.step_ranges.RateRows`); None when its rows do not hold three each.
         contacts_only: Whether the step function with only the contact points' and the
             root's sites (:attr:`.CompiledKinematics.function_points`) serves the steps that
             weigh no site target.
@@ -68,7 +68,7 @@ class CompiledStep:
     geometry: np.ndarray
     buffer: QpBuffer
     no_floor: Inequality
-    rate_rows: np.ndarray | None
+    rate_rows: RateRows | None
     contacts_only: bool
 
 
@@ -178,7 +178,7 @@ def compiled_step(model: HumanModel, tasks: FrameTasks,
         return None
 
 
-def rate_rows(G_ranges: ca.Sparsity) -> np.ndarray | None:
+def rate_rows(G_ranges: ca.Sparsity) -> RateRows | None:
     """Where each row's nonzeros lie among those of ``G_ranges``: (rows, 3) indices.
 
     None unless every row holds three (the rates of an angle to its joint's tangent columns).
@@ -187,7 +187,7 @@ def rate_rows(G_ranges: ca.Sparsity) -> np.ndarray | None:
     if not np.array_equal(np.bincount(rows, minlength=G_ranges.size1()),
                           np.full(G_ranges.size1(), 3)):
         return None
-    return np.argsort(rows, kind="stable").reshape(-1, 3)
+    return RateRows(np.argsort(rows, kind="stable").reshape(-1, 3))
 
 
 def step_configuration(model: HumanModel, tasks: FrameTasks,

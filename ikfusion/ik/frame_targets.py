@@ -15,6 +15,7 @@ import numpy as np
 
 from ..model.human_model import HumanModel
 from .assumed import AssumedTargets
+from .compiled_inputs import read_only
 from .frame import Frame
 from .frame_problem import FrameTasks
 from .sensed_pose import SensedPose
@@ -163,7 +164,7 @@ class TargetLoader:
                                (tasks.orientation.row_weights(), tasks.posture.row_weights()))
         for array in (weighting.weights, tracked, weighting.sensed_joints, posture_weights,
                       *weighting.row_weights):
-            array.setflags(write=False)
+            read_only(array)  # (their memory too: a compiled step keeps them in its slots)
         self._last_weighting, self._last_key = weighting, key
         return weighting
 

@@ -20,6 +20,7 @@ from ..model.topology import BodyTopology
 from ..rotations import log_so3, matrix_to_quat_wxyz, wxyz_to_xyzw
 from .bound_function import BoundFunction
 from .compiled import CompiledKinematics
+from .compiled_inputs import memory_owner
 from .compiled_sensed import SensedPoseSpec
 from .fast_math import any_true
 from .tasks import DampingTask
@@ -161,7 +162,8 @@ class _CompiledPose:
     """:meth:`SensedPose.pose` by the compiled function (:class:`.compiled_sensed.SensedPoseSpec`).
 
     Called every frame: the geometry is written once, the tracked set when it changes (kept
-    while the same read-only array: the frame targets'), ``q`` and the targets every call,
+    while the same read-only array, its memory read-only: the frame targets', as
+    :class:`.compiled_inputs.SlotInputs`), ``q`` and the targets every call,
     each straight into its input slot (the transposed targets flattened in C order are their
     column-major vector, as the function reads them).
 
@@ -175,14 +177,16 @@ class _CompiledPose:
         call.input_slot(2)[:] = geometry
         self._q = call.input_slot(0)
         self._R = call.input_slot(1).reshape(-1, 3, 3)  # a view: the slot's 3 x 3 blocks
-        self._tracked: np.ndarray | None = None  # the read-only set in the slot
+        self._tracked: np.ndarray | None = None  # the set in the slot ...
+        self._owner: np.ndarray | None = None  # ... and the array owning its memory
 
     def __call__(self, q: np.ndarray, R_world_target: np.ndarray,
                  tracked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The sensed configuration (nq,) and the contact points (c, 3) [m] (new arrays)."""
-        if tracked is not self._tracked:
+        owner = self._owner  # (as SlotInputs: the same object, its memory read-only)
+        if tracked is not self._tracked or owner is None or owner.flags.writeable:
             self.call.input_slot(3)[:] = tracked
-            self._tracked = None if tracked.flags.writeable else tracked
+            self._tracked, self._owner = tracked, memory_owner(tracked)
         self._q[:] = q
         self._R[:] = R_world_target.transpose(0, 2, 1)
         self.call.run()

@@ -13,7 +13,9 @@ import numpy as np
 
 from .bound_function import BoundFunction
 from .compiled import CompiledKinematics
+from .compiled_inputs import read_only
 from .configuration import Configuration
+from .fast_math import count_true
 from .limits import JointRangeLimit
 from .limits.base import Inequality
 from .limits.joint_range import LinearisedRanges
@@ -23,7 +25,50 @@ from .limits.joint_range import LinearisedRanges
 _G, _UP, _DOWN = 7, 8, 9
 
 
-def evaluated_ranges(step: BoundFunction, rate_rows: np.ndarray | None,
+class RateRows:
+    """Where the rates of each angle lie among ``G_ranges``' structural nonzeros.
+
+    Finds the angles whose rates are all 0 (at gimbal lock) from three nonzeros a row instead
+    of a search of every row of ``G``; most steps have none, known from one nonzero rate a
+    row (the witnesses, kept from the last search): when each of those is nonzero, no row is
+    all zeros (the same mask, all False, for a fraction of the work).
+
+    Args:
+        rows: (angles, 3) indices into the nonzeros (:func:`.frame_problem.rate_rows`).
+    """
+
+    def __init__(self, rows: np.ndarray) -> None:
+        self.rows = rows
+        self._witnesses = rows[:, 0]
+        self._none = np.zeros(len(rows), dtype=bool)
+        self._none.setflags(write=False)
+        self._count = len(rows)
+        self._all = np.arange(len(rows))
+        # the ranges read from the last step function (the same arrays at every evaluation)
+        self._read: tuple[BoundFunction | None, LinearisedRanges | None] = (None, None)
+
+    def still(self, nonzeros: np.ndarray) -> np.ndarray:
+        """Mask (angles,) of the rows whose rates are all 0, from ``G_ranges``' nonzeros."""
+        if count_true(nonzeros.take(self._witnesses)) == self._count:
+            return self._none
+        rates = nonzeros.take(self.rows)
+        # (logical_or.reduce: ndarray.any without its Python-level dispatch)
+        moving = np.logical_or.reduce(rates, axis=1)
+        self._witnesses = self.rows[self._all, np.argmax(rates != 0.0, axis=1)]
+        return np.logical_not(moving)
+
+    def ranges(self, step: BoundFunction) -> LinearisedRanges:
+        """``G`` and the rooms of the evaluated ``step`` (arrays read in place)."""
+        read_from, ranges = self._read
+        if read_from is not step or ranges is None:
+            ranges = LinearisedRanges.stacked(step.output(_G), step.vectors(_UP, 2))
+            self._read = (step, ranges)
+            return ranges
+        step.output(_G)  # G's nonzeros scattered into the array that ``ranges`` holds
+        return ranges
+
+
+def evaluated_ranges(step: BoundFunction, rate_rows: RateRows | None,
                      limits: JointRangeLimit) -> LinearisedRanges:
     """The ranges of the evaluated ``step``, softened by ``limits`` (its soft wall).
 
@@ -31,19 +76,13 @@ def evaluated_ranges(step: BoundFunction, rate_rows: np.ndarray | None,
 
     Args:
         step: The evaluated step function.
-        rate_rows: (angles, 3) where each row's structural nonzeros lie among those of
-            ``G_ranges`` (:func:`.frame_problem.rate_rows`), or None.
+        rate_rows: Where each row's structural nonzeros lie among those of ``G_ranges``
+            (:func:`.frame_problem.rate_rows`), or None.
         limits: The ranges of motion.
     """
-    # the angles whose rates are all 0 (at gimbal lock) from G's structural nonzeros, three a
-    # row, instead of a search of every row of G
-    still = None
-    if rate_rows is not None:
-        # (logical_or.reduce: ndarray.any without its Python-level dispatch)
-        still = np.logical_not(np.logical_or.reduce(step.nonzeros(_G).take(rate_rows), axis=1))
-    # room_up and room_down, one after the other: read in place as one array
-    return limits.softened(LinearisedRanges.stacked(step.output(_G), step.vectors(_UP, 2)),
-                           still)
+    if rate_rows is None:
+        return limits.softened(LinearisedRanges.stacked(step.output(_G), step.vectors(_UP, 2)))
+    return limits.softened(rate_rows.ranges(step), rate_rows.still(step.nonzeros(_G)))
 
 
 class StepRangeRows:
@@ -67,7 +106,7 @@ class StepRangeRows:
     """
 
     def __init__(self, kinematics: CompiledKinematics, geometry: np.ndarray,
-                 rate_rows: np.ndarray | None, limits: JointRangeLimit, segments: int) -> None:
+                 rate_rows: RateRows | None, limits: JointRangeLimit, segments: int) -> None:
         self.kinematics = kinematics
         self.geometry = geometry
         self.rate_rows = rate_rows
@@ -77,6 +116,8 @@ class StepRangeRows:
         self._references = np.tile(np.eye(3), (joints, 1, 1))
         self._w_orient = np.zeros(3 * segments)
         self._w_posture = np.zeros(3 * joints)
+        for kept in (self._targets, self._references, self._w_orient, self._w_posture):
+            read_only(kept)  # left in the step function's slots while they stand
 
     def inequality(self, configuration: Configuration) -> Inequality:
         """Rows ``G dq <= h`` for the angles near or beyond a limit at ``configuration``."""

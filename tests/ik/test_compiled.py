@@ -312,8 +312,9 @@ def test_compiled_sensed_pose_equals_numpy(human: HumanModel, rng) -> None:
 def test_sensed_pose_keeps_a_read_only_tracked_set_until_another_comes(human: HumanModel,
                                                                         rng) -> None:
     """The compiled sensed pose writes the tracked set only when it changes (a read-only
-    array is kept): switching between two sets gives each set's pose, the writeable set is
-    read afresh every call, and a returned pose is not overwritten by the next call."""
+    array is kept): switching between two sets gives each set's pose, the writeable set (or
+    memory) is read afresh every call, and a returned pose is not overwritten by the next
+    call."""
     sensed = Solver(human).sensed
     n = len(human.segment_names)
     q = human.random_configuration(rng, p_world_pelvis=rng.normal(size=3))
@@ -332,6 +333,17 @@ def test_sensed_pose_keeps_a_read_only_tracked_set_until_another_comes(human: Hu
             got[1], sensed.contact_positions(sensed.configuration(q, T, tracked)), atol=1e-10)
     free[:] = True  # changed in place: read again
     assert np.array_equal(sensed.pose(q, T, free)[0], sensed.pose(q, T, every)[0])
+    base = some.copy()  # a read-only view of writeable memory, changed through it: read again
+    view = base[:]
+    view.setflags(write=False)
+    expected = sensed.pose(q, T, some)[0].copy()
+    assert np.array_equal(sensed.pose(q, T, view)[0], expected)
+    base[:] = True
+    assert np.array_equal(sensed.pose(q, T, view)[0], sensed.pose(q, T, every)[0])
+    sensed.pose(q, T, some)
+    some.setflags(write=True)  # the kept set made writeable again and changed: read again
+    some[:] = True
+    assert np.array_equal(sensed.pose(q, T, some)[0], sensed.pose(q, T, every)[0])
     for mine, before in zip(first, kept):
         assert np.array_equal(mine, before)
 

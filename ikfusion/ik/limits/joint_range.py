@@ -76,6 +76,8 @@ class JointRangeLimit:
         self.signs = np.array([[a.sign for a in s.angles] for s in specs], dtype=float)
         self.lower = np.radians([[a.lower_deg for a in s.angles] for s in specs])
         self.upper = np.radians([[a.upper_deg for a in s.angles] for s in specs])
+        self.lower.setflags(write=False)  # fixed (read-only: a compiled step keeps them)
+        self.upper.setflags(write=False)
         i, j = self.axes[:, 0], self.axes[:, 1]
         self.parity = np.where((j - i) % 3 == 1, 1.0, -1.0)
         self.coupling = np.array([s.axis_coupling for s in specs])

@@ -39,8 +39,10 @@ class PostureTask(Task):
         self.idx_v = np.asarray(idx_v, dtype=int)
         self.weights = np.asarray(weights, dtype=float).reshape(-1)
         n = len(self.idx_q)
-        self.R_reference = (np.tile(np.eye(3), (n, 1, 1)) if R_reference is None
+        # replaced, never edited: read-only (a compiled step keeps it in its slot while so)
+        self.R_reference = (np.repeat(np.eye(3)[None], n, axis=0) if R_reference is None
                             else np.asarray(R_reference, dtype=float).reshape(n, 3, 3))
+        self.R_reference.setflags(write=False)
         self.axis_weights = (np.ones((n, 3)) if axis_weights is None
                              else np.asarray(axis_weights, dtype=float).reshape(n, 3))
         self._q_cols = self.idx_q[:, None] + np.arange(4)
