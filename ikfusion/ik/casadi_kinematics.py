@@ -17,7 +17,8 @@ import casadi as ca
 import numpy as np
 import pinocchio as pin
 
-from ..rotations_casadi import left_jacobian_inverse, log_so3, quat_xyzw_to_matrix, rotation_about
+from ..rotations_casadi import quat_xyzw_to_matrix, rotation_about
+from .compiled_blocks import segment_function
 
 
 def symbolic_placements(geometry: ca.SX, n_joints: int, frames: list[int]) -> dict:
@@ -133,14 +134,14 @@ def orientation_terms(model: pin.Model, segment_frames: Sequence[int], targets: 
     """
     rotations, translations, axes = kinematics
     e_orient, K_orient, g_orient, dofs = [], [], [], []
+    segment = segment_function()  # one body in the generated code, called per segment
     for n, fid in enumerate(segment_frames):  # J_orient = Jl^-1(e) J_angular
         R, _ = frame_pose(model, fid, rotations, translations, placements)
-        T = ca.reshape(targets[9 * n:9 * n + 9], 3, 3)
-        e, theta = log_so3(R @ T.T)
+        e, K, g = segment(R, ca.reshape(targets[9 * n:9 * n + 9], 3, 3),
+                          w_orient[3 * n:3 * n + 3])
         e_orient.append(e)
-        M, w = left_jacobian_inverse(e, theta), w_orient[3 * n:3 * n + 3]
-        K_orient.append(M.T @ ca.diag(w) @ M)
-        g_orient.append(M.T @ (w * e))
+        K_orient.append(K)
+        g_orient.append(g)
         dofs.append([iv for j in model.supports[model.frames[fid].parentJoint] if j
                      for iv in range(model.idx_vs[j], model.idx_vs[j] + model.nvs[j])
                      if axes[iv][0] == "angular"])

@@ -54,13 +54,6 @@ import numpy as np
 import pinocchio as pin
 
 from ..model.ball_joints import BallJoint
-from ..rotations_casadi import (
-    log_so3,
-    matrix_to_euler,
-    quat_xyzw_to_matrix,
-    right_jacobian_inverse,
-    skew,
-)
 from .bound_function import BoundFunction
 from .casadi_kinematics import (
     angular_objective,
@@ -69,10 +62,11 @@ from .casadi_kinematics import (
     orientation_terms,
     symbolic_placements,
 )
+from .compiled_blocks import ball_joint_pieces
 from .compiled_joint_tasks import chain_objective, joint_columns, persistence_objective
 from .compiled_key import structure_key as structure_key  # re-exported (retarget)
 from .compiled_points import point_kinematics, point_rows, points_function, rows_only
-from .compiled_ranges import range_rows
+from .compiled_ranges import range_matrix
 from .compiled_sensed import SensedPoseSpec, sensed_pose_function
 from .native import cached_functions, native_functions
 
@@ -149,32 +143,32 @@ class CompiledKinematics:
             model, segment_frames, targets, w_orient, (rotations, translations, axes), placements)
 
         references = ca.SX.sym("R_reference", 9 * len(ball_joints))
-        e_post, J_post, angles, E_inv = [], [], [], []
+        lower = ca.SX.sym("lower", 3 * len(ball_joints))
+        upper = ca.SX.sym("upper", 3 * len(ball_joints))
+        joint_pieces = ball_joint_pieces()  # one body per Euler sequence, called per joint
+        e_post, J_post, angles, E_inv, G_blocks, up, down = [], [], [], [], [], [], []
         for n, joint in enumerate(ball_joints):
-            iq = joint.idx_q
-            R_joint = quat_xyzw_to_matrix(q[iq:iq + 4])
-            R_reference = ca.reshape(references[9 * n:9 * n + 9], 3, 3)
-            e, theta = log_so3(R_reference.T @ R_joint)
+            iq, rows = joint.idx_q, slice(3 * n, 3 * n + 3)
+            e, Jr_inv, a, rates, G, room_up, room_down = joint_pieces(
+                joint, q[iq:iq + 4], ca.reshape(references[9 * n:9 * n + 9], 3, 3), lower[rows],
+                upper[rows])
             e_post.append(e)
             block = ca.SX(3, model.nv)
-            block[:, joint.idx_v:joint.idx_v + 3] = right_jacobian_inverse(e, theta)
+            block[:, joint.idx_v:joint.idx_v + 3] = Jr_inv
             J_post.append(block)
-            w = ca.SX.sym("w", 3)
-            signs = ca.DM(joint.spec.signs)
-            a = matrix_to_euler(joint.spec.sequence, R_joint @ (ca.DM.eye(3) + skew(w))) * signs
-            angles.append(ca.substitute(a, w, ca.DM.zeros(3)))
-            E_inv.append(ca.substitute(ca.jacobian(a, w), w, ca.DM.zeros(3)))
+            angles.append(a)
+            E_inv.append(rates)
+            G_blocks.append(G)
+            up.append(room_up)
+            down.append(room_down)
 
         p_sites, J_sites = point_kinematics(model, site_frames, rotations, translations,
                                             placements, axes)
 
         def stack(parts: list[ca.SX], cols: int) -> ca.SX:
             return ca.vertcat(*parts) if parts else ca.SX(0, cols)
-        lower = ca.SX.sym("lower", 3 * len(ball_joints))
-        upper = ca.SX.sym("upper", 3 * len(ball_joints))
-        G_ranges, room_up, room_down = range_rows(
-            angles, E_inv, [j.idx_v for j in ball_joints],
-            [j.spec.axis_coupling for j in ball_joints], lower, upper, model.nv)
+        G_ranges = range_matrix(G_blocks, [j.idx_v for j in ball_joints], model.nv)
+        room_up, room_down = stack(up, 1), stack(down, 1)
         w_posture = ca.SX.sym("w_posture", 3 * len(ball_joints))
         w_chain = ca.SX.sym("w_chain", 3 * len(chain_pairs))
         w_share = ca.SX.sym("w_share", 3 * len(chain_pairs))

@@ -47,6 +47,35 @@ def _turn_into_range(low: ca.SX, high: ca.SX, kappa: ca.SX) -> ca.SX:
     return middle * middle + ca.if_else(inside, 0.0, best)
 
 
+def range_block(a: ca.SX, E_inv: ca.SX, lo: ca.SX, hi: ca.SX, coupling: float | ca.SX
+                ) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """One joint's ``(G (3, 3), room_up (3), room_down (3))`` on its three tangent columns.
+
+    Args:
+        a: Its principal anatomical angles (3) [rad].
+        E_inv: ``E^-1`` (3, 3): angle rates per unit tangent step of the joint.
+        lo: Lower limits (3) [rad].
+        hi: Upper limits (3) [rad].
+        coupling: Its :attr:`~ikfusion.model.joints.JointSpec.axis_coupling`.
+    """
+    centre = 0.5 * (lo + hi)
+    same = _wrap_near(a, centre)
+    other = _wrap_near(a * ca.DM([1.0, -1.0, 1.0]) + np.pi, centre)
+    kappa = coupling * ca.sin(a[1])
+    flipped = (_turn_into_range(lo - other, hi - other, kappa)
+               < _turn_into_range(lo - same, hi - same, kappa))
+    chosen = ca.if_else(flipped, other, same)
+    signs: tuple[ca.SX, ...] = (ca.SX(1.0), ca.if_else(flipped, -1.0, 1.0), ca.SX(1.0))
+    G = ca.SX(3, 3)
+    for m, sign in enumerate(signs):
+        row = E_inv[m, :]
+        tame = ca.logic_and(ca.logic_and(ca.fabs(row[0]) < _STEEPEST,  # NaN compares false
+                                         ca.fabs(row[1]) < _STEEPEST),
+                            ca.fabs(row[2]) < _STEEPEST)
+        G[m, :] = ca.if_else(tame, sign * row, ca.DM.zeros(1, 3))
+    return G, hi - chosen, chosen - lo
+
+
 def range_rows(angles: Sequence[ca.SX], rates: Sequence[ca.SX], idx_v: Sequence[int],
                couplings: Sequence[float], lower: ca.SX, upper: ca.SX, nv: int
                ) -> tuple[ca.SX, ca.SX, ca.SX]:
@@ -61,26 +90,20 @@ def range_rows(angles: Sequence[ca.SX], rates: Sequence[ca.SX], idx_v: Sequence[
         upper: Upper limits (3j) [rad].
         nv: Tangent size.
     """
-    G = ca.SX(3 * len(angles), nv)
-    up, down = [], []
-    other_signs = ca.DM([1.0, -1.0, 1.0])
-    for n, (a, E_inv, col, coupling) in enumerate(zip(angles, rates, idx_v, couplings)):
-        lo, hi = lower[3 * n:3 * n + 3], upper[3 * n:3 * n + 3]
-        centre = 0.5 * (lo + hi)
-        same = _wrap_near(a, centre)
-        other = _wrap_near(a * other_signs + np.pi, centre)
-        kappa = coupling * ca.sin(a[1])
-        flipped = (_turn_into_range(lo - other, hi - other, kappa)
-                   < _turn_into_range(lo - same, hi - same, kappa))
-        chosen = ca.if_else(flipped, other, same)
-        signs: tuple[ca.SX, ...] = (ca.SX(1.0), ca.if_else(flipped, -1.0, 1.0), ca.SX(1.0))
-        for m, sign in enumerate(signs):
-            row = E_inv[m, :]
-            tame = ca.logic_and(ca.logic_and(ca.fabs(row[0]) < _STEEPEST,  # NaN compares false
-                                             ca.fabs(row[1]) < _STEEPEST),
-                                ca.fabs(row[2]) < _STEEPEST)
-            G[3 * n + m, col:col + 3] = ca.if_else(tame, sign * row, ca.DM.zeros(1, 3))
-        up.append(hi - chosen)
-        down.append(chosen - lo)
-    empty = ca.SX(0, 1)
-    return G, ca.vertcat(*up) if up else empty, ca.vertcat(*down) if down else empty
+    blocks = [range_block(a, E_inv, lower[3 * n:3 * n + 3], upper[3 * n:3 * n + 3], coupling)
+              for n, (a, E_inv, coupling) in enumerate(zip(angles, rates, couplings))]
+    return range_matrix([b[0] for b in blocks], idx_v, nv), \
+        stack_column([b[1] for b in blocks]), stack_column([b[2] for b in blocks])
+
+
+def range_matrix(blocks: Sequence[ca.SX], idx_v: Sequence[int], nv: int) -> ca.SX:
+    """``G`` (3j, nv): each joint's block (3, 3) on its rows and its columns from ``idx_v``."""
+    G = ca.SX(3 * len(blocks), nv)
+    for n, (block, col) in enumerate(zip(blocks, idx_v)):
+        G[3 * n:3 * n + 3, col:col + 3] = block
+    return G
+
+
+def stack_column(parts: Sequence[ca.SX]) -> ca.SX:
+    """``parts`` stacked into one column (an empty column when there is none)."""
+    return ca.vertcat(*parts) if parts else ca.SX(0, 1)
