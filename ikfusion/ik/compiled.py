@@ -57,6 +57,7 @@ from ..model.ball_joints import BallJoint
 from .bound_function import BoundFunction
 from .casadi_kinematics import (
     angular_objective,
+    angular_triples,
     forward,
     geometry_vector,
     orientation_terms,
@@ -175,7 +176,8 @@ class CompiledKinematics:
         q_previous = ca.SX.sym("q_previous", model.nq)
         w_persist = ca.SX.sym("w_persist", model.nv)
         q_persist = ca.SX.sym("q_persist", model.nq)
-        H, c = angular_objective(K_orient, g_orient, dofs, axes, model.nv)
+        H, c = angular_objective(K_orient, g_orient, dofs, axes, model.nv,
+                                angular_triples(model))
         e_post_all, J_post_all = stack(e_post, 1), stack(J_post, model.nv)
         WJ = ca.diag(w_posture) @ J_post_all
         H += J_post_all.T @ WJ

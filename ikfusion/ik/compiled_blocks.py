@@ -13,6 +13,7 @@ The operations inside are those written inline before (the same numbers).
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import cache
 
 import casadi as ca
 
@@ -31,6 +32,43 @@ from .compiled_ranges import range_block
 _CALLED = {"never_inline": True, "cse": True}
 
 
+@cache
+def spherical_joint_function() -> ca.Function:
+    """The forward kinematics' step of one spherical joint (a function).
+
+    ``(R_world_parent (3, 3), p_world_parent (3), R_M (3, 3), p_M (3), quaternion xyzw (4)) ->
+    (R_world_joint (3, 3), p_world_joint (3))``: through the joint placement ``M`` (``R_M``,
+    ``p_M`` [m]) and the joint's rotation, as :func:`.casadi_kinematics.forward` writes it
+    inline for the other joint types.
+    """
+    R_world_parent, p_world_parent = ca.SX.sym("R_world_parent", 3, 3), ca.SX.sym("p", 3)
+    R_M, p_M, quaternion = ca.SX.sym("R_M", 3, 3), ca.SX.sym("p_M", 3), ca.SX.sym("quat", 4)
+    R_parent = R_world_parent @ R_M
+    p_parent = p_world_parent + R_world_parent @ p_M
+    return ca.Function("ik_spherical_joint",
+                       [R_world_parent, p_world_parent, R_M, p_M, quaternion],
+                       [R_parent @ quat_xyzw_to_matrix(quaternion),
+                        p_parent + R_parent @ ca.SX.zeros(3)],
+                       ["R_world_parent", "p_world_parent", "R_M", "p_M", "quaternion"],
+                       ["R_world_joint", "p_world_joint"], _CALLED)
+
+
+@cache
+def dot_block_function() -> ca.Function:
+    """``(X (3, 3), Y (3, 3)) -> Z (3, 3)`` with ``Z[v, u] = dot(X[:, v], Y[:, u])``.
+
+    A 3x3 block of the tree-summed orientation objective
+    (:func:`.casadi_kinematics.angular_objective`), the products of two joints' columns.
+    """
+    X, Y = ca.SX.sym("X", 3, 3), ca.SX.sym("Y", 3, 3)
+    Z = ca.SX(3, 3)
+    for v in range(3):
+        for u in range(3):
+            Z[v, u] = ca.dot(X[:, v], Y[:, u])
+    return ca.Function("ik_dot_block", [X, Y], [Z], ["X", "Y"], ["Z"], _CALLED)
+
+
+@cache
 def segment_function() -> ca.Function:
     """``(R_world_segment (3, 3), R_world_target (3, 3), w (3)) -> (e, K, g)`` of one segment.
 
