@@ -38,10 +38,14 @@ tracked segments, ``j`` ball joints, ``m`` sites), all in the world frame:
 * ``G_ranges`` (3j, nv), ``room_up`` and ``room_down`` (3j) [rad]: the ranges of motion (inputs
   ``lower``, ``upper``) linearised (:mod:`.compiled_ranges`).
 
-The graph holds the model's *structure* only (:mod:`.casadi_kinematics`); joint and frame
-placements are an input, so bodies of every size share one function. With a C compiler it is
-compiled once (:mod:`.native`), ten times faster than CasADi's virtual machine (the fallback; a
-failed build says so on stderr and becomes a warning of the solve).
+The pieces repeated per segment, per ball joint and per pair of joints are CasADi functions the
+graph calls (:mod:`.compiled_blocks`): one body each in the generated C code, a step function a
+third the size of the same expressions written inline (its code is fetched from memory on every
+call) with the same numbers. The graph holds the model's *structure* only
+(:mod:`.casadi_kinematics`); joint and frame placements are an input, so bodies of every size
+share one function. With a C compiler it is compiled once (:mod:`.native`), ten times faster
+than CasADi's virtual machine (the fallback; a failed build says so on stderr and becomes a
+warning of the solve).
 """
 
 from __future__ import annotations

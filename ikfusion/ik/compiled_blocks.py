@@ -123,6 +123,6 @@ def ball_joint_pieces() -> Callable[..., list[ca.SX]]:
         sequence = joint.spec.sequence
         if sequence not in made:
             made[sequence] = ball_joint_function(sequence, f"ik_ball_joint_{len(made)}")
-        return made[sequence](*arguments, ca.DM(joint.spec.signs),
-                              ca.DM(joint.spec.axis_coupling))
+        return made[sequence].call([*arguments, ca.SX(ca.DM(joint.spec.signs)),
+                                    ca.SX(joint.spec.axis_coupling)])
     return of

@@ -80,7 +80,7 @@ def chain_objective(q: ca.SX, q_previous: ca.SX, pairs: Sequence[tuple[BallJoint
         for joint in (first, second):
             if joint.idx_q not in logs:
                 iq = joint.idx_q
-                logs[joint.idx_q] = _chain_logs()(q[iq:iq + 4], q_previous[iq:iq + 4])
+                logs[joint.idx_q] = _chain_logs().call([q[iq:iq + 4], q_previous[iq:iq + 4]])
         block = ca.SX(3, nv)
         ends = [logs[first.idx_q], logs[second.idx_q]]
         for (_, Jr_inv, _), joint, sign in zip(ends, (first, second), (1.0, -1.0)):

@@ -76,26 +76,6 @@ def range_block(a: ca.SX, E_inv: ca.SX, lo: ca.SX, hi: ca.SX, coupling: float | 
     return G, hi - chosen, chosen - lo
 
 
-def range_rows(angles: Sequence[ca.SX], rates: Sequence[ca.SX], idx_v: Sequence[int],
-               couplings: Sequence[float], lower: ca.SX, upper: ca.SX, nv: int
-               ) -> tuple[ca.SX, ca.SX, ca.SX]:
-    """``(G (3j, nv), room_up (3j), room_down (3j))`` of the linearised ranges of motion.
-
-    Args:
-        angles: Per joint, its principal anatomical angles (3) [rad].
-        rates: Per joint, ``E^-1`` (3, 3): angle rates per unit tangent step of the joint.
-        idx_v: Per joint, its first tangent column.
-        couplings: Per joint, its :attr:`~ikfusion.model.joints.JointSpec.axis_coupling`.
-        lower: Lower limits (3j) [rad], joint by joint.
-        upper: Upper limits (3j) [rad].
-        nv: Tangent size.
-    """
-    blocks = [range_block(a, E_inv, lower[3 * n:3 * n + 3], upper[3 * n:3 * n + 3], coupling)
-              for n, (a, E_inv, coupling) in enumerate(zip(angles, rates, couplings))]
-    return range_matrix([b[0] for b in blocks], idx_v, nv), \
-        stack_column([b[1] for b in blocks]), stack_column([b[2] for b in blocks])
-
-
 def range_matrix(blocks: Sequence[ca.SX], idx_v: Sequence[int], nv: int) -> ca.SX:
     """``G`` (3j, nv): each joint's block (3, 3) on its rows and its columns from ``idx_v``."""
     G = ca.SX(3 * len(blocks), nv)
@@ -103,7 +83,3 @@ def range_matrix(blocks: Sequence[ca.SX], idx_v: Sequence[int], nv: int) -> ca.S
         G[3 * n:3 * n + 3, col:col + 3] = block
     return G
 
-
-def stack_column(parts: Sequence[ca.SX]) -> ca.SX:
-    """``parts`` stacked into one column (an empty column when there is none)."""
-    return ca.vertcat(*parts) if parts else ca.SX(0, 1)
