@@ -17,7 +17,8 @@ import casadi as ca
 import numpy as np
 import pinocchio as pin
 
-from ..rotations_casadi import left_jacobian_inverse, log_so3, quat_xyzw_to_matrix, rotation_about
+from ..rotations_casadi import quat_xyzw_to_matrix, rotation_about
+from .compiled_blocks import dot_block_function, segment_function, spherical_joint_function
 
 
 def symbolic_placements(geometry: ca.SX, n_joints: int, frames: list[int]) -> dict:
@@ -54,11 +55,19 @@ def forward(model: pin.Model, q: ca.SX, placements: dict) -> tuple[list, list, d
     for j in range(1, model.njoints):
         joint = model.joints[j]
         iq, iv = model.idx_qs[j], model.idx_vs[j]
+        kind = joint.shortname()
         R_M, p_M = placements[("joint", j)]
         parent = model.parents[j]
+        if kind == "JointModelSpherical" and parent > 0:  # one body, called per joint
+            R_world, p_world = spherical_joint_function()(
+                rotations[parent], translations[parent], R_M, p_M, q[iq:iq + 4])
+            for k in range(3):
+                axes[iv + k] = ("angular", R_world[:, k])
+            rotations.append(R_world)
+            translations.append(p_world)
+            continue
         R_parent = rotations[parent] @ R_M
         p_parent = translations[parent] + rotations[parent] @ p_M
-        kind = joint.shortname()
         if kind == "JointModelFreeFlyer":
             R_local = quat_xyzw_to_matrix(q[iq + 3:iq + 7])
             p_local = q[iq:iq + 3]
@@ -133,14 +142,14 @@ def orientation_terms(model: pin.Model, segment_frames: Sequence[int], targets: 
     """
     rotations, translations, axes = kinematics
     e_orient, K_orient, g_orient, dofs = [], [], [], []
+    segment = segment_function()  # one body in the generated code, called per segment
     for n, fid in enumerate(segment_frames):  # J_orient = Jl^-1(e) J_angular
         R, _ = frame_pose(model, fid, rotations, translations, placements)
-        T = ca.reshape(targets[9 * n:9 * n + 9], 3, 3)
-        e, theta = log_so3(R @ T.T)
+        e, K, g = segment(R, ca.reshape(targets[9 * n:9 * n + 9], 3, 3),
+                          w_orient[3 * n:3 * n + 3])
         e_orient.append(e)
-        M, w = left_jacobian_inverse(e, theta), w_orient[3 * n:3 * n + 3]
-        K_orient.append(M.T @ ca.diag(w) @ M)
-        g_orient.append(M.T @ (w * e))
+        K_orient.append(K)
+        g_orient.append(g)
         dofs.append([iv for j in model.supports[model.frames[fid].parentJoint] if j
                      for iv in range(model.idx_vs[j], model.idx_vs[j] + model.nvs[j])
                      if axes[iv][0] == "angular"])
@@ -148,7 +157,7 @@ def orientation_terms(model: pin.Model, segment_frames: Sequence[int], targets: 
 
 
 def angular_objective(K: list[ca.SX], g: list[ca.SX], dofs: list[list[int]], axes: dict,
-                      nv: int) -> tuple[ca.SX, ca.SX]:
+                      nv: int, triples: Sequence[int] = ()) -> tuple[ca.SX, ca.SX]:
     """``sum_s A_s^T K_s A_s`` (lower triangle) and ``sum_s A_s^T g_s`` over segments ``s``.
 
     ``A_s`` (3, nv) is segment ``s``'s angular Jacobian: the world ``axes`` of its supporting
@@ -156,6 +165,9 @@ def angular_objective(K: list[ca.SX], g: list[ca.SX], dofs: list[list[int]], axe
     every segment it carries, so entry ``(i, j)`` is ``a_i^T (sum of K_s over the segments
     carrying both) a_j``: the 3x3 matrices ``K_s`` (3, 3) are summed once per set of segments
     instead of forming every segment's product (a few times fewer operations). ``g_s`` (3,).
+    ``triples``: the first columns of joints whose three rotation steps are columns ``i..i+2``
+    (spherical joints, the free-flyer's rotation): the entries of two such joints are one call
+    of :func:`.compiled_blocks.dot_block_function` (the same products, one body in the code).
     """
     carried: dict[int, set[int]] = {}
     for s, columns in enumerate(dofs):
@@ -177,9 +189,13 @@ def angular_objective(K: list[ca.SX], g: list[ca.SX], dofs: list[list[int]], axe
         S, total = summed(group)
         c[iv] = ca.dot(axes[iv][1], total)
         u[iv] = S @ axes[iv][1]
+    blocks = [i for i in triples if i in groups]
+    done = _dot_blocks(H, blocks, groups, axes, u)
     order = list(groups)
     for n, iv in enumerate(order):
         for iu in order[:n + 1]:  # iu <= iv: the lower triangle
+            if (iv, iu) in done:
+                continue
             both = groups[iv] & groups[iu]
             if both == groups[iv]:
                 H[iv, iu] = ca.dot(axes[iu][1], u[iv])
@@ -188,3 +204,43 @@ def angular_objective(K: list[ca.SX], g: list[ca.SX], dofs: list[list[int]], axe
             elif both:
                 H[iv, iu] = ca.dot(axes[iv][1], summed(both)[0] @ axes[iu][1])
     return H, c
+
+
+def _dot_blocks(H: ca.SX, firsts: list[int], groups: dict, axes: dict, u: dict
+                ) -> set[tuple[int, int]]:
+    """Write the lower-triangle entries of :func:`angular_objective` between two joints' triples.
+
+    Each 3x3 block whose entries are ``dot(a_j, u_i)`` or ``dot(a_i, u_j)`` is one call of
+    :func:`.compiled_blocks.dot_block_function` (the same products and sums; ``a . b`` and
+    ``b . a`` are the same numbers). Returns the entries ``(i, j)`` written.
+    """
+    def columns(vectors: dict, first: int) -> ca.SX:
+        return ca.horzcat(*(vectors[first + k] for k in range(3)))
+
+    a = {iv: axis for iv, (_, axis) in axes.items()}
+    done = set()
+    for n, first in enumerate(firsts):
+        for second in firsts[:n + 1]:
+            both = groups[first] & groups[second]
+            if both == groups[first]:  # H[i, j] = dot(a_j, u_i)
+                block = dot_block_function()(columns(u, first), columns(a, second))
+            elif both == groups[second]:  # H[i, j] = dot(a_i, u_j)
+                block = dot_block_function()(columns(a, first), columns(u, second))
+            else:
+                continue
+            for v in range(3):
+                for w in range(3 if second < first else v + 1):
+                    H[first + v, second + w] = block[v, w]
+                    done.add((first + v, second + w))
+    return done
+
+
+def angular_triples(model: pin.Model) -> list[int]:
+    """The first tangent columns of the joints rotating about three world axes in a row.
+
+    Spherical joints (their three columns) and the free-flyer (its last three), as
+    :func:`forward` lays out ``axes``.
+    """
+    kinds = {"JointModelSpherical": 0, "JointModelFreeFlyer": 3}
+    return [model.idx_vs[j] + kinds[model.joints[j].shortname()]
+            for j in range(1, model.njoints) if model.joints[j].shortname() in kinds]

@@ -38,10 +38,14 @@ tracked segments, ``j`` ball joints, ``m`` sites), all in the world frame:
 * ``G_ranges`` (3j, nv), ``room_up`` and ``room_down`` (3j) [rad]: the ranges of motion (inputs
   ``lower``, ``upper``) linearised (:mod:`.compiled_ranges`).
 
-The graph holds the model's *structure* only (:mod:`.casadi_kinematics`); joint and frame
-placements are an input, so bodies of every size share one function. With a C compiler it is
-compiled once (:mod:`.native`), ten times faster than CasADi's virtual machine (the fallback; a
-failed build says so on stderr and becomes a warning of the solve).
+The pieces repeated per segment, per ball joint and per pair of joints are CasADi functions the
+graph calls (:mod:`.compiled_blocks`): one body each in the generated C code, a step function a
+third the size of the same expressions written inline (its code is fetched from memory on every
+call) with the same numbers. The graph holds the model's *structure* only
+(:mod:`.casadi_kinematics`); joint and frame placements are an input, so bodies of every size
+share one function. With a C compiler it is compiled once (:mod:`.native`), ten times faster
+than CasADi's virtual machine (the fallback; a failed build says so on stderr and becomes a
+warning of the solve).
 """
 
 from __future__ import annotations
@@ -54,26 +58,21 @@ import numpy as np
 import pinocchio as pin
 
 from ..model.ball_joints import BallJoint
-from ..rotations_casadi import (
-    log_so3,
-    matrix_to_euler,
-    quat_xyzw_to_matrix,
-    right_jacobian_inverse,
-    skew,
-)
 from .bound_function import BoundFunction
 from .casadi_kinematics import (
     angular_objective,
+    angular_triples,
     forward,
     geometry_vector,
     orientation_terms,
     symbolic_placements,
 )
+from .compiled_blocks import ball_joint_pieces
 from .compiled_inputs import SlotInputs
 from .compiled_joint_tasks import chain_objective, joint_columns, persistence_objective
 from .compiled_key import structure_key as structure_key  # re-exported (retarget)
 from .compiled_points import point_kinematics, point_rows, points_function, rows_only
-from .compiled_ranges import range_rows
+from .compiled_ranges import range_matrix
 from .compiled_sensed import SensedPoseSpec, sensed_pose_function
 from .native import cached_functions, native_functions
 
@@ -153,39 +152,40 @@ class CompiledKinematics:
             model, segment_frames, targets, w_orient, (rotations, translations, axes), placements)
 
         references = ca.SX.sym("R_reference", 9 * len(ball_joints))
-        e_post, J_post, angles, E_inv = [], [], [], []
+        lower = ca.SX.sym("lower", 3 * len(ball_joints))
+        upper = ca.SX.sym("upper", 3 * len(ball_joints))
+        joint_pieces = ball_joint_pieces()  # one body per Euler sequence, called per joint
+        e_post, J_post, angles, E_inv, G_blocks, up, down = [], [], [], [], [], [], []
         for n, joint in enumerate(ball_joints):
-            iq = joint.idx_q
-            R_joint = quat_xyzw_to_matrix(q[iq:iq + 4])
-            R_reference = ca.reshape(references[9 * n:9 * n + 9], 3, 3)
-            e, theta = log_so3(R_reference.T @ R_joint)
+            iq, rows = joint.idx_q, slice(3 * n, 3 * n + 3)
+            e, Jr_inv, a, rates, G, room_up, room_down = joint_pieces(
+                joint, q[iq:iq + 4], ca.reshape(references[9 * n:9 * n + 9], 3, 3), lower[rows],
+                upper[rows])
             e_post.append(e)
             block = ca.SX(3, model.nv)
-            block[:, joint.idx_v:joint.idx_v + 3] = right_jacobian_inverse(e, theta)
+            block[:, joint.idx_v:joint.idx_v + 3] = Jr_inv
             J_post.append(block)
-            w = ca.SX.sym("w", 3)
-            signs = ca.DM(joint.spec.signs)
-            a = matrix_to_euler(joint.spec.sequence, R_joint @ (ca.DM.eye(3) + skew(w))) * signs
-            angles.append(ca.substitute(a, w, ca.DM.zeros(3)))
-            E_inv.append(ca.substitute(ca.jacobian(a, w), w, ca.DM.zeros(3)))
+            angles.append(a)
+            E_inv.append(rates)
+            G_blocks.append(G)
+            up.append(room_up)
+            down.append(room_down)
 
         p_sites, J_sites = point_kinematics(model, site_frames, rotations, translations,
                                             placements, axes)
 
         def stack(parts: list[ca.SX], cols: int) -> ca.SX:
             return ca.vertcat(*parts) if parts else ca.SX(0, cols)
-        lower = ca.SX.sym("lower", 3 * len(ball_joints))
-        upper = ca.SX.sym("upper", 3 * len(ball_joints))
-        G_ranges, room_up, room_down = range_rows(
-            angles, E_inv, [j.idx_v for j in ball_joints],
-            [j.spec.axis_coupling for j in ball_joints], lower, upper, model.nv)
+        G_ranges = range_matrix(G_blocks, [j.idx_v for j in ball_joints], model.nv)
+        room_up, room_down = stack(up, 1), stack(down, 1)
         w_posture = ca.SX.sym("w_posture", 3 * len(ball_joints))
         w_chain = ca.SX.sym("w_chain", 3 * len(chain_pairs))
         w_share = ca.SX.sym("w_share", 3 * len(chain_pairs))
         q_previous = ca.SX.sym("q_previous", model.nq)
         w_persist = ca.SX.sym("w_persist", model.nv)
         q_persist = ca.SX.sym("q_persist", model.nq)
-        H, c = angular_objective(K_orient, g_orient, dofs, axes, model.nv)
+        H, c = angular_objective(K_orient, g_orient, dofs, axes, model.nv,
+                                angular_triples(model))
         e_post_all, J_post_all = stack(e_post, 1), stack(J_post, model.nv)
         WJ = ca.diag(w_posture) @ J_post_all
         H += J_post_all.T @ WJ

@@ -19,6 +19,7 @@ step needs no NumPy work for them:
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import cache
 
 import casadi as ca
 import numpy as np
@@ -31,9 +32,6 @@ from ..rotations_casadi import log_so3, quat_xyzw_to_matrix, right_jacobian_inve
 _REVOLUTE = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
 
 
-def _joint_log(q: ca.SX, joint: BallJoint) -> tuple[ca.SX, ca.SX]:
-    """Rotation vector (3,) [rad] of a ball joint at ``q`` and its angle."""
-    return log_so3(quat_xyzw_to_matrix(q[joint.idx_q:joint.idx_q + 4]))
 
 
 def quaternion_log(quat: ca.SX) -> ca.SX:
@@ -77,18 +75,48 @@ def chain_objective(q: ca.SX, q_previous: ca.SX, pairs: Sequence[tuple[BallJoint
     if not pairs:
         return H, c
     rows, errors, wanted = [], [], []
+    logs: dict[int, list[ca.SX]] = {}  # joint -> (log, Jr^-1, log at q_previous), each once
     for first, second in pairs:
+        for joint in (first, second):
+            if joint.idx_q not in logs:
+                iq = joint.idx_q
+                logs[joint.idx_q] = _chain_logs().call([q[iq:iq + 4], q_previous[iq:iq + 4]])
         block = ca.SX(3, nv)
-        logs = [_joint_log(q, joint) for joint in (first, second)]
-        for (e, theta), joint, sign in zip(logs, (first, second), (1.0, -1.0)):
-            block[:, joint.idx_v:joint.idx_v + 3] = sign * right_jacobian_inverse(e, theta)
+        ends = [logs[first.idx_q], logs[second.idx_q]]
+        for (_, Jr_inv, _), joint, sign in zip(ends, (first, second), (1.0, -1.0)):
+            block[:, joint.idx_v:joint.idx_v + 3] = sign * Jr_inv
         rows.append(block)
-        errors.append(logs[0][0] - logs[1][0])
-        wanted.append(quaternion_log(q_previous[first.idx_q:first.idx_q + 4])
-                      - quaternion_log(q_previous[second.idx_q:second.idx_q + 4]))
+        errors.append(ends[0][0] - ends[1][0])
+        wanted.append(ends[0][2] - ends[1][2])
     J, e, d = ca.vertcat(*rows), ca.vertcat(*errors), ca.vertcat(*wanted)
     WJ = ca.diag(w_chain + w_share) @ J
     return J.T @ WJ, J.T @ (w_chain * e + w_share * (e - d))
+
+
+@cache
+def _chain_logs() -> ca.Function:
+    """``(quaternion (4), previous quaternion (4)) -> (log (3), Jr^-1 (3, 3), previous log)``.
+
+    A ball joint's rotation vector [rad] and ``Jr^-1`` at ``q``, and its rotation vector at
+    ``q_previous`` (:func:`quaternion_log`): one body in the generated code, called per joint.
+    """
+    quaternion, previous = ca.SX.sym("quaternion", 4), ca.SX.sym("previous", 4)
+    e, theta = log_so3(quat_xyzw_to_matrix(quaternion))
+    return ca.Function("ik_chain_logs", [quaternion, previous],
+                       [e, right_jacobian_inverse(e, theta), quaternion_log(previous)],
+                       {"never_inline": True, "cse": True})
+
+
+@cache
+def _persistence_error() -> ca.Function:
+    """``(reference quaternion (4), quaternion (4)) -> q ⊖ q_persist (3)`` [rad] of a ball joint.
+
+    One body in the generated code, called per joint (``never_inline``).
+    """
+    reference, quaternion = ca.SX.sym("reference", 4), ca.SX.sym("quaternion", 4)
+    return ca.Function("ik_persistence_error", [reference, quaternion],
+                       [quaternion_log(_quaternion_between(reference, quaternion))],
+                       {"never_inline": True, "cse": True})
 
 
 def joint_columns(model: pin.Model) -> np.ndarray:
@@ -112,7 +140,7 @@ def persistence_objective(model: pin.Model, q: ca.SX, q_persist: ca.SX, w_persis
         kind = model.joints[j].shortname()
         iq, iv = model.idx_qs[j], model.idx_vs[j]
         if kind == "JointModelSpherical":
-            e = quaternion_log(_quaternion_between(q_persist[iq:iq + 4], q[iq:iq + 4]))
+            e = _persistence_error()(q_persist[iq:iq + 4], q[iq:iq + 4])
         elif kind in _REVOLUTE:
             e = q[iq] - q_persist[iq]
         else:

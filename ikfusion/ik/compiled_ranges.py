@@ -47,40 +47,39 @@ def _turn_into_range(low: ca.SX, high: ca.SX, kappa: ca.SX) -> ca.SX:
     return middle * middle + ca.if_else(inside, 0.0, best)
 
 
-def range_rows(angles: Sequence[ca.SX], rates: Sequence[ca.SX], idx_v: Sequence[int],
-               couplings: Sequence[float], lower: ca.SX, upper: ca.SX, nv: int
-               ) -> tuple[ca.SX, ca.SX, ca.SX]:
-    """``(G (3j, nv), room_up (3j), room_down (3j))`` of the linearised ranges of motion.
+def range_block(a: ca.SX, E_inv: ca.SX, lo: ca.SX, hi: ca.SX, coupling: float | ca.SX
+                ) -> tuple[ca.SX, ca.SX, ca.SX]:
+    """One joint's ``(G (3, 3), room_up (3), room_down (3))`` on its three tangent columns.
 
     Args:
-        angles: Per joint, its principal anatomical angles (3) [rad].
-        rates: Per joint, ``E^-1`` (3, 3): angle rates per unit tangent step of the joint.
-        idx_v: Per joint, its first tangent column.
-        couplings: Per joint, its :attr:`~ikfusion.model.joints.JointSpec.axis_coupling`.
-        lower: Lower limits (3j) [rad], joint by joint.
-        upper: Upper limits (3j) [rad].
-        nv: Tangent size.
+        a: Its principal anatomical angles (3) [rad].
+        E_inv: ``E^-1`` (3, 3): angle rates per unit tangent step of the joint.
+        lo: Lower limits (3) [rad].
+        hi: Upper limits (3) [rad].
+        coupling: Its :attr:`~ikfusion.model.joints.JointSpec.axis_coupling`.
     """
-    G = ca.SX(3 * len(angles), nv)
-    up, down = [], []
-    other_signs = ca.DM([1.0, -1.0, 1.0])
-    for n, (a, E_inv, col, coupling) in enumerate(zip(angles, rates, idx_v, couplings)):
-        lo, hi = lower[3 * n:3 * n + 3], upper[3 * n:3 * n + 3]
-        centre = 0.5 * (lo + hi)
-        same = _wrap_near(a, centre)
-        other = _wrap_near(a * other_signs + np.pi, centre)
-        kappa = coupling * ca.sin(a[1])
-        flipped = (_turn_into_range(lo - other, hi - other, kappa)
-                   < _turn_into_range(lo - same, hi - same, kappa))
-        chosen = ca.if_else(flipped, other, same)
-        signs: tuple[ca.SX, ...] = (ca.SX(1.0), ca.if_else(flipped, -1.0, 1.0), ca.SX(1.0))
-        for m, sign in enumerate(signs):
-            row = E_inv[m, :]
-            tame = ca.logic_and(ca.logic_and(ca.fabs(row[0]) < _STEEPEST,  # NaN compares false
-                                             ca.fabs(row[1]) < _STEEPEST),
-                                ca.fabs(row[2]) < _STEEPEST)
-            G[3 * n + m, col:col + 3] = ca.if_else(tame, sign * row, ca.DM.zeros(1, 3))
-        up.append(hi - chosen)
-        down.append(chosen - lo)
-    empty = ca.SX(0, 1)
-    return G, ca.vertcat(*up) if up else empty, ca.vertcat(*down) if down else empty
+    centre = 0.5 * (lo + hi)
+    same = _wrap_near(a, centre)
+    other = _wrap_near(a * ca.DM([1.0, -1.0, 1.0]) + np.pi, centre)
+    kappa = coupling * ca.sin(a[1])
+    flipped = (_turn_into_range(lo - other, hi - other, kappa)
+               < _turn_into_range(lo - same, hi - same, kappa))
+    chosen = ca.if_else(flipped, other, same)
+    signs: tuple[ca.SX, ...] = (ca.SX(1.0), ca.if_else(flipped, -1.0, 1.0), ca.SX(1.0))
+    G = ca.SX(3, 3)
+    for m, sign in enumerate(signs):
+        row = E_inv[m, :]
+        tame = ca.logic_and(ca.logic_and(ca.fabs(row[0]) < _STEEPEST,  # NaN compares false
+                                         ca.fabs(row[1]) < _STEEPEST),
+                            ca.fabs(row[2]) < _STEEPEST)
+        G[m, :] = ca.if_else(tame, sign * row, ca.DM.zeros(1, 3))
+    return G, hi - chosen, chosen - lo
+
+
+def range_matrix(blocks: Sequence[ca.SX], idx_v: Sequence[int], nv: int) -> ca.SX:
+    """``G`` (3j, nv): each joint's block (3, 3) on its rows and its columns from ``idx_v``."""
+    G = ca.SX(3 * len(blocks), nv)
+    for n, (block, col) in enumerate(zip(blocks, idx_v)):
+        G[3 * n:3 * n + 3, col:col + 3] = block
+    return G
+

@@ -38,13 +38,14 @@ def generator_fingerprint() -> str:
     """SHA-256 of the source that generates the step functions and builds them.
 
     That is :mod:`.compiled`, :mod:`.compiled_sensed`, :mod:`.compiled_points`,
-    :mod:`.casadi_kinematics`, :mod:`.compiled_ranges` and :mod:`.compiled_joint_tasks` (the
-    expressions), this module and :mod:`.native_build` (the build), the CasADi rotation twin and
-    the NumPy module holding their shared epsilon policy.
+    :mod:`.casadi_kinematics`, :mod:`.compiled_ranges`, :mod:`.compiled_joint_tasks` and
+    :mod:`.compiled_blocks` (the expressions), this module and :mod:`.native_build` (the
+    build), the CasADi rotation twin and the NumPy module holding their shared epsilon policy.
     """
     from . import (  # imported late: no cycle
         casadi_kinematics,
         compiled,
+        compiled_blocks,
         compiled_joint_tasks,
         compiled_points,
         compiled_ranges,
@@ -54,7 +55,8 @@ def generator_fingerprint() -> str:
     digest = hashlib.sha256()
     for module in (compiled.__file__, compiled_sensed.__file__, compiled_points.__file__,
                    casadi_kinematics.__file__, compiled_ranges.__file__,
-                   compiled_joint_tasks.__file__, __file__, native_build.__file__,
+                   compiled_joint_tasks.__file__, compiled_blocks.__file__, __file__,
+                   native_build.__file__,
                    rotations_casadi.__file__, numpy_rotations.__file__):
         digest.update(Path(str(module)).read_bytes())
     return digest.hexdigest()
