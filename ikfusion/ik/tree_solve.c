@@ -19,6 +19,7 @@
  * packed number, taken in NumPy's order (pairwise_sum), is not finite (a NaN or an infinity, or
  * finite numbers overflowing it; nothing solved).
  */
+#include <float.h>
 #include <math.h>
 
 /* U is stored packed: column k's entries U[anc[i], k] at L[i] for i in ptr[k] .. ptr[k+1]-1
@@ -184,6 +185,64 @@ int ik_tree_closed_form(const struct plan *p, int m_in, int m_eq, const double *
         double s = 0.0;
         for (int k = 0; k < n; ++k) s += G[(long)i * n + k] * x[k];
         if (!(s <= h[i])) return 1;
+    }
+    return 0;
+}
+
+
+/* The common step of ikfusion.ik.active_set.solve_with_active_set, after the closed form:
+ * the range rows left out of the QP and the velocity bounds tested as its Python loop tests
+ * them (ikfusion.ik.tree_solve.TreeClosedForm._Active, same layout).
+ * G: (angles x n, row-major) every range row's rates; rooms: room_up (angles) then room_down
+ * (angles); up, down: (angles) whether a row is in the QP (1) or left out (0); bounds: lb (n)
+ * then ub (n) when has_bounds; tolerance: how far a row or a bound may be passed. */
+struct active {
+    const double *G, *rooms, *bounds;
+    const unsigned char *up, *down;
+    double tolerance;
+    int angles, has_bounds;
+};
+
+/* Whether rate > limit + tolerance (1) or not (0), or -1 when a different summation order of
+ * the rate (BLAS's gemv in the Python loop) could decide otherwise: the rate is within the
+ * worst rounding of any order of it (n products summed: n * DBL_EPSILON / 2 of the sum of
+ * their magnitudes, taken twice for the two orders and doubled for margin) of the threshold,
+ * or not a number. */
+static int passes(double rate, double magnitude, double threshold, int n)
+{
+    const double guard = (2.0 * n + 4.0) * DBL_EPSILON * magnitude + DBL_MIN;
+    const double gap = rate - threshold;
+    if (!(fabs(gap) > guard)) return -1;
+    return gap > 0.0;
+}
+
+/* ik_tree_closed_form, then, when it solved (0), the left-out range rows crossed and the bounds
+ * passed by x: 0: none (x is the step), 5: one is (or a summation order could decide that one
+ * is): the Python loop goes on from x; else the closed form's own answer (1 to 4). */
+int ik_active_step(const struct plan *p, const struct active *a, int m_in, int m_eq,
+                   const double *packed)
+{
+    const int answer = ik_tree_closed_form(p, m_in, m_eq, packed);
+    if (answer != 0) return answer;
+    const int n = p->n, angles = a->angles;
+    const double *x = p->x, tolerance = a->tolerance;
+    for (int i = 0; i < angles; ++i) {
+        if (a->up[i] && a->down[i]) continue;
+        const double *row = a->G + (long)i * n;
+        double rate = 0.0, magnitude = 0.0;
+        for (int k = 0; k < n; ++k) {
+            const double term = row[k] * x[k];
+            rate += term;
+            magnitude += fabs(term);
+        }
+        if (!a->up[i] && passes(rate, magnitude, a->rooms[i] + tolerance, n) != 0) return 5;
+        if (!a->down[i] && passes(-rate, magnitude, a->rooms[angles + i] + tolerance, n) != 0)
+            return 5;
+    }
+    if (a->has_bounds) {
+        const double *lb = a->bounds, *ub = lb + n;
+        for (int k = 0; k < n; ++k)
+            if (x[k] < lb[k] - tolerance || x[k] > ub[k] + tolerance) return 5;
     }
     return 0;
 }
