@@ -222,22 +222,28 @@ static int passes(double rate, double magnitude, double threshold, int n)
 typedef double pair __attribute__((vector_size(16)));
 typedef long long bits __attribute__((vector_size(16)));
 
+static pair load(const double *at)
+{
+    pair v;
+    memcpy(&v, at, sizeof v);
+    return v;
+}
+
 static double rate_of(const double *row, const double *x, int n, double *magnitude)
 {
-    pair r[4] = {{0.0, 0.0}, {0.0, 0.0}, {0.0, 0.0}, {0.0, 0.0}};
-    pair m[4] = {{0.0, 0.0}, {0.0, 0.0}, {0.0, 0.0}, {0.0, 0.0}};
+    const pair zero = {0.0, 0.0};
     const bits sign = {0x7fffffffffffffffLL, 0x7fffffffffffffffLL};
+    pair r0 = zero, r1 = zero, r2 = zero, r3 = zero, m0 = zero, m1 = zero, m2 = zero, m3 = zero;
     int k = 0;
-    for (; k + 8 <= n; k += 8)
-        for (int j = 0; j < 4; ++j) {
-            pair g, y;
-            memcpy(&g, row + k + 2 * j, sizeof g);
-            memcpy(&y, x + k + 2 * j, sizeof y);
-            const pair t = g * y;
-            r[j] += t;
-            m[j] += (pair)((bits)t & sign);
-        }
-    const pair rs = (r[0] + r[1]) + (r[2] + r[3]), ms = (m[0] + m[1]) + (m[2] + m[3]);
+    for (; k + 8 <= n; k += 8) {
+        const pair t0 = load(row + k) * load(x + k), t1 = load(row + k + 2) * load(x + k + 2);
+        const pair t2 = load(row + k + 4) * load(x + k + 4);
+        const pair t3 = load(row + k + 6) * load(x + k + 6);
+        r0 += t0; r1 += t1; r2 += t2; r3 += t3;
+        m0 += (pair)((bits)t0 & sign); m1 += (pair)((bits)t1 & sign);
+        m2 += (pair)((bits)t2 & sign); m3 += (pair)((bits)t3 & sign);
+    }
+    const pair rs = (r0 + r1) + (r2 + r3), ms = (m0 + m1) + (m2 + m3);
     double rate = rs[0] + rs[1], sum = ms[0] + ms[1];
     for (; k < n; ++k) {
         const double t = row[k] * x[k];

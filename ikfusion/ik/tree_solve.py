@@ -150,9 +150,12 @@ class TreeClosedForm:
         ``tolerance`` [rad or m].
 
         Args:
-            packed, m_in, m_eq: As :meth:`solve`.
+            packed: As :meth:`solve`.
+            m_in: Its inequality rows.
+            m_eq: Its equality rows.
             ranges: The step's linearised ranges (``G`` (angles, nv) C-contiguous).
-            up, down: (angles,) the upper and lower limits in the QP.
+            up: (angles,) the upper limits in the QP.
+            down: (angles,) the lower limits in the QP.
             bounds: The velocity bounds ``(lb, ub)`` (nv,), or None.
             tolerance: How far a left-out row or a bound may be passed [rad or m].
 
