@@ -17,7 +17,7 @@ from .fast_math import any_true
 from .limits import Inequality
 from .limits.joint_range import LinearisedRanges
 from .qp import QpProblem, QpSettings, QpSolution, solve_qp
-from .tree_solve import GOES_ON, NOT_TREE, SOLVED
+from .tree_solve import GOES_ON, SOLVED
 
 
 @dataclass
@@ -59,8 +59,8 @@ def solve_with_active_set(problem: QpProblem, rows: LimitRows, backend: str,
         SolverError: No backend could solve the QP.
     """
     answer, solution = _native_step(problem, rows, backend, tolerance, resolves, hint)
-    if solution is None:
-        solution = solve_qp(problem, backend, settings, hint)
+    if solution is None:  # the kernel's answer (if it ran) not asked for again
+        solution = solve_qp(problem, backend, settings, hint, answer)
     elif answer == SOLVED:  # the common step: nothing left out crossed, no bound passed
         return solution
     lb, ub = rows.bounds if rows.bounds is not None else (None, None)
@@ -93,7 +93,8 @@ def solve_with_active_set(problem: QpProblem, rows: LimitRows, backend: str,
 
 
 def _native_step(problem: QpProblem, rows: LimitRows, backend: str, tolerance: float,
-                 resolves: int, hint: ClosedFormHint | None) -> tuple[int, QpSolution | None]:
+                 resolves: int, hint: ClosedFormHint | None
+                 ) -> tuple[int | None, QpSolution | None]:
     """The common step in one native call (:meth:`.tree_solve.TreeClosedForm.step`).
 
     :func:`.qp.solve_qp`'s closed-form try and the first pass of the loop of
@@ -101,14 +102,15 @@ def _native_step(problem: QpProblem, rows: LimitRows, backend: str, tolerance: f
     the closed form solves the QP, crosses no range row left out and passes no bound;
     ``(GOES_ON, the closed form's step)`` when it solves the QP (so :func:`.qp.solve_qp`
     returns it) but the loop must test it; ``(answer, None)`` when :func:`.qp.solve_qp`
-    decides (the kernel could not solve the QP, DAQP is due, or the QP is not for the kernel).
+    decides (the kernel could not solve the QP: its answer) or ``(None, None)`` (DAQP is due,
+    or the QP is not for the kernel: not tried).
     """
     p = problem
     tree = p.tree
     if tree is None or p.packed is None or backend != "daqp" or \
             (hint is not None and hint.skip) or p.lb is not None or p.ub is not None or \
             resolves < 1:
-        return NOT_TREE, None
+        return None, None
     bounds = rows.bounds
     if bounds is not None and (bounds[0] is None or bounds[1] is None):
         bounds = None

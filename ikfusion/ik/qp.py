@@ -225,11 +225,15 @@ _EXACT_BACKENDS = ("daqp", "proxqp")
 
 
 def solve_unrelaxed(problem: QpProblem, backend: str, settings: QpSettings,
-                    hint: ClosedFormHint | None = None) -> QpSolution | None:
+                    hint: ClosedFormHint | None = None,
+                    answer: int | None = None) -> QpSolution | None:
     """The step with every constraint held, or None when no exact backend finds one.
 
     :func:`solve_qp` without its relaxation: for a caller that, when the constraints cannot
-    all hold, changes the problem rather than relaxing this one.
+    all hold, changes the problem rather than relaxing this one. ``answer``: the native
+    closed form's answer on this very problem when the caller has it
+    (:meth:`.tree_solve.TreeClosedForm.solve`, its minimiser still in ``problem.tree.x``):
+    not solved again.
 
     Raises:
         SolverError: A problem holding NaN or infinite numbers (no backend is tried).
@@ -242,7 +246,8 @@ def solve_unrelaxed(problem: QpProblem, backend: str, settings: QpSettings,
     closed_form = True
     if native:  # the finite check and the closed form in one native call (_call's in NumPy)
         assert p.tree is not None and p.packed is not None
-        answer = p.tree.solve(p.packed, len(p.h), len(p.b))
+        if answer is None:
+            answer = p.tree.solve(p.packed, len(p.h), len(p.b))
         if answer == NOT_FINITE:
             _check_finite(p)  # names what is not finite (an overflowing sum of finite numbers
             # passes, as it does there)
@@ -267,7 +272,7 @@ def solve_unrelaxed(problem: QpProblem, backend: str, settings: QpSettings,
 
 
 def solve_qp(problem: QpProblem, backend: str, settings: QpSettings,
-             hint: ClosedFormHint | None = None) -> QpSolution:
+             hint: ClosedFormHint | None = None, answer: int | None = None) -> QpSolution:
     """Solve the step; fall back to the penalised-slack relaxation when it is infeasible.
 
     Args:
@@ -276,6 +281,8 @@ def solve_qp(problem: QpProblem, backend: str, settings: QpSettings,
         settings: Iteration limits, tolerances and the slack penalties.
         hint: Whether DAQP's closed-form try is skipped (:class:`.equality_qp.ClosedFormHint`,
             updated by this step); None: always tried.
+        answer: The native closed form's answer on this problem, when known
+            (:func:`solve_unrelaxed`).
 
     Raises:
         SolverError: A problem holding NaN or infinite numbers (a target or the pose is not
@@ -284,7 +291,7 @@ def solve_qp(problem: QpProblem, backend: str, settings: QpSettings,
             and says so).
     """
     p = problem
-    solution = solve_unrelaxed(p, backend, settings, hint)
+    solution = solve_unrelaxed(p, backend, settings, hint, answer)
     if solution is not None:
         return solution
     # Infeasible (or a numerical failure): relax, with a milder penalty and another backend

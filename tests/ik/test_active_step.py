@@ -17,7 +17,14 @@ from ikfusion.ik.equality_qp import ClosedFormHint
 from ikfusion.ik.limits.base import Inequality
 from ikfusion.ik.limits.joint_range import LinearisedRanges
 from ikfusion.ik.qp import QpBuffer, QpProblem, QpSettings
-from ikfusion.ik.tree_solve import GOES_ON, NOT_TREE, SOLVED, TreeClosedForm, tree_closed_form
+from ikfusion.ik.tree_solve import (
+    CROSSES,
+    GOES_ON,
+    NOT_TREE,
+    SOLVED,
+    TreeClosedForm,
+    tree_closed_form,
+)
 from ikfusion.model import SENSOR_SEGMENTS, HumanModel
 from ikfusion.sim.gait import GaitParameters, generate_gait
 from ikfusion.sim.truth import orientation_frames
@@ -41,7 +48,7 @@ def tree(model: HumanModel) -> TreeClosedForm:
 
 
 def _python_loop(*args: object) -> object:
-    return NOT_TREE, None
+    return None, None
 
 
 def _step(rng: np.random.Generator, model: HumanModel, tree: TreeClosedForm
@@ -89,15 +96,21 @@ def _both(p: QpProblem, rows: LimitRows, monkeypatch: pytest.MonkeyPatch
 def test_random_steps_are_the_python_loops_bit_for_bit(tree, model, monkeypatch) -> None:
     rng = np.random.default_rng(7)
     answers = set()
-    for _ in range(60):
+    for trial in range(80):
         p, rows = _step(rng, model, tree)
         assert p.packed is not None
+        if trial % 4 == 1:  # the floor row cuts through the closed form's step: DAQP's
+            tree.solve(p.packed, len(p.h), len(p.b))
+            p.h[-1] = p.G[-1] @ tree.x - 1e-3
+        elif trial % 4 == 2:  # H off the tree's pattern: LAPACK's closed form
+            k, a = divmod(int(tree._off[trial % len(tree._off)]), len(p.c))
+            p.H[k, a] = p.H[a, k] = 1e-3
         answers.add(tree.step(p.packed, len(p.h), len(p.b), rows.ranges, rows.up, rows.down,
                               rows.bounds, TOLERANCE))
         native, python = _both(p, rows, monkeypatch)
         for a, b in zip(native, python):
             np.testing.assert_array_equal(a, b)
-    assert {SOLVED, GOES_ON} <= answers  # both the common step and the loop's were tried
+    assert {SOLVED, GOES_ON, CROSSES, NOT_TREE} <= answers  # every way on was tried
 
 
 def test_a_rate_at_its_limit_goes_to_the_python_loop(tree, model, monkeypatch) -> None:
