@@ -23,6 +23,18 @@
 #include <math.h>
 #include <string.h>
 
+/* Two doubles added, multiplied lane by lane (SSE2 on x86-64; each lane's arithmetic is the
+ * scalar one). */
+typedef double pair __attribute__((vector_size(16)));
+typedef long long bits __attribute__((vector_size(16)));
+
+static pair load(const double *at)
+{
+    pair v;
+    memcpy(&v, at, sizeof v);
+    return v;
+}
+
 /* U is stored packed: column k's entries U[anc[i], k] at L[i] for i in ptr[k] .. ptr[k+1]-1
  * (the nearest ancestor first). An ancestor's own ancestors are the rest of the list
  * (anc[ptr[a] ..] == anc[i + 1 .. ptr[k+1]) for a = anc[i]), so updating column a from
@@ -81,25 +93,48 @@ static int factor(int n, const int *ptr, const int *anc, const double *H,
 static double pairwise_sum(const double *a, long n)
 {   /* NumPy's add.reduce of a contiguous array (its pairwise sum: eight running sums over
      * blocks of at most 128 numbers, longer spans halved), the sum qp._check_finite takes; its
-     * independent additions run several times faster than one running sum */
+     * independent additions run several times faster than one running sum (the eight sums
+     * held in four SSE2 pairs: each lane's additions are the same, in the same order) */
     if (n < 8) {
         double s = 0.0;
         for (long i = 0; i < n; ++i) s += a[i];
         return s;
     }
     if (n <= 128) {
-        double r[8];
+        pair r0 = load(a), r1 = load(a + 2), r2 = load(a + 4), r3 = load(a + 6);
         long i;
-        for (int k = 0; k < 8; ++k) r[k] = a[k];
-        for (i = 8; i < n - n % 8; i += 8)
-            for (int k = 0; k < 8; ++k) r[k] += a[i + k];
-        double s = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]));
+        for (i = 8; i < n - n % 8; i += 8) {
+            r0 += load(a + i); r1 += load(a + i + 2);
+            r2 += load(a + i + 4); r3 += load(a + i + 6);
+        }
+        double s = ((r0[0] + r0[1]) + (r1[0] + r1[1])) + ((r2[0] + r2[1]) + (r3[0] + r3[1]));
         for (; i < n; ++i) s += a[i];
         return s;
     }
     long half = n / 2;
     half -= half % 8;
     return pairwise_sum(a, half) + pairwise_sum(a + half, n - half);
+}
+
+static void gram_row(const double *v, const double *W, int n, int count, double *out)
+{   /* out[j] = v . W[j] (rows of n) for j < count, each summed in k order; four at once (four
+     * independent running sums: the same numbers, a quarter of the latency) */
+    int j = 0;
+    for (; j + 4 <= count; j += 4) {
+        const double *w0 = W + (long)j * n, *w1 = w0 + n, *w2 = w1 + n, *w3 = w2 + n;
+        double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+        for (int k = 0; k < n; ++k) {
+            const double vk = v[k];
+            s0 += vk * w0[k]; s1 += vk * w1[k]; s2 += vk * w2[k]; s3 += vk * w3[k];
+        }
+        out[j] = s0; out[j + 1] = s1; out[j + 2] = s2; out[j + 3] = s3;
+    }
+    for (; j < count; ++j) {
+        const double *w = W + (long)j * n;
+        double s = 0.0;
+        for (int k = 0; k < n; ++k) s += v[k] * w[k];
+        out[j] = s;
+    }
 }
 
 /* What stays from call to call (ikfusion.ik.tree_solve.TreeClosedForm._Plan, same layout). */
@@ -141,12 +176,7 @@ int ik_tree_closed_form(const struct plan *p, int m_in, int m_eq, const double *
             for (int k = 0; k < n; ++k) w[k] = v[k] / D[k];  /* W = D^-1 V */
         }
         for (int i = 0; i < m_eq; ++i)                  /* S = V^T D^-1 V, lower triangle */
-            for (int j = 0; j <= i; ++j) {
-                const double *vi = V + (long)i * n, *wj = W + (long)j * n;
-                double s = 0.0;
-                for (int k = 0; k < n; ++k) s += vi[k] * wj[k];
-                S[(long)i * m_eq + j] = s;
-            }
+            gram_row(V + (long)i * n, W, n, i + 1, S + (long)i * m_eq);
         for (int i = 0; i < m_eq; ++i)
             if (S[(long)i * m_eq + i] > largest) largest = S[(long)i * m_eq + i];
         for (int j = 0; j < m_eq; ++j) {                /* S = L L^T in place (lower) */
@@ -218,17 +248,7 @@ static int passes(double rate, double magnitude, double threshold, int n)
 }
 
 /* The dot product of row and x (n) and the sum of its terms' magnitudes (in *magnitude): eight
- * running sums of each, in pairs (SSE2 vectors), for a latency of a quarter of one sum's. */
-typedef double pair __attribute__((vector_size(16)));
-typedef long long bits __attribute__((vector_size(16)));
-
-static pair load(const double *at)
-{
-    pair v;
-    memcpy(&v, at, sizeof v);
-    return v;
-}
-
+ * running sums of each, in pairs, for a latency of a quarter of one sum's. */
 static double rate_of(const double *row, const double *x, int n, double *magnitude)
 {
     const pair zero = {0.0, 0.0};
