@@ -72,9 +72,15 @@ static int factor(int n, const int *ptr, const int *anc, const double *H,
         if (!(d > 0.0)) return 0;
         const int first = ptr[k], count = ptr[k + 1] - first;
         double *restrict Lk = L + first;
-        for (int i = 0; i < count; ++i) {  /* H_ak after the deeper columns, and U_ak */
-            t[i] = Lk[i];
-            Lk[i] /= d;                     /* independent divisions: pipelined */
+        memcpy(t, Lk, sizeof(double) * (size_t)count);  /* H_ak after the deeper columns */
+        {                                   /* and U_ak: independent divisions, two at once */
+            const pair dd = {d, d};
+            int i = 0;
+            for (; i + 2 <= count; i += 2) {
+                const pair q = load(Lk + i) / dd;
+                memcpy(Lk + i, &q, sizeof q);
+            }
+            for (; i < count; ++i) Lk[i] /= d;
         }
         for (int i = 0; i < count; ++i) {
             const double u = Lk[i];
@@ -116,13 +122,14 @@ static double pairwise_sum(const double *a, long n)
     return pairwise_sum(a, half) + pairwise_sum(a + half, n - half);
 }
 
-static void gram_row(const double *v, const double *W, int n, int count, double *out)
-{   /* out[j] = v . W[j] (rows of n) for j < count, each summed in k order; four at once (four
-     * independent running sums: the same numbers, a quarter of the latency) */
+static void dots(const double *v, const double *W, int n, int count, double *out)
+{   /* out[j] += v . W[j] (rows of n) for j < count, each a running sum from out[j] in k
+     * order; four at once (four independent running sums: the same numbers, a quarter of the
+     * latency) */
     int j = 0;
     for (; j + 4 <= count; j += 4) {
         const double *w0 = W + (long)j * n, *w1 = w0 + n, *w2 = w1 + n, *w3 = w2 + n;
-        double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+        double s0 = out[j], s1 = out[j + 1], s2 = out[j + 2], s3 = out[j + 3];
         for (int k = 0; k < n; ++k) {
             const double vk = v[k];
             s0 += vk * w0[k]; s1 += vk * w1[k]; s2 += vk * w2[k]; s3 += vk * w3[k];
@@ -131,10 +138,20 @@ static void gram_row(const double *v, const double *W, int n, int count, double 
     }
     for (; j < count; ++j) {
         const double *w = W + (long)j * n;
-        double s = 0.0;
+        double s = out[j];
         for (int k = 0; k < n; ++k) s += v[k] * w[k];
         out[j] = s;
     }
+}
+
+static void divide(double *restrict out, const double *num, const double *den, int n)
+{   /* out[k] = num[k] / den[k], two at a time (each lane's division is the scalar one) */
+    int k = 0;
+    for (; k + 2 <= n; k += 2) {
+        const pair q = load(num + k) / load(den + k);
+        memcpy(out + k, &q, sizeof q);
+    }
+    for (; k < n; ++k) out[k] = num[k] / den[k];
 }
 
 /* What stays from call to call (ikfusion.ik.tree_solve.TreeClosedForm._Plan, same layout). */
@@ -167,16 +184,19 @@ int ik_tree_closed_form(const struct plan *p, int m_in, int m_eq, const double *
     upper_transpose_solve(n, ptr, anc, F, x);          /* x = -H^-1 c */
     if (m_eq > 0) {
         double largest = 0.0, smallest = INFINITY;
+        memcpy(V, A, sizeof(double) * (size_t)m_eq * (size_t)n);
+        for (int i = 0; i < m_eq; ++i) r[i] = -b[i];
+        dots(x, V, n, m_eq, r);                         /* r = A x0 - b */
         for (int i = 0; i < m_eq; ++i) {
-            double *v = V + (long)i * n, s = -b[i];
-            for (int k = 0; k < n; ++k) { v[k] = A[(long)i * n + k]; s += v[k] * x[k]; }
-            r[i] = s;                                   /* A x0 - b */
+            double *v = V + (long)i * n;
             upper_solve(n, ptr, anc, F, v);
-            double *w = W + (long)i * n;
-            for (int k = 0; k < n; ++k) w[k] = v[k] / D[k];  /* W = D^-1 V */
+            divide(W + (long)i * n, v, D, n);           /* W = D^-1 V */
         }
-        for (int i = 0; i < m_eq; ++i)                  /* S = V^T D^-1 V, lower triangle */
-            gram_row(V + (long)i * n, W, n, i + 1, S + (long)i * m_eq);
+        for (int i = 0; i < m_eq; ++i) {                /* S = V^T D^-1 V, lower triangle */
+            double *row = S + (long)i * m_eq;
+            for (int j = 0; j <= i; ++j) row[j] = 0.0;
+            dots(V + (long)i * n, W, n, i + 1, row);
+        }
         for (int i = 0; i < m_eq; ++i)
             if (S[(long)i * m_eq + i] > largest) largest = S[(long)i * m_eq + i];
         for (int j = 0; j < m_eq; ++j) {                /* S = L L^T in place (lower) */
