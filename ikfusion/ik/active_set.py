@@ -4,6 +4,11 @@ Few of the ranges of motion and velocity bounds are ever active, and every row c
 solver time. So a step's QP holds the limits of the angles near a limit (and the floor) and no
 velocity bounds; a step that would cross another limit or a bound is solved again with those
 rows. A relaxed step is solved again with every row.
+
+The common step (the native closed form solves the QP, no left-out row crossed, no bound
+passed) is taken in one native call (:meth:`.tree_solve.TreeClosedForm.step`): the same step
+and the same decisions as the loop below, which takes over whenever a row must be added, a
+bound passed, or the kernel cannot solve the QP.
 """
 
 from __future__ import annotations
