@@ -225,15 +225,12 @@ _EXACT_BACKENDS = ("daqp", "proxqp")
 
 
 def solve_unrelaxed(problem: QpProblem, backend: str, settings: QpSettings,
-                    hint: ClosedFormHint | None = None,
-                    answer: int | None = None) -> QpSolution | None:
+                    hint: ClosedFormHint | None = None, answer: int | None = None
+                    ) -> QpSolution | None:
     """The step with every constraint held, or None when no exact backend finds one.
 
-    :func:`solve_qp` without its relaxation: for a caller that, when the constraints cannot
-    all hold, changes the problem rather than relaxing this one. ``answer``: the native
-    closed form's answer on this very problem when the caller has it
-    (:meth:`.tree_solve.TreeClosedForm.solve`, its minimiser still in ``problem.tree.x``):
-    not solved again.
+    :func:`solve_qp` without its relaxation (``answer``: the kernel's, when known): for a
+    caller that, when the constraints cannot all hold, changes the problem rather than relaxing.
 
     Raises:
         SolverError: A problem holding NaN or infinite numbers (no backend is tried).
@@ -246,8 +243,7 @@ def solve_unrelaxed(problem: QpProblem, backend: str, settings: QpSettings,
     closed_form = True
     if native:  # the finite check and the closed form in one native call (_call's in NumPy)
         assert p.tree is not None and p.packed is not None
-        if answer is None:
-            answer = p.tree.solve(p.packed, len(p.h), len(p.b))
+        answer = p.tree.solve(p.packed, len(p.h), len(p.b)) if answer is None else answer
         if answer == NOT_FINITE:
             _check_finite(p)  # names what is not finite (an overflowing sum of finite numbers
             # passes, as it does there)
@@ -281,8 +277,7 @@ def solve_qp(problem: QpProblem, backend: str, settings: QpSettings,
         settings: Iteration limits, tolerances and the slack penalties.
         hint: Whether DAQP's closed-form try is skipped (:class:`.equality_qp.ClosedFormHint`,
             updated by this step); None: always tried.
-        answer: The native closed form's answer on this problem, when known
-            (:func:`solve_unrelaxed`).
+        answer: The kernel's answer on this problem, when known (:func:`solve_unrelaxed`).
 
     Raises:
         SolverError: A problem holding NaN or infinite numbers (a target or the pose is not
