@@ -4,6 +4,11 @@ Few of the ranges of motion and velocity bounds are ever active, and every row c
 solver time. So a step's QP holds the limits of the angles near a limit (and the floor) and no
 velocity bounds; a step that would cross another limit or a bound is solved again with those
 rows. A relaxed step is solved again with every row.
+
+The common step (the native closed form solves the QP, no left-out row crossed, no bound
+passed) is taken in one native call (:meth:`.tree_solve.TreeClosedForm.step`): the same step
+and the same decisions as the loop below, which takes over whenever a row must be added, a
+bound passed, or the kernel cannot solve the QP.
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ from .fast_math import any_true
 from .limits import Inequality
 from .limits.joint_range import LinearisedRanges
 from .qp import QpProblem, QpSettings, QpSolution, solve_qp
+from .tree_solve import GOES_ON, SOLVED
 
 
 @dataclass
@@ -57,7 +63,11 @@ def solve_with_active_set(problem: QpProblem, rows: LimitRows, backend: str,
     Raises:
         SolverError: No backend could solve the QP.
     """
-    solution = solve_qp(problem, backend, settings, hint)
+    answer, solution = _native_step(problem, rows, backend, tolerance, resolves, hint)
+    if solution is None:  # the kernel's answer (if it ran) not asked for again
+        solution = solve_qp(problem, backend, settings, hint, answer)
+    elif answer == SOLVED:  # the common step: nothing left out crossed, no bound passed
+        return solution
     lb, ub = rows.bounds if rows.bounds is not None else (None, None)
     for _ in range(resolves):
         if solution.relaxed:
@@ -85,3 +95,30 @@ def solve_with_active_set(problem: QpProblem, rows: LimitRows, backend: str,
         if relaxed_before:
             return solution
     return solution
+
+
+def _native_step(problem: QpProblem, rows: LimitRows, backend: str, tolerance: float,
+                 resolves: int, hint: ClosedFormHint | None
+                 ) -> tuple[int | None, QpSolution | None]:
+    """The common step in one native call (:meth:`.tree_solve.TreeClosedForm.step`).
+
+    :func:`.qp.solve_qp`'s closed-form try and the first pass of the loop of
+    :func:`solve_with_active_set` on a QP without bounds. Returns ``(SOLVED, the step)`` when
+    the closed form solves the QP, crosses no range row left out and passes no bound;
+    ``(GOES_ON, the closed form's step)`` when it solves the QP (so :func:`.qp.solve_qp`
+    returns it) but the loop must test it; ``(answer, None)`` when :func:`.qp.solve_qp`
+    decides (the kernel could not solve the QP: its answer) or ``(None, None)`` (DAQP is due,
+    or the QP is not for the kernel: not tried).
+    """
+    p = problem
+    tree = p.tree
+    if tree is None or p.packed is None or backend != "daqp" or \
+            (hint is not None and hint.skip) or p.lb is not None or p.ub is not None or \
+            resolves < 1:
+        return None, None
+    bounds = rows.bounds
+    if bounds is not None and (bounds[0] is None or bounds[1] is None):
+        bounds = None
+    answer = tree.step(p.packed, len(p.h), len(p.b), rows.ranges, rows.up, rows.down, bounds,
+                       tolerance)
+    return answer, QpSolution(tree.x.copy()) if answer in (SOLVED, GOES_ON) else None

@@ -225,11 +225,12 @@ _EXACT_BACKENDS = ("daqp", "proxqp")
 
 
 def solve_unrelaxed(problem: QpProblem, backend: str, settings: QpSettings,
-                    hint: ClosedFormHint | None = None) -> QpSolution | None:
+                    hint: ClosedFormHint | None = None, answer: int | None = None
+                    ) -> QpSolution | None:
     """The step with every constraint held, or None when no exact backend finds one.
 
-    :func:`solve_qp` without its relaxation: for a caller that, when the constraints cannot
-    all hold, changes the problem rather than relaxing this one.
+    :func:`solve_qp` without its relaxation (``answer``: the kernel's, when known): for a
+    caller that, when the constraints cannot all hold, changes the problem rather than relaxing.
 
     Raises:
         SolverError: A problem holding NaN or infinite numbers (no backend is tried).
@@ -242,7 +243,7 @@ def solve_unrelaxed(problem: QpProblem, backend: str, settings: QpSettings,
     closed_form = True
     if native:  # the finite check and the closed form in one native call (_call's in NumPy)
         assert p.tree is not None and p.packed is not None
-        answer = p.tree.solve(p.packed, len(p.h), len(p.b))
+        answer = p.tree.solve(p.packed, len(p.h), len(p.b)) if answer is None else answer
         if answer == NOT_FINITE:
             _check_finite(p)  # names what is not finite (an overflowing sum of finite numbers
             # passes, as it does there)
@@ -267,7 +268,7 @@ def solve_unrelaxed(problem: QpProblem, backend: str, settings: QpSettings,
 
 
 def solve_qp(problem: QpProblem, backend: str, settings: QpSettings,
-             hint: ClosedFormHint | None = None) -> QpSolution:
+             hint: ClosedFormHint | None = None, answer: int | None = None) -> QpSolution:
     """Solve the step; fall back to the penalised-slack relaxation when it is infeasible.
 
     Args:
@@ -276,6 +277,7 @@ def solve_qp(problem: QpProblem, backend: str, settings: QpSettings,
         settings: Iteration limits, tolerances and the slack penalties.
         hint: Whether DAQP's closed-form try is skipped (:class:`.equality_qp.ClosedFormHint`,
             updated by this step); None: always tried.
+        answer: The kernel's answer on this problem, when known (:func:`solve_unrelaxed`).
 
     Raises:
         SolverError: A problem holding NaN or infinite numbers (a target or the pose is not
@@ -284,7 +286,7 @@ def solve_qp(problem: QpProblem, backend: str, settings: QpSettings,
             and says so).
     """
     p = problem
-    solution = solve_unrelaxed(p, backend, settings, hint)
+    solution = solve_unrelaxed(p, backend, settings, hint, answer)
     if solution is not None:
         return solution
     # Infeasible (or a numerical failure): relax, with a milder penalty and another backend

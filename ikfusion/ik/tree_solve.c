@@ -19,7 +19,21 @@
  * packed number, taken in NumPy's order (pairwise_sum), is not finite (a NaN or an infinity, or
  * finite numbers overflowing it; nothing solved).
  */
+#include <float.h>
 #include <math.h>
+#include <string.h>
+
+/* Two doubles added, multiplied lane by lane (SSE2 on x86-64; each lane's arithmetic is the
+ * scalar one). */
+typedef double pair __attribute__((vector_size(16)));
+typedef long long bits __attribute__((vector_size(16)));
+
+static pair load(const double *at)
+{
+    pair v;
+    memcpy(&v, at, sizeof v);
+    return v;
+}
 
 /* U is stored packed: column k's entries U[anc[i], k] at L[i] for i in ptr[k] .. ptr[k+1]-1
  * (the nearest ancestor first). An ancestor's own ancestors are the rest of the list
@@ -58,9 +72,15 @@ static int factor(int n, const int *ptr, const int *anc, const double *H,
         if (!(d > 0.0)) return 0;
         const int first = ptr[k], count = ptr[k + 1] - first;
         double *restrict Lk = L + first;
-        for (int i = 0; i < count; ++i) {  /* H_ak after the deeper columns, and U_ak */
-            t[i] = Lk[i];
-            Lk[i] /= d;                     /* independent divisions: pipelined */
+        memcpy(t, Lk, sizeof(double) * (size_t)count);  /* H_ak after the deeper columns */
+        {                                   /* and U_ak: independent divisions, two at once */
+            const pair dd = {d, d};
+            int i = 0;
+            for (; i + 2 <= count; i += 2) {
+                const pair q = load(Lk + i) / dd;
+                memcpy(Lk + i, &q, sizeof q);
+            }
+            for (; i < count; ++i) Lk[i] /= d;
         }
         for (int i = 0; i < count; ++i) {
             const double u = Lk[i];
@@ -79,25 +99,59 @@ static int factor(int n, const int *ptr, const int *anc, const double *H,
 static double pairwise_sum(const double *a, long n)
 {   /* NumPy's add.reduce of a contiguous array (its pairwise sum: eight running sums over
      * blocks of at most 128 numbers, longer spans halved), the sum qp._check_finite takes; its
-     * independent additions run several times faster than one running sum */
+     * independent additions run several times faster than one running sum (the eight sums
+     * held in four SSE2 pairs: each lane's additions are the same, in the same order) */
     if (n < 8) {
         double s = 0.0;
         for (long i = 0; i < n; ++i) s += a[i];
         return s;
     }
     if (n <= 128) {
-        double r[8];
+        pair r0 = load(a), r1 = load(a + 2), r2 = load(a + 4), r3 = load(a + 6);
         long i;
-        for (int k = 0; k < 8; ++k) r[k] = a[k];
-        for (i = 8; i < n - n % 8; i += 8)
-            for (int k = 0; k < 8; ++k) r[k] += a[i + k];
-        double s = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]));
+        for (i = 8; i < n - n % 8; i += 8) {
+            r0 += load(a + i); r1 += load(a + i + 2);
+            r2 += load(a + i + 4); r3 += load(a + i + 6);
+        }
+        double s = ((r0[0] + r0[1]) + (r1[0] + r1[1])) + ((r2[0] + r2[1]) + (r3[0] + r3[1]));
         for (; i < n; ++i) s += a[i];
         return s;
     }
     long half = n / 2;
     half -= half % 8;
     return pairwise_sum(a, half) + pairwise_sum(a + half, n - half);
+}
+
+static void dots(const double *v, const double *W, int n, int count, double *out)
+{   /* out[j] += v . W[j] (rows of n) for j < count, each a running sum from out[j] in k
+     * order; four at once (four independent running sums: the same numbers, a quarter of the
+     * latency) */
+    int j = 0;
+    for (; j + 4 <= count; j += 4) {
+        const double *w0 = W + (long)j * n, *w1 = w0 + n, *w2 = w1 + n, *w3 = w2 + n;
+        double s0 = out[j], s1 = out[j + 1], s2 = out[j + 2], s3 = out[j + 3];
+        for (int k = 0; k < n; ++k) {
+            const double vk = v[k];
+            s0 += vk * w0[k]; s1 += vk * w1[k]; s2 += vk * w2[k]; s3 += vk * w3[k];
+        }
+        out[j] = s0; out[j + 1] = s1; out[j + 2] = s2; out[j + 3] = s3;
+    }
+    for (; j < count; ++j) {
+        const double *w = W + (long)j * n;
+        double s = out[j];
+        for (int k = 0; k < n; ++k) s += v[k] * w[k];
+        out[j] = s;
+    }
+}
+
+static void divide(double *restrict out, const double *num, const double *den, int n)
+{   /* out[k] = num[k] / den[k], two at a time (each lane's division is the scalar one) */
+    int k = 0;
+    for (; k + 2 <= n; k += 2) {
+        const pair q = load(num + k) / load(den + k);
+        memcpy(out + k, &q, sizeof q);
+    }
+    for (; k < n; ++k) out[k] = num[k] / den[k];
 }
 
 /* What stays from call to call (ikfusion.ik.tree_solve.TreeClosedForm._Plan, same layout). */
@@ -130,21 +184,19 @@ int ik_tree_closed_form(const struct plan *p, int m_in, int m_eq, const double *
     upper_transpose_solve(n, ptr, anc, F, x);          /* x = -H^-1 c */
     if (m_eq > 0) {
         double largest = 0.0, smallest = INFINITY;
+        memcpy(V, A, sizeof(double) * (size_t)m_eq * (size_t)n);
+        for (int i = 0; i < m_eq; ++i) r[i] = -b[i];
+        dots(x, V, n, m_eq, r);                         /* r = A x0 - b */
         for (int i = 0; i < m_eq; ++i) {
-            double *v = V + (long)i * n, s = -b[i];
-            for (int k = 0; k < n; ++k) { v[k] = A[(long)i * n + k]; s += v[k] * x[k]; }
-            r[i] = s;                                   /* A x0 - b */
+            double *v = V + (long)i * n;
             upper_solve(n, ptr, anc, F, v);
-            double *w = W + (long)i * n;
-            for (int k = 0; k < n; ++k) w[k] = v[k] / D[k];  /* W = D^-1 V */
+            divide(W + (long)i * n, v, D, n);           /* W = D^-1 V */
         }
-        for (int i = 0; i < m_eq; ++i)                  /* S = V^T D^-1 V, lower triangle */
-            for (int j = 0; j <= i; ++j) {
-                const double *vi = V + (long)i * n, *wj = W + (long)j * n;
-                double s = 0.0;
-                for (int k = 0; k < n; ++k) s += vi[k] * wj[k];
-                S[(long)i * m_eq + j] = s;
-            }
+        for (int i = 0; i < m_eq; ++i) {                /* S = V^T D^-1 V, lower triangle */
+            double *row = S + (long)i * m_eq;
+            for (int j = 0; j <= i; ++j) row[j] = 0.0;
+            dots(V + (long)i * n, W, n, i + 1, row);
+        }
         for (int i = 0; i < m_eq; ++i)
             if (S[(long)i * m_eq + i] > largest) largest = S[(long)i * m_eq + i];
         for (int j = 0; j < m_eq; ++j) {                /* S = L L^T in place (lower) */
@@ -184,6 +236,86 @@ int ik_tree_closed_form(const struct plan *p, int m_in, int m_eq, const double *
         double s = 0.0;
         for (int k = 0; k < n; ++k) s += G[(long)i * n + k] * x[k];
         if (!(s <= h[i])) return 1;
+    }
+    return 0;
+}
+
+
+/* The common step of ikfusion.ik.active_set.solve_with_active_set, after the closed form:
+ * the range rows left out of the QP and the velocity bounds tested as its Python loop tests
+ * them (ikfusion.ik.tree_solve.TreeClosedForm._Active, same layout).
+ * G: (angles x n, row-major) every range row's rates; rooms: room_up (angles) then room_down
+ * (angles); up, down: (angles) whether a row is in the QP (1) or left out (0); bounds: lb (n)
+ * then ub (n) when has_bounds; tolerance: how far a row or a bound may be passed. */
+struct active {
+    const double *G, *rooms, *bounds;
+    const unsigned char *up, *down;
+    double tolerance;
+    int angles, has_bounds;
+};
+
+/* Whether rate > limit + tolerance (1) or not (0), or -1 when a different summation order of
+ * the rate (BLAS's gemv in the Python loop) could decide otherwise: the rate is within the
+ * worst rounding of any order of it (n products summed: n * DBL_EPSILON / 2 of the sum of
+ * their magnitudes, taken twice for the two orders and doubled for margin) of the threshold,
+ * or not a number. */
+static int passes(double rate, double magnitude, double threshold, int n)
+{
+    const double guard = (2.0 * n + 4.0) * DBL_EPSILON * magnitude + DBL_MIN;
+    const double gap = rate - threshold;
+    if (!(fabs(gap) > guard)) return -1;
+    return gap > 0.0;
+}
+
+/* The dot product of row and x (n) and the sum of its terms' magnitudes (in *magnitude): eight
+ * running sums of each, in pairs, for a latency of a quarter of one sum's. */
+static double rate_of(const double *row, const double *x, int n, double *magnitude)
+{
+    const pair zero = {0.0, 0.0};
+    const bits sign = {0x7fffffffffffffffLL, 0x7fffffffffffffffLL};
+    pair r0 = zero, r1 = zero, r2 = zero, r3 = zero, m0 = zero, m1 = zero, m2 = zero, m3 = zero;
+    int k = 0;
+    for (; k + 8 <= n; k += 8) {
+        const pair t0 = load(row + k) * load(x + k), t1 = load(row + k + 2) * load(x + k + 2);
+        const pair t2 = load(row + k + 4) * load(x + k + 4);
+        const pair t3 = load(row + k + 6) * load(x + k + 6);
+        r0 += t0; r1 += t1; r2 += t2; r3 += t3;
+        m0 += (pair)((bits)t0 & sign); m1 += (pair)((bits)t1 & sign);
+        m2 += (pair)((bits)t2 & sign); m3 += (pair)((bits)t3 & sign);
+    }
+    const pair rs = (r0 + r1) + (r2 + r3), ms = (m0 + m1) + (m2 + m3);
+    double rate = rs[0] + rs[1], sum = ms[0] + ms[1];
+    for (; k < n; ++k) {
+        const double t = row[k] * x[k];
+        rate += t;
+        sum += fabs(t);
+    }
+    *magnitude = sum;
+    return rate;
+}
+
+/* ik_tree_closed_form, then, when it solved (0), the left-out range rows crossed and the bounds
+ * passed by x: 0: none (x is the step), 5: one is (or a summation order could decide that one
+ * is): the Python loop goes on from x; else the closed form's own answer (1 to 4). */
+int ik_active_step(const struct plan *p, const struct active *a, int m_in, int m_eq,
+                   const double *packed)
+{
+    const int answer = ik_tree_closed_form(p, m_in, m_eq, packed);
+    if (answer != 0) return answer;
+    const int n = p->n, angles = a->angles;
+    const double *x = p->x, tolerance = a->tolerance;
+    for (int i = 0; i < angles; ++i) {
+        if (a->up[i] && a->down[i]) continue;
+        double magnitude;
+        const double rate = rate_of(a->G + (long)i * n, x, n, &magnitude);
+        if (!a->up[i] && passes(rate, magnitude, a->rooms[i] + tolerance, n) != 0) return 5;
+        if (!a->down[i] && passes(-rate, magnitude, a->rooms[angles + i] + tolerance, n) != 0)
+            return 5;
+    }
+    if (a->has_bounds) {
+        const double *lb = a->bounds, *ub = lb + n;
+        for (int k = 0; k < n; ++k)
+            if (x[k] < lb[k] - tolerance || x[k] > ub[k] + tolerance) return 5;
     }
     return 0;
 }

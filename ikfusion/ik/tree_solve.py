@@ -18,6 +18,7 @@ from __future__ import annotations
 import ctypes
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
@@ -26,8 +27,12 @@ from .equality_qp import DEPENDENT_ROWS
 from .native_build import cache_dir, find_compiler
 from .native_kernel import native_kernel
 
-#: The kernel's answers (see ``tree_solve.c``).
-SOLVED, CROSSES, FAILED, NOT_TREE, NOT_FINITE = 0, 1, 2, 3, 4
+if TYPE_CHECKING:
+    from .limits.joint_range import LinearisedRanges
+
+#: The kernel's answers (see ``tree_solve.c``); :data:`GOES_ON`: :meth:`TreeClosedForm.step`'s
+#: minimiser satisfies the QP's rows but crosses a range row left out of it or passes a bound.
+SOLVED, CROSSES, FAILED, NOT_TREE, NOT_FINITE, GOES_ON = 0, 1, 2, 3, 4, 5
 
 #: (cache folder, compiler, IKFUSION_NO_COMPILE) -> the kernel loaded (None: not built)
 _LIBRARIES: dict[tuple[str, str | None, str | None], ctypes.CDLL | None] = {}
@@ -63,6 +68,15 @@ class _Plan(ctypes.Structure):
                 ("n_off", ctypes.c_int)]
 
 
+class _Active(ctypes.Structure):
+    """The limit rows left out of a step's QP (``struct active`` of ``tree_solve.c``)."""
+
+    _fields_ = [("G", ctypes.c_void_p), ("rooms", ctypes.c_void_p), ("bounds", ctypes.c_void_p),
+                ("up", ctypes.c_void_p), ("down", ctypes.c_void_p),
+                ("tolerance", ctypes.c_double), ("angles", ctypes.c_int),
+                ("has_bounds", ctypes.c_int)]
+
+
 class TreeClosedForm:
     """The native closed-form step of one model (:func:`tree_closed_form`).
 
@@ -94,6 +108,17 @@ class TreeClosedForm:
         self._kernel.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_int, ctypes.c_void_p]
         # id of a packed array -> (the array, kept alive so its id stays its own; its address)
         self._addresses: dict[int, tuple[np.ndarray, int]] = {}
+        self._step = library.ik_active_step
+        self._step.restype = ctypes.c_int
+        self._step.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_int,
+                               ctypes.c_void_p]
+        # the rows left out (copied in by step): rooms (2, angles), up and down, lb then ub
+        self._rooms = np.zeros((2, 0))
+        self._in_qp = np.zeros((2, 0), dtype=bool)
+        self._bounds = np.zeros((2, n))
+        self._active = _Active(None, None, self._bounds.ctypes.data, None, None, 0.0, 0, 0)
+        self._active_at = ctypes.addressof(self._active)
+        self._G: np.ndarray | None = None  # the range rows' G the kernel reads (kept alive)
 
     def solve(self, packed: np.ndarray, m_in: int, m_eq: int) -> int:
         """The closed-form step of the packed QP ``packed`` into :attr:`x`; the kernel's answer.
@@ -111,6 +136,66 @@ class TreeClosedForm:
             :data:`NOT_FINITE` (the sum of the packed numbers is not finite, as
             :func:`.qp._check_finite` tests it: nothing solved).
         """
+        return int(self._kernel(self._plan_at, m_in, m_eq, self._packed_at(packed, m_in, m_eq)))
+
+    def step(self, packed: np.ndarray, m_in: int, m_eq: int, ranges: LinearisedRanges,
+             up: np.ndarray, down: np.ndarray, bounds: tuple[np.ndarray, np.ndarray] | None,
+             tolerance: float) -> int:
+        """:meth:`solve`, then the rows left out of the QP and the bounds tested on :attr:`x`.
+
+        The common step of :func:`.active_set.solve_with_active_set` (its QP without bounds) in
+        one call: the minimiser is the step when it satisfies the QP's rows, crosses none of the
+        range rows left out (an upper limit not in ``up`` is crossed when its rate passes
+        ``room_up + tolerance``, a lower one likewise) and keeps within ``bounds`` widened by
+        ``tolerance`` [rad or m].
+
+        Args:
+            packed: As :meth:`solve`.
+            m_in: Its inequality rows.
+            m_eq: Its equality rows.
+            ranges: The step's linearised ranges (``G`` (angles, nv) C-contiguous).
+            up: (angles,) the upper limits in the QP.
+            down: (angles,) the lower limits in the QP.
+            bounds: The velocity bounds ``(lb, ub)`` (nv,), or None.
+            tolerance: How far a left-out row or a bound may be passed [rad or m].
+
+        Returns:
+            0 (:data:`SOLVED`): :attr:`x` is the step; :data:`GOES_ON`: :attr:`x` solves the
+            QP but crosses a left-out row or passes a bound, or a rate lies so close to its
+            limit that BLAS's summation of it (the Python loop's) could say so: the caller's
+            loop decides from :attr:`x`; else :meth:`solve`'s answer (1 to 4).
+        """
+        active, G = self._active, ranges.G
+        if G is not self._G:  # the step function's output: the same array step after step
+            if G.dtype != np.float64 or not G.flags.c_contiguous or G.shape[1] != self.n:
+                raise ValueError("the ranges' G is not (angles, nv) C-contiguous")
+            angles = len(G)
+            if self._rooms.shape[1] != angles:
+                self._rooms = np.zeros((2, angles))
+                self._in_qp = np.zeros((2, angles), dtype=bool)
+                active.rooms, active.angles = self._rooms.ctypes.data, angles
+                active.up = self._in_qp.ctypes.data
+                active.down = active.up + angles
+            self._G, active.G = G, G.ctypes.data
+        np.copyto(self._rooms, ranges.rooms)
+        in_qp = self._in_qp
+        np.copyto(in_qp[0], up)
+        np.copyto(in_qp[1], down)
+        if bounds is None:
+            active.has_bounds = 0
+        else:
+            active.has_bounds = 1
+            np.copyto(self._bounds[0], bounds[0])
+            np.copyto(self._bounds[1], bounds[1])
+        active.tolerance = tolerance
+        return int(self._step(self._plan_at, self._active_at, m_in, m_eq,
+                              self._packed_at(packed, m_in, m_eq)))
+
+    def _packed_at(self, packed: np.ndarray, m_in: int, m_eq: int) -> int:
+        """The address of the packed QP ``packed`` (checked and kept on first sight).
+
+        The kernel's work array is grown for it first when it is too small.
+        """
         n = self.n
         size = self._tree_entries + 2 * n + m_eq * (2 * n + m_eq + 2)
         if len(self._work) < size:
@@ -123,7 +208,7 @@ class TreeClosedForm:
             if len(self._addresses) > 64:
                 self._addresses.clear()
             known = self._addresses[id(packed)] = (packed, packed.ctypes.data)
-        return int(self._kernel(self._plan_at, m_in, m_eq, known[1]))
+        return known[1]
 
 
 def tree_closed_form(model: pin.Model) -> TreeClosedForm | None:
