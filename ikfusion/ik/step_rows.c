@@ -15,6 +15,7 @@
  * Returns the range rows written (below); n_up: how many of them are upper limits.
  */
 #include <math.h>
+#include <stdint.h>
 #include <string.h>
 
 struct step_rows {
@@ -34,8 +35,8 @@ struct step_rows {
     /* this call */
     const double *wall_room;  /* (2 * angles) or NULL: hard limits */
     double margin;
-    const long *floor_rows; int n_floor; double floor_z;  /* floor_rows: contacts * 3 indices */
-    const long *held_rows; int n_held; const double *anchors;  /* anchors: (contacts * 3) */
+    const int64_t *floor_rows; int n_floor; double floor_z;  /* floor_rows: contacts * 3 indices */
+    const int64_t *held_rows; int n_held; const double *anchors;  /* anchors: (contacts * 3) */
     int root_on; double root_weight; const double *root_target;  /* (3) */
     int swing_on; int swing_points; double swing_scale;  /* the task's weight */
     const double *swing_weight;  /* (contacts) each point's scalar weight */
@@ -50,7 +51,7 @@ static void J_row(const struct step_rows *p, int r, double *out)
     for (int i = p->J_ptr[r]; i < p->J_ptr[r + 1]; ++i) out[p->J_col[i]] = p->J_nz[p->J_at[i]];
 }
 
-static int site_row(const struct step_rows *p, long contact_row)
+static int site_row(const struct step_rows *p, int64_t contact_row)
 {   /* a row (contact * 3 + axis) of the contact points as a row of the sites' J and P */
     return 3 * p->contact_site[contact_row / 3] + (int)(contact_row % 3);
 }

@@ -220,7 +220,8 @@ class StepRows:
         if contacts:
             floor_rows = tasks.floor.z_rows()
             n_floor, n_held = len(floor_rows), len(held)
-            plan.floor_rows, plan.held_rows = self.address(floor_rows), self.address(held)
+            plan.floor_rows = self.address(floor_rows, np.int64)
+            plan.held_rows = self.address(held, np.int64)
             plan.anchors = self.address(contact.anchors)
             plan.floor_z = tasks.floor.floor_z
         plan.n_floor, plan.n_held = n_floor, n_held
@@ -241,15 +242,21 @@ class StepRows:
         plan.levenberg_marquardt = levenberg_marquardt
         below = made.kernel(made.at)
         qp = self.buffer.views(below + n_floor, n_held)
+        if qp.packed is None or qp.packed.base is not self.packed.base:
+            raise RuntimeError("the QP buffer moved: the kernel wrote its old array")
         floor = Inequality(qp.G[below:], qp.h[below:]) if contacts else None
         return qp, LinearisedRanges.stacked(made.G, made.rooms), made.close, floor
 
-    def address(self, a: np.ndarray) -> int:
-        """The address of an array the caller keeps (C-contiguous), remembered by identity."""
+    def address(self, a: np.ndarray, dtype: type = np.float64) -> int:
+        """The address of an array the caller keeps, remembered by identity.
+
+        Raises:
+            ValueError: ``a`` is not C-contiguous of ``dtype`` (what the kernel reads).
+        """
         known = self._addresses.get(id(a))
         if known is None:
-            if not a.flags.c_contiguous:
-                raise ValueError("not C-contiguous")
+            if not a.flags.c_contiguous or a.dtype != dtype:
+                raise ValueError("not a C-contiguous array of the kernel's type")
             if len(self._addresses) > 64:
                 self._addresses.clear()
             known = self._addresses[id(a)] = (a, _address(a))
