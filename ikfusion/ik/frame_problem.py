@@ -259,7 +259,7 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
         tasks.posture.R_reference, (limits.lower, limits.upper), chain, share, persist,
         None if few else sites)
     same = tasks.damping.q_reference is previous
-    if compiled.rows is not None and not targets and not numpy_persistence:
+    if compiled.rows is not None and not shape and not numpy_persistence:
         error = None if tasks.damping.q_reference is None else \
             moved if same else tasks.damping.compute_error(conf)
         written = compiled.rows.write(step, compiled.kinematics, None if few else sites, tasks,

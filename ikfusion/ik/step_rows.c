@@ -4,8 +4,8 @@
  * function's evaluation, in one call, in the same order and with the same operations: the
  * ranges' rooms softened (the soft wall's room added) with endless room for the angles whose
  * rates are all 0, the masks of the limits within the margin; H (its nonzeros scattered) and c;
- * the root's and the swing feet's position rows (scalar weights) added; the damping term and
- * the Levenberg-Marquardt diagonal; then into the packed QP (ikfusion.ik.qp.QpBuffer: H, c,
+ * the site targets', the root's and the swing feet's position rows (scalar weights) added; the
+ * damping term and the Levenberg-Marquardt diagonal; then into the packed QP (ikfusion.ik.qp.QpBuffer: H, c,
  * G, h, A, b) the range rows near a limit (upper ones, then lower ones negated), the floor rows
  * and the contacts' equality rows. The only difference from NumPy is the summation order of the
  * position rows' products (BLAS's J^T W J): round-off.
@@ -17,6 +17,12 @@
 #include <math.h>
 #include <stdint.h>
 #include <string.h>
+
+struct points {  /* a position task with scalar weights (w I) */
+    int on, count;  /* count: its frames (the sites, or the contact points) */
+    double scale;  /* the task's weight */
+    const double *weight, *targets;  /* (count) each frame's w, (count * 3) [m] */
+};
 
 struct step_rows {
     /* the step function's outputs (constant per function) */
@@ -38,9 +44,7 @@ struct step_rows {
     const int64_t *floor_rows; int n_floor; double floor_z;  /* floor_rows: contacts * 3 indices */
     const int64_t *held_rows; int n_held; const double *anchors;  /* anchors: (contacts * 3) */
     int root_on; double root_weight; const double *root_target;  /* (3) */
-    int swing_on; int swing_points; double swing_scale;  /* the task's weight */
-    const double *swing_weight;  /* (contacts) each point's scalar weight */
-    const double *swing_targets;  /* (contacts * 3) */
+    struct points site_task, swing;  /* the site targets (every site), the swing feet */
     const double *damping; const double *moved;  /* (nv) each, damping NULL: none */
     double levenberg_marquardt;
 };
@@ -78,6 +82,24 @@ static void add_position_rows(const struct step_rows *p, int rows, const double 
         for (int k = 0; k < rows; ++k) s += e[k] * WJ[(long)k * nv + j];
         c[j] += s;
     }
+}
+
+static void add_points(const struct step_rows *p, const struct points *task, const int *site,
+                       double *H, double *c)
+{   /* a position task's rows (its frames with a nonzero weight; site: each frame's row among
+     * the sites, NULL: the sites themselves), at most 64 frames */
+    double *J = p->work, w[3 * 64], e[3 * 64];
+    int rows = 0;
+    for (int s = 0; s < task->count && rows < 3 * 64; ++s) {
+        if (task->weight[s] == 0.0) continue;
+        for (int k = 0; k < 3; ++k, ++rows) {
+            const int r = 3 * (site ? site[s] : s) + k;
+            J_row(p, r, J + (long)rows * p->nv);
+            w[rows] = task->scale * task->weight[s];
+            e[rows] = p->P[r] - task->targets[3 * s + k];
+        }
+    }
+    add_position_rows(p, rows, J, w, e, H, c);
 }
 
 static int ranges(struct step_rows *p)
@@ -127,6 +149,7 @@ int ik_step_rows(struct step_rows *p)
     for (int k = 0; k < p->H_nnz; ++k) H[p->H_flat[k]] = p->H_nz[k];
     memset(c, 0, sizeof(double) * nv);
     for (int k = 0; k < p->c_nnz; ++k) c[p->c_flat[k]] = p->c_nz[k];
+    if (p->site_task.on) add_points(p, &p->site_task, NULL, H, c);
     if (p->root_on) {
         double *J = p->work, w[3], e[3];
         for (int k = 0; k < 3; ++k) {
@@ -141,20 +164,7 @@ int ik_step_rows(struct step_rows *p)
             H[(long)i * nv + i] += p->damping[i];
             c[i] += p->damping[i] * p->moved[i];
         }
-    if (p->swing_on) {
-        double *J = p->work, w[3 * 64], e[3 * 64];
-        int rows = 0;
-        for (int s = 0; s < p->swing_points && rows < 3 * 64; ++s) {
-            if (p->swing_weight[s] == 0.0) continue;
-            for (int k = 0; k < 3; ++k, ++rows) {
-                const int r = 3 * p->contact_site[s] + k;
-                J_row(p, r, J + (long)rows * nv);
-                w[rows] = p->swing_scale * p->swing_weight[s];
-                e[rows] = p->P[r] - p->swing_targets[3 * s + k];
-            }
-        }
-        add_position_rows(p, rows, J, w, e, H, c);
-    }
+    if (p->swing.on) add_points(p, &p->swing, p->contact_site, H, c);
     for (int i = 0; i < nv; ++i) H[(long)i * nv + i] += p->levenberg_marquardt;
     int up = 0, down = p->n_up;
     for (int a = 0; a < n; ++a) {  /* the upper limits' rows, then the lower ones' negated */

@@ -29,6 +29,7 @@ from .native_build import cache_dir, find_compiler
 from .native_kernel import native_kernel
 from .qp import QpBuffer, QpProblem
 from .tasks.base import Task
+from .tasks.position import PositionTask
 
 if TYPE_CHECKING:
     from .frame_problem import FrameTasks
@@ -40,6 +41,12 @@ _LIBRARIES: dict[tuple[str, str | None, str | None], ctypes.CDLL | None] = {}
 FALLBACK = "NumPy writes the steps' QPs instead"
 #: The most swing points the kernel takes (its stack arrays); more: the NumPy path.
 MAX_SWING = 64
+
+
+class _Points(ctypes.Structure):
+    """``struct points`` of ``step_rows.c``."""
+
+    _fields_ = [("on", _I), ("count", _I), ("scale", _D), ("weight", _P), ("targets", _P)]
 
 
 class _Plan(ctypes.Structure):
@@ -54,8 +61,7 @@ class _Plan(ctypes.Structure):
                 ("n_up", _I), ("wall_room", _P), ("margin", _D), ("floor_rows", _P),
                 ("n_floor", _I), ("floor_z", _D), ("held_rows", _P), ("n_held", _I),
                 ("anchors", _P), ("root_on", _I), ("root_weight", _D), ("root_target", _P),
-                ("swing_on", _I), ("swing_points", _I), ("swing_scale", _D),
-                ("swing_weight", _P), ("swing_targets", _P), ("damping", _P), ("moved", _P),
+                ("site_task", _Points), ("swing", _Points), ("damping", _P), ("moved", _P),
                 ("levenberg_marquardt", _D)]
 
 
@@ -114,8 +120,11 @@ class StepFunctionRows:
         self.root_target = np.zeros(3)
         self.wall_room = np.zeros(2 * angles)
         self.wall_room_at = _address(self.wall_room)
-        self.swing_weight = np.zeros(len(contact_site))
-        self.swing_targets = np.zeros((len(contact_site), 3))
+        n_sites = function.size1_out(5) // 3 - 1  # (and the root)
+        # each position task's weights and targets copied here: (weights, targets, struct)
+        self.site_task = (np.zeros(n_sites), np.zeros((n_sites, 3)), _Points(0, n_sites))
+        self.swing = (np.zeros(len(contact_site)), np.zeros((len(contact_site), 3)),
+                      _Points(0, len(contact_site)))
         self.rooms_raw = step.vectors(8, 2)
         self.plan = _Plan(
             _address(step.nonzeros(0)), _address(H_flat), len(H_flat),
@@ -127,12 +136,25 @@ class StepFunctionRows:
             _address(packed), _address(self.work), 0, None, margin)
         self.plan.moved = _address(self.moved)
         self.plan.root_target = _address(self.root_target)
-        self.plan.swing_weight = _address(self.swing_weight)
-        self.plan.swing_targets = _address(self.swing_targets)
+        for weights, targets, points in (self.site_task, self.swing):
+            points.weight, points.targets = _address(weights), _address(targets)
+        self.plan.site_task, self.plan.swing = self.site_task[2], self.swing[2]
+        self.site_task = (*self.site_task[:2], self.plan.site_task)  # (the plan's own copy)
+        self.swing = (*self.swing[:2], self.plan.swing)
         self.at = ctypes.addressof(self.plan)
         self.kernel = library.ik_step_rows
         self.kernel.restype = ctypes.c_int
         self.kernel.argtypes = [ctypes.c_void_p]
+
+
+    def set_points(self, points: tuple[np.ndarray, np.ndarray, _Points],
+                   task: PositionTask | None, weights: np.ndarray | None) -> None:
+        """A position task's rows on (its weight, the weights and targets copied) or off."""
+        points[2].on = task is not None
+        if task is not None:
+            points[2].scale = task.weight
+            points[0][:] = weights
+            points[1][:] = task.targets
 
 
 class StepRows:
@@ -199,13 +221,17 @@ class StepRows:
             the next step), the masks (2, angles) of the range rows in the QP (upper, lower)
             and the floor rows (None without contact points).
         """
-        root, swing, contact = tasks.root, tasks.swing, tasks.contact
+        root, swing, contact, position = tasks.root, tasks.swing, tasks.contact, tasks.position
         held = contact.world_rows()
         root_on, swing_on = root in active, swing in active
+        site_on = sites is True and position.has_targets()  # (in ``active``: every step)
         root_w = root.scalar_weights() if root_on else None
         swing_w = swing.scalar_weights() if swing_on else None
+        site_w = position.scalar_weights() if site_on else None
         if held is None or (root_on and (root_w is None or root.reach is not None)) or \
-                (swing_on and (swing_w is None or swing.reach is not None)):
+                (swing_on and (swing_w is None or swing.reach is not None)) or \
+                (site_on and (site_w is None or position.reach is not None
+                              or len(site_w) > MAX_SWING)):
             return None
         made = self.plan(step, kinematics, sites)
         plan = made.plan
@@ -229,11 +255,8 @@ class StepRows:
         if root_w is not None:
             plan.root_weight = root.weight * root_w[0]
             made.root_target[:] = root.targets[0]
-        plan.swing_on = swing_on
-        if swing_w is not None:
-            plan.swing_points, plan.swing_scale = contacts, swing.weight
-            made.swing_weight[:] = swing_w
-            made.swing_targets[:] = swing.targets
+        made.set_points(made.site_task, position if site_on else None, site_w)
+        made.set_points(made.swing, swing if swing_on else None, swing_w)
         if error is None:
             plan.damping = None
         else:

@@ -1,8 +1,8 @@
 """The native step writer (ikfusion.ik.step_rows) builds the NumPy path's QP (issue #20).
 
 Every step of a walk with contacts (simulated gait, the real Xsens walk when ../shared is
-there) and of random poses near many limits, with the root's and the swing feet's position
-rows, is built twice: by the kernel and by the NumPy path it replaces. The QPs agree to
+there) and of random poses near many limits, with the site targets', the root's and the swing
+feet's position rows, is built twice: by the kernel and by the NumPy path it replaces. The QPs agree to
 round-off (only the position rows' summation order differs), the limit masks exactly.
 """
 
@@ -50,7 +50,7 @@ class _BothPaths:
     """``build_frame_problem`` that builds each step by NumPy and by the kernel and compares."""
 
     def __init__(self) -> None:
-        self.steps = self.exact = self.root = self.swing = self.contact = 0
+        self.steps = self.exact = self.root = self.swing = self.contact = self.sites = 0
 
     def __call__(self, conf, tasks, active, row_weights, compiled, lm):
         if compiled is None or compiled.rows is None:
@@ -67,6 +67,7 @@ class _BothPaths:
         self.root += tasks.root in active
         self.swing += tasks.swing in active
         self.contact += len(numpy["b"]) > 0
+        self.sites += tasks.position.has_targets()
         return native
 
 
@@ -89,7 +90,7 @@ def test_every_step_of_a_simulated_walk(human: HumanModel, both: _BothPaths) -> 
     frames = orientation_frames(human, truth.q, truth.time, SENSOR_SEGMENTS)
     _native_solver(human, contacts=True).solve(frames)
     assert both.steps >= len(frames) and both.contact > len(frames) // 2
-    assert both.root > 0  # the position rows' sums too
+    assert both.root > 0 and both.sites > 0  # the position rows' sums too
 
 
 def test_the_real_walk(both: _BothPaths, tmp_path: Path) -> None:
@@ -103,7 +104,7 @@ def test_the_real_walk(both: _BothPaths, tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_random_poses_with_root_swing_and_contact_rows(human: HumanModel, seed: int) -> None:
+def test_random_poses_with_site_root_swing_and_contact_rows(human: HumanModel, seed: int) -> None:
     rng = np.random.default_rng(seed)
     solver = _native_solver(human, contacts=True)
     q = human.neutral()
@@ -119,6 +120,9 @@ def test_random_poses_with_root_swing_and_contact_rows(human: HumanModel, seed: 
     tasks.floor.enabled = rng.random(k) < 0.7
     tasks.root.set_target(tuple(rng.normal(size=3)), 30.0)
     tasks.swing.set_targets(rng.normal(size=(k, 3)), np.where(planted, 0.0, rng.random(k)))
+    sites = len(tasks.position.frame_ids)  # site targets on some of them
+    tasks.position.set_targets(rng.normal(size=(sites, 3)),
+                               np.where(rng.random(sites) < 0.3, 1e4 * rng.random(sites), 0.0))
     active = [*solver._base_tasks(frame), tasks.root, tasks.swing]
     conf = solver._configuration
     conf.update(q)
