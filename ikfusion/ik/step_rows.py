@@ -2,13 +2,14 @@
 
 :func:`.frame_problem.build_frame_problem` turns the compiled step function's outputs into the
 packed QP (:class:`.qp.QpBuffer`) with a few dozen NumPy calls: the ranges' rooms softened and
-the rows near a limit, ``H`` and ``c``, the root's and the swing feet's position rows, the
-damping term, the Levenberg-Marquardt diagonal, the floor and the contact rows.
+the rows near a limit, ``H`` and ``c``, the site targets', the root's and the swing feet's
+position rows, the damping term, the Levenberg-Marquardt diagonal, the floor and the contact rows.
 :class:`StepRows` does the same in one call of a small C kernel (compiled once and cached like
-:mod:`.tree_solve`, :func:`.native_kernel.native_kernel`) for the common steps: no site target,
-contact rows along the world axes, scalar position weights. The same numbers but for the
-summation order of the position rows' ``J^T W J`` (round-off); every other step, and every step
-without a C compiler (or with ``IKFUSION_NO_COMPILE``), takes the NumPy path.
+:mod:`.tree_solve`, :func:`.native_kernel.native_kernel`) for the common steps: contact rows
+along the world axes, position targets of scalar weights without a reach, no column-shape target
+and no persistence on the root's columns. The same numbers but for the summation order of the
+position rows' ``J^T W J`` (round-off); every other step, and every step without a C compiler
+(or with ``IKFUSION_NO_COMPILE``), takes the NumPy path.
 """
 
 from __future__ import annotations
@@ -211,7 +212,7 @@ class StepRows:
             step: The step function evaluated at the configuration (``sites`` as passed).
             kinematics: The compiled step function.
             sites: What it was evaluated with.
-            tasks: The solver's tasks and limits (no site target this frame).
+            tasks: The solver's tasks and limits (no column-shape target this frame).
             active: The tasks of this frame.
             error: The damping task's error ``q ⊖ q_reference`` (nv,), or None without one.
             levenberg_marquardt: Damping of the step [1/rad^2].
