@@ -26,6 +26,7 @@ from .points_configuration import PointsConfiguration
 from .qp import QpBuffer, QpProblem, build_qp
 from .settings import SolverSettings
 from .step_ranges import RateRows, evaluated_ranges
+from .step_rows import StepRows, step_rows
 from .tasks import (
     ChainShareTask,
     ColumnShapeTask,
@@ -62,6 +63,7 @@ class CompiledStep:
         contacts_only: Whether the step function with only the contact points' and the
             root's sites (:attr:`.CompiledKinematics.function_points`) serves the steps that
             weigh no site target.
+        rows: The native writer of the steps' QPs (:mod:`.step_rows`), or None (NumPy).
     """
 
     kinematics: CompiledKinematics
@@ -70,6 +72,7 @@ class CompiledStep:
     no_floor: Inequality
     rate_rows: RateRows | None
     contacts_only: bool
+    rows: StepRows | None = None
 
 
 @dataclass
@@ -168,12 +171,15 @@ def compiled_step(model: HumanModel, tasks: FrameTasks,
                                          sensed, tasks.even_chain.pairs,
                                          tasks.contact.frame_ids)
         nv = model.model.nv
-        return CompiledStep(kinematics, kinematics.geometry(model.model),
-                            QpBuffer(nv, tree_closed_form(model.model)),
-                            empty_inequality(nv),
-                            rate_rows(kinematics.function.sparsity_out(7)),
+        buffer, rates = QpBuffer(nv, tree_closed_form(model.model)), \
+            rate_rows(kinematics.function.sparsity_out(7))
+        return CompiledStep(kinematics, kinematics.geometry(model.model), buffer,
+                            empty_inequality(nv), rates,
                             kinematics.point_rows is not None and kinematics.point_rows[:-1]
-                            == tasks.contact_rows.tolist())
+                            == tasks.contact_rows.tolist(),
+                            step_rows(buffer, None if rates is None else rates.rows,
+                                      tasks.contact_rows,
+                                      tasks.joint_range.margin))
     except NotImplementedError:
         return None
 
@@ -253,6 +259,17 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
         conf.q, tasks.orientation.targets, compiled.geometry, *row_weights,
         tasks.posture.R_reference, (limits.lower, limits.upper), chain, share, persist,
         None if few else sites)
+    same = tasks.damping.q_reference is previous
+    if compiled.rows is not None and not shape and not numpy_persistence:
+        error = None if tasks.damping.q_reference is None else \
+            moved if same else tasks.damping.compute_error(conf)
+        written = compiled.rows.write(step, compiled.kinematics, None if few else sites, tasks,
+                                      active, error, levenberg_marquardt)
+        if written is not None:
+            qp, ranges, close, floor_rows = written
+            return FrameProblem(qp, LimitRows(
+                ranges, close[0], close[1],
+                compiled.no_floor if floor_rows is None else floor_rows, bounds))
     if sites:
         P = step.output(5).reshape(-1, 3)
         J = step.output(6).reshape(-1, 3, nv)
@@ -283,7 +300,6 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
             tasks.shape.add_rows(P[:-1], J[:-1], H, c)
     if sites and tasks.root in active:
         tasks.root.add_rows(P[-1:], J[-1:], H, c)
-    same = tasks.damping.q_reference is previous
     tasks.damping.add_objective(conf, H, c, moved if same else None)
     if numpy_persistence:
         persistence.add_objective(conf, H, c)

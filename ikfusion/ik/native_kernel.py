@@ -33,19 +33,19 @@ def kernel_path(source: Path, folder: Path, compiler: str) -> Path:
     return folder / f"{source.stem}_{build[:16]}.so"
 
 
-def native_kernel(source: Path) -> tuple[ctypes.CDLL | None, str | None]:
+def native_kernel(source: Path, fallback: str = FALLBACK) -> tuple[ctypes.CDLL | None, str | None]:
     """The C file ``source`` compiled once to a shared library, cached and checked.
 
     The library (:func:`kernel_path`) is loaded only when its content matches the SHA-256
     recorded beside it when it was built (else rebuilt). The first build says so on stderr (one
-    line).
+    line). ``fallback``: what is used instead (the end of the warning).
 
     Returns:
         ``(the loaded library or None, warning or None)``: None without a C compiler or with
         ``IKFUSION_NO_COMPILE`` (no warning), or when the build failed (with a warning).
     """
     return native_build.native_library(native_build.NativeLibrary(
-        what=f"{source.stem} kernel", fallback=FALLBACK,
+        what=f"{source.stem} kernel", fallback=fallback,
         path=lambda folder, compiler: kernel_path(source, folder, compiler),
         build=lambda compiler, output: compile_shared(compiler, source, output),
         load=lambda copy: ctypes.CDLL(str(copy))))

@@ -105,6 +105,13 @@ class ContactConstraint:
         """How many rows :meth:`rows` makes (the directions held)."""
         return len(self._held_rows)
 
+    def world_rows(self) -> np.ndarray | None:
+        """The rows held among every point's coordinates (k * 3): indices; None off world axes.
+
+        The usual case (:meth:`rows` takes them by index) unless points share a segment.
+        """
+        return self._held_rows if self._basis is None else None
+
     def rows(self, p_world: np.ndarray, J_linear: np.ndarray,
              out: Equality | None = None) -> Equality:
         """Rows from every point's position (k, 3) [m] and linear Jacobian (k, 3, nv).

@@ -125,15 +125,22 @@ class JointRangeLimit:
         ``G`` that are all zeros when the caller has it
         (:meth:`LinearisedRanges.without_still_angles`).
         """
-        a = self.upper - ranges.room_up.reshape(self.upper.shape)
-        if self.wall.enabled:
-            self._linearised = (a, ranges.G)
-            self._solved = a
-        room = self.wall.room(a)
+        room = self.wall_room(ranges.G, ranges.room_up)
         if room is not None:  # both limits' rooms at once
             ranges = LinearisedRanges.stacked(ranges.G,
                                               ranges.rooms + room.reshape(ranges.rooms.shape))
         return ranges.without_still_angles(still)
+
+    def wall_room(self, G: np.ndarray, room_up: np.ndarray) -> np.ndarray | None:
+        """The soft wall's room (2, joints, 3) [rad] of ranges ``G``, ``room_up`` (hard); None.
+
+        What :meth:`softened` adds to the rooms; keeps the angles as where the frame stands.
+        """
+        a = self.upper - room_up.reshape(self.upper.shape)
+        if self.wall.enabled:
+            self._linearised = (a, G)
+            self._solved = a
+        return self.wall.room(a)
 
     def took_step(self, dq: np.ndarray) -> None:
         """Take the step ``dq`` (nv,) made from the last linearisation (:meth:`softened`).

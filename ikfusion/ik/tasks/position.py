@@ -84,6 +84,10 @@ class PositionTask(Task):
         self._scalar = scalar if np.array_equal(info, scalar[:, None, None] * np.eye(3)) \
             else None
 
+    def scalar_weights(self) -> np.ndarray | None:
+        """(k,) each frame's weight ``w`` when every information matrix is ``w I``; else None."""
+        return self._scalar
+
     def has_targets(self) -> bool:
         """Whether any frame has a target this frame (a non-zero information matrix)."""
         return any_true(self._active)

@@ -1,0 +1,300 @@
+"""A step's QP written from the evaluated step function in native code (``step_rows.c``).
+
+:func:`.frame_problem.build_frame_problem` turns the compiled step function's outputs into the
+packed QP (:class:`.qp.QpBuffer`) with a few dozen NumPy calls: the ranges' rooms softened and
+the rows near a limit, ``H`` and ``c``, the site targets', the root's and the swing feet's
+position rows, the damping term, the Levenberg-Marquardt diagonal, the floor and the contact rows.
+:class:`StepRows` does the same in one call of a small C kernel (compiled once and cached like
+:mod:`.tree_solve`, :func:`.native_kernel.native_kernel`) for the common steps: contact rows
+along the world axes, position targets of scalar weights without a reach, no column-shape target
+and no persistence on the root's columns. The same numbers but for the summation order of the
+position rows' ``J^T W J`` (round-off); every other step, and every step without a C compiler
+(or with ``IKFUSION_NO_COMPILE``), takes the NumPy path.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import casadi as ca
+import numpy as np
+
+from .bound_function import BoundFunction
+from .compiled import CompiledKinematics
+from .limits.base import Inequality
+from .limits.joint_range import LinearisedRanges
+from .native_build import cache_dir, find_compiler
+from .native_kernel import native_kernel
+from .qp import QpBuffer, QpProblem
+from .tasks.base import Task
+from .tasks.position import PositionTask
+
+if TYPE_CHECKING:
+    from .frame_problem import FrameTasks
+
+_P = ctypes.c_void_p
+_I, _D = ctypes.c_int, ctypes.c_double
+_LIBRARIES: dict[tuple[str, str | None, str | None], ctypes.CDLL | None] = {}
+#: What is used when the kernel cannot be compiled (the end of the warning).
+FALLBACK = "NumPy writes the steps' QPs instead"
+#: The most swing points the kernel takes (its stack arrays); more: the NumPy path.
+MAX_SWING = 64
+
+
+class _Points(ctypes.Structure):
+    """``struct points`` of ``step_rows.c``."""
+
+    _fields_ = [("on", _I), ("count", _I), ("scale", _D), ("weight", _P), ("targets", _P)]
+
+
+class _Plan(ctypes.Structure):
+    """``struct step_rows`` of ``step_rows.c``."""
+
+    _fields_ = [("H_nz", _P), ("H_flat", _P), ("H_nnz", _I), ("c_nz", _P), ("c_flat", _P),
+                ("c_nnz", _I), ("P", _P),
+                ("J_nz", _P), ("J_ptr", _P), ("J_col", _P), ("J_at", _P),
+                ("G_nz", _P), ("G_flat", _P), ("G_nnz", _I), ("G", _P), ("rate_rows", _P),
+                ("rooms_raw", _P), ("contact_site", _P), ("nv", _I), ("angles", _I),
+                ("root_site", _I), ("rooms", _P), ("close", _P), ("packed", _P), ("work", _P),
+                ("n_up", _I), ("wall_room", _P), ("margin", _D), ("floor_rows", _P),
+                ("n_floor", _I), ("floor_z", _D), ("held_rows", _P), ("n_held", _I),
+                ("anchors", _P), ("root_on", _I), ("root_weight", _D), ("root_target", _P),
+                ("site_task", _Points), ("swing", _Points), ("damping", _P), ("moved", _P),
+                ("levenberg_marquardt", _D)]
+
+
+def _address(a: np.ndarray) -> int:
+    return int(a.ctypes.data)
+
+
+def _flat(sparsity: ca.Sparsity) -> np.ndarray:
+    """The flat positions (row * columns + column) of a sparsity's nonzeros, in their order."""
+    rows, cols = (np.array(v, dtype=int) for v in sparsity.get_triplet())
+    return (rows * sparsity.size2() + cols).astype(np.intc)
+
+
+class StepFunctionRows:
+    """The kernel's plan for one evaluated step function (its outputs' addresses).
+
+    Args:
+        library: The loaded kernel.
+        step: The step function's buffers (:class:`.bound_function.BoundFunction`).
+        function: Its CasADi function (the outputs' sparsity).
+        contact_site: (contacts,) each contact point's row among the function's sites.
+        rate_rows: (angles, 3) :func:`.frame_problem.rate_rows`.
+        buffer: The QP buffer, already at its largest size (its array never moves).
+        packed: That buffer's array.
+    """
+
+    def __init__(self, library: ctypes.CDLL, step: BoundFunction, function: ca.Function,
+                 contact_site: np.ndarray, rate_rows: np.ndarray, packed: np.ndarray,
+                 margin: float) -> None:
+        nv = function.size1_out(0)
+        angles = len(rate_rows)
+        for i in (8, 9):
+            if not function.sparsity_out(i).is_dense():
+                raise NotImplementedError("a vector output is sparse")
+        # the sites' positions: none without sites (then no row reads them)
+        P = step.nonzeros(5) if function.sparsity_out(5).is_dense() else \
+            np.zeros(function.size1_out(5))
+        self.step = step
+        self.G = step.output(7)
+        # the arrays the kernel reads or writes, kept alive with it
+        J = function.sparsity_out(6)
+        rows, cols = (np.array(v, dtype=int) for v in J.get_triplet())
+        order = np.argsort(rows, kind="stable")
+        self._keep = [
+            _flat(function.sparsity_out(0)), _flat(function.sparsity_out(1)),
+            _flat(function.sparsity_out(7)),
+            np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=J.size1()))]).astype(
+                np.intc), cols[order].astype(np.intc), order.astype(np.intc),
+            np.ascontiguousarray(rate_rows, dtype=np.intc),
+            np.ascontiguousarray(contact_site, dtype=np.intc), P]
+        H_flat, c_flat, G_flat, J_ptr, J_col, J_at, rates, sites, _ = self._keep
+        self.rooms = np.zeros((2, angles))
+        self.close = np.zeros((2, angles), dtype=bool)
+        self.work = np.zeros(2 * 3 * max(MAX_SWING, 1) * nv)
+        self.moved = np.zeros(nv)
+        self.root_target = np.zeros(3)
+        self.wall_room = np.zeros(2 * angles)
+        self.wall_room_at = _address(self.wall_room)
+        n_sites = function.size1_out(5) // 3 - 1  # (and the root)
+        # each position task's weights and targets copied here: (weights, targets, struct)
+        self.site_task = (np.zeros(n_sites), np.zeros((n_sites, 3)), _Points(0, n_sites))
+        self.swing = (np.zeros(len(contact_site)), np.zeros((len(contact_site), 3)),
+                      _Points(0, len(contact_site)))
+        self.rooms_raw = step.vectors(8, 2)
+        self.plan = _Plan(
+            _address(step.nonzeros(0)), _address(H_flat), len(H_flat),
+            _address(step.nonzeros(1)), _address(c_flat), len(c_flat), _address(P),
+            _address(step.nonzeros(6)), _address(J_ptr), _address(J_col), _address(J_at),
+            _address(step.nonzeros(7)), _address(G_flat), len(G_flat), _address(self.G),
+            _address(rates), _address(self.rooms_raw), _address(sites), nv, angles,
+            function.size1_out(5) // 3 - 1, _address(self.rooms), _address(self.close),
+            _address(packed), _address(self.work), 0, None, margin)
+        self.plan.moved = _address(self.moved)
+        self.plan.root_target = _address(self.root_target)
+        for weights, targets, points in (self.site_task, self.swing):
+            points.weight, points.targets = _address(weights), _address(targets)
+        self.plan.site_task, self.plan.swing = self.site_task[2], self.swing[2]
+        self.site_task = (*self.site_task[:2], self.plan.site_task)  # (the plan's own copy)
+        self.swing = (*self.swing[:2], self.plan.swing)
+        self.at = ctypes.addressof(self.plan)
+        self.kernel = library.ik_step_rows
+        self.kernel.restype = ctypes.c_int
+        self.kernel.argtypes = [ctypes.c_void_p]
+
+
+    def set_points(self, points: tuple[np.ndarray, np.ndarray, _Points],
+                   task: PositionTask | None, weights: np.ndarray | None) -> None:
+        """A position task's rows on (its weight, the weights and targets copied) or off."""
+        points[2].on = task is not None
+        if task is not None:
+            points[2].scale = task.weight
+            points[0][:] = weights
+            points[1][:] = task.targets
+
+
+class StepRows:
+    """The native writer of one model's step QPs (:func:`step_rows`).
+
+    Args:
+        library: The loaded kernel.
+        buffer: The QP buffer the steps are built in.
+        rate_rows: (angles, 3) :func:`.frame_problem.rate_rows`.
+        contact_rows: (contacts,) the contact points' rows among the sites.
+        margin: Range rows within this of a limit [rad].
+    """
+
+    def __init__(self, library: ctypes.CDLL, buffer: QpBuffer, rate_rows: np.ndarray,
+                 contact_rows: np.ndarray, margin: float) -> None:
+        self.library = library
+        contacts, angles = len(contact_rows), len(rate_rows)
+        # the buffer at its largest (every range row, a floor row per point, 3 contact rows):
+        # its array does not move afterwards
+        packed = buffer.views(2 * angles + contacts, 3 * contacts).packed
+        if packed is None:
+            raise ValueError("not a packed buffer")
+        self.packed = packed
+        self.buffer = buffer
+        self.contact_rows = contact_rows
+        self.margin = margin
+        self._rate_rows = rate_rows
+        self._plans: dict[int, StepFunctionRows] = {}
+        # id of an input array -> (the array, kept alive so its id stays its own; its address)
+        self._addresses: dict[int, tuple[np.ndarray, int]] = {}
+
+    def plan(self, step: BoundFunction, kinematics: CompiledKinematics,
+             sites: bool | None) -> StepFunctionRows:
+        """The plan of ``step``, evaluated with ``sites`` (made once per step function)."""
+        made = self._plans.get(id(step))
+        if made is None:  # the function :meth:`.CompiledKinematics.evaluate` chose
+            points_function = kinematics.function_points
+            few = sites is None and points_function is not None
+            function = kinematics.function_no_sites if sites is False else \
+                points_function if few and points_function is not None else kinematics.function
+            points = np.arange(len(self.contact_rows)) if few else self.contact_rows
+            made = self._plans[id(step)] = StepFunctionRows(
+                self.library, step, function, points, self._rate_rows, self.packed,
+                self.margin)
+        return made
+
+    def write(self, step: BoundFunction, kinematics: CompiledKinematics, sites: bool | None,
+              tasks: FrameTasks, active: list[Task], error: np.ndarray | None,
+              levenberg_marquardt: float) -> tuple[QpProblem, LinearisedRanges, np.ndarray,
+                                                    Inequality | None] | None:
+        """The step's QP from the evaluated ``step``; None: a step for the NumPy path.
+
+        Args:
+            step: The step function evaluated at the configuration (``sites`` as passed).
+            kinematics: The compiled step function.
+            sites: What it was evaluated with.
+            tasks: The solver's tasks and limits (no column-shape target this frame).
+            active: The tasks of this frame.
+            error: The damping task's error ``q ⊖ q_reference`` (nv,), or None without one.
+            levenberg_marquardt: Damping of the step [1/rad^2].
+
+        Returns:
+            The QP (views of the buffer), the ranges (``G`` and the rooms in place, valid until
+            the next step), the masks (2, angles) of the range rows in the QP (upper, lower)
+            and the floor rows (None without contact points).
+        """
+        root, swing, contact, position = tasks.root, tasks.swing, tasks.contact, tasks.position
+        held = contact.world_rows()
+        root_on, swing_on = root in active, swing in active
+        site_on = sites is True and position.has_targets()  # (in ``active``: every step)
+        root_w = root.scalar_weights() if root_on else None
+        swing_w = swing.scalar_weights() if swing_on else None
+        site_w = position.scalar_weights() if site_on else None
+        if held is None or (root_on and (root_w is None or root.reach is not None)) or \
+                (swing_on and (swing_w is None or swing.reach is not None)) or \
+                (site_on and (site_w is None or position.reach is not None
+                              or len(site_w) > MAX_SWING)):
+            return None
+        made = self.plan(step, kinematics, sites)
+        plan = made.plan
+        room = tasks.joint_range.wall_room(made.G, made.rooms_raw[0])
+        if room is None:
+            plan.wall_room = None
+        else:
+            made.wall_room[:] = room.reshape(-1)
+            plan.wall_room = made.wall_room_at
+        contacts = len(self.contact_rows)
+        n_floor = n_held = 0
+        if contacts:
+            floor_rows = tasks.floor.z_rows()
+            n_floor, n_held = len(floor_rows), len(held)
+            plan.floor_rows = self.address(floor_rows, np.int64)
+            plan.held_rows = self.address(held, np.int64)
+            plan.anchors = self.address(contact.anchors)
+            plan.floor_z = tasks.floor.floor_z
+        plan.n_floor, plan.n_held = n_floor, n_held
+        plan.root_on = root_on
+        if root_w is not None:
+            plan.root_weight = root.weight * root_w[0]
+            made.root_target[:] = root.targets[0]
+        made.set_points(made.site_task, position if site_on else None, site_w)
+        made.set_points(made.swing, swing if swing_on else None, swing_w)
+        if error is None:
+            plan.damping = None
+        else:
+            plan.damping = self.address(tasks.damping.weights)
+            made.moved[:] = error
+        plan.levenberg_marquardt = levenberg_marquardt
+        below = made.kernel(made.at)
+        qp = self.buffer.views(below + n_floor, n_held)
+        if qp.packed is None or qp.packed.base is not self.packed.base:
+            raise RuntimeError("the QP buffer moved: the kernel wrote its old array")
+        floor = Inequality(qp.G[below:], qp.h[below:]) if contacts else None
+        return qp, LinearisedRanges.stacked(made.G, made.rooms), made.close, floor
+
+    def address(self, a: np.ndarray, dtype: type = np.float64) -> int:
+        """The address of an array the caller keeps, remembered by identity.
+
+        Raises:
+            ValueError: ``a`` is not C-contiguous of ``dtype`` (what the kernel reads).
+        """
+        known = self._addresses.get(id(a))
+        if known is None:
+            if not a.flags.c_contiguous or a.dtype != dtype:
+                raise ValueError("not a C-contiguous array of the kernel's type")
+            if len(self._addresses) > 64:
+                self._addresses.clear()
+            known = self._addresses[id(a)] = (a, _address(a))
+        return known[1]
+
+
+def step_rows(buffer: QpBuffer, rate_rows: np.ndarray | None, contact_rows: np.ndarray,
+              margin: float) -> StepRows | None:
+    """The native step writer, or None without the kernel (or without ``rate_rows``)."""
+    if rate_rows is None or len(contact_rows) > MAX_SWING:
+        return None
+    key = (str(cache_dir()), find_compiler(), os.environ.get("IKFUSION_NO_COMPILE"))
+    if key not in _LIBRARIES:  # once per process and setting (a failed build is not retried)
+        _LIBRARIES[key] = native_kernel(Path(__file__).with_name("step_rows.c"), FALLBACK)[0]
+    library = _LIBRARIES[key]
+    return None if library is None else StepRows(library, buffer, rate_rows, contact_rows,
+                                                 margin)

@@ -1,0 +1,149 @@
+"""The native step writer (ikfusion.ik.step_rows) builds the NumPy path's QP (issue #20).
+
+Every step of a walk with contacts (simulated gait, the real Xsens walk when ../shared is
+there) and of random poses near many limits, with the site targets', the root's and the swing
+feet's position rows, is built twice: by the kernel and by the NumPy path it replaces. The QPs agree to
+round-off (only the position rows' summation order differs), the limit masks exactly.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from ikfusion.cli import main
+from ikfusion.ik import Frame, Solver
+from ikfusion.ik import frame_problem as fp
+from ikfusion.ik import solver as solver_module
+from ikfusion.model import SENSOR_SEGMENTS, HumanModel
+from ikfusion.rotations import random_rotations
+from ikfusion.sim.gait import GaitParameters, generate_gait
+from ikfusion.sim.truth import orientation_frames
+
+TIGHT = 1e-12  # relative to the largest entry of the array compared
+_NAMES = ("H", "c", "G", "h", "A", "b")
+
+
+def _compare(native: fp.FrameProblem, numpy: dict[str, np.ndarray], masks, rooms,
+             floor) -> bool:
+    """Assert the kernel's problem is the NumPy one's; whether bit for bit."""
+    same = True
+    for name in _NAMES:
+        ours, theirs = getattr(native.qp, name), numpy[name]
+        assert ours.shape == theirs.shape, name
+        scale = max(np.abs(theirs).max(initial=0.0), 1e-300)
+        np.testing.assert_allclose(ours, theirs, rtol=0, atol=TIGHT * scale, err_msg=name)
+        same &= np.array_equal(ours, theirs)
+    np.testing.assert_array_equal(native.rows.up, masks[0])
+    np.testing.assert_array_equal(native.rows.down, masks[1])
+    np.testing.assert_array_equal(native.rows.ranges.rooms, rooms)
+    for ours, theirs in zip(native.rows.floor, floor):
+        np.testing.assert_array_equal(ours, theirs)
+    return same
+
+
+class _BothPaths:
+    """``build_frame_problem`` that builds each step by NumPy and by the kernel and compares."""
+
+    def __init__(self) -> None:
+        self.steps = self.exact = self.root = self.swing = self.contact = self.sites = 0
+
+    def __call__(self, conf, tasks, active, row_weights, compiled, lm):
+        if compiled is None or compiled.rows is None:
+            return fp.build_frame_problem(conf, tasks, active, row_weights, compiled, lm)
+        plain = fp.build_frame_problem(conf, tasks, active, row_weights,
+                                       dataclasses.replace(compiled, rows=None), lm)
+        numpy = {n: getattr(plain.qp, n).copy() for n in _NAMES}
+        masks = plain.rows.up.copy(), plain.rows.down.copy()
+        rooms = plain.rows.ranges.rooms.copy()
+        floor = [a.copy() for a in plain.rows.floor]
+        native = fp.build_frame_problem(conf, tasks, active, row_weights, compiled, lm)
+        self.steps += 1
+        self.exact += _compare(native, numpy, masks, rooms, floor)
+        self.root += tasks.root in active
+        self.swing += tasks.swing in active
+        self.contact += len(numpy["b"]) > 0
+        self.sites += tasks.position.has_targets()
+        return native
+
+
+@pytest.fixture
+def both(monkeypatch: pytest.MonkeyPatch) -> _BothPaths:
+    made = _BothPaths()
+    monkeypatch.setattr(solver_module, "build_frame_problem", made)
+    return made
+
+
+def _native_solver(human: HumanModel, contacts: bool) -> Solver:
+    solver = Solver(human, contacts=contacts)
+    if solver.compiled is None or solver.compiled.rows is None:
+        pytest.skip("no C compiler (or IKFUSION_NO_COMPILE): the kernel is not built")
+    return solver
+
+
+def test_every_step_of_a_simulated_walk(human: HumanModel, both: _BothPaths) -> None:
+    truth = generate_gait(human, GaitParameters(duration=3.0, stand=0.5), rate=60.0)
+    frames = orientation_frames(human, truth.q, truth.time, SENSOR_SEGMENTS)
+    _native_solver(human, contacts=True).solve(frames)
+    assert both.steps >= len(frames) and both.contact > len(frames) // 2
+    assert both.root > 0 and both.sites > 0  # the position rows' sums too
+
+
+def test_the_real_walk(both: _BothPaths, tmp_path: Path) -> None:
+    trial = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "xsens" / \
+        "opensense_walk"
+    if not trial.is_dir():
+        pytest.skip(f"real recordings not available: {trial} is absent (a user's clone)")
+    assert main(["solve", "--imu", str(trial), "--map", str(trial / "myIMUMappings.xml"),
+                 "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    assert both.steps >= 2505 and both.contact > 1000 and both.root > 1000
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_random_poses_with_site_root_swing_and_contact_rows(human: HumanModel, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    solver = _native_solver(human, contacts=True)
+    q = human.neutral()
+    for joint in human.ball_joints.values():  # turned far: many angles near or past a limit
+        q[joint.idx_q:joint.idx_q + 4] = pin.Quaternion(random_rotations(1, rng)[0]).coeffs()
+    frame = Frame(0.0, dict(zip(SENSOR_SEGMENTS, random_rotations(len(SENSOR_SEGMENTS), rng))))
+    solver.step(frame)  # a previous frame: damping, velocity bounds
+    tasks, s = solver.tasks, solver.settings
+    targets = solver.targets.load(frame, None)
+    k = len(tasks.contact_rows)
+    planted = rng.random(k) < 0.5
+    tasks.contact.set_anchors(planted, rng.normal(scale=0.3, size=(k, 3)))
+    tasks.floor.enabled = rng.random(k) < 0.7
+    tasks.root.set_target(tuple(rng.normal(size=3)), 30.0)
+    tasks.swing.set_targets(rng.normal(size=(k, 3)), np.where(planted, 0.0, rng.random(k)))
+    sites = len(tasks.position.frame_ids)  # site targets on some of them
+    tasks.position.set_targets(rng.normal(size=(sites, 3)),
+                               np.where(rng.random(sites) < 0.3, 1e4 * rng.random(sites), 0.0))
+    active = [*solver._base_tasks(frame), tasks.root, tasks.swing]
+    conf = solver._configuration
+    conf.update(q)
+    compiled = solver.compiled
+    assert compiled is not None
+    plain = fp.build_frame_problem(conf, tasks, active, targets.row_weights,
+                                   dataclasses.replace(compiled, rows=None),
+                                   s.levenberg_marquardt)
+    numpy = {n: getattr(plain.qp, n).copy() for n in _NAMES}
+    masks = plain.rows.up.copy(), plain.rows.down.copy()
+    rooms, floor = plain.rows.ranges.rooms.copy(), [a.copy() for a in plain.rows.floor]
+    native = fp.build_frame_problem(conf, tasks, active, targets.row_weights, compiled,
+                                    s.levenberg_marquardt)
+    assert masks[0].sum() + masks[1].sum() >= 10 and len(numpy["b"]) > 0
+    _compare(native, numpy, masks, rooms, floor)
+    assert native.qp.packed is not None and np.shares_memory(native.qp.G, native.qp.packed)
+
+
+def test_without_a_compiler_the_numpy_path_builds(human: HumanModel,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    from ikfusion.ik import step_rows
+    monkeypatch.setenv("IKFUSION_NO_COMPILE", "1")
+    assert step_rows.step_rows(fp.QpBuffer(human.model.nv), np.zeros((3, 3), dtype=int),
+                               np.zeros(0, dtype=int), 0.1) is None
