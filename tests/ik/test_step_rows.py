@@ -2,8 +2,8 @@
 
 Every step of a walk with contacts (simulated gait, the real Xsens walk when ../shared is
 there) and of random poses near many limits, with the site targets', the root's and the swing
-feet's position rows, is built twice: by the kernel and by the NumPy path it replaces. The QPs agree to
-round-off (only the position rows' summation order differs), the limit masks exactly.
+feet's position rows, is built twice: by the kernel and by the NumPy path it replaces. The QPs
+agree to round-off (only the position rows' summation order differs), the limit masks exactly.
 """
 
 from __future__ import annotations
