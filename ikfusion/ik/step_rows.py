@@ -184,6 +184,11 @@ class StepRows:
         self.margin = margin
         self._rate_rows = rate_rows
         self._plans: dict[int, StepFunctionRows] = {}
+        # the floor's z rows, the contacts' held rows and their anchors copied here each step
+        # (a copy is cheaper than the address of a new array)
+        self._floor_rows = np.zeros(contacts, dtype=np.int64)
+        self._held_rows = np.zeros(3 * contacts, dtype=np.int64)
+        self._anchors = np.zeros((contacts, 3))
         # id of an input array -> (the array, kept alive so its id stays its own; its address)
         self._addresses: dict[int, tuple[np.ndarray, int]] = {}
 
@@ -200,6 +205,9 @@ class StepRows:
             made = self._plans[id(step)] = StepFunctionRows(
                 self.library, step, function, points, self._rate_rows, self.packed,
                 self.margin)
+            plan = made.plan
+            plan.floor_rows, plan.held_rows, plan.anchors = (
+                _address(self._floor_rows), _address(self._held_rows), _address(self._anchors))
         return made
 
     def write(self, step: BoundFunction, kinematics: CompiledKinematics, sites: bool | None,
@@ -247,9 +255,9 @@ class StepRows:
         if contacts:
             floor_rows = tasks.floor.z_rows()
             n_floor, n_held = len(floor_rows), len(held)
-            plan.floor_rows = self.address(floor_rows, np.int64)
-            plan.held_rows = self.address(held, np.int64)
-            plan.anchors = self.address(contact.anchors)
+            self._floor_rows[:n_floor] = floor_rows
+            self._held_rows[:n_held] = held
+            np.copyto(self._anchors, contact.anchors)
             plan.floor_z = tasks.floor.floor_z
         plan.n_floor, plan.n_held = n_floor, n_held
         plan.root_on = root_on
