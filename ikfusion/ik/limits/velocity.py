@@ -19,8 +19,7 @@ class VelocityLimit:
         self.max_velocity = np.asarray(max_velocity, dtype=float).reshape(-1)
         self.q_previous: np.ndarray | None = None
         self.dt = 0.0
-        # dt, max_velocity * dt and its negative
-        self._span = (0.0, np.zeros_like(self.max_velocity), np.zeros_like(self.max_velocity))
+        self._span = (0.0, np.zeros_like(self.max_velocity))  # dt, max_velocity * dt
 
     def set_previous(self, q_previous: npt.ArrayLike | None, dt: float) -> None:
         """The previous frame's configuration and the time step [s] (None: no bound)."""
@@ -37,11 +36,10 @@ class VelocityLimit:
             return None
         if moved is None:
             moved = configuration.difference(self.q_previous)
-        dt, span, negative = self._span
+        dt, span = self._span
         if dt != self.dt:  # a new time step (every frame of a steady rate keeps it)
             span = self.max_velocity * self.dt
-            negative = -span
-            self._span = (self.dt, span, negative)
-        lb = np.subtract(negative, moved)
-        ub = np.subtract(span, moved)
-        return np.minimum(lb, 0.0, out=lb), np.maximum(ub, 0.0, out=ub)
+            self._span = (self.dt, span)
+        lb = np.minimum(-span - moved, 0.0)
+        ub = np.maximum(span - moved, 0.0)
+        return lb, ub
