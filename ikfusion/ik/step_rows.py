@@ -189,6 +189,8 @@ class StepRows:
         self._floor_rows = np.zeros(contacts, dtype=np.int64)
         self._held_rows = np.zeros(3 * contacts, dtype=np.int64)
         self._anchors = np.zeros((contacts, 3))
+        # (floor rows' first row, QP inequality rows) -> the floor rows' views of the buffer
+        self._floors: dict[tuple[int, int], Inequality] = {}
         # id of an input array -> (the array, kept alive so its id stays its own; its address)
         self._addresses: dict[int, tuple[np.ndarray, int]] = {}
 
@@ -276,7 +278,9 @@ class StepRows:
         qp = self.buffer.views(below + n_floor, n_held)
         if qp.packed is None or qp.packed.base is not self.packed.base:
             raise RuntimeError("the QP buffer moved: the kernel wrote its old array")
-        floor = Inequality(qp.G[below:], qp.h[below:]) if contacts else None
+        floor = self._floors.get((below, n_floor)) if contacts else None
+        if contacts and floor is None:  # (views of the buffer, whose array never moves)
+            floor = self._floors[below, n_floor] = Inequality(qp.G[below:], qp.h[below:])
         return qp, LinearisedRanges.stacked(made.G, made.rooms), made.close, floor
 
     def address(self, a: np.ndarray, dtype: type = np.float64) -> int:
