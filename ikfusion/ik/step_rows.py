@@ -127,6 +127,7 @@ class StepFunctionRows:
         self.swing = (np.zeros(len(contact_site)), np.zeros((len(contact_site), 3)),
                       _Points(0, len(contact_site)))
         self.rooms_raw = step.vectors(8, 2)
+        self.room_up_raw = self.rooms_raw[0]
         self.plan = _Plan(
             _address(step.nonzeros(0)), _address(H_flat), len(H_flat),
             _address(step.nonzeros(1)), _address(c_flat), len(c_flat), _address(P),
@@ -143,6 +144,8 @@ class StepFunctionRows:
         self.site_task = (*self.site_task[:2], self.plan.site_task)  # (the plan's own copy)
         self.swing = (*self.swing[:2], self.plan.swing)
         self.at = ctypes.addressof(self.plan)
+        # the ranges every step returns: its rows and rooms, written in place by each step
+        self.ranges = LinearisedRanges.stacked(self.G, self.rooms)
         self.kernel = library.ik_step_rows
         self.kernel.restype = ctypes.c_int
         self.kernel.argtypes = [ctypes.c_void_p]
@@ -246,7 +249,7 @@ class StepRows:
             return None
         made = self.plan(step, kinematics, sites)
         plan = made.plan
-        room = tasks.joint_range.wall_room(made.G, made.rooms_raw[0])
+        room = tasks.joint_range.wall_room(made.G, made.room_up_raw)
         if room is None:
             plan.wall_room = None
         else:
@@ -281,7 +284,7 @@ class StepRows:
         floor = self._floors.get((below, n_floor)) if contacts else None
         if contacts and floor is None:  # (views of the buffer, whose array never moves)
             floor = self._floors[below, n_floor] = Inequality(qp.G[below:], qp.h[below:])
-        return qp, LinearisedRanges.stacked(made.G, made.rooms), made.close, floor
+        return qp, made.ranges, made.close, floor
 
     def address(self, a: np.ndarray, dtype: type = np.float64) -> int:
         """The address of an array the caller keeps, remembered by identity.
