@@ -64,6 +64,8 @@ class CompiledStep:
             root's sites (:attr:`.CompiledKinematics.function_points`) serves the steps that
             weigh no site target.
         rows: The native writer of the steps' QPs (:mod:`.step_rows`), or None (NumPy).
+        excluded_weights: The last read-only persistence weights and whether they weigh a
+            column beyond the step function (:func:`persistence_in_numpy`).
     """
 
     kinematics: CompiledKinematics
@@ -73,6 +75,7 @@ class CompiledStep:
     rate_rows: RateRows | None
     contacts_only: bool
     rows: StepRows | None = None
+    excluded_weights: tuple[np.ndarray, bool] | None = None
 
 
 @dataclass
@@ -210,6 +213,20 @@ def step_configuration(model: HumanModel, tasks: FrameTasks,
                                compiled.geometry)
 
 
+def persistence_in_numpy(compiled: CompiledStep, weights: np.ndarray) -> bool:
+    """Whether the persistence ``weights`` (nv,) weigh a column beyond the step function.
+
+    Kept while the weights are the same read-only array (a frame's sensed joints').
+    """
+    kept = compiled.excluded_weights
+    if kept is not None and kept[0] is weights:
+        return kept[1]
+    weighs = any_true(weights[compiled.kinematics.persistence_excluded])
+    if not weights.flags.writeable:
+        compiled.excluded_weights = (weights, weighs)
+    return weighs
+
+
 def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Task],
                         row_weights: tuple[np.ndarray, np.ndarray],
                         compiled: CompiledStep | None, levenberg_marquardt: float
@@ -244,7 +261,7 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     persistence, persist = tasks.persistence, None
     # the root's columns are beyond the compiled step: a task weighing them is summed in NumPy
     numpy_persistence = persistence in active and persistence.q_reference is not None and \
-        any_true(persistence.weights[compiled.kinematics.persistence_excluded])
+        persistence_in_numpy(compiled, persistence.weights)
     if persistence in active and persistence.q_reference is not None and not numpy_persistence:
         persist = (persistence.weights, persistence.q_reference)
     # the outputs (:mod:`.compiled`) this step reads: H, c, the sites and the ranges, read in

@@ -127,6 +127,7 @@ class StepFunctionRows:
         self.swing = (np.zeros(len(contact_site)), np.zeros((len(contact_site), 3)),
                       _Points(0, len(contact_site)))
         self.rooms_raw = step.vectors(8, 2)
+        self.room_up_raw = self.rooms_raw[0]
         self.plan = _Plan(
             _address(step.nonzeros(0)), _address(H_flat), len(H_flat),
             _address(step.nonzeros(1)), _address(c_flat), len(c_flat), _address(P),
@@ -143,6 +144,8 @@ class StepFunctionRows:
         self.site_task = (*self.site_task[:2], self.plan.site_task)  # (the plan's own copy)
         self.swing = (*self.swing[:2], self.plan.swing)
         self.at = ctypes.addressof(self.plan)
+        # the ranges every step returns: its rows and rooms, written in place by each step
+        self.ranges = LinearisedRanges.stacked(self.G, self.rooms)
         self.kernel = library.ik_step_rows
         self.kernel.restype = ctypes.c_int
         self.kernel.argtypes = [ctypes.c_void_p]
@@ -184,6 +187,13 @@ class StepRows:
         self.margin = margin
         self._rate_rows = rate_rows
         self._plans: dict[int, StepFunctionRows] = {}
+        # the floor's z rows, the contacts' held rows and their anchors copied here each step
+        # (a copy is cheaper than the address of a new array)
+        self._floor_rows = np.zeros(contacts, dtype=np.int64)
+        self._held_rows = np.zeros(3 * contacts, dtype=np.int64)
+        self._anchors = np.zeros((contacts, 3))
+        # (floor rows' first row, QP inequality rows) -> the floor rows' views of the buffer
+        self._floors: dict[tuple[int, int], Inequality] = {}
         # id of an input array -> (the array, kept alive so its id stays its own; its address)
         self._addresses: dict[int, tuple[np.ndarray, int]] = {}
 
@@ -200,6 +210,9 @@ class StepRows:
             made = self._plans[id(step)] = StepFunctionRows(
                 self.library, step, function, points, self._rate_rows, self.packed,
                 self.margin)
+            plan = made.plan
+            plan.floor_rows, plan.held_rows, plan.anchors = (
+                _address(self._floor_rows), _address(self._held_rows), _address(self._anchors))
         return made
 
     def write(self, step: BoundFunction, kinematics: CompiledKinematics, sites: bool | None,
@@ -236,7 +249,7 @@ class StepRows:
             return None
         made = self.plan(step, kinematics, sites)
         plan = made.plan
-        room = tasks.joint_range.wall_room(made.G, made.rooms_raw[0])
+        room = tasks.joint_range.wall_room(made.G, made.room_up_raw)
         if room is None:
             plan.wall_room = None
         else:
@@ -247,9 +260,9 @@ class StepRows:
         if contacts:
             floor_rows = tasks.floor.z_rows()
             n_floor, n_held = len(floor_rows), len(held)
-            plan.floor_rows = self.address(floor_rows, np.int64)
-            plan.held_rows = self.address(held, np.int64)
-            plan.anchors = self.address(contact.anchors)
+            self._floor_rows[:n_floor] = floor_rows
+            self._held_rows[:n_held] = held
+            np.copyto(self._anchors, contact.anchors)
             plan.floor_z = tasks.floor.floor_z
         plan.n_floor, plan.n_held = n_floor, n_held
         plan.root_on = root_on
@@ -268,8 +281,10 @@ class StepRows:
         qp = self.buffer.views(below + n_floor, n_held)
         if qp.packed is None or qp.packed.base is not self.packed.base:
             raise RuntimeError("the QP buffer moved: the kernel wrote its old array")
-        floor = Inequality(qp.G[below:], qp.h[below:]) if contacts else None
-        return qp, LinearisedRanges.stacked(made.G, made.rooms), made.close, floor
+        floor = self._floors.get((below, n_floor)) if contacts else None
+        if contacts and floor is None:  # (views of the buffer, whose array never moves)
+            floor = self._floors[below, n_floor] = Inequality(qp.G[below:], qp.h[below:])
+        return qp, made.ranges, made.close, floor
 
     def address(self, a: np.ndarray, dtype: type = np.float64) -> int:
         """The address of an array the caller keeps, remembered by identity.

@@ -19,7 +19,9 @@ class VelocityLimit:
         self.max_velocity = np.asarray(max_velocity, dtype=float).reshape(-1)
         self.q_previous: np.ndarray | None = None
         self.dt = 0.0
-        self._span = (0.0, np.zeros_like(self.max_velocity))  # dt, max_velocity * dt
+        # dt, max_velocity * dt and its negative
+        self._span = (0.0, np.zeros_like(self.max_velocity), np.zeros_like(self.max_velocity))
+        self._zero = np.zeros(())  # (an array: no conversion of a Python 0.0 per call)
 
     def set_previous(self, q_previous: npt.ArrayLike | None, dt: float) -> None:
         """The previous frame's configuration and the time step [s] (None: no bound)."""
@@ -36,10 +38,12 @@ class VelocityLimit:
             return None
         if moved is None:
             moved = configuration.difference(self.q_previous)
-        dt, span = self._span
+        dt, span, negative = self._span
         if dt != self.dt:  # a new time step (every frame of a steady rate keeps it)
             span = self.max_velocity * self.dt
-            self._span = (self.dt, span)
-        lb = np.minimum(-span - moved, 0.0)
-        ub = np.maximum(span - moved, 0.0)
+            self._span = (self.dt, span, -span)
+            negative = self._span[2]
+        lb, ub = negative - moved, span - moved  # clipped in place
+        np.minimum(lb, self._zero, out=lb)
+        np.maximum(ub, self._zero, out=ub)
         return lb, ub
