@@ -6,6 +6,8 @@ editing it does not invalidate the compiled libraries cached on disk.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import casadi as ca
 import numpy as np
 
@@ -21,9 +23,12 @@ class BoundFunction:
     Every input is a view of one packed array, so a call that sets them all copies them in one
     ``np.concatenate`` (one NumPy call instead of one per input: a step function has a dozen);
     an input of the wrong size is refused (ValueError), never shifted into its neighbours.
+    ``mirrored``: the outputs holding only their lower triangle of a symmetric matrix, read
+    (:meth:`output`, :meth:`output_into`, a call) as the whole matrix, each nonzero in both
+    triangles (:meth:`nonzeros` stays the lower triangle's).
     """
 
-    def __init__(self, function: ca.Function) -> None:
+    def __init__(self, function: ca.Function, mirrored: Sequence[int] = ()) -> None:
         self._buffer, self._evaluate = function.buffer()
         sizes = [function.nnz_in(i) for i in range(function.n_in())]
         self._sizes = tuple(sizes)
@@ -33,7 +38,7 @@ class BoundFunction:
         for i, arr in enumerate(self._inputs):
             self._buffer.set_arg(i, memoryview(arr))  # type: ignore[arg-type,call-arg]
         self._dense: list[np.ndarray] = []
-        # output -> (its dense array flattened, where its nonzeros go, the nonzeros)
+        # output -> (its dense array flattened, where its nonzeros go (1 or 2, nnz), the nonzeros)
         self._scattered: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         # the dense vector outputs, one after the other in one array (:meth:`vectors`)
         vector = [function.sparsity_out(i).is_dense() and min(function.size_out(i)) == 1
@@ -54,7 +59,10 @@ class BoundFunction:
                 nz = np.zeros(sp.nnz())
                 self._buffer.set_res(i, memoryview(nz))  # type: ignore[arg-type,call-arg]
                 rows, cols = (np.array(v, dtype=int) for v in sp.get_triplet())
-                self._scattered[i] = (dense.reshape(-1), rows * sp.size2() + cols, nz)
+                flat = rows * sp.size2() + cols
+                if i in mirrored:  # (2, nnz): each nonzero at (r, c) and (c, r)
+                    flat = np.stack([flat, cols * sp.size2() + rows])
+                self._scattered[i] = (dense.reshape(-1), flat, nz)
             self._dense.append(dense)
 
     def __call__(self, *inputs: np.ndarray) -> list[np.ndarray]:

@@ -144,9 +144,9 @@ def orientation_terms(model: pin.Model, segment_frames: Sequence[int], targets: 
     e_orient, K_orient, g_orient, dofs = [], [], [], []
     segment = segment_function()  # one body in the generated code, called per segment
     for n, fid in enumerate(segment_frames):  # J_orient = Jl^-1(e) J_angular
-        R, _ = frame_pose(model, fid, rotations, translations, placements)
-        e, K, g = segment(R, ca.reshape(targets[9 * n:9 * n + 9], 3, 3),
-                          w_orient[3 * n:3 * n + 3])
+        R_M = placements[("frame", fid)][0]  # the frame's pose taken in the call
+        e, K, g = segment(rotations[model.frames[fid].parentJoint], R_M,
+                          ca.reshape(targets[9 * n:9 * n + 9], 3, 3), w_orient[3 * n:3 * n + 3])
         e_orient.append(e)
         K_orient.append(K)
         g_orient.append(g)

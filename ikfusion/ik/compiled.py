@@ -29,8 +29,10 @@ tracked segments, ``j`` ball joints, ``m`` sites), all in the world frame:
   :class:`ikfusion.ik.tasks.EvenChainTask`; the chain-share pairs want the difference of
   ``q_previous``), and the persistence's ``w_persist (q ⊖ q_persist)`` on the diagonal; the
   orientation part is summed along the kinematic tree
-  (:func:`.casadi_kinematics.angular_objective`), and the upper triangle of ``H`` mirrors the
-  lower one (the same numbers, to rounding, for far fewer operations);
+  (:func:`.casadi_kinematics.angular_objective`); the function outputs ``H``'s lower triangle
+  only (:data:`MIRRORED`), which its readers mirror: :class:`.bound_function.BoundFunction`
+  made with ``mirrored`` and :mod:`.step_rows` (the same numbers in both triangles, half the
+  writes in the generated code);
 * ``e_orient`` (3k) [rad];
 * ``angles`` (3j): anatomical angles [rad] in sequence order; ``E_inv`` (3j, 3): their rates
   per unit joint tangent step;
@@ -194,9 +196,9 @@ class CompiledKinematics:
         H_persist, c_persist = persistence_objective(model, q, q_persist, w_persist)
         H += H_chain + ca.diag(H_persist)
         c += c_chain + c_persist
-        # H is symmetric: its upper triangle mirrors the lower one (the graph of a product
-        # holds both, each its own sums)
-        H = ca.tril(H) + ca.tril(H, False).T
+        # H is symmetric: only its lower triangle is an output (the graph of a product holds
+        # both, each its own sums); its readers mirror it (one write per entry in the code)
+        H = ca.tril(H)
         inputs = [q, targets, geometry, w_orient, w_posture, references, lower, upper, w_chain,
                   w_share, q_previous, w_persist, q_persist]
         outputs = [H, c, stack(e_orient, 1), stack(angles, 1), stack(E_inv, 3),
@@ -292,7 +294,7 @@ class CompiledKinematics:
             self.function_points if sites is None else None
         # q, R_world_target, q_previous and q_persist are new at every step; the rotations
         # (R_world_target, R_reference) go in as column-major vectors; the ranges' (j, 3)
-        return SlotInputs(BoundFunction(self.function if chosen is None else chosen),
+        return SlotInputs(BoundFunction(self.function if chosen is None else chosen, MIRRORED),
                           (0, 1, 10, 12), (1, 5), (6, 7))
 
     def _zero_limits(self, size: int) -> tuple[np.ndarray, np.ndarray]:
@@ -302,6 +304,9 @@ class CompiledKinematics:
         made = self._no_limits[size] = (zeros, zeros)
         return made
 
+
+#: The outputs of the step functions that hold only their lower triangle (``H``).
+MIRRORED = (0,)
 
 _BUILT: dict[str, CompiledKinematics] = {}
 

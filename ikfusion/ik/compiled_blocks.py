@@ -70,17 +70,21 @@ def dot_block_function() -> ca.Function:
 
 @cache
 def segment_function() -> ca.Function:
-    """``(R_world_segment (3, 3), R_world_target (3, 3), w (3)) -> (e, K, g)`` of one segment.
+    """``(R_world_joint (3, 3), R_M (3, 3), R_world_target (3, 3), w (3)) -> (e, K, g)``.
 
-    ``e = log(R_world_segment R_world_target^T)`` [rad], ``M = Jl^-1(e)``, ``K = M^T W M`` and
+    Of one segment, the frame ``M`` (rotation ``R_M``) on the joint: ``R = R_world_joint R_M``
+    (the segment's world rotation, as :func:`.casadi_kinematics.frame_pose` writes it),
+    ``e = log(R R_world_target^T)`` [rad], ``M = Jl^-1(e)``, ``K = M^T W M`` and
     ``g = M^T W e`` with ``W = diag(w)`` [1/rad^2] (see
-    :func:`.casadi_kinematics.orientation_terms`).
+    :func:`.casadi_kinematics.orientation_terms`). ``R_M`` is read from the geometry input.
     """
-    R, T, w = ca.SX.sym("R", 3, 3), ca.SX.sym("T", 3, 3), ca.SX.sym("w", 3)
-    e, theta = log_so3(R @ T.T)
+    R_joint, R_M = ca.SX.sym("R_joint", 3, 3), ca.SX.sym("R_M", 3, 3)
+    T, w = ca.SX.sym("T", 3, 3), ca.SX.sym("w", 3)
+    e, theta = log_so3(R_joint @ R_M @ T.T)
     M = left_jacobian_inverse(e, theta)
-    return ca.Function("ik_segment", [R, T, w], [e, M.T @ ca.diag(w) @ M, M.T @ (w * e)],
-                       ["R", "T", "w"], ["e", "K", "g"], _CALLED)
+    return ca.Function("ik_segment", [R_joint, R_M, T, w],
+                       [e, M.T @ ca.diag(w) @ M, M.T @ (w * e)],
+                       ["R_joint", "R_M", "T", "w"], ["e", "K", "g"], _CALLED)
 
 
 def ball_joint_function(sequence: str, name: str = "ik_ball_joint") -> ca.Function:

@@ -23,7 +23,7 @@ def structure_key(model: pin.Model, segment_frames: Sequence[int],
                   points: Sequence[int] = ()) -> str:
     """A string identifying the compiled structure (not the geometry) of a step function."""
     parts = [
-        "objective-v11",
+        "objective-v12",
         ",".join(f"{a.idx_q}:{b.idx_q}" for a, b in chain_pairs),
         ",".join(f"{f}:{model.frames[f].parentJoint}" for f in points),
         repr(sensed),

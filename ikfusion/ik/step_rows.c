@@ -26,7 +26,8 @@ struct points {  /* a position task with scalar weights (w I) */
 
 struct step_rows {
     /* the step function's outputs (constant per function) */
-    const double *H_nz; const int *H_flat; int H_nnz;
+    const double *H_nz; const int *H_flat; int H_nnz;  /* H_flat (2 H_nnz): H's lower triangle
+                                                          then the same entries mirrored */
     const double *c_nz; const int *c_flat; int c_nnz;
     const double *P;  /* (sites * 3): a dense vector */
     const double *J_nz; const int *J_ptr; const int *J_col; const int *J_at;  /* CSR of J */
@@ -146,7 +147,11 @@ int ik_step_rows(struct step_rows *p)
         b[i] = p->anchors[p->held_rows[i]] - p->P[r];
     }
     memset(H, 0, sizeof(double) * nv * nv);
-    for (int k = 0; k < p->H_nnz; ++k) H[p->H_flat[k]] = p->H_nz[k];
+    for (int k = 0; k < p->H_nnz; ++k) {
+        const double v = p->H_nz[k];
+        H[p->H_flat[k]] = v;
+        H[p->H_flat[p->H_nnz + k]] = v;
+    }
     memset(c, 0, sizeof(double) * nv);
     for (int k = 0; k < p->c_nnz; ++k) c[p->c_flat[k]] = p->c_nz[k];
     if (p->site_task.on) add_points(p, &p->site_task, NULL, H, c);

@@ -23,7 +23,7 @@ import casadi as ca
 import numpy as np
 
 from .bound_function import BoundFunction
-from .compiled import CompiledKinematics
+from .compiled import MIRRORED, CompiledKinematics
 from .limits.base import Inequality
 from .limits.joint_range import LinearisedRanges
 from .native_build import cache_dir, find_compiler
@@ -70,10 +70,17 @@ def _address(a: np.ndarray) -> int:
     return int(a.ctypes.data)
 
 
-def _flat(sparsity: ca.Sparsity) -> np.ndarray:
-    """The flat positions (row * columns + column) of a sparsity's nonzeros, in their order."""
+def _flat(sparsity: ca.Sparsity, mirrored: bool = False) -> np.ndarray:
+    """The flat positions (row * columns + column) of a sparsity's nonzeros, in their order.
+
+    ``mirrored`` (a lower triangle): then those of the transposed entries (column * rows +
+    row) after them.
+    """
     rows, cols = (np.array(v, dtype=int) for v in sparsity.get_triplet())
-    return (rows * sparsity.size2() + cols).astype(np.intc)
+    flat = rows * sparsity.size2() + cols
+    if mirrored:
+        flat = np.concatenate([flat, cols * sparsity.size1() + rows])
+    return flat.astype(np.intc)
 
 
 class StepFunctionRows:
@@ -107,7 +114,7 @@ class StepFunctionRows:
         rows, cols = (np.array(v, dtype=int) for v in J.get_triplet())
         order = np.argsort(rows, kind="stable")
         self._keep = [
-            _flat(function.sparsity_out(0)), _flat(function.sparsity_out(1)),
+            _flat(function.sparsity_out(0), 0 in MIRRORED), _flat(function.sparsity_out(1)),
             _flat(function.sparsity_out(7)),
             np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=J.size1()))]).astype(
                 np.intc), cols[order].astype(np.intc), order.astype(np.intc),
@@ -129,7 +136,7 @@ class StepFunctionRows:
         self.rooms_raw = step.vectors(8, 2)
         self.room_up_raw = self.rooms_raw[0]
         self.plan = _Plan(
-            _address(step.nonzeros(0)), _address(H_flat), len(H_flat),
+            _address(step.nonzeros(0)), _address(H_flat), function.nnz_out(0),
             _address(step.nonzeros(1)), _address(c_flat), len(c_flat), _address(P),
             _address(step.nonzeros(6)), _address(J_ptr), _address(J_col), _address(J_at),
             _address(step.nonzeros(7)), _address(G_flat), len(G_flat), _address(self.G),

@@ -12,6 +12,7 @@ from test_bound_function import small_function
 
 from ikfusion.ik import Solver
 from ikfusion.ik.bound_function import BoundFunction, column_major
+from ikfusion.ik.compiled import MIRRORED
 from ikfusion.ik.compiled_inputs import SlotInputs
 from ikfusion.ik.step_ranges import RateRows
 from ikfusion.model import HumanModel
@@ -65,7 +66,7 @@ def test_compiled_step_equals_every_input_packed(human: HumanModel, rng) -> None
     assert solver.compiled is not None, "the compiled step function is needed here"
     kin, geometry = solver.compiled.kinematics, solver.compiled.geometry
     limits = solver.tasks.joint_range
-    reference = BoundFunction(kin.function)
+    reference = BoundFunction(kin.function, MIRRORED)  # H: its lower triangle, mirrored
     model = human.model
     k, j = len(kin.segment_frames), len(limits.lower)
     kept = [_read_only(rng.uniform(0.0, 2.0, 3 * k)), _read_only(rng.uniform(0.0, 2.0, 3 * j))]
