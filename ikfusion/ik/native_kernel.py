@@ -11,13 +11,21 @@ from __future__ import annotations
 
 import ctypes
 import hashlib
+import os
+from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
+
 from . import native_build
-from .native_build import compile_shared, compiler_identity
+from .native_build import cache_dir, compile_shared, compiler_identity, find_compiler
 
 #: What is used when the kernel cannot be compiled (the end of the warning).
 FALLBACK = "LAPACK solves the closed-form steps instead"
+
+#: (C file, cache folder, compiler, IKFUSION_NO_COMPILE) -> the kernel loaded (None: not built)
+_LOADED: dict[tuple[str, str, str | None, str | None], ctypes.CDLL | None] = {}
+_WARNINGS: list[str] = []
 
 
 def kernel_path(source: Path, folder: Path, compiler: str) -> Path:
@@ -49,3 +57,48 @@ def native_kernel(source: Path, fallback: str = FALLBACK) -> tuple[ctypes.CDLL |
         path=lambda folder, compiler: kernel_path(source, folder, compiler),
         build=lambda compiler, output: compile_shared(compiler, source, output),
         load=lambda copy: ctypes.CDLL(str(copy))))
+
+
+def loaded_kernel(source: Path, fallback: str = FALLBACK) -> ctypes.CDLL | None:
+    """:func:`native_kernel` of ``source``, once per process and setting.
+
+    A failed build is not retried in the same process; its warning is kept
+    (:func:`kernel_warnings`). None without the kernel (no compiler, ``IKFUSION_NO_COMPILE``
+    or a failed build): the caller's fallback is used.
+    """
+    key = (str(source), str(cache_dir()), find_compiler(), os.environ.get("IKFUSION_NO_COMPILE"))
+    if key not in _LOADED:
+        library, warning = native_kernel(source, fallback)
+        _LOADED[key] = library
+        if warning is not None:
+            _WARNINGS.append(warning)
+    return _LOADED[key]
+
+
+def kernel_warnings() -> list[str]:
+    """Why a kernel could not be built in this process (empty when all were, or not tried)."""
+    return list(_WARNINGS)
+
+
+class ArrayAddresses:
+    """The addresses of the arrays a kernel reads, remembered by identity.
+
+    Each array is held while remembered (its id cannot pass to another array); past
+    ``limit`` arrays the memory is cleared. For arrays a caller passes again and again (a QP
+    buffer's views, a task's weights): one dictionary lookup instead of ``ctypes.data``.
+    """
+
+    def __init__(self, limit: int = 64) -> None:
+        self._known: dict[int, tuple[np.ndarray, int]] = {}
+        self._limit = limit
+
+    def of(self, a: np.ndarray, valid: Callable[[np.ndarray], bool], what: str) -> int:
+        """The address of ``a``, checked by ``valid`` the first time (ValueError ``what``)."""
+        known = self._known.get(id(a))
+        if known is None:
+            if not valid(a):
+                raise ValueError(what)
+            if len(self._known) > self._limit:
+                self._known.clear()
+            known = self._known[id(a)] = (a, int(a.ctypes.data))
+        return known[1]

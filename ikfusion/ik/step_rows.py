@@ -15,7 +15,6 @@ position rows' ``J^T W J`` (round-off); every other step, and every step without
 from __future__ import annotations
 
 import ctypes
-import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -26,8 +25,7 @@ from .bound_function import BoundFunction
 from .compiled import MIRRORED, CompiledKinematics
 from .limits.base import Inequality
 from .limits.joint_range import LinearisedRanges
-from .native_build import cache_dir, find_compiler
-from .native_kernel import native_kernel
+from .native_kernel import ArrayAddresses, loaded_kernel
 from .qp import QpBuffer, QpProblem
 from .tasks.base import Task
 from .tasks.position import PositionTask
@@ -37,7 +35,6 @@ if TYPE_CHECKING:
 
 _P = ctypes.c_void_p
 _I, _D = ctypes.c_int, ctypes.c_double
-_LIBRARIES: dict[tuple[str, str | None, str | None], ctypes.CDLL | None] = {}
 #: What is used when the kernel cannot be compiled (the end of the warning).
 FALLBACK = "NumPy writes the steps' QPs instead"
 #: The most swing points the kernel takes (its stack arrays); more: the NumPy path.
@@ -201,8 +198,8 @@ class StepRows:
         self._anchors = np.zeros((contacts, 3))
         # (floor rows' first row, QP inequality rows) -> the floor rows' views of the buffer
         self._floors: dict[tuple[int, int], Inequality] = {}
-        # id of an input array -> (the array, kept alive so its id stays its own; its address)
-        self._addresses: dict[int, tuple[np.ndarray, int]] = {}
+        # the damping weights' address (the same array frame after frame)
+        self._addresses = ArrayAddresses()
 
     def plan(self, step: BoundFunction, kinematics: CompiledKinematics,
              sites: bool | None) -> StepFunctionRows:
@@ -281,7 +278,9 @@ class StepRows:
         if error is None:
             plan.damping = None
         else:
-            plan.damping = self.address(tasks.damping.weights)
+            plan.damping = self._addresses.of(
+                tasks.damping.weights, lambda a: a.flags.c_contiguous and a.dtype == np.float64,
+                "not a C-contiguous float64 array")
             made.moved[:] = error
         plan.levenberg_marquardt = levenberg_marquardt
         below = made.kernel(made.at)
@@ -293,30 +292,12 @@ class StepRows:
             floor = self._floors[below, n_floor] = Inequality(qp.G[below:], qp.h[below:])
         return qp, made.ranges, made.close, floor
 
-    def address(self, a: np.ndarray, dtype: type = np.float64) -> int:
-        """The address of an array the caller keeps, remembered by identity.
-
-        Raises:
-            ValueError: ``a`` is not C-contiguous of ``dtype`` (what the kernel reads).
-        """
-        known = self._addresses.get(id(a))
-        if known is None:
-            if not a.flags.c_contiguous or a.dtype != dtype:
-                raise ValueError("not a C-contiguous array of the kernel's type")
-            if len(self._addresses) > 64:
-                self._addresses.clear()
-            known = self._addresses[id(a)] = (a, _address(a))
-        return known[1]
-
 
 def step_rows(buffer: QpBuffer, rate_rows: np.ndarray | None, contact_rows: np.ndarray,
               margin: float) -> StepRows | None:
     """The native step writer, or None without the kernel (or without ``rate_rows``)."""
     if rate_rows is None or len(contact_rows) > MAX_SWING:
         return None
-    key = (str(cache_dir()), find_compiler(), os.environ.get("IKFUSION_NO_COMPILE"))
-    if key not in _LIBRARIES:  # once per process and setting (a failed build is not retried)
-        _LIBRARIES[key] = native_kernel(Path(__file__).with_name("step_rows.c"), FALLBACK)[0]
-    library = _LIBRARIES[key]
+    library = loaded_kernel(Path(__file__).with_name("step_rows.c"), FALLBACK)
     return None if library is None else StepRows(library, buffer, rate_rows, contact_rows,
                                                  margin)

@@ -16,7 +16,6 @@ keeping to it.
 from __future__ import annotations
 
 import ctypes
-import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -24,8 +23,7 @@ import numpy as np
 import pinocchio as pin
 
 from .equality_qp import DEPENDENT_ROWS
-from .native_build import cache_dir, find_compiler
-from .native_kernel import native_kernel
+from .native_kernel import ArrayAddresses, loaded_kernel
 
 if TYPE_CHECKING:
     from .limits.joint_range import LinearisedRanges
@@ -33,10 +31,6 @@ if TYPE_CHECKING:
 #: The kernel's answers (see ``tree_solve.c``); :data:`GOES_ON`: :meth:`TreeClosedForm.step`'s
 #: minimiser satisfies the QP's rows but crosses a range row left out of it or passes a bound.
 SOLVED, CROSSES, FAILED, NOT_TREE, NOT_FINITE, GOES_ON = 0, 1, 2, 3, 4, 5
-
-#: (cache folder, compiler, IKFUSION_NO_COMPILE) -> the kernel loaded (None: not built)
-_LIBRARIES: dict[tuple[str, str | None, str | None], ctypes.CDLL | None] = {}
-_WARNINGS: list[str] = []
 
 
 def column_parents(model: pin.Model) -> np.ndarray:
@@ -107,7 +101,7 @@ class TreeClosedForm:
         self._kernel.restype = ctypes.c_int
         self._kernel.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_int, ctypes.c_void_p]
         # id of a packed array -> (the array, kept alive so its id stays its own; its address)
-        self._addresses: dict[int, tuple[np.ndarray, int]] = {}
+        self._addresses = ArrayAddresses()
         self._step = library.ik_active_step
         self._step.restype = ctypes.c_int
         self._step.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_int,
@@ -201,32 +195,16 @@ class TreeClosedForm:
         if len(self._work) < size:
             self._work = np.zeros(2 * size)
             self._plan.work = self._work.ctypes.data
-        known = self._addresses.get(id(packed))
-        if known is None:  # a buffer's views are made once per size: their addresses too
-            if not packed.flags.c_contiguous or len(packed) < n * n + n + (m_in + m_eq) * (n + 1):
-                raise ValueError("not a packed QP of this size")
-            if len(self._addresses) > 64:
-                self._addresses.clear()
-            known = self._addresses[id(packed)] = (packed, packed.ctypes.data)
-        return known[1]
+        # a buffer's views are made once per size: their addresses too
+        return self._addresses.of(packed, lambda a: a.flags.c_contiguous and len(a) >= n * n + n
+                                  + (m_in + m_eq) * (n + 1), "not a packed QP of this size")
 
 
 def tree_closed_form(model: pin.Model) -> TreeClosedForm | None:
     """The native closed-form step of ``model``, or None without the kernel.
 
     None without a C compiler, with ``IKFUSION_NO_COMPILE``, or after a failed build
-    (:func:`kernel_warnings` says why): LAPACK solves the closed form then.
+    (:func:`.native_kernel.kernel_warnings` says why): LAPACK solves the closed form then.
     """
-    key = (str(cache_dir()), find_compiler(), os.environ.get("IKFUSION_NO_COMPILE"))
-    if key not in _LIBRARIES:  # once per process and setting (a failed build is not retried)
-        library, warning = native_kernel(Path(__file__).with_name("tree_solve.c"))
-        _LIBRARIES[key] = library
-        if warning is not None:
-            _WARNINGS.append(warning)
-    library = _LIBRARIES[key]
+    library = loaded_kernel(Path(__file__).with_name("tree_solve.c"))
     return None if library is None else TreeClosedForm(library, column_parents(model))
-
-
-def kernel_warnings() -> list[str]:
-    """Why the kernel could not be built in this process (empty when it was, or not tried)."""
-    return list(_WARNINGS)
