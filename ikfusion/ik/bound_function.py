@@ -154,6 +154,14 @@ class BoundFunction:
         out.fill(0.0)
         out.reshape(-1)[flat] = nz
 
+    def is_dense(self, i: int) -> bool:
+        """Whether output ``i`` is a dense vector.
+
+        :meth:`output` then returns the same array each time: its buffer, which each
+        evaluation overwrites in place.
+        """
+        return i not in self._scattered
+
     def output(self, i: int) -> np.ndarray:
         """Output ``i`` of the last :meth:`evaluate` as a dense array, overwritten by the next."""
         scattered = self._scattered.get(i)

@@ -45,6 +45,26 @@ class FrameTargets(NamedTuple):
         return self.R_sensed[0] if self.tracked[0] else None
 
 
+class _Rows(NamedTuple):
+    """What a set of tracked segment names decides (kept while the set stays the same).
+
+    Attributes:
+        rows: (k,) their rows among the segments.
+        weights: (n,) the weights of a frame without weights (1 on those rows, 0 elsewhere;
+            read-only).
+        assumed: Whether a hinge parent is open then.
+        stack: (k + 1, 3, 3) the frame's targets in its first rows (written every frame), an
+            identity in the last.
+        gather: (n,) each segment's row of ``stack`` (the last for an untracked one).
+    """
+
+    rows: np.ndarray
+    weights: np.ndarray
+    assumed: bool
+    stack: np.ndarray
+    gather: np.ndarray
+
+
 @dataclass(frozen=True)
 class _Weighting:
     """What a frame's orientation weights decide (kept while they stay the same).
@@ -86,8 +106,8 @@ class TargetLoader:
         self.assumed = AssumedTargets(segments, model.ball_joints, settings.hinge_joints)
         self._posture_weights = tasks.posture.weights.copy()
         self._identities = np.tile(np.eye(3), (len(segments), 1, 1))
-        # tracked names -> their rows, weights and open hinges (:meth:`_new_rows`)
-        self._rows: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray, bool]] = {}
+        # tracked names -> their rows, weights, open hinges and gather (:meth:`_new_rows`)
+        self._rows: dict[tuple[str, ...], _Rows] = {}
         self._positions_set = True  # the position task starts without targets: clear it once
         self._shape_set = True  # ... and the shape task
         self._last_weighting: _Weighting | None = None
@@ -96,14 +116,16 @@ class TargetLoader:
     def load(self, frame: Frame, R_heading: np.ndarray | None) -> FrameTargets:
         """Set the tasks' targets from ``frame``, orientations turned by ``R_heading``."""
         tasks = self.tasks
-        R = self._identities.copy()
         names = tuple(frame.orientations)
-        rows, w, assumed = self._rows.get(names) or self._new_rows(names)
-        if names:  # one assignment of all the rows instead of one per segment
+        rows, w, assumed, stack, gather = self._rows.get(names) or self._new_rows(names)
+        if names:  # the targets, then an identity: each segment's row gathered at once
             targets = frame.orientations_stacked
             if targets is None or len(targets) != len(names):
                 targets = np.array(list(frame.orientations.values()), dtype=float)
-            R[rows] = targets if R_heading is None else R_heading @ targets
+            stack[:-1] = targets if R_heading is None else R_heading @ targets
+            R = stack.take(gather, axis=0)  # (a new array: the task keeps it)
+        else:
+            R = self._identities.copy()
         weights = frame.orientation_weights
         if weights:  # the weights given (else 1 on every row: the one array of these rows)
             w = np.zeros(len(self._segment_index))
@@ -127,19 +149,19 @@ class TargetLoader:
         return FrameTargets(tasks.orientation.targets, weighting.tracked,
                             weighting.sensed_joints, weighting.row_weights)
 
-    def _new_rows(self, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, bool]:
-        """The rows of a new set of tracked ``names`` (a sensor dropped out or came back).
-
-        Their rows (k,), the weights (n,) of a frame without weights (1 on those rows, 0
-        elsewhere; read-only) and whether a hinge parent is open then.
-        """
+    def _new_rows(self, names: tuple[str, ...]) -> _Rows:
+        """The rows of a new set of tracked ``names`` (a sensor dropped out or came back)."""
         for name in names:
             self.model.segment_frame_id(name)  # raises NameNotFound with the valid names
         rows = np.array([self._segment_index[n] for n in names], dtype=int)
         w = np.zeros(len(self._segment_index))
         w[rows] = 1.0
         w.setflags(write=False)
-        made = self._rows[names] = (rows, w, self.assumed.any_open(w > 0))
+        stack = np.zeros((len(names) + 1, 3, 3))
+        stack[-1] = np.eye(3)
+        gather = np.full(len(w), len(names))
+        gather[rows] = np.arange(len(names))
+        made = self._rows[names] = _Rows(rows, w, self.assumed.any_open(w > 0), stack, gather)
         return made
 
     def _weighting(self, weights: np.ndarray) -> _Weighting:

@@ -179,6 +179,10 @@ class _CompiledPose:
         self._R = call.input_slot(1).reshape(-1, 3, 3)  # a view: the slot's 3 x 3 blocks
         self._tracked: np.ndarray | None = None  # the set in the slot ...
         self._owner: np.ndarray | None = None  # ... and the array owning its memory
+        # the outputs as returned, views of their buffers (None: sparse, scattered per call)
+        dense = call.is_dense(0) and call.is_dense(1)
+        self._outputs = (call.output(0)[:, 0], call.output(1).reshape(-1, 3)) if dense \
+            else None
 
     def __call__(self, q: np.ndarray, R_world_target: np.ndarray,
                  tracked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -190,6 +194,9 @@ class _CompiledPose:
         self._q[:] = q
         self._R[:] = R_world_target.transpose(0, 2, 1)
         self.call.run()
+        if self._outputs is not None:
+            q_out, p_out = self._outputs
+            return q_out.copy(), p_out.copy()
         return self.call.output(0)[:, 0].copy(), self.call.output(1).reshape(-1, 3).copy()
 
 

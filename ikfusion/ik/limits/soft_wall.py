@@ -22,6 +22,8 @@ import math
 
 import numpy as np
 
+from ..wall_sink import wall_sink
+
 _SAME_TRIPLE = np.radians(60.0)  # [rad] an angle further from its previous one changed triple
 _GIMBAL_FREE = np.radians(60.0)  # [rad] a joint whose middle angle is further is near gimbal lock
 _GIMBAL_KEEP = np.radians(80.0)  # [rad] a middle angle never sinks beyond this
@@ -46,6 +48,9 @@ class SoftWall:
         self._depth = np.full(self._limit.shape, float(depth))
         # a middle angle sinking to +-90 deg would meet gimbal lock (the rates blow up)
         self._depth[:, :, 1] = np.clip(_GIMBAL_KEEP - np.abs(self._limit[:, :, 1]), 0.0, depth)
+        # the sink in one native call (the same numbers as NumPy's below); None: NumPy's
+        self._sink = wall_sink(self._limit) if self.enabled else None
+        self._factors = (0.0, 0.0, 0.0, 0.0)  # dt, dt before, the sink's and the drift's factor
         self.reset()
 
     def reset(self) -> None:
@@ -64,20 +69,28 @@ class SoftWall:
         before, self._before = self._before, (angles, float(dt))
         self._previous, self._room = angles, None
         if not self.enabled or before is None or before[1] <= 0.0 or dt <= 0.0:
+            if self._sink is not None:
+                self._sink.first(angles)
             return
         a_before, dt_before = before
-        moved = angles - a_before
-        # the module's formula with v = moved / dt_before, its constants folded; computed in
-        # place, the upper limits' rows (sign +1) then the lower ones' (sign -1)
-        decay = math.exp(-dt / self.tau)
-        sunk = np.multiply(self._sign, angles)
-        sunk -= self._limit
-        sunk *= (1.0 + dt / self.tau) * decay
-        drift = moved * (dt * decay / dt_before)
-        sunk[0] += drift
-        sunk[1] -= drift
-        if not sunk.max() > 0.0:  # no angle reaches a limit (most frames): hard limits
-            return
+        grow, drift = self._factors_of(dt, dt_before)
+        if self._sink is not None:  # the same numbers as the NumPy below
+            if not self._sink.reaches(angles, grow, drift):
+                return
+            sunk = self._sink.sunk
+            moved = angles - a_before
+        else:
+            # the module's formula with v = moved / dt_before, its constants folded; computed
+            # in place, the upper limits' rows (sign +1) then the lower ones' (sign -1)
+            moved = angles - a_before
+            sunk = np.multiply(self._sign, angles)
+            sunk -= self._limit
+            sunk *= grow
+            change = moved * drift
+            sunk[0] += change
+            sunk[1] -= change
+            if not sunk.max() > 0.0:  # no angle reaches a limit (most frames): hard limits
+                return
         # no rate across a change of triple, nor near gimbal lock (the first and third angles
         # of a joint there turn by tens of degrees for a small turn of the joint)
         steady = np.abs(moved) < _SAME_TRIPLE
@@ -85,6 +98,18 @@ class SoftWall:
         sunk *= steady
         if sunk.max() > 0.0:  # else no angle reaches a limit: hard limits
             self._room = np.minimum(np.maximum(sunk, 0.0), self._depth)
+
+    def _factors_of(self, dt: float, dt_before: float) -> tuple[float, float]:
+        """The module's formula's factors of ``o`` and of the angles' change.
+
+        Over ``dt`` [s] after a step of ``dt_before`` [s]; kept while the time steps stay.
+        """
+        kept = self._factors
+        if kept[0] != dt or kept[1] != dt_before:
+            decay = math.exp(-dt / self.tau)
+            kept = self._factors = (dt, dt_before, (1.0 + dt / self.tau) * decay,
+                                    dt * decay / dt_before)
+        return kept[2], kept[3]
 
     def room(self, angles: np.ndarray) -> np.ndarray | None:
         """The room past the upper and the lower limits (2, joints, 3) [rad]; None: hard limits.
