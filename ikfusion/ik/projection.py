@@ -14,6 +14,8 @@ import numpy as np
 
 from ..errors import SolverError
 from .configuration import Configuration
+from .contact_projection import HELD, TO_QP, NativeProjection
+from .contact_projection import native_projection as native_projection  # (the solver's)
 from .equality_qp import independent_solve
 from .fast_math import min_of
 from .least_distance import identity
@@ -37,7 +39,7 @@ class RangeRows(Protocol):
 def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: FloorLimit,
                         ranges: RangeRows, contact_frames: Sequence[int],
                         tolerance: float, max_steps: int, backend: str,
-                        qp: QpSettings) -> bool:
+                        qp: QpSettings, native: NativeProjection | None = None) -> bool:
     """Remove the linearisation residual of the contacts from ``conf`` (in place).
 
     A few minimum-norm steps on the contact rows (or, if those do not converge or leave a
@@ -54,6 +56,8 @@ def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: 
         max_steps: At most this many steps of each kind.
         backend: QP backend.
         qp: QP settings.
+        native: The minimum-norm steps in native code (:mod:`.contact_projection`), for
+            ``conf`` and contacts along the world axes; None: this function's own loop.
 
     Returns:
         True when a step had to be relaxed (or no backend could solve one).
@@ -61,6 +65,14 @@ def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: 
     if not contact_frames:
         return False
     q_start = conf.q  # read-only: update() replaces it
+    if native is not None and contact.world_rows() is not None:
+        answer = native.project(contact, floor.floor_z, tolerance, max_steps)
+        if answer == HELD:
+            return False
+        if answer == TO_QP:
+            conf.update(q_start)
+            return project_with_limits(conf, contact, floor, ranges, contact_frames,
+                                       tolerance, max_steps, backend, qp)
     for _ in range(max_steps):  # the residual is second order: minimum-norm steps suffice
         P = conf.positions(contact_frames)
         if not contact.slides(P, tolerance):
