@@ -56,8 +56,9 @@ def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: 
         max_steps: At most this many steps of each kind.
         backend: QP backend.
         qp: QP settings.
-        native: The minimum-norm steps in native code (:mod:`.contact_projection`), for
-            ``conf`` and contacts along the world axes; None: this function's own loop.
+        native: The minimum-norm steps in native code (:mod:`.contact_projection`), used
+            when made for ``conf`` and the contacts are along the world axes; None: this
+            function's own loop.
 
     Returns:
         True when a step had to be relaxed (or no backend could solve one).
@@ -65,7 +66,7 @@ def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: 
     if not contact_frames:
         return False
     q_start = conf.q  # read-only: update() replaces it
-    if native is not None and contact.world_rows() is not None:
+    if native is not None and native.conf is conf and contact.world_rows() is not None:
         answer = native.project(contact, floor.floor_z, tolerance, max_steps)
         if answer == HELD:
             return False
