@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from real_walk import solve_real_walk_natively
 
-from ikfusion.cli import main
 from ikfusion.ik import Frame, Solver
 from ikfusion.ik import projection as projection_module
 from ikfusion.ik import solver as solver_module
@@ -105,14 +105,7 @@ def test_every_projection_of_a_simulated_walk(human: HumanModel, both: _BothPath
 
 
 def test_the_real_walk(both: _BothPaths, tmp_path: Path) -> None:
-    trial = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "xsens" / \
-        "opensense_walk"
-    if not trial.is_dir():
-        pytest.skip(f"real recordings not available: {trial} is absent (a user's clone)")
-    if usable_compiler() is None:
-        pytest.skip("no C compiler (or IKFUSION_NO_COMPILE): the kernel is not built")
-    assert main(["solve", "--imu", str(trial), "--map", str(trial / "myIMUMappings.xml"),
-                 "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    solve_real_walk_natively(tmp_path / "out")
     assert both.calls >= 2000 and both.steps > 1000
 
 
@@ -127,7 +120,7 @@ def test_random_poses_and_anchors(human: HumanModel, seed: int) -> None:
     native = solver._projection
     frames = tasks.contact.frame_ids
     answers = set()
-    for trial in range(40):
+    for _ in range(40):
         q = human.neutral()
         for joint in human.ball_joints.values():
             axis = rng.normal(size=3) * 0.3
