@@ -11,7 +11,8 @@
    Answers: HELD (q projected, the points function's outputs at it), TO_QP (the minimum-norm
    steps did not hold the points or left one below the floor: the QPs take over from the
    start), TO_PYTHON (dependent rows, a number not finite, a failed evaluation: the reference
-   path decides from the start). Frames: world; lengths in metres; q as pinocchio's (the
+   path decides from the start). With TO_QP, floor_crossed says the first step crossed a
+   linearised floor row: the QPs' closed-form try would fail (the caller skips it). Frames: world; lengths in metres; q as pinocchio's (the
    free flyer's translation, then quaternions x, y, z, w). */
 
 #include <float.h>
@@ -43,6 +44,7 @@ struct projection {
     const unsigned char *active;  /* (n) planted points */
     const unsigned char *free_z;  /* (n) held horizontally only */
     const double *anchors;  /* (n, 3) [m] */
+    const unsigned char *enabled; /* (n) points the floor holds */
     double floor_z;         /* [m] */
     double tolerance;       /* [m] */
     int max_steps;
@@ -52,7 +54,13 @@ struct projection {
     double *y;              /* (3n) work */
     double *dq;             /* (nv) work */
     int steps;              /* out: the minimum-norm steps taken */
+    int floor_crossed;      /* out: the first step crosses a linearised floor row (below) */
 };
+
+/* A linearised floor row -J_z dq <= z - floor_z crossed by more than this [m]: far beyond the
+   round-off between this step and NumPy's (1e-13), far below a crossing that sends a frame to
+   the QPs (the tolerance, 2e-5). */
+#define CROSSED 1e-9
 
 /* pinocchio's quaternion::exp3 of the rotation vector v (3,) [rad]: out = (x, y, z, w). */
 static void exp3(const double *v, double *out)
@@ -236,6 +244,24 @@ static int independent_solve(const struct projection *p, int m, double *y)
     return 1;
 }
 
+/* Whether dq crosses a floor row linearised at the points P (k, 3) by more than CROSSED: then
+   the QP's closed-form try (equality_qp.equality_optimum, this step to round-off) fails. */
+static int crosses_floor(const struct projection *p, const double *P)
+{
+    const int nv = p->nv;
+    for (int i = 0; i < p->n_points; ++i) {
+        if (!p->enabled[i])
+            continue;
+        const double *Jz = p->J + (size_t)(3 * i + 2) * nv;
+        double s = 0.0;
+        for (int c = 0; c < nv; ++c)
+            s += Jz[c] * p->dq[c];
+        if (-s - (P[3 * i + 2] - p->floor_z) > CROSSED)
+            return 1;
+    }
+    return 0;
+}
+
 /* One minimum-norm step from the evaluated points at q: q updated; 0 on dependent rows. */
 static int minimum_norm_step(struct projection *p, const double *P, double *next)
 {
@@ -254,6 +280,8 @@ static int minimum_norm_step(struct projection *p, const double *P, double *next
         for (int c = 0; c < nv; ++c)
             p->dq[c] += a[c] * yi;
     }
+    if (p->steps == 0)
+        p->floor_crossed = crosses_floor(p, P);
     ik_integrate(p->nq, p->n_balls, p->ball_q, p->ball_v, p->q, p->dq, next);
     memcpy(p->q, next, sizeof(double) * p->nq);
     return 1;
@@ -263,6 +291,7 @@ static int minimum_norm_step(struct projection *p, const double *P, double *next
 int ik_project_contacts(struct projection *p, double *next)
 {
     p->steps = 0;
+    p->floor_crossed = 0;
     for (int step = 0; step < p->max_steps; ++step) {
         p->arg[0] = p->q;
         if (p->points(p->arg, p->res, p->iw, p->w, 0))

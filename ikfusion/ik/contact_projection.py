@@ -22,7 +22,7 @@ import numpy as np
 import pinocchio as pin
 
 from .configuration import Configuration
-from .limits import ContactConstraint
+from .limits import ContactConstraint, FloorLimit
 from .native import compiled_library
 from .native_kernel import loaded_kernel
 from .points_configuration import PointsConfiguration
@@ -42,8 +42,9 @@ class _Projection(ctypes.Structure):
                 ("J_row", _P), ("J_col", _P), ("J_nnz", _I), ("J", _P),
                 ("n_points", _I), ("nq", _I), ("nv", _I), ("n_balls", _I), ("ball_q", _P),
                 ("ball_v", _P), ("active", _P), ("free_z", _P), ("anchors", _P),
-                ("floor_z", _D), ("tolerance", _D), ("max_steps", _I), ("q", _P),
-                ("rows", _P), ("S", _P), ("y", _P), ("dq", _P), ("steps", _I)]
+                ("enabled", _P), ("floor_z", _D), ("tolerance", _D), ("max_steps", _I),
+                ("q", _P), ("rows", _P), ("S", _P), ("y", _P), ("dq", _P), ("steps", _I),
+                ("floor_crossed", _I)]
 
 
 def _address(a: np.ndarray) -> int:
@@ -98,6 +99,7 @@ class NativeProjection:
         self.active = np.zeros(n, dtype=np.uint8)
         self.free_z = np.zeros(n, dtype=np.uint8)
         self.anchors = np.zeros((n, 3))
+        self.enabled = np.zeros(n, dtype=np.uint8)
         self.q = np.zeros(model.nq)
         self._next = np.zeros(model.nq)
         self._rows = np.zeros(3 * n, dtype=np.intc)
@@ -110,29 +112,32 @@ class NativeProjection:
             _address(self._iw), _address(self._w), _address(rows), _address(cols), len(rows),
             _address(self.J), n, model.nq, model.nv, len(balls[0]), _address(balls[0]),
             _address(balls[1]), _address(self.active), _address(self.free_z),
-            _address(self.anchors), 0.0, 0.0, 0, _address(self.q), _address(self._rows),
-            _address(self._S), _address(self._y), _address(self._dq), 0)
+            _address(self.anchors), _address(self.enabled), 0.0, 0.0, 0, _address(self.q),
+            _address(self._rows), _address(self._S), _address(self._y), _address(self._dq), 0, 0)
         self._kernel = library.ik_project_contacts
         self._kernel.restype = ctypes.c_int
         self._kernel.argtypes = [ctypes.c_void_p, ctypes.c_void_p]
         self._args = (ctypes.addressof(self.plan), _address(self._next))
         self.conf = conf
 
-    def project(self, contact: ContactConstraint, floor_z: float, tolerance: float,
+    def project(self, contact: ContactConstraint, floor: FloorLimit, tolerance: float,
                 max_steps: int) -> int:
         """The minimum-norm loop from the configuration's ``q`` (contacts along world axes).
 
         Returns:
             :data:`HELD` (the configuration set to the projected ``q``, its points evaluated
             there), :data:`TO_QP` or :data:`TO_PYTHON` (the configuration at its ``q``,
-            unchanged, its points evaluated again when asked for).
+            unchanged, its points evaluated again when asked for). With :data:`TO_QP`,
+            ``plan.floor_crossed``: the first step crossed a floor row linearised at ``q``
+            (by far more than round-off), so the QPs' closed-form try would fail.
         """
         conf, plan = self.conf, self.plan
         np.copyto(self.q, conf.q)
         np.copyto(self.active, contact.active)
         np.copyto(self.free_z, contact.free_z)
         np.copyto(self.anchors, contact.anchors)
-        plan.floor_z, plan.tolerance, plan.max_steps = floor_z, tolerance, max_steps
+        np.copyto(self.enabled, floor.enabled)
+        plan.floor_z, plan.tolerance, plan.max_steps = floor.floor_z, tolerance, max_steps
         answer = int(self._kernel(*self._args))
         if answer == HELD:
             conf.set_evaluated(self.q)  # its buffers hold the points at the projected q
