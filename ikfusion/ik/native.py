@@ -13,9 +13,11 @@ build, the record and the check; this module says what to generate and how to lo
 
 from __future__ import annotations
 
+import ctypes
 import hashlib
 import os
 import tempfile
+import weakref
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -32,6 +34,12 @@ from .native_build import find_compiler as find_compiler
 
 #: What is used when the step functions cannot be compiled (the end of the warning).
 FALLBACK = "CasADi's virtual machine is used instead, several times slower"
+
+#: A library's file name (it holds the build key) -> that library opened by ctypes, once per
+#: process (a kernel calls its functions through their own pointers)
+_HANDLES: dict[str, ctypes.CDLL] = {}
+#: Each function loaded from a library -> that library opened by ctypes
+_LIBRARY_OF: weakref.WeakKeyDictionary[ca.Function, ctypes.CDLL] = weakref.WeakKeyDictionary()
 
 
 def generator_fingerprint() -> str:
@@ -89,7 +97,27 @@ def _library(key: str, names: Sequence[str], functions: Sequence[ca.Function] = 
     return native_build.NativeLibrary(
         what="step function", fallback=FALLBACK,
         path=lambda folder, compiler: library_path(folder, key, compiler), build=build,
-        load=lambda copy: [ca.external(name, str(copy)) for name in names])
+        load=lambda copy: _load(copy, names))
+
+
+def _load(copy: Path, names: Sequence[str]) -> list[ca.Function]:
+    """The functions ``names`` of the verified private ``copy``, its ctypes handle recorded."""
+    functions = [ca.external(name, str(copy)) for name in names]
+    handle = _HANDLES.get(copy.name)
+    if handle is None:
+        handle = _HANDLES[copy.name] = ctypes.CDLL(str(copy))
+    for function in functions:
+        _LIBRARY_OF[function] = handle
+    return functions
+
+
+def compiled_library(function: ca.Function) -> ctypes.CDLL | None:
+    """The verified library ``function`` was loaded from, opened by ctypes; None if none.
+
+    Its symbols are CasADi's C interface: ``<name>(arg, res, iw, w, mem)`` and
+    ``<name>_work(&sz_arg, &sz_res, &sz_iw, &sz_w)``, ``casadi_int`` as ``long long``.
+    """
+    return _LIBRARY_OF.get(function)
 
 
 def cached_functions(key: str, names: Sequence[str]) -> list[ca.Function] | None:

@@ -36,6 +36,8 @@ class PointsConfiguration(Configuration):
                  points_function: ca.Function, geometry: np.ndarray) -> None:
         self._row = {f: i for i, f in enumerate(frame_ids)}
         self._all = tuple(frame_ids)
+        #: The points function and its buffers (:mod:`.contact_projection` evaluates it too)
+        self.points_function = points_function
         self._call = BoundFunction(points_function)
         self._call.set_input(1, geometry)  # kept: each call writes q only
         self._q_input = self._call.input_slot(0)
@@ -47,6 +49,27 @@ class PointsConfiguration(Configuration):
         """Set ``q``; the points are computed once, when first asked for."""
         super().update(q)
         self._P = self._J = None
+
+    @property
+    def point_frames(self) -> tuple[int, ...]:
+        """The frames of the points function (its output rows, in order)."""
+        return self._all
+
+    @property
+    def points_call(self) -> BoundFunction:
+        """The points function's buffers: input 0 ``q``, 1 the geometry; outputs P, J."""
+        return self._call
+
+    def set_evaluated(self, q: np.ndarray) -> None:
+        """Set ``q`` where the points function's output buffers were just evaluated.
+
+        For a caller that ran the function itself (:mod:`.contact_projection`): the points
+        are read from the buffers instead of evaluated again.
+        """
+        super().update(q)
+        P = self._call.output(0).reshape(-1, 3).copy()
+        P.setflags(write=False)
+        self._P, self._J = P, None
 
     def _point_positions(self) -> np.ndarray:
         """Every point's ``p_world_point`` (n, 3) [m], read-only."""

@@ -14,7 +14,9 @@ import numpy as np
 
 from ..errors import SolverError
 from .configuration import Configuration
-from .equality_qp import independent_solve
+from .contact_projection import HELD, TO_QP, NativeProjection
+from .contact_projection import native_projection as native_projection  # (the solver's)
+from .equality_qp import ClosedFormHint, independent_solve
 from .fast_math import min_of
 from .least_distance import identity
 from .limits import ContactConstraint, FloorLimit
@@ -37,7 +39,7 @@ class RangeRows(Protocol):
 def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: FloorLimit,
                         ranges: RangeRows, contact_frames: Sequence[int],
                         tolerance: float, max_steps: int, backend: str,
-                        qp: QpSettings) -> bool:
+                        qp: QpSettings, native: NativeProjection | None = None) -> bool:
     """Remove the linearisation residual of the contacts from ``conf`` (in place).
 
     A few minimum-norm steps on the contact rows (or, if those do not converge or leave a
@@ -54,6 +56,9 @@ def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: 
         max_steps: At most this many steps of each kind.
         backend: QP backend.
         qp: QP settings.
+        native: The minimum-norm steps in native code (:mod:`.contact_projection`), used
+            when made for ``conf`` and the contacts are along the world axes; None: this
+            function's own loop.
 
     Returns:
         True when a step had to be relaxed (or no backend could solve one).
@@ -61,6 +66,17 @@ def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: 
     if not contact_frames:
         return False
     q_start = conf.q  # read-only: update() replaces it
+    if native is not None and native.conf is conf and contact.world_rows() is not None:
+        answer = native.project(contact, floor, tolerance, max_steps)
+        if answer == HELD:
+            return False
+        if answer == TO_QP:
+            conf.update(q_start)
+            # its first QP's closed-form try is the minimum-norm step: skipped when that
+            # crossed a floor row (it would fail; DAQP then solves the same QP as before)
+            return project_with_limits(conf, contact, floor, ranges, contact_frames,
+                                       tolerance, max_steps, backend, qp,
+                                       ClosedFormHint(skip=bool(native.plan.floor_crossed)))
     for _ in range(max_steps):  # the residual is second order: minimum-norm steps suffice
         P = conf.positions(contact_frames)
         if not contact.slides(P, tolerance):
@@ -78,15 +94,17 @@ def project_on_contacts(conf: Configuration, contact: ContactConstraint, floor: 
 
 def project_with_limits(conf: Configuration, contact: ContactConstraint, floor: FloorLimit,
                         ranges: RangeRows, contact_frames: Sequence[int], tolerance: float,
-                        max_steps: int, backend: str, qp: QpSettings) -> bool:
+                        max_steps: int, backend: str, qp: QpSettings,
+                        first: ClosedFormHint | None = None) -> bool:
     """:func:`project_on_contacts`' QPs: only the constraints, the ranges, the floor, ``|dq|^2``.
 
     The contact and floor rows come from the points' positions and Jacobians (the same rows
     as :meth:`.ContactConstraint.equality` and :meth:`.FloorLimit.inequality`); ``H`` is the
     shared identity, whose factorisations the solvers skip (:func:`.least_distance.identity`).
-    Arguments and return as :func:`project_on_contacts` (``conf`` updated in place).
+    Arguments and return as :func:`project_on_contacts` (``conf`` updated in place);
+    ``first``: the first QP's :class:`.equality_qp.ClosedFormHint` (None: its closed form tried).
     """
-    relaxed = False
+    relaxed, hint = False, first
     for _ in range(max_steps):
         P = conf.positions(contact_frames)
         if not contact.slides(P, tolerance):
@@ -98,10 +116,10 @@ def project_with_limits(conf: Configuration, contact: ContactConstraint, floor: 
                               [contact.rows(P, J)], None, 0.0)
         problem.H = identity(conf.model.nv)
         try:
-            solution = solve_qp(problem, backend, qp)
+            solution = solve_qp(problem, backend, qp, hint)
         except SolverError:
             return True
-        relaxed = relaxed or solution.relaxed
+        relaxed, hint = relaxed or solution.relaxed, None
         conf.update(conf.integrate(solution.dq))
     return relaxed
 

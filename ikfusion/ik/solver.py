@@ -43,7 +43,7 @@ from .frame import Frame
 from .frame_problem import FrameTasks, build_frame_problem, compiled_step, step_configuration
 from .frame_targets import FrameTargets, TargetLoader
 from .pose import Motion, Pose
-from .projection import RangeRows, place_on_floor, project_on_contacts
+from .projection import RangeRows, native_projection, place_on_floor, project_on_contacts
 from .residuals import residual_source
 from .sensed_pose import Persistence, SensedPose
 from .settings import SolverSettings
@@ -101,6 +101,7 @@ class Solver:
         self.world = WorldOffset(self.contacts.support)
         self.ballistic = BallisticRoot(s.takeoff_velocity_tau, sensor_lever(model))
         self._configuration = step_configuration(model, self.tasks, self.compiled)
+        self._projection = native_projection(self._configuration, self.tasks.contact)
         self._range_rows: RangeRows = self.tasks.joint_range if self.compiled is None else \
             StepRangeRows(self.compiled.kinematics, self.compiled.geometry,
                           self.compiled.rate_rows, self.tasks.joint_range,
@@ -276,7 +277,8 @@ class Solver:
         t = self.tasks
         relaxed = project_on_contacts(conf, t.contact, t.floor, self._range_rows,
                                       self._contact_frames, s.constraint_tolerance,
-                                      s.projection_steps, s.backend, s.qp) or relaxed
+                                      s.projection_steps, s.backend, s.qp,
+                                      self._projection) or relaxed
         return conf.q.copy(), done, relaxed
 
     def _finish(self, frame: Frame, targets: FrameTargets, q: np.ndarray, q_warm: np.ndarray,

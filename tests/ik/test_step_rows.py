@@ -14,12 +14,11 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+from real_walk import solve_real_walk_natively
 
-from ikfusion.cli import main
 from ikfusion.ik import Frame, Solver
 from ikfusion.ik import frame_problem as fp
 from ikfusion.ik import solver as solver_module
-from ikfusion.ik.native_build import usable_compiler
 from ikfusion.model import SENSOR_SEGMENTS, HumanModel
 from ikfusion.rotations import random_rotations
 from ikfusion.sim.gait import GaitParameters, generate_gait
@@ -95,14 +94,7 @@ def test_every_step_of_a_simulated_walk(human: HumanModel, both: _BothPaths) -> 
 
 
 def test_the_real_walk(both: _BothPaths, tmp_path: Path) -> None:
-    trial = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "xsens" / \
-        "opensense_walk"
-    if not trial.is_dir():
-        pytest.skip(f"real recordings not available: {trial} is absent (a user's clone)")
-    if usable_compiler() is None:
-        pytest.skip("no C compiler (or IKFUSION_NO_COMPILE): the kernel is not built")
-    assert main(["solve", "--imu", str(trial), "--map", str(trial / "myIMUMappings.xml"),
-                 "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    solve_real_walk_natively(tmp_path / "out")
     assert both.steps >= 2505 and both.contact > 1000 and both.root > 1000
 
 
