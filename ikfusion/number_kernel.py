@@ -6,18 +6,18 @@ digits once, straight into the text. It receives the same rounded integers (``|v
 exact below 2**52, checked by :mod:`ikfusion.number_text` to round as ``%`` does) and the
 values' sign bits, and only splits integers into digits: the text is the NumPy path's, byte for
 byte. The kernel is compiled once with the machine's C compiler and cached
-(:func:`ikfusion.ik.native_kernel.loaded_kernel`); without it (no compiler,
+(:func:`ikfusion.native_functions.c_function`); without it (no compiler,
 ``IKFUSION_NO_COMPILE``) NumPy writes the digits.
 """
 
 from __future__ import annotations
 
 import ctypes
-import os
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+
+from .native_functions import c_function
 
 #: What is used when the kernel cannot be compiled (the end of the build warning).
 FALLBACK = "NumPy writes the numbers of the result files instead"
@@ -51,25 +51,6 @@ class Literals:
         return self.out
 
 
-#: IKFUSION_NO_COMPILE -> the C function ``fixed_rows`` (None: without the kernel)
-_KERNEL: dict[str | None, Callable[..., int] | None] = {}
-
-
-def _kernel() -> Callable[..., int] | None:
-    """The C function ``fixed_rows`` (None without the compiled kernel)."""
-    setting = os.environ.get("IKFUSION_NO_COMPILE")
-    if setting not in _KERNEL:
-        from .ik.native_kernel import loaded_kernel  # the solver's build and cache
-
-        library = loaded_kernel(Path(__file__).with_name("number_text.c"), FALLBACK)
-        function = None if library is None else library.fixed_rows
-        if function is not None:
-            function.restype = ctypes.c_int64
-            function.argtypes = [ctypes.c_void_p]
-        _KERNEL[setting] = function
-    return _KERNEL[setting]
-
-
 def kernel_text(literals: Literals, decimals: int, rows: np.ndarray,
                 whole: np.ndarray) -> str | None:
     """Rows whose every value takes the fast path, as text; None without the kernel.
@@ -80,7 +61,7 @@ def kernel_text(literals: Literals, decimals: int, rows: np.ndarray,
         rows: (n, k) values (their signs).
         whole: (n, k) ``|rows| * 10**decimals`` rounded, integers below 2**52 as floats.
     """
-    function = _kernel()
+    function = c_function(Path(__file__).with_name("number_text.c"), "fixed_rows", FALLBACK)
     if function is None:
         return None
     n, k = rows.shape
