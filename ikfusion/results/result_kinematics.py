@@ -16,6 +16,7 @@ from ..ik.pose import Motion
 from ..model.motion_kinematics import frame_placements
 from ..rotations import matrix_to_quat_wxyz
 from .bvh_export import local_rotations
+from .quats_kernel import kernel_quats_wxyz
 
 #: Frames whose segment quaternions are computed per pass: the temporaries of a block stay in
 #: the processor's cache (about a third faster than one pass over the whole motion).
@@ -65,6 +66,9 @@ class ResultKinematics:
         of frames (each matrix is converted on its own: the same values).
         """
         R = self.R_world_segment
+        done = kernel_quats_wxyz(R) if R.ndim == 4 and R.size else None
+        if done is not None:  # the C kernel: the same numbers
+            return done
         if not len(R):
             return matrix_to_quat_wxyz(R)
         return np.concatenate([matrix_to_quat_wxyz(R[s:s + QUAT_BLOCK_FRAMES])
