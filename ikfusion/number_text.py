@@ -23,6 +23,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .number_kernel import Literals, kernel_text
+
 #: ``%`` fields the fast path writes: fixed decimals, e.g. ``%.6f``.
 _FIXED_FIELD = re.compile(r"%\.(\d)f")
 #: Any ``%`` field or escaped percent sign (to find the literal text between fields).
@@ -101,6 +103,7 @@ class _Layout:
         self.scale = 10.0 ** decimals
         self.lengths = [len(part) for part in self.encoded[:-1]]
         self.tables: dict[tuple[int, int], tuple[np.ndarray, _Slots]] = {}
+        self.literals = Literals(self.encoded)
 
     def row_table(self, n: int, width: int) -> tuple[np.ndarray, _Slots]:
         """An (n, row bytes) table holding the literals, and its field slots (:data:`_Slots`)."""
@@ -156,6 +159,14 @@ def _fixed(layout: _Layout, rows: np.ndarray, whole: np.ndarray) -> str:
         rows: (n, k) values (their signs).
         whole: (n, k) ``|rows| * 10**decimals`` rounded, integers below 2**52 as floats.
     """
+    text = kernel_text(layout.literals, layout.decimals, rows, whole)
+    if text is not None:
+        return text
+    return _numpy_fixed(layout, rows, whole)
+
+
+def _numpy_fixed(layout: _Layout, rows: np.ndarray, whole: np.ndarray) -> str:
+    """:func:`_fixed` by NumPy (without the C kernel; the reference it matches)."""
     n, k = rows.shape
     d = layout.decimals
     scaled = whole.astype(np.uint64)

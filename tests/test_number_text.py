@@ -1,10 +1,16 @@
-"""Fixed-decimal text built by NumPy: the same bytes as Python's ``%`` for every value."""
+"""Fixed-decimal text built by NumPy: the same bytes as Python's ``%`` for every value.
+
+Every test runs twice: with the digits written by the C kernel (``number_text.c``) and by
+NumPy (the path without a compiler).
+"""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+import ikfusion.number_text
+from ikfusion.number_kernel import kernel_text
 from ikfusion.number_text import BLOCK_VALUES, fixed_row_parts, format_rows
 
 #: Values whose text is easy to get wrong: signed zeros, exact and near halves, non-finite,
@@ -13,6 +19,20 @@ AWKWARD = [0.0, -0.0, -1e-9, 1e-9, 0.5e-6, -0.5e-6, 2.5e-6, 1.0000005, 0.0078125
            0.125, 2.5, -3.5, 1e15, 4503599627370495.5, 9007199254740993.0, 1e300, -1e-300,
            np.nan, np.inf, -np.inf, 0.1 + 0.2, 99.9999995, 999999.9999999, 1.7976931348623157e308,
            5e-324]
+
+
+@pytest.fixture(autouse=True, params=["kernel", "numpy"])
+def digits_by(request, monkeypatch) -> str:
+    """Which path writes the digits: the C kernel (skipped without one) or NumPy."""
+    if request.param == "numpy":
+        monkeypatch.setattr(ikfusion.number_text, "kernel_text", lambda *args: None)
+    else:
+        layout = fixed_row_parts("%.1f")
+        assert layout is not None
+        if kernel_text(ikfusion.number_text._Layout(*layout).literals, 1, np.ones((1, 1)),
+                       np.ones((1, 1))) is None:
+            pytest.skip("no C kernel (no compiler or IKFUSION_NO_COMPILE): NumPy writes")
+    return str(request.param)
 
 
 def percent(row_format: str, table: np.ndarray) -> str:

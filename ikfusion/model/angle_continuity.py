@@ -26,6 +26,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import numpy.typing as npt
 
+from .continuity_kernel import continuous_in_place
 from .joints import JointSpec
 
 _TURN = 2.0 * np.pi
@@ -83,10 +84,12 @@ def continuous_series(angles: npt.ArrayLike) -> np.ndarray:
     Returns:
         (N, ..., 3) [rad], the same rotations.
     """
-    a = np.array(angles, dtype=float)
+    a = np.array(angles, dtype=float, order="C")
     if len(a) <= 1:
         return a
     flat = a.reshape(len(a), -1, 3)
+    if continuous_in_place(flat):  # the C kernel: the same rule, the same numbers
+        return a
     whole = np.isfinite(flat).all(axis=(0, 2))  # joints finite in every frame
     for j in np.flatnonzero(whole):  # one by one, contiguous: faster than all at once
         flat[:, j] = _continuous_finite(np.ascontiguousarray(flat[:, j])[:, None])[:, 0]

@@ -315,7 +315,8 @@ class HumanModel:
         return out
 
     def joint_angle_matrix(self, qs: npt.ArrayLike, continuous: bool = True,
-                           joints: Sequence[str] | None = None) -> np.ndarray:
+                           joints: Sequence[str] | None = None,
+                           rotations: Mapping[str, np.ndarray] | None = None) -> np.ndarray:
         """Joint angles [deg] of a series of configurations, shape (N, 3 * joints).
 
         Columns follow :attr:`angle_columns` (flex, abd, rot per joint), or, with ``joints``,
@@ -329,13 +330,17 @@ class HumanModel:
             qs: (N, nq) configurations in time order.
             continuous: False for each frame's principal triple on its own.
             joints: Names of :attr:`ball_joints` (None: all of them).
+            rotations: Joint name -> its ``R_parent_child`` (N, 3, 3) along ``qs`` when already
+                computed from them (``quat_wxyz_to_matrix`` of its quaternion, as here); the
+                angles are the same.
         """
         Q = np.atleast_2d(np.asarray(qs, dtype=float))
         chosen = list(self.ball_joints.values()) if joints is None else \
             [self.ball_joints[name] for name in joints]
         out = np.empty((Q.shape[0], 3 * len(chosen)))
         for k, joint in enumerate(chosen):
-            R = quat_wxyz_to_matrix(xyzw_to_wxyz(Q[:, joint.idx_q:joint.idx_q + 4]))
+            R = quat_wxyz_to_matrix(xyzw_to_wxyz(Q[:, joint.idx_q:joint.idx_q + 4])) \
+                if rotations is None else np.ascontiguousarray(rotations[joint.spec.name])
             angles = joint.spec.angles_from_rotation(R)
             if continuous:
                 angles = continuous_series(angles)

@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
+from .placements_kernel import kernel_placements
+
 
 def quat_xyzw_matrix(quat_xyzw: np.ndarray) -> np.ndarray:
     """Rotation matrices (N, 3, 3) of quaternions (N, 4) stored (x, y, z, w), as Eigen does it.
@@ -147,6 +149,10 @@ def frame_placements(model: pin.Model, q: np.ndarray, frame_ids: Sequence[int],
         while j > 0:
             j = model.parents[j]
             needed.add(j)
+    if rotations is None:  # the C kernel when built: the same numbers
+        done = kernel_placements(model, Q, ids, sorted(needed - {0}), _is_identity)
+        if done is not None:
+            return done
     kept = {} if rotations is None else rotations.of(model, Q)
     R_joint: dict[int, np.ndarray] = {0: np.broadcast_to(np.eye(3), (n, 3, 3))}
     p_joint: dict[int, np.ndarray] = {0: np.zeros((n, 3))}

@@ -66,7 +66,7 @@ def local_rotations(model: HumanModel, q: np.ndarray) -> np.ndarray:
 
 
 def write_motion_bvh(path: str | Path, model: HumanModel, q: np.ndarray, frame_time: float,
-                     up: str = "z") -> Path:
+                     up: str = "z", rotations: np.ndarray | None = None) -> Path:
     """Write the configurations ``q`` (F, nq) as a BVH file.
 
     Args:
@@ -75,11 +75,13 @@ def write_motion_bvh(path: str | Path, model: HumanModel, q: np.ndarray, frame_t
         q: Configurations.
         frame_time: [s].
         up: ``"z"`` (our world) or ``"y"`` (the usual BVH convention of animation tools).
+        rotations: :func:`local_rotations` of ``q`` when already computed (the same file).
     """
     if up not in ("z", "y"):
         raise ValueError(f"up must be 'z' or 'y', not {up!r}")
     Q = np.atleast_2d(np.asarray(q, dtype=float))
     if Q.shape[1] != model.model.nq or not np.isfinite(Q).all():
         raise ValueError("q must be finite configurations of the model")
-    return write_bvh(path, model_skeleton(model), Q[:, :3], local_rotations(model, Q),
+    R_local = local_rotations(model, Q) if rotations is None else rotations
+    return write_bvh(path, model_skeleton(model), Q[:, :3], R_local,
                      frame_time, up=up)  # type: ignore[arg-type]

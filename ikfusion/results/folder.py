@@ -93,7 +93,8 @@ def write_result_folder(motion: Motion, out_dir: str | Path, bvh_up: str = "z",
                   ["%.6f", "%.4f", "%d"],
                   np.column_stack([motion.time, 1e3 * motion.solve_time, motion.iterations]))
         frame_time = 1.0 / motion.rate if motion.rate > 0 else 1.0 / 60.0
-        write_motion_bvh(tmp / "motion.bvh", model, motion.q, frame_time, up=bvh_up)
+        write_motion_bvh(tmp / "motion.bvh", model, motion.q, frame_time, up=bvh_up,
+                         rotations=kinematics.R_parent_segment)
         write_motion_mot(tmp / "motion.mot", motion, kinematics=kinematics)
         (tmp / "summary.json").write_text(json.dumps(summary(motion, extra_summary), indent=2))
     return Path(out_dir)

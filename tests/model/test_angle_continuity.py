@@ -211,3 +211,30 @@ def test_joints_made_continuous_together_as_one_by_one_to_the_bit(step_rad: floa
     together = continuous_series(raw)
     alone = np.stack([continuous_series(raw[:, j]) for j in range(6)], axis=1)
     assert np.array_equal(together.view(np.uint64), alone.view(np.uint64))
+
+
+@pytest.mark.parametrize("step_rad", [0.05, 0.8, 2.5, np.pi])
+def test_the_c_kernel_gives_the_numpy_paths_numbers_to_the_bit(step_rad: float, rng,
+                                                               monkeypatch) -> None:
+    # Random walks with NaN gaps, near-ties of branches and turns, and exact halves of a turn.
+    import ikfusion.model.angle_continuity as module
+    from ikfusion.model.continuity_kernel import continuous_in_place
+
+    if not continuous_in_place(np.zeros((2, 1, 3))):
+        pytest.skip("no C kernel (no compiler or IKFUSION_NO_COMPILE): NumPy runs")
+    series = []
+    for _ in range(20):
+        n, joints = int(rng.integers(2, 300)), int(rng.integers(1, 5))
+        raw = np.cumsum(rng.normal(0.0, step_rad, (n, joints, 3)), axis=0)
+        raw = (raw + np.pi) % (2 * np.pi) - np.pi
+        raw[..., 1] = np.clip(raw[..., 1], -np.pi / 2, np.pi / 2)
+        raw[rng.random((n, joints)) < 0.1, int(rng.integers(0, 3))] = np.nan
+        raw[: int(rng.integers(0, 3))] = np.nan
+        series.append(raw)
+    halves = np.array([[0.0, 0.0, 0.0], [np.pi, 0.0, -np.pi], [0.0, np.pi / 2, np.pi],
+                       [-np.pi, -np.pi / 2, 0.0], [np.pi / 2, 0.0, -np.pi / 2]])
+    series.append(np.resize(halves, (40, 3))[:, None])
+    with_kernel = [continuous_series(raw) for raw in series]
+    monkeypatch.setattr(module, "continuous_in_place", lambda flat: False)
+    for raw, got in zip(series, with_kernel):
+        assert np.array_equal(got.view(np.uint64), continuous_series(raw).view(np.uint64))

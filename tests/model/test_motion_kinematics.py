@@ -94,6 +94,7 @@ def test_identity_placements_cost_no_rotation_product(human: HumanModel, rng,
         return rot_rot(A, B)
 
     monkeypatch.setattr(kinematics, "_rot_rot", counted)
+    monkeypatch.setattr(kinematics, "kernel_placements", lambda *args: None)  # NumPy's path
     q = np.array([human.random_configuration(rng) for _ in range(5)])
     ids = list(range(human.model.nframes))
     p, R = frame_placements(human.model, q, ids)
@@ -134,3 +135,48 @@ def test_rotations_kept_while_only_the_root_moves(human: HumanModel, rng,
     assert calls
     for a, b in zip(other, frame_placements(human.model, turned, ids)):
         np.testing.assert_array_equal(a, b)
+
+
+def rotated_placements_model(rng) -> pin.Model:
+    """A free flyer and spherical joints whose placements turn, frames on the universe too."""
+    def turned() -> pin.SE3:
+        return pin.SE3(pin.Quaternion(rng.normal(size=4)).normalized().matrix(),
+                       rng.normal(size=3))
+
+    model = pin.Model()
+    root = model.addJoint(0, pin.JointModelFreeFlyer(), turned(), "root")
+    parent = root
+    for i in range(4):
+        placement = turned() if i % 2 else pin.SE3(np.eye(3), rng.normal(size=3))
+        parent = model.addJoint(parent, pin.JointModelSpherical(), placement, f"ball{i}")
+        model.addFrame(pin.Frame(f"tip{i}", parent, 0, turned(), pin.FrameType.OP_FRAME))
+    model.addFrame(pin.Frame("fixed", 0, 0, turned(), pin.FrameType.OP_FRAME))
+    return model
+
+
+def test_the_c_kernel_gives_the_numpy_paths_numbers_to_the_bit(human: HumanModel, rng,
+                                                               monkeypatch) -> None:
+    # The human model (identity placements) and a model with turned placements, quaternions
+    # not normalised (used as given, as Pinocchio does), frames of the universe.
+    import ikfusion.model.motion_kinematics as kinematics
+    from ikfusion.model.placements_kernel import kernel_placements
+
+    other = rotated_placements_model(rng)
+    cases = [(human.model, np.array([human.random_configuration(
+        rng, p_world_pelvis=rng.normal(size=3)) for _ in range(50)]))]
+    q = rng.normal(size=(60, other.nq))
+    q[:30, 3:] /= np.linalg.norm(q[:30, 3:].reshape(30, -1, 4), axis=2).repeat(4, axis=1)
+    cases.append((other, q))
+    results = []
+    for model, q in cases:
+        ids = list(range(model.nframes))
+        joints = list(range(1, model.njoints))
+        if kernel_placements(model, q[:1], ids[:1], joints,
+                             kinematics._is_identity) is None:
+            pytest.skip("no C kernel (no compiler or IKFUSION_NO_COMPILE): NumPy runs")
+        results.append(frame_placements(model, q, ids))
+    monkeypatch.setattr(kinematics, "kernel_placements", lambda *args: None)
+    for (model, q), got in zip(cases, results):
+        expected = frame_placements(model, q, list(range(model.nframes)))
+        for a, b in zip(got, expected):
+            assert np.array_equal(a.view(np.uint64), b.view(np.uint64))
