@@ -64,7 +64,8 @@ def call_daqp(max_iterations: int, H: np.ndarray, c: np.ndarray, G: np.ndarray |
     """
     import daqp  # the default backend; imported here so that the others work without it
 
-    solved = least_distance_daqp(daqp, max_iterations, H, c, G, h, A, b, lb, ub, native)
+    solved = least_distance_daqp(daqp, max_iterations, H, c, G, h, A, b, lb, ub,
+                                 native=native)
     if solved is not None:
         COUNTS.solved += 1
         return solved

@@ -84,10 +84,12 @@ def test_a_hessian_that_is_not_positive_definite_goes_to_daqp_as_given(rng) -> N
 
 def _compared(differences: list[float],
               bindings: list[tuple[bool, bool]]) -> Callable[..., Any]:
-    """``least_distance_daqp`` that also solves each problem as given and records the largest
-    difference of the steps, and whether a row binds both ways."""
-    def solve(module: Any, iterations: int, *problem: np.ndarray | None) -> Any:
-        solved = least_distance_daqp(module, iterations, *problem)
+    """``least_distance_daqp`` (on the native tree factor when the solver passes it) that also
+    solves each problem as given and records the largest difference of the steps, and whether
+    a row binds both ways."""
+    def solve(module: Any, iterations: int, *problem: np.ndarray | None,
+              native: Any = None) -> Any:
+        solved = least_distance_daqp(module, iterations, *problem, native=native)
         expected, expected_binding = _as_given(*problem)
         assert solved is not None and expected is not None
         differences.append(float(np.abs(solved[0] - expected).max()))
