@@ -146,33 +146,41 @@ def least_distance_daqp(daqp: Any, max_iterations: int, H: np.ndarray, c: np.nda
     Mv = M @ v
     upper += Mv  # an absent bound stays at +-INFINITE (|M v| is far below its spacing)
     lower += Mv
-    sense = np.zeros(len(upper), dtype=np.intc)
-    sense[end_in:] = EQUALITY
-    u, _, exitflag, result = daqp.solve(identity(n), _zeros(n), M, upper, lower, sense,
-                                        iter_limit=max_iterations)
-    if exitflag <= 0:
+    solved = _distance_daqp(daqp, max_iterations, M, upper, lower, end_in)
+    if solved is None:
         return None
+    u, binding = solved
     x, info = (np.subtract(u, v), 0) if shared_identity else \
         dtrtrs(L, np.subtract(u, v), lower=1, trans=1)
     if info != 0 or not math.isfinite(sum_of(x)):
         return None
-    return x, any_true(result["lam"][:end_in])
+    return x, binding
 
 
 def _tree_least_distance(daqp: Any, max_iterations: int, tree: TreeClosedForm,
                          rows: tuple[np.ndarray, np.ndarray, np.ndarray],
                          n_in: int) -> tuple[np.ndarray, bool] | None:
     """:func:`least_distance_daqp` on the native tree factor's rows ``(M, upper, lower)``."""
-    M, upper, lower = rows
-    n = tree.n
+    solved = _distance_daqp(daqp, max_iterations, *rows, n_in)
+    x = None if solved is None else tree.least_distance_step(solved[0])
+    return None if x is None or solved is None else (x.copy(), solved[1])
+
+
+def _distance_daqp(daqp: Any, max_iterations: int, M: np.ndarray, upper: np.ndarray,
+                   lower: np.ndarray, end_in: int) -> tuple[np.ndarray, bool] | None:
+    """DAQP on ``min 1/2 |u|^2, lower <= M u <= upper`` (rows from ``end_in`` on equalities).
+
+    Returns ``u`` and whether a row before ``end_in`` binds (a non-zero multiplier), or None
+    when DAQP does not find the optimum.
+    """
+    n = M.shape[1]
     sense = np.zeros(len(upper), dtype=np.intc)
-    sense[n_in:] = EQUALITY
+    sense[end_in:] = EQUALITY
     u, _, exitflag, result = daqp.solve(identity(n), _zeros(n), M, upper, lower, sense,
                                         iter_limit=max_iterations)
     if exitflag <= 0:
         return None
-    x = tree.least_distance_step(u)
-    return None if x is None else (x.copy(), any_true(result["lam"][:n_in]))
+    return u, any_true(result["lam"][:end_in])
 
 
 @cache

@@ -16,23 +16,10 @@ import ikfusion.ik.qp_backends as backends
 from ikfusion.ik import Solver
 from ikfusion.ik.least_distance import least_distance_daqp
 from ikfusion.ik.qp import QpBuffer, QpProblem
-from ikfusion.ik.tree_solve import TreeClosedForm, ancestors, column_parents, tree_closed_form
+from ikfusion.ik.tree_solve import TreeClosedForm, ancestors, column_parents
 from ikfusion.model import SENSOR_SEGMENTS, HumanModel
 from ikfusion.sim.gait import GaitParameters, generate_gait
 from ikfusion.sim.truth import orientation_frames
-
-
-@pytest.fixture(scope="module")
-def model() -> HumanModel:
-    return HumanModel.default()
-
-
-@pytest.fixture(scope="module")
-def tree(model: HumanModel) -> TreeClosedForm:
-    made = tree_closed_form(model.model)
-    if made is None:
-        pytest.skip("no C compiler (or IKFUSION_NO_COMPILE): the kernel is not built")
-    return made
 
 
 def _problem(rng: np.random.Generator, model: HumanModel, tree: TreeClosedForm, m_in: int,
@@ -69,9 +56,9 @@ def _solved(p: QpProblem, native: Any) -> tuple[np.ndarray, bool]:
 
 @pytest.mark.parametrize(("m_in", "m_eq"), [(12, 6), (13, 3), (5, 0), (0, 4)])
 @pytest.mark.parametrize("seed", range(5))
-def test_the_step_and_its_binding_rows_are_lapacks_and_daqps(model, tree, seed: int, m_in: int,
+def test_the_step_and_its_binding_rows_are_lapacks_and_daqps(human, tree, seed: int, m_in: int,
                                                             m_eq: int) -> None:
-    p = _problem(np.random.default_rng(seed), model, tree, m_in, m_eq)
+    p = _problem(np.random.default_rng(seed), human, tree, m_in, m_eq)
     assert p.packed is not None
     assert tree.least_distance_rows(p.packed, m_in, m_eq) is not None  # the kernel's form
     x, binding = _solved(p, (tree, p.packed))
@@ -88,10 +75,10 @@ def test_the_step_and_its_binding_rows_are_lapacks_and_daqps(model, tree, seed: 
     assert np.all(p.G @ x <= p.h + 1e-9)
 
 
-def test_an_objective_off_the_tree_goes_to_lapack(model, tree) -> None:
-    p = _problem(np.random.default_rng(3), model, tree, 12, 6)
+def test_an_objective_off_the_tree_goes_to_lapack(human, tree) -> None:
+    p = _problem(np.random.default_rng(3), human, tree, 12, 6)
     assert p.packed is not None
-    chains = ancestors(column_parents(model.model))
+    chains = ancestors(column_parents(human.model))
     k = len(chains) - 1
     a = next(a for a in range(k) if a not in chains[k])  # another limb's column
     p.H[k, a] = p.H[a, k] = 1e-3
@@ -101,11 +88,11 @@ def test_an_objective_off_the_tree_goes_to_lapack(model, tree) -> None:
     assert np.array_equal(x, dense) and binding == dense_binding
 
 
-def test_the_solver_gives_the_lapack_factors_poses(model, tree, monkeypatch) -> None:
+def test_the_solver_gives_the_lapack_factors_poses(human, tree, monkeypatch) -> None:
     """The 17-sensor simulated walk with contacts: every DAQP step the solver hands the tree
     factor is LAPACK's to rounding, with the same binding rows, and the poses agree."""
-    truth = generate_gait(model, GaitParameters(duration=3.0, stand=1.0), rate=60.0)
-    frames = orientation_frames(model, truth.q, truth.time, SENSOR_SEGMENTS)
+    truth = generate_gait(human, GaitParameters(duration=3.0, stand=1.0), rate=60.0)
+    frames = orientation_frames(human, truth.q, truth.time, SENSOR_SEGMENTS)
     used, differences = [0], [0.0]
     original = least_distance.least_distance_daqp
 
@@ -121,11 +108,11 @@ def test_the_solver_gives_the_lapack_factors_poses(model, tree, monkeypatch) -> 
         return solved
 
     monkeypatch.setattr(backends, "least_distance_daqp", compared)
-    poses = Solver(model, backend="daqp", contacts=True).solve(frames).q
+    poses = Solver(human, backend="daqp", contacts=True).solve(frames).q
     assert used[0] >= 10, used[0]  # 19: the steps after a binding one
     assert differences[0] < 1e-11, differences[0]
     monkeypatch.setattr(backends, "least_distance_daqp", original)
-    solver = Solver(model, backend="daqp", contacts=True)
+    solver = Solver(human, backend="daqp", contacts=True)
     assert solver.compiled is not None
     solver.compiled.buffer.tree = None  # no native kernel at all: LAPACK throughout
     assert np.abs(poses - solver.solve(frames).q).max() < 1e-9
