@@ -17,6 +17,13 @@ whose Hessian is the identity, which DAQP detects and sets up in ``O(m n)``; the
 of ``M`` to unit length either way) with the same tolerances in the rows' own units, so it
 finds the same active set and the same step to rounding. The triangular solves are LAPACK's,
 one for all the rows.
+
+A step's packed QP without bounds (the solver's, :class:`.qp.QpBuffer`) takes ``L = U D^1/2``
+from the native tree factor ``H = U D U^T`` instead (:mod:`.tree_solve`: no fill, a few
+thousand operations where LAPACK's Cholesky and solves took about 35 of a call's 62 us on the
+real walk). Any two factors of ``H`` differ by an orthogonal matrix ``Q`` (``M`` becomes
+``M Q``, ``u`` becomes ``Q^T u``), which keeps the rows' lengths and angles and ``M v``: DAQP
+takes the same decisions and returns the same step to rounding.
 """
 
 from __future__ import annotations
@@ -24,12 +31,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cache
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.linalg.lapack import dpotrf, dtrtrs
 
 from .fast_math import any_true, sum_of
+
+if TYPE_CHECKING:
+    from .tree_solve import TreeClosedForm
 
 #: DAQP's infinity: a bound beyond it is absent.
 INFINITE = 1e30
@@ -80,7 +90,9 @@ def row_bounds(n_box: int, lb: np.ndarray | None, ub: np.ndarray | None, h: np.n
 def least_distance_daqp(daqp: Any, max_iterations: int, H: np.ndarray, c: np.ndarray,
                         G: np.ndarray | None, h: np.ndarray | None, A: np.ndarray | None,
                         b: np.ndarray | None, lb: np.ndarray | None,
-                        ub: np.ndarray | None) -> tuple[np.ndarray, bool] | None:
+                        ub: np.ndarray | None,
+                        native: tuple[TreeClosedForm, np.ndarray] | None = None
+                        ) -> tuple[np.ndarray, bool] | None:
     """The QP's step by DAQP in the least-distance form (module docstring).
 
     Args:
@@ -95,6 +107,9 @@ def least_distance_daqp(daqp: Any, max_iterations: int, H: np.ndarray, c: np.nda
         b: (m_eq,) their values, or None.
         lb: (n,) lower bounds on ``x``, or None.
         ub: (n,) upper bounds on ``x``, or None.
+        native: The native tree factor and the packed problem these arrays are views of
+            (:meth:`.tree_solve.TreeClosedForm.least_distance_rows`, used without bounds), or
+            None: LAPACK's factor.
 
     Returns:
         The step (n,) and whether an inequality row or a bound binds at it (a non-zero
@@ -103,6 +118,11 @@ def least_distance_daqp(daqp: Any, max_iterations: int, H: np.ndarray, c: np.nda
     """
     n = len(c)
     shared_identity = H is identity(n)  # L = I: no factorisation, no triangular solves
+    if native is not None and not shared_identity and lb is None and ub is None:
+        n_in, n_eq = (0 if h is None else len(h)), (0 if b is None else len(b))
+        rows = native[0].least_distance_rows(native[1], n_in, n_eq)
+        if rows is not None:  # else H is off the tree's pattern (or not positive definite)
+            return _tree_least_distance(daqp, max_iterations, native[0], rows, n_in)
     L, info = (H, 0) if shared_identity else dpotrf(H, lower=1, clean=0)  # lower triangle read
     if info != 0:
         return None
@@ -126,17 +146,41 @@ def least_distance_daqp(daqp: Any, max_iterations: int, H: np.ndarray, c: np.nda
     Mv = M @ v
     upper += Mv  # an absent bound stays at +-INFINITE (|M v| is far below its spacing)
     lower += Mv
+    solved = _distance_daqp(daqp, max_iterations, M, upper, lower, end_in)
+    if solved is None:
+        return None
+    u, binding = solved
+    x, info = (np.subtract(u, v), 0) if shared_identity else \
+        dtrtrs(L, np.subtract(u, v), lower=1, trans=1)
+    if info != 0 or not math.isfinite(sum_of(x)):
+        return None
+    return x, binding
+
+
+def _tree_least_distance(daqp: Any, max_iterations: int, tree: TreeClosedForm,
+                         rows: tuple[np.ndarray, np.ndarray, np.ndarray],
+                         n_in: int) -> tuple[np.ndarray, bool] | None:
+    """:func:`least_distance_daqp` on the native tree factor's rows ``(M, upper, lower)``."""
+    solved = _distance_daqp(daqp, max_iterations, *rows, n_in)
+    x = None if solved is None else tree.least_distance_step(solved[0])
+    return None if x is None or solved is None else (x.copy(), solved[1])
+
+
+def _distance_daqp(daqp: Any, max_iterations: int, M: np.ndarray, upper: np.ndarray,
+                   lower: np.ndarray, end_in: int) -> tuple[np.ndarray, bool] | None:
+    """DAQP on ``min 1/2 |u|^2, lower <= M u <= upper`` (rows from ``end_in`` on equalities).
+
+    Returns ``u`` and whether a row before ``end_in`` binds (a non-zero multiplier), or None
+    when DAQP does not find the optimum.
+    """
+    n = M.shape[1]
     sense = np.zeros(len(upper), dtype=np.intc)
     sense[end_in:] = EQUALITY
     u, _, exitflag, result = daqp.solve(identity(n), _zeros(n), M, upper, lower, sense,
                                         iter_limit=max_iterations)
     if exitflag <= 0:
         return None
-    x, info = (np.subtract(u, v), 0) if shared_identity else \
-        dtrtrs(L, np.subtract(u, v), lower=1, trans=1)
-    if info != 0 or not math.isfinite(sum_of(x)):
-        return None
-    return x, any_true(result["lam"][:end_in])
+    return u, any_true(result["lam"][:end_in])
 
 
 @cache

@@ -193,7 +193,8 @@ def _stacked_rows(M: np.ndarray, v: np.ndarray,
 def _call(backend: str, settings: QpSettings, H: np.ndarray, c: np.ndarray,
           G: np.ndarray | None, h: np.ndarray | None, A: np.ndarray | None,
           b: np.ndarray | None, lb: np.ndarray | None, ub: np.ndarray | None,
-          hint: ClosedFormHint | None = None, closed_form: bool = True) -> np.ndarray | None:
+          hint: ClosedFormHint | None = None, closed_form: bool = True,
+          native: tuple[TreeClosedForm, np.ndarray] | None = None) -> np.ndarray | None:
     """The step by ``backend``; DAQP: closed form first unless ``hint``/``closed_form`` skip."""
     if not installed(backend):
         raise SolverError(
@@ -205,7 +206,7 @@ def _call(backend: str, settings: QpSettings, H: np.ndarray, c: np.ndarray,
             x = equality_optimum(H, c, A, b)
             if x is not None and satisfies(x, G, h, lb, ub):
                 return x
-        x, binding = call_daqp(settings.max_iterations, H, c, G, h, A, b, lb, ub)
+        x, binding = call_daqp(settings.max_iterations, H, c, G, h, A, b, lb, ub, native)
         if hint is not None:
             hint.skip = binding
         return x
@@ -215,9 +216,7 @@ def _call(backend: str, settings: QpSettings, H: np.ndarray, c: np.ndarray,
                                **solver_options(backend, settings))
     except (ValueError, qpsolvers.QPError):
         return None
-    if x is None or not np.all(np.isfinite(x)):
-        return None
-    return np.asarray(x)
+    return None if x is None or not np.all(np.isfinite(x)) else np.asarray(x)
 
 
 #: Backends that solve these small dense QPs exactly (OSQP is approximate at its defaults).
@@ -254,7 +253,8 @@ def solve_unrelaxed(problem: QpProblem, backend: str, settings: QpSettings,
     h = p.h if len(p.h) else None
     A = p.A if len(p.b) else None
     b = p.b if len(p.b) else None
-    x = _call(backend, settings, p.H, p.c, G, h, A, b, p.lb, p.ub, hint, closed_form)
+    x = _call(backend, settings, p.H, p.c, G, h, A, b, p.lb, p.ub, hint, closed_form,
+              None if p.tree is None or p.packed is None else (p.tree, p.packed))
     if x is not None:
         return QpSolution(x)
     # A numerical failure on a degenerate but feasible step (a limit active exactly where a

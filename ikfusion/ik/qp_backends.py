@@ -14,6 +14,7 @@ from .least_distance import COUNTS, EQUALITY, least_distance_daqp, row_bounds
 
 if TYPE_CHECKING:
     from .qp import QpSettings
+    from .tree_solve import TreeClosedForm
 
 
 def solver_options(backend: str, settings: QpSettings) -> dict[str, Any]:
@@ -47,11 +48,14 @@ def qpsolvers_module() -> Any:
 
 def call_daqp(max_iterations: int, H: np.ndarray, c: np.ndarray, G: np.ndarray | None,
               h: np.ndarray | None, A: np.ndarray | None, b: np.ndarray | None,
-              lb: np.ndarray | None, ub: np.ndarray | None) -> tuple[np.ndarray | None, bool]:
+              lb: np.ndarray | None, ub: np.ndarray | None,
+              native: tuple[TreeClosedForm, np.ndarray] | None = None
+              ) -> tuple[np.ndarray | None, bool]:
     """DAQP called directly (the same problem qpsolvers would pass, without its checks).
 
     The problem goes to DAQP in the least-distance form on our own factorisation of ``H``
-    (:mod:`.least_distance`, the same step in a fraction of DAQP's set-up), and as it is when
+    (:mod:`.least_distance`, the same step in a fraction of DAQP's set-up; ``native``: the
+    tree factor and the packed problem, when the arrays are its views), and as it is when
     that form fails (counted in :data:`.least_distance.COUNTS`).
 
     Returns:
@@ -60,7 +64,8 @@ def call_daqp(max_iterations: int, H: np.ndarray, c: np.ndarray, G: np.ndarray |
     """
     import daqp  # the default backend; imported here so that the others work without it
 
-    solved = least_distance_daqp(daqp, max_iterations, H, c, G, h, A, b, lb, ub)
+    solved = least_distance_daqp(daqp, max_iterations, H, c, G, h, A, b, lb, ub,
+                                 native=native)
     if solved is not None:
         COUNTS.solved += 1
         return solved

@@ -319,3 +319,55 @@ int ik_active_step(const struct plan *p, const struct active *a, int m_in, int m
     }
     return 0;
 }
+
+
+/* The least-distance form of the packed QP (ikfusion.ik.least_distance) on the tree factor:
+ * H = L L^T with L = U D^1/2, u = L^T x + v, v = L^-1 c; the rows C = [G; A] become
+ * M = C L^-T (m_in + m_eq rows of n, into M) with bounds upper = [h; b] + M v and
+ * lower = [-1e30; b] + M v. v is left in x and D^1/2 in work (for ik_least_distance_step).
+ * Returns 0, or 2 (H not positive definite) or 3 (H off the tree pattern): nothing usable. */
+static void scaled_solve(const struct plan *p, const double *root, double *z)
+{   /* z <- D^-1/2 U^-1 z */
+    upper_solve(p->n, p->ptr, p->anc, p->work, z);
+    for (int k = 0; k < p->n; ++k) z[k] /= root[k];
+}
+
+int ik_least_distance(const struct plan *p, int m_in, int m_eq, const double *packed,
+                      double *M, double *upper, double *lower)
+{
+    const int n = p->n, m = m_in + m_eq;
+    const double *H = packed, *c = H + (long)n * n, *G = c + n, *h = G + (long)m_in * n;
+    const double *A = h + m_in, *b = A + (long)m_eq * n;
+    double *x = p->x, *F = p->work, *D = F + p->ptr[n], *root = D + n;
+    for (int i = 0; i < p->n_off; ++i)
+        if (H[p->off[i]] != 0.0) return 3;
+    if (!factor(n, p->ptr, p->anc, H, F, D, root)) return 2;
+    for (int k = 0; k < n; ++k) root[k] = sqrt(D[k]);
+    memcpy(x, c, sizeof(double) * (size_t)n);
+    scaled_solve(p, root, x);                            /* v */
+    memcpy(M, G, sizeof(double) * (size_t)m_in * (size_t)n);
+    memcpy(M + (long)m_in * n, A, sizeof(double) * (size_t)m_eq * (size_t)n);
+    for (int i = 0; i < m; ++i) {
+        scaled_solve(p, root, M + (long)i * n);
+        upper[i] = 0.0;
+    }
+    dots(x, M, n, m, upper);                             /* M v */
+    for (int i = 0; i < m; ++i) {
+        const double mv = upper[i];
+        upper[i] = (i < m_in ? h[i] : b[i - m_in]) + mv;
+        lower[i] = (i < m_in ? -1e30 : b[i - m_in]) + mv;
+    }
+    return 0;
+}
+
+/* The step x = L^-T (u - v) = U^-T D^-1/2 (u - v) from DAQP's u after ik_least_distance (v in
+ * x): 0, or 2 when it is not finite. */
+int ik_least_distance_step(const struct plan *p, const double *u)
+{
+    const int n = p->n;
+    double *x = p->x, *F = p->work, *root = F + p->ptr[n] + n, total = 0.0;
+    for (int k = 0; k < n; ++k) x[k] = (u[k] - x[k]) / root[k];
+    upper_transpose_solve(n, p->ptr, p->anc, F, x);
+    for (int k = 0; k < n; ++k) total += x[k];
+    return isfinite(total) ? 0 : 2;
+}

@@ -113,6 +113,16 @@ class TreeClosedForm:
         self._active = _Active(None, None, self._bounds.ctypes.data, None, None, 0.0, 0, 0)
         self._active_at = ctypes.addressof(self._active)
         self._G: np.ndarray | None = None  # the range rows' G the kernel reads (kept alive)
+        self._distance = library.ik_least_distance
+        self._distance.restype = ctypes.c_int
+        self._distance.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_int, ctypes.c_void_p,
+                                   ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
+        self._distance_step = library.ik_least_distance_step
+        self._distance_step.restype = ctypes.c_int
+        self._distance_step.argtypes = [ctypes.c_void_p, ctypes.c_void_p]
+        # (m_in, m_eq) -> (M, upper, lower) for least_distance_rows and their addresses
+        self._distance_rows: dict[tuple[int, int], tuple[tuple[np.ndarray, ...],
+                                                         tuple[int, ...]]] = {}
 
     def solve(self, packed: np.ndarray, m_in: int, m_eq: int) -> int:
         """The closed-form step of the packed QP ``packed`` into :attr:`x`; the kernel's answer.
@@ -184,6 +194,38 @@ class TreeClosedForm:
         active.tolerance = tolerance
         return int(self._step(self._plan_at, self._active_at, m_in, m_eq,
                               self._packed_at(packed, m_in, m_eq)))
+
+    def least_distance_rows(self, packed: np.ndarray, m_in: int, m_eq: int
+                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The packed QP's rows in the least-distance form on the tree factor, or None.
+
+        :mod:`.least_distance`'s transform with ``L = U D^1/2`` (``H = L L^T``) instead of
+        LAPACK's Cholesky factor: ``M = [G; A] L^-T`` and its bounds ``upper = [h; b] + M v``,
+        ``lower = [-1e30; b] + M v`` with ``v = L^-1 c``, in buffers kept for this size
+        (overwritten by the next call; DAQP may scale ``M``'s rows). The two factors differ by
+        an orthogonal matrix, which leaves the rows' lengths and angles, so DAQP's iterations
+        and step, as they are, to rounding. None when ``H`` is off the tree's pattern or not
+        positive definite. :meth:`least_distance_step` turns DAQP's ``u`` into the step.
+        """
+        buffers = self._distance_rows.get((m_in, m_eq))
+        if buffers is None:
+            m = m_in + m_eq
+            arrays = (np.zeros((m, self.n)), np.zeros(m), np.zeros(m))
+            buffers = self._distance_rows[m_in, m_eq] = (
+                arrays, tuple(a.ctypes.data for a in arrays))
+        (M, upper, lower), (M_at, upper_at, lower_at) = buffers
+        answer = self._distance(self._plan_at, m_in, m_eq, self._packed_at(packed, m_in, m_eq),
+                                M_at, upper_at, lower_at)
+        return (M, upper, lower) if answer == 0 else None
+
+    def least_distance_step(self, u: np.ndarray) -> np.ndarray | None:
+        """The step ``x = L^-T (u - v)`` (into :attr:`x`) from DAQP's ``u`` (n,).
+
+        After :meth:`least_distance_rows`; None when the step is not finite.
+        """
+        if u.dtype != np.float64 or not u.flags.c_contiguous or u.shape != (self.n,):
+            u = np.ascontiguousarray(u, dtype=np.float64).reshape(self.n)
+        return self.x if self._distance_step(self._plan_at, u.ctypes.data) == 0 else None
 
     def _packed_at(self, packed: np.ndarray, m_in: int, m_eq: int) -> int:
         """The address of the packed QP ``packed`` (checked and kept on first sight).

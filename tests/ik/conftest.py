@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from ikfusion.ik.native_build import find_compiler
+from ikfusion.ik.tree_solve import TreeClosedForm, tree_closed_form
 from ikfusion.mocap.model_motion import TruthMotion
 from ikfusion.model import HumanModel
 from ikfusion.sim.capture import motion_from_bvh
@@ -19,6 +20,15 @@ CARTWHEELS = (Path(__file__).resolve().parents[2] / "benchmarks" / "motions"
 @pytest.fixture(scope="session")
 def human() -> HumanModel:
     return HumanModel.default()
+
+
+@pytest.fixture(scope="session")
+def tree(human: HumanModel) -> TreeClosedForm:
+    """The native closed-form kernel of the default model (skipped without one)."""
+    made = tree_closed_form(human.model)
+    if made is None:
+        pytest.skip("no C compiler (or IKFUSION_NO_COMPILE): the kernel is not built")
+    return made
 
 
 @pytest.fixture(scope="session")

@@ -23,7 +23,6 @@ from ikfusion.ik.tree_solve import (
     NOT_TREE,
     SOLVED,
     TreeClosedForm,
-    tree_closed_form,
 )
 from ikfusion.model import SENSOR_SEGMENTS, HumanModel
 from ikfusion.sim.gait import GaitParameters, generate_gait
@@ -37,14 +36,6 @@ TOLERANCE = 1e-4
 @pytest.fixture(scope="module")
 def model() -> HumanModel:
     return HumanModel.default()
-
-
-@pytest.fixture(scope="module")
-def tree(model: HumanModel) -> TreeClosedForm:
-    made = tree_closed_form(model.model)
-    if made is None:
-        pytest.skip("no C compiler (or IKFUSION_NO_COMPILE): the kernel is not built")
-    return made
 
 
 def _python_loop(*args: object) -> object:

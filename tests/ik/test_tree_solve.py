@@ -22,7 +22,6 @@ from ikfusion.ik.tree_solve import (
     SOLVED,
     ancestors,
     column_parents,
-    tree_closed_form,
 )
 from ikfusion.model import SENSOR_SEGMENTS, HumanModel
 from ikfusion.sim.gait import GaitParameters, generate_gait
@@ -34,14 +33,6 @@ SOURCE = Path(tree_solve.__file__).with_name("tree_solve.c")
 @pytest.fixture(scope="module")
 def model() -> HumanModel:
     return HumanModel.default()
-
-
-@pytest.fixture(scope="module")
-def tree(model: HumanModel) -> tree_solve.TreeClosedForm:
-    made = tree_closed_form(model.model)
-    if made is None:
-        pytest.skip("no C compiler (or IKFUSION_NO_COMPILE): the kernel is not built")
-    return made
 
 
 def _related(model: HumanModel) -> np.ndarray:
