@@ -95,7 +95,7 @@ def _library(key: str, names: Sequence[str], functions: Sequence[ca.Function] = 
             compile_shared(compiler, source, output)
 
     return native_build.NativeLibrary(
-        what="step function", fallback=FALLBACK,
+        what="solver's step function", fallback=FALLBACK,
         path=lambda folder, compiler: library_path(folder, key, compiler), build=build,
         load=lambda copy: _load(copy, names))
 

@@ -14,6 +14,7 @@ and the loader (:class:`NativeLibrary`).
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import shutil
@@ -37,7 +38,7 @@ class NativeLibrary(Generic[Loaded]):
     """What one native library is and how it is built and loaded.
 
     Attributes:
-        what: Its name in messages ("step function": "compiling the solver's step function").
+        what: Its name in messages ("solver's step function": "compiling the solver's step function").
         fallback: What is used when its build fails (the end of the warning).
         path: ``(cache folder, compiler) -> the library's path``; the name holds the build key.
         build: ``(compiler, output path) -> None``: writes the library (raises when it fails).
@@ -61,15 +62,27 @@ def find_compiler() -> str | None:
     return shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
 
 
+#: The options of every build: -O2 evaluates about a fifth faster than -O1 with the same
+#: numbers (no fast-math: IEEE arithmetic) for a few more seconds of the one-time build (-O3
+#: doubles it for nothing more); no product and sum fused into one multiply-add (GCC fuses by
+#: default where the target has the instruction, e.g. ARM64), so the kernels that repeat NumPy's
+#: operations round as NumPy does on every machine.
+OPTIONS = ("-O2", "-ffp-contract=off")
+
+
+@functools.cache
 def compiler_identity(compiler: str) -> str:
-    """The compiler's resolved path and the first line of its ``--version``."""
+    """The compiler's resolved path, the first line of its ``--version`` and :data:`OPTIONS`.
+
+    What a cached library was built with (part of its cache key); asked once a process.
+    """
     try:
         done = subprocess.run([compiler, "--version"], capture_output=True, text=True,
                               timeout=30, check=False)
         version = (done.stdout or done.stderr).strip().splitlines()[:1]
     except (OSError, subprocess.SubprocessError):
         version = []
-    return f"{os.path.realpath(compiler)} {' '.join(version)}"
+    return f"{os.path.realpath(compiler)} {' '.join(version)} {' '.join(OPTIONS)}"
 
 
 #: Lets the compiler inline a library's calls to its own functions (CasADi's ``casadi_sq``,
@@ -82,9 +95,7 @@ INLINE_OWN_CALLS = "-fno-semantic-interposition"
 
 def compile_shared(compiler: str, source: Path, output: Path) -> None:
     """Compile the C file ``source`` to the shared library ``output`` (raises on failure)."""
-    # -O2: evaluates about a fifth faster than -O1 with the same numbers (no fast-math: IEEE
-    # arithmetic), for a few more seconds of the one-time build (-O3 doubles it for nothing more)
-    command = [compiler, "-O2", "-shared", "-fPIC", str(source), "-o", str(output), "-lm"]
+    command = [compiler, *OPTIONS, "-shared", "-fPIC", str(source), "-o", str(output), "-lm"]
     try:
         subprocess.run([*command, INLINE_OWN_CALLS], check=True, capture_output=True,
                        timeout=600)
@@ -130,7 +141,7 @@ def native_library(spec: NativeLibrary[Loaded]) -> tuple[Loaded | None, str | No
         loaded = _load_verified(spec, library)
         if loaded is not None:
             return loaded, None
-        print(f"ikfusion: compiling the solver's {spec.what} once ({compiler}, cached in "
+        print(f"ikfusion: compiling the {spec.what} once ({compiler}, cached in "
               f"{folder}) ...", file=sys.stderr, flush=True)
         folder.mkdir(mode=0o700, parents=True, exist_ok=True)
         with atomic_path(library) as built:
@@ -142,7 +153,7 @@ def native_library(spec: NativeLibrary[Loaded]) -> tuple[Loaded | None, str | No
             raise RuntimeError("the library just built does not match its own record")
         return loaded, None
     except (OSError, subprocess.SubprocessError, RuntimeError) as err:
-        warning = (f"compiling the solver's {spec.what} failed ({_failure_reason(err)}); "
+        warning = (f"compiling the {spec.what} failed ({_failure_reason(err)}); "
                    f"{spec.fallback}")
         print(f"ikfusion: warning: {warning}", file=sys.stderr, flush=True)
         return None, warning

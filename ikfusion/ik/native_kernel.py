@@ -53,7 +53,7 @@ def native_kernel(source: Path, fallback: str = FALLBACK) -> tuple[ctypes.CDLL |
         ``IKFUSION_NO_COMPILE`` (no warning), or when the build failed (with a warning).
     """
     return native_build.native_library(native_build.NativeLibrary(
-        what=f"{source.stem} kernel", fallback=fallback,
+        what=f"native {source.stem} kernel", fallback=fallback,
         path=lambda folder, compiler: kernel_path(source, folder, compiler),
         build=lambda compiler, output: compile_shared(compiler, source, output),
         load=lambda copy: ctypes.CDLL(str(copy))))
