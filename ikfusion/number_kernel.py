@@ -6,7 +6,7 @@ digits once, straight into the text. It receives the same rounded integers (``|v
 exact below 2**52, checked by :mod:`ikfusion.number_text` to round as ``%`` does) and the
 values' sign bits, and only splits integers into digits: the text is the NumPy path's, byte for
 byte. The kernel is compiled once with the machine's C compiler and cached
-(:func:`ikfusion.native_functions.c_function`); without it (no compiler,
+(:func:`ikfusion.native.kernel.c_function`); without it (no compiler,
 ``IKFUSION_NO_COMPILE``) NumPy writes the digits.
 """
 
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .native_functions import c_function
+from .native.kernel import c_function
 
 #: What is used when the kernel cannot be compiled (the end of the build warning).
 FALLBACK = "NumPy writes the numbers of the result files instead"

@@ -4,7 +4,7 @@
 one is further than the tolerance from its anchor, takes a minimum-norm step on the contact
 rows: a dozen NumPy and Pinocchio calls per step, on every frame. :class:`NativeProjection`
 does that loop in one call of a small C kernel (compiled once and cached like
-:mod:`.tree_solve`, :func:`.native_kernel.loaded_kernel`) that evaluates the compiled points
+:mod:`.tree_solve`, :func:`ikfusion.native.kernel.loaded_kernel`) that evaluates the compiled points
 function itself (through its pointer in the verified library, :func:`.native.compiled_library`)
 and integrates as Pinocchio does for a free flyer and spherical joints. The same tests
 (bit for bit: the same operations on the same positions), the steps to round-off (the sums of
@@ -21,10 +21,10 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from ..native.kernel import loaded_kernel
 from .configuration import Configuration
 from .limits import ContactConstraint, FloorLimit
 from .native import compiled_library
-from .native_kernel import loaded_kernel
 from .points_configuration import PointsConfiguration
 
 _P = ctypes.c_void_p

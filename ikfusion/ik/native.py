@@ -5,8 +5,8 @@ to a shared library cached under ``$IKFUSION_CACHE`` (default ``~/.cache/ikfusio
 virtual machine is the fallback (and the choice when ``IKFUSION_NO_COMPILE`` is set). The
 library's name holds a hash of the generating source (:func:`generator_fingerprint`), the CasADi
 version and the compiler's identity; its content hash is recorded beside it when it is built and
-checked before every load (a mismatch is rebuilt, never loaded): :mod:`.native_build` does the
-build, the record and the check; this module says what to generate and how to load it.
+checked before every load (a mismatch is rebuilt, never loaded): :mod:`ikfusion.native.build`
+does the build, the record and the check; this module says what to generate and how to load it.
 
 :class:`.bound_function.BoundFunction` evaluates a function on preallocated NumPy buffers.
 """
@@ -25,12 +25,12 @@ import casadi as ca
 
 from .. import rotations as numpy_rotations
 from .. import rotations_casadi
-from . import native_build
+from ..native import build as native_build
+from ..native.build import cache_dir as cache_dir  # re-exported (tree_solve, tests)
+from ..native.build import compile_shared, compiler_identity
+from ..native.build import find_compiler as find_compiler
 from .bound_function import BoundFunction as BoundFunction  # re-exported (retarget uses them)
 from .bound_function import column_major as column_major
-from .native_build import cache_dir as cache_dir  # re-exported (tree_solve, tests)
-from .native_build import compile_shared, compiler_identity
-from .native_build import find_compiler as find_compiler
 
 #: What is used when the step functions cannot be compiled (the end of the warning).
 FALLBACK = "CasADi's virtual machine is used instead, several times slower"
@@ -47,7 +47,7 @@ def generator_fingerprint() -> str:
 
     That is :mod:`.compiled`, :mod:`.compiled_sensed`, :mod:`.compiled_points`,
     :mod:`.casadi_kinematics`, :mod:`.compiled_ranges`, :mod:`.compiled_joint_tasks` and
-    :mod:`.compiled_blocks` (the expressions), this module and :mod:`.native_build` (the
+    :mod:`.compiled_blocks` (the expressions), this module and :mod:`ikfusion.native.build` (the
     build), the CasADi rotation twin and the NumPy module holding their shared epsilon policy.
     """
     from . import (  # imported late: no cycle
@@ -136,7 +136,7 @@ def native_functions(functions: Sequence[ca.Function], key: str
     A library is loaded only when its content hash equals the one recorded when it was built
     (``<library>.sha256``); otherwise it is rebuilt. The first build says so on stderr (one
     line); a failed build says so too and is returned as a warning
-    (:func:`.native_build.native_library`).
+    (:func:`ikfusion.native.build.native_library`).
 
     Args:
         functions: CasADi functions to compile together.

@@ -5,7 +5,7 @@ packed QP (:class:`.qp.QpBuffer`) with a few dozen NumPy calls: the ranges' room
 the rows near a limit, ``H`` and ``c``, the site targets', the root's and the swing feet's
 position rows, the damping term, the Levenberg-Marquardt diagonal, the floor and the contact rows.
 :class:`StepRows` does the same in one call of a small C kernel (compiled once and cached like
-:mod:`.tree_solve`, :func:`.native_kernel.native_kernel`) for the common steps: contact rows
+:mod:`.tree_solve`, :func:`ikfusion.native.kernel.native_kernel`) for the common steps: contact rows
 along the world axes, position targets of scalar weights without a reach, no column-shape target
 and no persistence on the root's columns. The same numbers but for the summation order of the
 position rows' ``J^T W J`` (round-off); every other step, and every step without a C compiler
@@ -21,11 +21,11 @@ from typing import TYPE_CHECKING
 import casadi as ca
 import numpy as np
 
+from ..native.kernel import ArrayAddresses, loaded_kernel
 from .bound_function import BoundFunction
 from .compiled import MIRRORED, CompiledKinematics
 from .limits.base import Inequality
 from .limits.joint_range import LinearisedRanges
-from .native_kernel import ArrayAddresses, loaded_kernel
 from .qp import QpBuffer, QpProblem
 from .tasks.base import Task
 from .tasks.position import PositionTask

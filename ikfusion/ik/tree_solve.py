@@ -6,7 +6,7 @@ posture, chain and damping terms on a joint and its neighbours): factored leaves
 ``H = U D U^T`` with ``U``'s column ``k`` on ``k``'s ancestors only, nothing fills in, and the
 factorisation costs a few thousand operations instead of a dense Cholesky's ``nv^3 / 6``. The
 kernel (``tree_solve.c``, compiled once like the step function,
-:func:`.native_kernel.native_kernel`) reads the step's packed QP (:class:`.qp.QpBuffer`) in
+:func:`ikfusion.native.kernel.native_kernel`) reads the step's packed QP (:class:`.qp.QpBuffer`) in
 place and returns the minimiser on the equality rows with whether it satisfies the inequality
 rows: one call where the NumPy path makes a dozen. An ``H`` with a nonzero outside the tree's
 pattern is refused (the caller falls back to LAPACK), so the answer never depends on the tasks
@@ -22,8 +22,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
+from ..native.kernel import ArrayAddresses, loaded_kernel
 from .equality_qp import DEPENDENT_ROWS
-from .native_kernel import ArrayAddresses, loaded_kernel
 
 if TYPE_CHECKING:
     from .limits.joint_range import LinearisedRanges
@@ -52,6 +52,9 @@ def ancestors(parents: np.ndarray) -> list[list[int]]:
         chains.append([] if p < 0 else [int(p), *chains[p]])
     return chains
 
+
+#: What is used when the kernel cannot be compiled (the end of the warning).
+FALLBACK = "LAPACK solves the closed-form steps instead"
 
 class _Plan(ctypes.Structure):
     """What the kernel keeps from call to call (``struct plan`` of ``tree_solve.c``)."""
@@ -246,7 +249,7 @@ def tree_closed_form(model: pin.Model) -> TreeClosedForm | None:
     """The native closed-form step of ``model``, or None without the kernel.
 
     None without a C compiler, with ``IKFUSION_NO_COMPILE``, or after a failed build
-    (:func:`.native_kernel.kernel_warnings` says why): LAPACK solves the closed form then.
+    (:func:`ikfusion.native.kernel.kernel_warnings` says why): LAPACK solves the closed form then.
     """
-    library = loaded_kernel(Path(__file__).with_name("tree_solve.c"))
+    library = loaded_kernel(Path(__file__).with_name("tree_solve.c"), FALLBACK)
     return None if library is None else TreeClosedForm(library, column_parents(model))

@@ -3,7 +3,7 @@
 :meth:`.limits.soft_wall.SoftWall.update` asks every frame how far each anatomical angle would
 sink past its limits and whether any reaches one (most frames none does). With NumPy that is
 eight calls on arrays of a few dozen numbers; the kernel (compiled once like the step function,
-:func:`.native_kernel.loaded_kernel`) makes the same operations in the same order, so the
+:func:`ikfusion.native.kernel.loaded_kernel`) makes the same operations in the same order, so the
 numbers are the same bit for bit. Without a C compiler (or with ``IKFUSION_NO_COMPILE``) the
 caller keeps its NumPy path.
 """
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .native_kernel import loaded_kernel
+from ..native.kernel import loaded_kernel
 
 #: What is used when the kernel cannot be compiled (the end of the warning).
 FALLBACK = "NumPy computes the soft wall's sink instead"

@@ -3,7 +3,7 @@
 The NumPy path spends about thirty array passes per joint (a vectorised guess, then a check
 against the frame-by-frame rule); the C kernel (``angle_continuity.c``) runs the rule itself,
 frame by frame, with the same floating-point operations in the same order: the same numbers.
-Compiled once and cached (:func:`ikfusion.native_functions.c_function`); without it (no
+Compiled once and cached (:func:`ikfusion.native.kernel.c_function`); without it (no
 compiler, ``IKFUSION_NO_COMPILE``) the NumPy path runs.
 """
 
@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..native_functions import c_function
+from ..native.kernel import c_function
 
 #: What is used when the kernel cannot be compiled (the end of the build warning).
 FALLBACK = "NumPy makes joint angle series continuous instead"

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from ..native_functions import c_function
+from ..native.kernel import c_function
 
 #: What is used when the kernel cannot be compiled (the end of the build warning).
 FALLBACK = "NumPy computes the segment and site poses of the result files instead"

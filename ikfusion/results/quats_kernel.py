@@ -2,7 +2,7 @@
 
 NumPy's formulas (``_quat_wxyz_at_once``) in C (``segment_quats.c``), the same operations in
 the same order: the same numbers, in one pass instead of some forty array operations. Compiled
-once and cached (:func:`ikfusion.native_functions.c_function`); without it (no compiler,
+once and cached (:func:`ikfusion.native.kernel.c_function`); without it (no compiler,
 ``IKFUSION_NO_COMPILE``) or for matrices holding NaN or infinities, NumPy converts.
 """
 
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..native_functions import c_function
+from ..native.kernel import c_function
 
 #: What is used when the kernel cannot be compiled (the end of the build warning).
 FALLBACK = "NumPy converts the segment rotations of the result files instead"

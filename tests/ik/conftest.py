@@ -7,10 +7,10 @@ from pathlib import Path
 
 import pytest
 
-from ikfusion.ik.native_build import find_compiler
 from ikfusion.ik.tree_solve import TreeClosedForm, tree_closed_form
 from ikfusion.mocap.model_motion import TruthMotion
 from ikfusion.model import HumanModel
+from ikfusion.native.build import find_compiler
 from ikfusion.sim.capture import motion_from_bvh
 
 CARTWHEELS = (Path(__file__).resolve().parents[2] / "benchmarks" / "motions"

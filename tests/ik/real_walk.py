@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from ikfusion.cli import main
-from ikfusion.ik.native_build import usable_compiler
+from ikfusion.native.build import usable_compiler
 
 
 def solve_real_walk_natively(out: Path) -> None:

@@ -411,7 +411,7 @@ def test_the_cache_key_changes_when_the_generating_source_changes(
 
 @pytest.mark.parametrize("module", ["rotations_casadi", "rotations", "ik.compiled",
                                     "ik.casadi_kinematics", "ik.native",
-                                    "ik.native_build"])
+                                    "native.build"])
 def test_the_cache_key_covers_the_rotation_modules(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, module: str) -> None:
     """The step's expressions live in these modules (SO(3) maps, the kinematics graph, the

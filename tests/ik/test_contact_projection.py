@@ -20,9 +20,9 @@ from ikfusion.ik import Frame, Solver
 from ikfusion.ik import projection as projection_module
 from ikfusion.ik import solver as solver_module
 from ikfusion.ik.contact_projection import TO_QP, ball_joints, native_projection
-from ikfusion.ik.native_build import usable_compiler
-from ikfusion.ik.native_kernel import loaded_kernel
 from ikfusion.model import SENSOR_SEGMENTS, HumanModel
+from ikfusion.native.build import usable_compiler
+from ikfusion.native.kernel import loaded_kernel
 from ikfusion.rotations import random_rotations
 from ikfusion.sim.gait import GaitParameters, generate_gait
 from ikfusion.sim.truth import orientation_frames

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from ikfusion.ik.native_build import INLINE_OWN_CALLS, compile_shared, find_compiler
+from ikfusion.native.build import INLINE_OWN_CALLS, compile_shared, find_compiler
 
 SOURCE = """
 double square(double x) { return x * x; }

@@ -13,7 +13,6 @@ import pytest
 
 import ikfusion.ik.tree_solve as tree_solve
 from ikfusion.ik import Solver
-from ikfusion.ik.native_kernel import kernel_path, native_kernel
 from ikfusion.ik.qp import QpBuffer
 from ikfusion.ik.tree_solve import (
     CROSSES,
@@ -24,6 +23,7 @@ from ikfusion.ik.tree_solve import (
     column_parents,
 )
 from ikfusion.model import SENSOR_SEGMENTS, HumanModel
+from ikfusion.native.kernel import kernel_path, native_kernel
 from ikfusion.sim.gait import GaitParameters, generate_gait
 from ikfusion.sim.truth import orientation_frames
 
@@ -148,7 +148,7 @@ def test_the_kernel_is_built_once_said_so_and_a_tampered_copy_is_rebuilt(
     np.testing.assert_allclose(chain.x, [-1.0, -0.5, -0.25])
 
 
-@pytest.mark.parametrize("module", ["ik.native_kernel", "ik.native_build"])
+@pytest.mark.parametrize("module", ["native.kernel", "native.build"])
 def test_the_kernels_cache_key_covers_its_build_code(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch, module: str) -> None:
     """Editing the code that builds the kernel builds it anew (a new library name)."""

@@ -1,10 +1,14 @@
-"""A small C kernel of the solver compiled once, cached and checked as the step function.
+"""A hand-written C kernel compiled once, cached and checked as the solver's step function.
 
-:mod:`.native` builds the CasADi step functions; this module builds a hand-written C file (the
-closed-form step, :mod:`.tree_solve`) the same way (:mod:`.native_build`: the same compiler,
-cache folder, announcement and content check) and loads it with :mod:`ctypes`. It is a module
-of its own so that the step functions' build fingerprint (:func:`.native.generator_fingerprint`,
-which hashes :mod:`.native`) does not change with it: an edit here rebuilds the kernel only.
+:mod:`ikfusion.ik.native` builds the CasADi step functions; this module builds a hand-written C
+file beside the module that uses it (the solver's closed-form step :mod:`ikfusion.ik.tree_solve`,
+its QP rows, projection and soft wall; the result writer's digits, joint-angle continuity,
+placements and quaternions) the same way (:mod:`.build`: the same compiler, cache folder,
+announcement and content check) and loads it with :mod:`ctypes`. It is a module of its own so
+that the step functions' build fingerprint (which hashes :mod:`ikfusion.ik.native`) does not
+change with it: an edit here rebuilds the kernels only. Every kernel has a NumPy (or LAPACK)
+path that its caller runs without a compiler, with ``IKFUSION_NO_COMPILE`` or after a failed
+build (then with a warning, :func:`kernel_warnings`).
 """
 
 from __future__ import annotations
@@ -17,21 +21,23 @@ from pathlib import Path
 
 import numpy as np
 
-from . import native_build
-from .native_build import cache_dir, compile_shared, compiler_identity, find_compiler
+from . import build as native_build
+from .build import cache_dir, compile_shared, compiler_identity, find_compiler
 
-#: What is used when the kernel cannot be compiled (the end of the warning).
-FALLBACK = "LAPACK solves the closed-form steps instead"
+#: What is used when a kernel cannot be compiled (the end of the warning), unless said.
+FALLBACK = "NumPy computes instead"
 
 #: (C file, cache folder, compiler, IKFUSION_NO_COMPILE) -> the kernel loaded (None: not built)
 _LOADED: dict[tuple[str, str, str | None, str | None], ctypes.CDLL | None] = {}
 _WARNINGS: list[str] = []
+#: (C file, function, IKFUSION_NO_COMPILE) -> the function (None: without the kernel)
+_FUNCTIONS: dict[tuple[str, str, str | None], Callable[..., int] | None] = {}
 
 
 def kernel_path(source: Path, folder: Path, compiler: str) -> Path:
     """Where the library of the C file ``source`` built by ``compiler`` is cached.
 
-    The name holds a hash of the source, of this module and :mod:`.native_build` (the build)
+    The name holds a hash of the source, of this module and :mod:`.build` (the build)
     and of the compiler's identity: a change of any of them builds a new library.
     """
     build = hashlib.sha256(b"|".join([
@@ -73,6 +79,24 @@ def loaded_kernel(source: Path, fallback: str = FALLBACK) -> ctypes.CDLL | None:
         if warning is not None:
             _WARNINGS.append(warning)
     return _LOADED[key]
+
+
+def c_function(source: Path, name: str, fallback: str) -> Callable[..., int] | None:
+    """The function ``name`` of the C file ``source``, taking one pointer, returning int64.
+
+    For kernels whose functions take one pointer to a struct of their arguments (one cheap
+    ctypes call). Looked up once per process and setting; ``fallback``: what is used without
+    the kernel (the end of the build warning). None without the kernel.
+    """
+    key = (str(source), name, os.environ.get("IKFUSION_NO_COMPILE"))
+    if key not in _FUNCTIONS:
+        library = loaded_kernel(source, fallback)
+        function = None if library is None else getattr(library, name)
+        if function is not None:
+            function.restype = ctypes.c_int64
+            function.argtypes = [ctypes.c_void_p]
+        _FUNCTIONS[key] = function
+    return _FUNCTIONS[key]
 
 
 def kernel_warnings() -> list[str]:

@@ -1,7 +1,7 @@
 """One way to compile native code once, cache it on disk and check it before every load.
 
-The solver's step functions (:mod:`.native`, CasADi-generated C) and its hand-written kernel
-(:mod:`.native_kernel`) are both built here: with the machine's C compiler, into the cache
+The solver's step functions (:mod:`ikfusion.ik.native`, CasADi-generated C) and the hand-written
+kernels (:mod:`.kernel`) are all built here: with the machine's C compiler, into the cache
 folder ``$IKFUSION_CACHE`` (default ``~/.cache/ikfusion``), announced on stderr the first time
 (one line), written atomically with the SHA-256 of its content recorded beside it, and loaded
 only from a private copy whose bytes match that record (a mismatch is rebuilt, never loaded). A
@@ -38,7 +38,8 @@ class NativeLibrary(Generic[Loaded]):
     """What one native library is and how it is built and loaded.
 
     Attributes:
-        what: Its name in messages ("solver's step function": "compiling the solver's step function").
+        what: Its name in messages ("solver's step function": "compiling the solver's step
+            function").
         fallback: What is used when its build fails (the end of the warning).
         path: ``(cache folder, compiler) -> the library's path``; the name holds the build key.
         build: ``(compiler, output path) -> None``: writes the library (raises when it fails).
