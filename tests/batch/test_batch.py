@@ -244,14 +244,32 @@ def test_interrupted_batch_resumes_without_recomputing(capture: Path, tmp_path: 
     assert {r["status"] for r in read_report(out).values()} == {"ok"}
 
 
+#: Runs ``python ARGS...`` with SIGINT at its default and unblocked (exec keeps both).
+AS_FROM_A_TERMINAL = ("import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
+                      "signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT}); "
+                      "os.execv(sys.executable, [sys.executable, *sys.argv[1:]])")
+
+
+def _signal_state(pid: int) -> str:
+    """The process's blocked and ignored signal masks (Linux), for a failure's message."""
+    try:
+        lines = Path(f"/proc/{pid}/status").read_text().splitlines()
+    except OSError:
+        return "unknown"
+    return ", ".join(line for line in lines if line.startswith(("SigBlk", "SigIgn")))
+
+
 def test_ctrl_c_stops_cleanly(capture: Path, tmp_path: Path) -> None:
     """SIGINT to the whole process group, as a terminal's Ctrl-C sends it."""
     count = 40  # enough that the run is still busy when the signal comes, even on a loaded host
     make_inputs(capture, tmp_path / "in", count)
     out = tmp_path / "out"
+    command = ["-m", "ikfusion", "batch", "solve", str(tmp_path / "in" / "cap*"),
+               "--out", str(out), "--workers", "1", "--quiet"]
     process = subprocess.Popen(
-        [sys.executable, "-m", "ikfusion", "batch", "solve", str(tmp_path / "in" / "cap*"),
-         "--out", str(out), "--workers", "1", "--quiet"],
+        # started as from a terminal: SIGINT neither ignored nor blocked, whatever the tests
+        # before left in this process (both are inherited, and Python then keeps them)
+        [sys.executable, "-c", AS_FROM_A_TERMINAL, *command],
         cwd=tmp_path, start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
         text=True)
     try:
@@ -259,13 +277,14 @@ def test_ctrl_c_stops_cleanly(capture: Path, tmp_path: Path) -> None:
         while not (out.is_dir() and any(p.name.startswith("cap") for p in out.iterdir())):
             assert process.poll() is None and time.monotonic() < deadline
             time.sleep(0.05)
+        state = _signal_state(process.pid)
         os.killpg(process.pid, signal.SIGINT)
         _, err = process.communicate(timeout=60)
     finally:
         if process.poll() is None:
             os.killpg(process.pid, signal.SIGKILL)
             process.wait(timeout=10)
-    assert process.returncode == 130, err
+    assert process.returncode == 130, f"{err}\n(its signal state before SIGINT: {state})"
     assert "Traceback" not in err and "interrupted" in err
     report = read_report(out)
     done = sorted(p.name for p in out.iterdir() if p.is_dir())
