@@ -18,8 +18,9 @@
    figure (114 frames/s) is printed and marked so. OpenSense refuses trials whose files differ
    in length, so it reads a copy cut to the shortest file (2432 rows).
 4. Batch: ``--copies`` copies of the first ``--batch-seconds`` of the walk through
-   ``batch solve`` on 1 and 2 local Dask workers (cluster start included; CPU seconds of all
-   processes beside the wall time).
+   ``batch solve`` on 1 and 2 local Dask workers (the speed-up with the cluster's start
+   included, and after it: the throughput once the workers run; CPU seconds of all processes
+   beside the wall time).
 5. ``--compare DIR_A DIR_B``: two result folders file by file (identical bytes, or the lines
    that differ and the largest difference of their numbers), to check that a speed-up left the
    results alone (``solve_time.csv`` and the timings in ``summary.json`` differ by nature).
