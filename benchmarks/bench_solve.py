@@ -345,7 +345,7 @@ def batch_table(copies: int, seconds: float) -> None:
             rows = equal_length_copy(WALK, folder, round(100 * seconds))
             inputs.append(str(folder))
         print(f"\nbatch solve: {copies} copies of the walk's first {rows} frames, 1 vs 2 local "
-              f"workers (cluster start included; {os.cpu_count()} cores)")
+              f"workers (speed-up with the cluster start and after it; {os.cpu_count()} cores)")
         print_batch_rows(batch_rows("solve", inputs, {"map": str(WALK / MAPPING)}))
 
 
