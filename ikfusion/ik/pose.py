@@ -99,8 +99,7 @@ class Motion:
             time=np.array([p.time for p in poses]),
             q=np.array([p.q for p in poses]).reshape(len(poses), model.model.nq),
             contact_names=list(contact_names),
-            contacts=np.array([[p.contacts.get(c, False) for c in contact_names] for p in poses],
-                              dtype=bool).reshape(len(poses), len(contact_names)),
+            contacts=_contact_rows(poses, contact_names),
             solve_time=np.array([p.solve_time for p in poses]),
             iterations=np.array([p.iterations for p in poses], dtype=int),
             relaxed=np.array([p.relaxed for p in poses], dtype=bool),
@@ -119,3 +118,17 @@ class Motion:
     def joint_angles(self) -> np.ndarray:
         """(N, 3 * joints) [deg] in the order of ``model.angle_columns``."""
         return self.model.joint_angle_matrix(self.q)
+
+
+def _contact_rows(poses: Sequence[Pose], names: Sequence[str]) -> np.ndarray:
+    """(N, k) bool: ``pose.contacts.get(name, False)`` of each pose and name.
+
+    A recording takes few patterns of contacts: each is converted once and gathered.
+    """
+    absent = [False] * len(names)
+    patterns: dict[tuple[object, ...], int] = {}
+    index = np.fromiter((patterns.setdefault(tuple(map(p.contacts.get, names, absent)),
+                                             len(patterns)) for p in poses),
+                        dtype=np.intp, count=len(poses))
+    table = np.array(list(patterns), dtype=bool).reshape(len(patterns), len(names))
+    return table[index]

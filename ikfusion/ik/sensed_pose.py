@@ -218,8 +218,9 @@ class Persistence:
         self.weight = weight
         self.task = DampingTask(np.zeros(model.nv))
         # the last sensed columns given (read-only: the frame weighting's), their weights, mask
-        self._columns: tuple[np.ndarray | None, np.ndarray, np.ndarray] = (
-            None, self.task.weights, np.zeros(model.nv, dtype=bool))
+        # and the other columns (indices)
+        self._columns: tuple[np.ndarray | None, np.ndarray, np.ndarray, np.ndarray] = (
+            None, self.task.weights, np.zeros(model.nv, dtype=bool), np.arange(model.nv))
 
     def hold(self, q_warm: np.ndarray, sensed_joints: np.ndarray,
              bent: np.ndarray | None) -> None:
@@ -236,24 +237,27 @@ class Persistence:
 
     def bend(self, q_warm: np.ndarray, q: np.ndarray, sensed_joints: np.ndarray) -> np.ndarray:
         """``q ⊖ q_warm`` (nv) on the ``sensed_joints`` columns, zero elsewhere."""
-        return np.where(self._on(sensed_joints)[1], pin.difference(self.model, q_warm, q), 0.0)
+        bent = pin.difference(self.model, q_warm, q)  # (a new array)
+        bent[self._on(sensed_joints)[2]] = 0.0
+        return bent
 
-    def _on(self, sensed_joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The task's weights (nv,) and the mask (nv,) of the ``sensed_joints`` columns.
+    def _on(self, sensed_joints: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The task's weights (nv,), the mask (nv,) of the ``sensed_joints`` columns, the others.
 
         Kept while the columns are the same read-only array (a frame weighting's); read-only.
         """
-        kept, weights, mask = self._columns
+        kept, weights, mask, others = self._columns
         if sensed_joints is not kept:
             weights = np.zeros(self.model.nv)
             weights[sensed_joints] = self.weight
             mask = np.zeros(self.model.nv, dtype=bool)
             mask[sensed_joints] = True
-            weights.setflags(write=False)
-            mask.setflags(write=False)
+            others = np.flatnonzero(~mask)
+            for array in (weights, mask, others):
+                array.setflags(write=False)
             if not sensed_joints.flags.writeable:
-                self._columns = (sensed_joints, weights, mask)
-        return weights, mask
+                self._columns = (sensed_joints, weights, mask, others)
+        return weights, mask, others
 
     def largest(self, bent: np.ndarray) -> float:
         """The largest turn of one joint in ``bent`` (nv, from :meth:`bend`) [rad].

@@ -37,6 +37,7 @@ from ..model.human_model import HumanModel
 from ..model.topology import BodyTopology
 from .active_set import solve_with_active_set
 from .ballistic import BallisticRoot, sensor_lever
+from .contact_flags import ContactFlags
 from .contact_tracker import ContactTracker
 from .equality_qp import ClosedFormHint
 from .frame import Frame
@@ -98,6 +99,7 @@ class Solver:
             self.sensed.use_compiled(self.compiled.kinematics, self.compiled.geometry)
         self.targets = TargetLoader(model, self.tasks, self.sensed, s)
         self.contacts = ContactTracker(model, self.topology, self.contact_names, s)
+        self._contact_flags = ContactFlags(self.contact_names)
         self.world = WorldOffset(self.contacts.support)
         self.ballistic = BallisticRoot(s.takeoff_velocity_tau, sensor_lever(model))
         self._configuration = step_configuration(model, self.tasks, self.compiled)
@@ -170,8 +172,7 @@ class Solver:
         q, iterations, relaxed = self._solve(frame, targets, q, active,
                                              self.settings.max_iterations)
         # a rising heel is held against slipping but no longer stands on the floor
-        contacts_now = {name: on and not free for name, on, free in zip(
-            self.contact_names, tasks.contact.active.tolist(), tasks.contact.free_z.tolist())}
+        contacts_now = self._contact_flags(tasks.contact.active, tasks.contact.free_z)
         self._touch_down(frame, q)
         velocity = (q[:3] - last.q[:3]) / dt if dt > 0 else last.root_velocity
         self.ballistic.update(velocity, dt, a_root, offset is not None, targets.R_root)
@@ -210,8 +211,7 @@ class Solver:
         a = frame.root_acceleration
         if a is None:
             return None
-        a = np.asarray(a, dtype=float)
-        R = self.world.R_heading
+        R, a = self.world.R_heading, np.asarray(a, dtype=float)
         return a if R is None else R @ a
 
     def _apply_world_moves(self) -> None:
