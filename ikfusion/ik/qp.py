@@ -131,8 +131,8 @@ class QpBuffer:
         self.nv = nv
         self.tree = tree
         self._flat = np.empty(nv * nv + nv)
-        # (m_in, m_eq) -> the fields of a problem on views of the buffer: made once per size
-        self._views: dict[tuple[int, int], dict[str, object]] = {}
+        # (m_in, m_eq) -> the packed buffer and its views H, c, G, h, A, b: made once per size
+        self._views: dict[tuple[int, int], tuple[np.ndarray, ...]] = {}
 
     def assemble(self, H: np.ndarray, c: np.ndarray, inequalities: Sequence[Inequality],
                  equalities: Sequence[Equality], bounds: tuple[np.ndarray, np.ndarray] | None,
@@ -158,25 +158,25 @@ class QpBuffer:
         made = self._views.get((m_in, m_eq))
         if made is None:
             made = self._views[m_in, m_eq] = self._made_views(m_in, m_eq)
-        problem = object.__new__(QpProblem)  # its fields without the dataclass's __init__
-        problem.__dict__.update(made)
-        return problem
+        packed, H, c, G, h, A, b = made
+        return QpProblem(H, c, G, h, A, b, packed=packed, tree=self.tree)
 
-    def _made_views(self, m_in: int, m_eq: int) -> dict[str, object]:
-        """The fields of a problem of this size: the buffer and its views (:meth:`views`)."""
+    def _made_views(self, m_in: int, m_eq: int) -> tuple[np.ndarray, ...]:
+        """The packed buffer of a problem of this size and its six views (:meth:`views`)."""
         nv = self.nv
         size = nv * nv + nv + (m_in + m_eq) * (nv + 1)
         if len(self._flat) < size:  # a larger buffer: the views of the old one are dropped
             self._flat = np.empty(max(size, 2 * len(self._flat)))
             self._views.clear()
         packed = self._flat[:size]
-        c_at, G_at = nv * nv, nv * nv + nv
+        c_at = nv * nv
+        G_at = c_at + nv
         h_at = G_at + m_in * nv
-        A_at, b_at = h_at + m_in, h_at + m_in + m_eq * nv
-        return vars(QpProblem(packed[:c_at].reshape(nv, nv), packed[c_at:G_at],
-                              packed[G_at:h_at].reshape(m_in, nv), packed[h_at:A_at],
-                              packed[A_at:b_at].reshape(m_eq, nv), packed[b_at:],
-                              packed=packed, tree=self.tree))
+        A_at = h_at + m_in
+        b_at = A_at + m_eq * nv
+        return (packed, packed[:c_at].reshape(nv, nv), packed[c_at:G_at],
+                packed[G_at:h_at].reshape(m_in, nv), packed[h_at:A_at],
+                packed[A_at:b_at].reshape(m_eq, nv), packed[b_at:])
 
 
 def _stacked_rows(M: np.ndarray, v: np.ndarray,

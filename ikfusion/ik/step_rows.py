@@ -203,7 +203,6 @@ class StepRows:
         self._floors: dict[tuple[int, int], Inequality] = {}
         # the damping weights' address (the same array frame after frame)
         self._addresses = ArrayAddresses()
-        self._damping: tuple[np.ndarray | None, int] = (None, 0)  # the last weights, address
 
     def plan(self, step: BoundFunction, kinematics: CompiledKinematics,
              sites: bool | None) -> StepFunctionRows:
@@ -284,12 +283,9 @@ class StepRows:
         if error is None:
             plan.damping = None
         else:
-            weights = tasks.damping.weights
-            if weights is not self._damping[0]:  # (the same array frame after frame)
-                self._damping = (weights, self._addresses.of(
-                    weights, lambda a: a.flags.c_contiguous and a.dtype == np.float64,
-                    "not a C-contiguous float64 array"))
-            plan.damping = self._damping[1]
+            plan.damping = self._addresses.of(
+                tasks.damping.weights, lambda a: a.flags.c_contiguous and a.dtype == np.float64,
+                "not a C-contiguous float64 array")
             made.moved[:] = error
         plan.levenberg_marquardt = levenberg_marquardt
         below = made.kernel(made.at)
