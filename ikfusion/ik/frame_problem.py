@@ -283,9 +283,9 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
         written = compiled.rows.write(step, compiled.kinematics, None if few else sites, tasks,
                                       active, error, levenberg_marquardt)
         if written is not None:
-            qp, ranges, close, floor_rows = written
+            qp, ranges, (up, down), floor_rows = written
             return FrameProblem(qp, LimitRows(
-                ranges, close[0], close[1],
+                ranges, up, down,
                 compiled.no_floor if floor_rows is None else floor_rows, bounds))
     if sites:
         P = step.output(5).reshape(-1, 3)

@@ -120,6 +120,9 @@ class StepFunctionRows:
         H_flat, c_flat, G_flat, J_ptr, J_col, J_at, rates, sites, _ = self._keep
         self.rooms = np.zeros((2, angles))
         self.close = np.zeros((2, angles), dtype=bool)
+        # its rows (upper, lower) as the same views step after step (a native reader of them
+        # keeps their addresses while they are the same arrays, :meth:`.TreeClosedForm.step`)
+        self.up_down = (self.close[0], self.close[1])
         self.work = np.zeros(2 * 3 * max(MAX_SWING, 1) * nv)
         self.moved = np.zeros(nv)
         self.root_target = np.zeros(3)
@@ -221,8 +224,9 @@ class StepRows:
 
     def write(self, step: BoundFunction, kinematics: CompiledKinematics, sites: bool | None,
               tasks: FrameTasks, active: list[Task], error: np.ndarray | None,
-              levenberg_marquardt: float) -> tuple[QpProblem, LinearisedRanges, np.ndarray,
-                                                    Inequality | None] | None:
+              levenberg_marquardt: float
+              ) -> tuple[QpProblem, LinearisedRanges, tuple[np.ndarray, np.ndarray],
+                         Inequality | None] | None:
         """The step's QP from the evaluated ``step``; None: a step for the NumPy path.
 
         Args:
@@ -236,8 +240,9 @@ class StepRows:
 
         Returns:
             The QP (views of the buffer), the ranges (``G`` and the rooms in place, valid until
-            the next step), the masks (2, angles) of the range rows in the QP (upper, lower)
-            and the floor rows (None without contact points).
+            the next step), the masks (angles,) of the range rows in the QP (upper, lower; the
+            same arrays step after step, written in place) and the floor rows (None without
+            contact points).
         """
         root, swing, contact, position = tasks.root, tasks.swing, tasks.contact, tasks.position
         held = contact.world_rows()
@@ -290,7 +295,7 @@ class StepRows:
         floor = self._floors.get((below, n_floor)) if contacts else None
         if contacts and floor is None:  # (views of the buffer, whose array never moves)
             floor = self._floors[below, n_floor] = Inequality(qp.G[below:], qp.h[below:])
-        return qp, made.ranges, made.close, floor
+        return qp, made.ranges, made.up_down, floor
 
 
 def step_rows(buffer: QpBuffer, rate_rows: np.ndarray | None, contact_rows: np.ndarray,

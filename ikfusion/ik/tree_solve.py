@@ -116,6 +116,10 @@ class TreeClosedForm:
         self._active = _Active(None, None, self._bounds.ctypes.data, None, None, 0.0, 0, 0)
         self._active_at = ctypes.addressof(self._active)
         self._G: np.ndarray | None = None  # the range rows' G the kernel reads (kept alive)
+        # the caller's rooms and masks, and bounds, the kernel reads in place (kept alive, so
+        # the same objects again are the same memory); None: copied at the next call
+        self._rows_read: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._bounds_read: tuple[np.ndarray, np.ndarray] | None = None
         self._distance = library.ik_least_distance
         self._distance.restype = ctypes.c_int
         self._distance.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_int, ctypes.c_void_p,
@@ -180,23 +184,58 @@ class TreeClosedForm:
             if self._rooms.shape[1] != angles:
                 self._rooms = np.zeros((2, angles))
                 self._in_qp = np.zeros((2, angles), dtype=bool)
-                active.rooms, active.angles = self._rooms.ctypes.data, angles
-                active.up = self._in_qp.ctypes.data
-                active.down = active.up + angles
+                active.angles, self._rows_read = angles, None
             self._G, active.G = G, G.ctypes.data
-        np.copyto(self._rooms, ranges.rooms)
-        in_qp = self._in_qp
-        np.copyto(in_qp[0], up)
-        np.copyto(in_qp[1], down)
+        rows = self._rows_read
+        if rows is None or ranges.rooms is not rows[0] or up is not rows[1] or \
+                down is not rows[2]:
+            self._read_rows(ranges.rooms, up, down)
         if bounds is None:
             active.has_bounds = 0
         else:
             active.has_bounds = 1
-            np.copyto(self._bounds[0], bounds[0])
-            np.copyto(self._bounds[1], bounds[1])
+            kept = self._bounds_read
+            if kept is None or bounds[0] is not kept[0] or bounds[1] is not kept[1]:
+                self._read_bounds(bounds[0], bounds[1])
         active.tolerance = tolerance
         return int(self._step(self._plan_at, self._active_at, m_in, m_eq,
                               self._packed_at(packed, m_in, m_eq)))
+
+    def _read_rows(self, rooms: np.ndarray, up: np.ndarray, down: np.ndarray) -> None:
+        """The kernel pointed at ``rooms`` (2, angles), ``up`` and ``down`` (angles,) in place.
+
+        Kept while they are the same arrays (a step writer's, written in place step after
+        step); arrays of another layout are copied into the kernel's own, at every call.
+        """
+        active, angles = self._active, self._active.angles
+        if _fits(rooms, np.float64, (2, angles)) and _fits(up, np.bool_, (angles,)) and \
+                _fits(down, np.bool_, (angles,)):
+            self._rows_read = (rooms, up, down)
+            active.rooms, active.up, active.down = (
+                rooms.ctypes.data, up.ctypes.data, down.ctypes.data)
+            return
+        np.copyto(self._rooms, rooms)
+        np.copyto(self._in_qp[0], up)
+        np.copyto(self._in_qp[1], down)
+        self._rows_read = None
+        active.rooms, active.up = self._rooms.ctypes.data, self._in_qp.ctypes.data
+        active.down = active.up + angles
+
+    def _read_bounds(self, lb: np.ndarray, ub: np.ndarray) -> None:
+        """The kernel pointed at the bounds ``lb``, ``ub`` (n,) in place, else copied.
+
+        In place when ``ub`` follows ``lb`` in memory (the kernel's layout: the rows of one
+        (2, n) array, :meth:`.limits.velocity.VelocityLimit.bounds`'s), kept while the same
+        arrays; else copied at every call.
+        """
+        n, active = self.n, self._active
+        if _fits(lb, np.float64, (n,)) and _fits(ub, np.float64, (n,)) and \
+                ub.ctypes.data == lb.ctypes.data + 8 * n:
+            self._bounds_read, active.bounds = (lb, ub), lb.ctypes.data
+            return
+        np.copyto(self._bounds[0], lb)
+        np.copyto(self._bounds[1], ub)
+        self._bounds_read, active.bounds = None, self._bounds.ctypes.data
 
     def least_distance_rows(self, packed: np.ndarray, m_in: int, m_eq: int
                             ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
@@ -243,6 +282,11 @@ class TreeClosedForm:
         # a buffer's views are made once per size: their addresses too
         return self._addresses.of(packed, lambda a: a.flags.c_contiguous and len(a) >= n * n + n
                                   + (m_in + m_eq) * (n + 1), "not a packed QP of this size")
+
+
+def _fits(a: np.ndarray, dtype: type, shape: tuple[int, ...]) -> bool:
+    """Whether ``a`` is C-contiguous of ``dtype`` and ``shape`` (a kernel reads it in place)."""
+    return a.dtype == dtype and a.shape == shape and a.flags.c_contiguous
 
 
 def tree_closed_form(model: pin.Model) -> TreeClosedForm | None:

@@ -22,6 +22,10 @@ class VelocityLimit:
         # dt, max_velocity * dt and its negative
         self._span = (0.0, np.zeros_like(self.max_velocity), np.zeros_like(self.max_velocity))
         self._zero = np.zeros(())  # (an array: no conversion of a Python 0.0 per call)
+        # the bounds (lb, ub): the rows of one array, written in place by each call (the tree
+        # step's kernel reads them there, :meth:`.tree_solve.TreeClosedForm.step`)
+        both = np.zeros((2, len(self.max_velocity)))
+        self._bounds = (both[0], both[1])
 
     def set_previous(self, q_previous: npt.ArrayLike | None, dt: float) -> None:
         """The previous frame's configuration and the time step [s] (None: no bound)."""
@@ -32,7 +36,8 @@ class VelocityLimit:
                moved: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
         """``(lb, ub)`` on ``dq``, or None when there is no previous frame.
 
-        ``moved`` is ``q ⊖ q_previous`` when the caller has it already.
+        ``moved`` is ``q ⊖ q_previous`` when the caller has it already. The same two arrays
+        at every call, overwritten by the next.
         """
         if self.q_previous is None or self.dt <= 0.0:
             return None
@@ -43,7 +48,10 @@ class VelocityLimit:
             span = self.max_velocity * self.dt
             self._span = (self.dt, span, -span)
             negative = self._span[2]
-        lb, ub = negative - moved, span - moved  # clipped in place
+        bounds = self._bounds
+        lb, ub = bounds
+        np.subtract(negative, moved, out=lb)  # then clipped in place
+        np.subtract(span, moved, out=ub)
         np.minimum(lb, self._zero, out=lb)
         np.maximum(ub, self._zero, out=ub)
-        return lb, ub
+        return bounds
