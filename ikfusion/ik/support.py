@@ -174,7 +174,9 @@ class SupportFollower:
             dt: Time since the last frame [s].
         """
         on = active if isinstance(active, int) else self._bits.of(active)
-        planted = self._planted(on)
+        planted = self._planted_of.get(on)
+        if planted is None:
+            planted = self._planted(on)
         self._settle_landings(planted, dt)
         reference = self._reference(on, planted)
         rows, sensed = anchors.tolist(), p_sensed.tolist()  # rows of floats (:mod:`.vec3`)
@@ -195,14 +197,17 @@ class SupportFollower:
                 # what the correction placed on purpose is caught up with, never jumped over
                 self._allowance = self.lag_max + vec3.norm(
                     self._landed_swing[self._foot_of(reference)], buffer)
-        self._allowance = max(self.lag_max, self._allowance - self.lag_speed * dt)
-        self._lag = vec3.clip_norm(vec3.shrink(lag, self.lag_speed * dt, buffer), self._allowance,
-                                   buffer)
-        wanted = vec3.clip_norm(vec3.sub(vec3.add(lean, self._step), self.pending),
-                                self.lean_max, buffer)
+        self._allowance = allowance = max(self.lag_max, self._allowance - self.lag_speed * dt)
+        self._lag = lag = vec3.clip_norm(vec3.shrink(lag, self.lag_speed * dt, buffer),
+                                         allowance, buffer)
+        step = self._step
+        # lean + step - pending, pending = (-lag x, -lag y, 0) (:attr:`pending`)
+        wanted = vec3.clip_norm((lean[0] + step[0] - -lag[0], lean[1] + step[1] - -lag[1],
+                                 lean[2] + step[2] - 0.0), self.lean_max, buffer)
         self._lean = vec3.add(lean, vec3.clip_norm(vec3.sub(wanted, lean),
                                                    self.lean_speed * dt, buffer))
-        self._support, self._reference_feet = (reference, rows), self._planted(reference)
+        self._support = (reference, rows)
+        self._reference_feet = self._planted_of.get(reference) or self._planted(reference)
         self._update_swing(planted, dt, moved)
         return np.array(offset)
 
