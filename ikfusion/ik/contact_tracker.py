@@ -106,6 +106,7 @@ class ContactTracker:
         self.far_from_floor = np.zeros(len(self.names), dtype=bool)
         self._far = 0  # far_from_floor's bits
         self._on_of = (self.state.active, 0)  # :meth:`planted`'s array and its bits
+        self._rows_of: tuple[np.ndarray | None, list[list[float]]] = (None, [])  # anchors' rows
         self._v_sensed: np.ndarray | None = None
         self._rising = 0  # the planted heels release() let rise (bits: :mod:`.point_bits`)
         # the frame being solved's feet still, points moving and masks (touch_down reuses them)
@@ -277,9 +278,13 @@ class ContactTracker:
 
     def follow(self, p_sensed: np.ndarray, dt: float) -> np.ndarray | None:
         """The support offset (3,) [m] putting the sensed pose on its anchors; None in flight."""
-        if any_true(self.state.active):
+        if on := self.planted():
             self._stood = self.state.active
-            return self.support.follow(self.planted(), self.state.anchors, p_sensed, dt)
+            anchors, rows = self._rows_of
+            if anchors is not self.state.anchors:  # (never written to, as ``planted``)
+                anchors = self.state.anchors
+                self._rows_of = (anchors, rows := anchors.tolist())
+            return self.support.follow(on, rows, p_sensed, dt)
         if any_true(self._stood):  # the take-off: its lag is kept for the landing
             self._flown, self._stood = (self._stood, self.support.lag.copy()), self.state.active
         self.support.lose_support()
