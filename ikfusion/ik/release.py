@@ -45,6 +45,7 @@ class ReleaseEasing:
         self.speed = speed
         self._legs = [np.asarray(leg, dtype=int) for leg in legs]
         self._n = n_segments
+        self._segments: dict[tuple[str, bytes, int | None], np.ndarray] = {}  # :meth:`release`'s
         self.reset()
 
     def reset(self) -> None:
@@ -65,8 +66,14 @@ class ReleaseEasing:
         """
         if self.speed <= 0 or not any_true(released):
             return
-        legs = np.unique(np.concatenate([self._legs[k][:reach]
-                                         for k in true_indices(released)]))
+        key = (released.dtype.char, released.tobytes(), reach)
+        legs = self._segments.get(key)
+        if legs is None:  # (a few patterns: a heel, a toe, a foot, each foot)
+            legs = np.unique(np.concatenate([self._legs[k][:reach]
+                                             for k in true_indices(released)]))
+            legs.setflags(write=False)
+            if len(self._segments) < 64:
+                self._segments[key] = legs
         if len(legs):
             self.offsets[legs] = bend(legs)
             self._easing = True
