@@ -279,12 +279,10 @@ class ContactTracker:
     def follow(self, p_sensed: np.ndarray, dt: float) -> np.ndarray | None:
         """The support offset (3,) [m] putting the sensed pose on its anchors; None in flight."""
         if on := self.planted():
-            self._stood = self.state.active
-            anchors, rows = self._rows_of
-            if anchors is not self.state.anchors:  # (never written to, as ``planted``)
-                anchors = self.state.anchors
-                self._rows_of = (anchors, rows := anchors.tolist())
-            return self.support.follow(on, rows, p_sensed, dt)
+            self._stood, anchors = self.state.active, self.state.anchors
+            if self._rows_of[0] is not anchors:  # (never written to, as ``planted``)
+                self._rows_of = (anchors, anchors.tolist())
+            return self.support.follow(on, self._rows_of[1], p_sensed, dt)
         if any_true(self._stood):  # the take-off: its lag is kept for the landing
             self._flown, self._stood = (self._stood, self.support.lag.copy()), self.state.active
         self.support.lose_support()
@@ -302,8 +300,7 @@ class ContactTracker:
         """
         s, support = self.settings, self.support
         tasks: list[Task] = []
-        share = support.placed_share
-        weight = (1.0 - share) * s.continuity + share * s.continuity_placed
+        weight = (1.0 - (part := support.placed_share)) * s.continuity + part * s.continuity_placed
         target = support.pelvis_target(q[:3])
         if weight > 0 and support.moves_pelvis():
             root.set_target(target, weight)
