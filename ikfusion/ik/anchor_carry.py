@@ -52,6 +52,10 @@ class AnchorCarry:
         #: toes held alone on their foot: how fast their tips slide this frame [m/s], else 0
         self.tip_speed = np.zeros(k)
         self._velocity_before: Mapping[str, np.ndarray] = {}
+        #: carried, tip_speed and _slid of a frame where nothing slides (read-only zeros)
+        self._nothing = (np.zeros(k, dtype=bool), np.zeros(k), np.zeros((k, 2)))
+        for zeros in self._nothing:
+            zeros.setflags(write=False)
 
     def carry(self, state: ContactState, frame: Frame, dt: float, R_heading: np.ndarray | None,
               v_body: np.ndarray, q: np.ndarray | None = None) -> np.ndarray | None:
@@ -88,12 +92,14 @@ class AnchorCarry:
             v_body: (3,) the pelvis's velocity in the last frame [m/s].
             q: The last solved configuration (the toes' hinge geometry), None for none.
         """
-        self.carried = np.zeros(len(self.names), dtype=bool)
-        self.tip_speed = np.zeros(len(self.names))
-        slid, self._slid = self._slid, np.zeros((len(self.names), 2))
+        slid = self._slid
         before, self._velocity_before = self._velocity_before, frame.points_velocity
         if not frame.points_velocity or dt <= 0 or not any_true(state.active):
+            self.carried, self.tip_speed, self._slid = self._nothing  # (the usual frame)
             return None
+        k = len(self.names)
+        self.carried, self.tip_speed, self._slid = (np.zeros(k, dtype=bool), np.zeros(k),
+                                                    np.zeros((k, 2)))
         anchors = None
         for points in self._points_of_foot.values():
             held = points[state.active[points]]

@@ -106,6 +106,7 @@ class ContactTracker:
         self.far_from_floor = np.zeros(len(self.names), dtype=bool)
         self._far = 0  # far_from_floor's bits
         self._on_of = (self.state.active, 0)  # :meth:`planted`'s array and its bits
+        self._rows_of: tuple[np.ndarray | None, list[list[float]]] = (None, [])  # anchors' rows
         self._v_sensed: np.ndarray | None = None
         self._rising = 0  # the planted heels release() let rise (bits: :mod:`.point_bits`)
         # the frame being solved's feet still, points moving and masks (touch_down reuses them)
@@ -277,9 +278,11 @@ class ContactTracker:
 
     def follow(self, p_sensed: np.ndarray, dt: float) -> np.ndarray | None:
         """The support offset (3,) [m] putting the sensed pose on its anchors; None in flight."""
-        if any_true(self.state.active):
-            self._stood = self.state.active
-            return self.support.follow(self.planted(), self.state.anchors, p_sensed, dt)
+        if on := self.planted():
+            self._stood, anchors = self.state.active, self.state.anchors
+            if self._rows_of[0] is not anchors:  # (never written to, as ``planted``)
+                self._rows_of = (anchors, anchors.tolist())
+            return self.support.follow(on, self._rows_of[1], p_sensed, dt)
         if any_true(self._stood):  # the take-off: its lag is kept for the landing
             self._flown, self._stood = (self._stood, self.support.lag.copy()), self.state.active
         self.support.lose_support()
@@ -297,8 +300,7 @@ class ContactTracker:
         """
         s, support = self.settings, self.support
         tasks: list[Task] = []
-        share = support.placed_share
-        weight = (1.0 - share) * s.continuity + share * s.continuity_placed
+        weight = (1.0 - (part := support.placed_share)) * s.continuity + part * s.continuity_placed
         target = support.pelvis_target(q[:3])
         if weight > 0 and support.moves_pelvis():
             root.set_target(target, weight)

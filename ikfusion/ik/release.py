@@ -14,12 +14,13 @@ shrinks it at a bounded rate, so the leg returns to its sensors within a few fra
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from ..rotations import exp_so3
-from .fast_math import any_true, row_norms, true_indices
+from .fast_math import any_true, true_indices
 
 #: How many segments of a leg, from its foot up, ease back to their sensors when its heel rises
 #: (:meth:`.contact_tracker.ContactTracker.ease`): the foot and the shank, the ankle's two. Freed
@@ -45,12 +46,14 @@ class ReleaseEasing:
         self.speed = speed
         self._legs = [np.asarray(leg, dtype=int) for leg in legs]
         self._n = n_segments
+        self._segments: dict[tuple[str, bytes, int | None], np.ndarray] = {}  # :meth:`release`'s
         self.reset()
 
     def reset(self) -> None:
         """No offsets."""
         self.offsets = np.zeros((self._n, 3))
         self._easing = False  # whether an offset may be non-zero (False: all are zero)
+        self._rows: tuple[int, ...] = ()  # the rows that may be non-zero (the others are zeros)
 
     def release(self, released: np.ndarray, bend: Callable[[np.ndarray], np.ndarray],
                 reach: int | None = None) -> None:
@@ -65,22 +68,35 @@ class ReleaseEasing:
         """
         if self.speed <= 0 or not any_true(released):
             return
-        legs = np.unique(np.concatenate([self._legs[k][:reach]
-                                         for k in true_indices(released)]))
+        key = (released.dtype.char, released.tobytes(), reach)
+        legs = self._segments.get(key)
+        if legs is None:  # (a few patterns: a heel, a toe, a foot, each foot)
+            legs = np.unique(np.concatenate([self._legs[k][:reach]
+                                             for k in true_indices(released)]))
+            legs.setflags(write=False)
+            if len(self._segments) < 64:
+                self._segments[key] = legs
         if len(legs):
             self.offsets[legs] = bend(legs)
             self._easing = True
+            self._rows = tuple(sorted(set(self._rows).union(legs.tolist())))
 
     def apply(self, R_world_sensed: np.ndarray, dt: float) -> np.ndarray | None:
         """Shrink the offsets by ``speed * dt``; the offset targets (n, 3, 3), None if none."""
         if not self._easing:  # the usual case: no leg eases
             return None
-        norm = row_norms(self.offsets)
-        positive = norm > 0
-        keep = np.maximum(0.0, 1.0 - self.speed * dt / np.where(positive, norm, 1.0))
-        self.offsets *= np.where(positive, keep, 0.0)[:, None]
-        moving = true_indices(np.logical_or.reduce(self.offsets != 0.0, axis=1))
-        if len(moving) == 0:
+        # the rows that may be non-zero, as floats: NumPy's numbers (``row_norms`` sums the
+        # squares from the first; ``np.maximum(0.0, k)`` keeps a NaN); rows of zeros keep theirs
+        by, rows, out = self.speed * dt, self._rows, []
+        for x, y, z in self.offsets[list(rows)].tolist():
+            n = math.sqrt(x * x + y * y + z * z)
+            keep = 1.0 - by / n if n > 0 else 0.0
+            keep = 0.0 if 0.0 >= keep else keep
+            out.append((x * keep, y * keep, z * keep))
+        self.offsets[list(rows)] = out
+        moving = [i for i, v in zip(rows, out, strict=True) if any(v)]  # (a list: rows)
+        self._rows = tuple(moving)
+        if not moving:
             self._easing = False
             return None
         R = R_world_sensed.copy()

@@ -16,16 +16,7 @@ For the ``no-slide`` correction it also leads swing feet and leans the pelvis: w
 off, the correction still to make (less what the lag will still bring) is latched for it, at
 most ``max_step``, and the foot is led toward it during the swing (a soft position task on its
 heels, relative to the pelvis), starting from where its heel left the floor; it lands where the
-corrected body wants it, with no jump at touch-down. The lead holds the heel at the height of
-the sensed leg too: a heel free in height drifts up with the pelvis (nothing else holds it
-there while the body stands on one toe), lands high and lifts the body at each heel strike.
-It lets the height go where the sensed leg puts the foot under the floor: the floor lifts that
-foot, and a heel held at its sensed height while the floor lifts the toe pitches the foot about
-the ankle, which springs back when the toe rises (a pop). It lets it go for the whole swing when
-the heel left the floor away from the sensed leg's height (by ``swing_lead.UNDER_FLOOR_BAND``
-or more): a sensed leg that disagreed with the floor in height would pull the body up after
-lift-off and down before landing (a run's legs, with feet the sensors put centimetres under the
-floor).
+corrected body wants it, with no jump at touch-down (in height, see :mod:`.swing_lead`).
 Meanwhile the pelvis leans toward the correction by at most ``lean_max``; the lean passes into
 the lag when the body is handed to a foot that was placed leaning.
 """
@@ -38,6 +29,7 @@ from ..model.topology import FootLayout
 from . import vec3
 from .fast_math import mean_rows
 from .point_bits import indices, point_bits
+from .support_motion import KeptClip, moved_toward, shrunk_lag, swing_toward
 from .swing_lead import LedBase, band_share, lead_targets
 from .vec3 import ZERO, ArrayView, Vec3
 
@@ -97,6 +89,7 @@ class SupportFollower:
         self._swing, self._landed_swing = [ZERO] * n, [ZERO] * n
         self._led_base = LedBase(len(self._led))  # where the contact points were led
         self._target: Vec3 | None = None
+        self._wanted = KeptClip()  # where the lean goes (the same most frames)
         self._planted_for = [0.0] * n
         self._placed_by = np.zeros((n, 3))  # how far each foot's anchors were moved on purpose
         self._reference_feet = self._all_groups  # the groups (bits) the body stands on
@@ -163,21 +156,25 @@ class SupportFollower:
         return p_warm + self._lag + self._lean
 
     # ------------------------------------------------------------------ per frame
-    def follow(self, active: np.ndarray | int, anchors: np.ndarray, p_sensed: np.ndarray,
-               dt: float) -> np.ndarray:
+    def follow(self, active: np.ndarray | int, anchors: np.ndarray | list[list[float]],
+               p_sensed: np.ndarray, dt: float) -> np.ndarray:
         """The support offset (3,) [m] of this frame; updates the lag and the swing feet.
 
         Args:
             active: (k,) planted points (at least one), or their bits (:mod:`.point_bits`).
-            anchors: (k, 3) their anchors [m].
+            anchors: (k, 3) their anchors [m] (or their rows as lists of floats, not changed).
             p_sensed: (k, 3) contact points of this frame's sensed pose (any translation) [m].
             dt: Time since the last frame [s].
         """
         on = active if isinstance(active, int) else self._bits.of(active)
-        planted = self._planted(on)
+        planted = self._planted_of.get(on)
+        if planted is None:
+            planted = self._planted(on)
         self._settle_landings(planted, dt)
         reference = self._reference(on, planted)
-        rows, sensed = anchors.tolist(), p_sensed.tolist()  # rows of floats (:mod:`.vec3`)
+        # rows of floats (:mod:`.vec3`)
+        rows = anchors if isinstance(anchors, list) else anchors.tolist()
+        sensed = p_sensed.tolist()
         offset = vec3.mean_rows(rows, indices(reference), sensed)
         moved = ZERO  # how far the pelvis target moves to where the pelvis was solved
         lag, lean, buffer = self._lag, self._lean, self._buffer
@@ -195,14 +192,14 @@ class SupportFollower:
                 # what the correction placed on purpose is caught up with, never jumped over
                 self._allowance = self.lag_max + vec3.norm(
                     self._landed_swing[self._foot_of(reference)], buffer)
-        self._allowance = max(self.lag_max, self._allowance - self.lag_speed * dt)
-        self._lag = vec3.clip_norm(vec3.shrink(lag, self.lag_speed * dt, buffer), self._allowance,
-                                   buffer)
-        wanted = vec3.clip_norm(vec3.sub(vec3.add(lean, self._step), self.pending),
-                                self.lean_max, buffer)
-        self._lean = vec3.add(lean, vec3.clip_norm(vec3.sub(wanted, lean),
-                                                   self.lean_speed * dt, buffer))
-        self._support, self._reference_feet = (reference, rows), self._planted(reference)
+        self._allowance = allowance = max(self.lag_max, self._allowance - self.lag_speed * dt)
+        self._lag = lag = shrunk_lag(lag, self.lag_speed * dt, allowance, buffer)
+        step = self._step  # lean + step - pending, pending = (-lag x, -lag y, 0)
+        wanted = self._wanted((lean[0] + step[0] - -lag[0], lean[1] + step[1] - -lag[1],
+                               lean[2] + step[2] - 0.0), self.lean_max, buffer)
+        self._lean = moved_toward(lean, wanted, self.lean_speed * dt, buffer)
+        self._support = (reference, rows)
+        self._reference_feet = self._planted_of.get(reference) or self._planted(reference)
         self._update_swing(planted, dt, moved)
         return np.array(offset)
 
@@ -225,9 +222,9 @@ class SupportFollower:
         landed, led away from where the sensed legs put it, takes the body over only when the
         other foot lets go, so the leg that leaves the floor carries no strain that would snap.
         """
+        if planted and not planted & (planted - 1):  # the usual frame: one foot planted
+            return self._group_points[planted.bit_length() - 1] & active
         age, on = self._planted_for, indices(planted)
-        if len(on) == 1:  # the usual frame: one foot planted
-            return self._group_points[on[0]] & active
         longest = max([age[f] for f in on])
         return sum(self._group_points[f] for f in on if age[f] == longest) & active
 
@@ -239,17 +236,18 @@ class SupportFollower:
     def _settle_landings(self, planted: int, dt: float) -> None:
         """Groups ``planted`` (bits) that touched down stay where they were led (``landed``)."""
         self._landed = ZERO
+        swinging, age, swing_of = self._swinging, self._planted_for, self._swing
         for f in indices(planted):
-            if self._swinging[f]:
-                self._swinging[f] = False
-                self._landed_swing[f] = swing = self._swing[f]
-                self._planted_for[f] = 0.0
+            if swinging[f]:
+                swinging[f] = False
+                self._landed_swing[f] = swing = swing_of[f]
+                age[f] = 0.0
                 self._landed = vec3.add(self._landed, swing)
                 # led from the pelvis, which stood where the reference foot and lag put it
                 self._placed_by[f] = self.displacement + swing
             else:
-                self._planted_for[f] += dt
-            self._swing[f] = ZERO
+                age[f] += dt
+            swing_of[f] = ZERO
 
     def _update_swing(self, planted: int, dt: float, moved: Vec3) -> None:
         """Latch the offset of feet that lifted off and move swinging feet.
@@ -262,29 +260,31 @@ class SupportFollower:
         heel is (held while the body moved on, it is no longer where it was led: a swing
         resumed there jumped the heel by centimetres), and its landing is not counted.
         """
-        lifted = self._all_groups & ~planted
+        lifted, swinging, swing_of = self._all_groups & ~planted, self._swinging, self._swing
         for f in indices(lifted & ~self._steps):
-            self._swinging[f] = True  # lifted, never led: lands with no swing offset
+            swinging[f] = True  # lifted, never led: lands with no swing offset
         for f in indices(lifted & self._steps):
-            if not self._swinging[f]:
-                self._swinging[f] = True
-                if self._planted_for[f] < self.confirm and any(self._landed_swing[f]):
-                    self._landed = vec3.sub(self._landed, self._landed_swing[f])  # not counted
-                else:  # (a resumed swing keeps its goal)
-                    self._goal[f] = vec3.clip_norm(vec3.sub(self._step, self.pending),
-                                                   self._max_step, self._buffer)
-                    self._has_goal[f] = any(self._goal[f])
-                # the heel leaves the floor where it is, not where the sensed leg puts it (nor
-                # where it was led before a short touch-down: the body moved under it since)
-                swing = self._swing[f] = tuple(  # type: ignore[assignment]
-                    mean_rows(self._led_base.deviation()[self._feet[f] & self._led]).tolist())
-                # a sensed leg that disagreed with the floor's height does not set the heel's
-                self._height_trust[f] = band_share(-abs(swing[2]))
-                self._landed_swing[f] = ZERO
-            swing = self._swing[f]
-            swing = vec3.add(swing, vec3.clip_norm(vec3.sub(self._goal[f], swing),
-                                                   self.swing_speed * dt, self._buffer))
-            self._swing[f] = vec3.sub(swing, moved)
+            if not swinging[f]:
+                self._lift_off(f)
+            swing_of[f] = swing_toward(swing_of[f], self._goal[f], self.swing_speed * dt, moved,
+                                       self._buffer)
+
+    def _lift_off(self, f: int) -> None:
+        """Group ``f`` (a foot) lifts off: latch its goal, its swing starts where its heel is."""
+        self._swinging[f] = True
+        if self._planted_for[f] < self.confirm and any(self._landed_swing[f]):
+            self._landed = vec3.sub(self._landed, self._landed_swing[f])  # not counted
+        else:  # (a resumed swing keeps its goal)
+            self._goal[f] = vec3.clip_norm(vec3.sub(self._step, self.pending),
+                                           self._max_step, self._buffer)
+            self._has_goal[f] = any(self._goal[f])
+        # the heel leaves the floor where it is, not where the sensed leg puts it (nor
+        # where it was led before a short touch-down: the body moved under it since)
+        swing = self._swing[f] = tuple(  # type: ignore[assignment]
+            mean_rows(self._led_base.deviation()[self._feet[f] & self._led]).tolist())
+        # a sensed leg that disagreed with the floor's height does not set the heel's
+        self._height_trust[f] = band_share(-abs(swing[2]))
+        self._landed_swing[f] = ZERO
 
     def pelvis_target(self, p_warm: np.ndarray) -> Vec3:
         """Where the pelvis should be (3,) [m], its warm start ``p_warm`` plus lag and lean."""

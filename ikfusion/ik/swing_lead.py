@@ -6,6 +6,16 @@ foot's targets are on or above the floor and falls to 0 as the lowest of them si
 ``UNDER_FLOOR_BAND`` under it (the floor, not the lead, sets that foot's height), and as the heel
 left the floor up to ``UNDER_FLOOR_BAND`` away from its sensed height (the sensed leg's height is
 not to be trusted then: the foot's *height trust*). Every other point has none.
+
+Why the heel is held at the height of the sensed leg: a heel free in height drifts up with the
+pelvis (nothing else holds it there while the body stands on one toe), lands high and lifts the
+body at each heel strike. Why the height is let go where the sensed leg puts the foot under the
+floor: the floor lifts that foot, and a heel held at its sensed height while the floor lifts the
+toe pitches the foot about the ankle, which springs back when the toe rises (a pop). Why it is
+let go for the whole swing when the heel left the floor away from the sensed leg's height (by
+``UNDER_FLOOR_BAND`` or more): a sensed leg that disagreed with the floor in height would pull
+the body up after lift-off and down before landing (a run's legs, with feet the sensors put
+centimetres under the floor).
 """
 
 from __future__ import annotations

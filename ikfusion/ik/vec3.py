@@ -17,6 +17,12 @@ import numpy as np
 
 Vec3 = tuple[float, float, float]
 ZERO: Vec3 = (0.0, 0.0, 0.0)
+#: A vector whose ``|x| + |y| + |z|`` (``a``) times this is at most a limit has a computed norm
+#: at most that limit, however its squares are summed (each rounding is within ``1 + 2**-53``:
+#: the norm is within ``a (1 + 7 * 2**-53)``), so :func:`clip_norm` and :func:`shrink` need not
+#: work it out; ``a`` above :data:`_TINY` keeps the squares out of the subnormal range
+_MARGIN = 1.0 + 1e-12
+_TINY = 1e-140
 
 
 def add(a: Vec3, b: Vec3) -> Vec3:
@@ -39,11 +45,17 @@ def norm(v: Vec3, buffer: np.ndarray) -> float:
 
 def shrink(v: Vec3, by: float, buffer: np.ndarray) -> Vec3:
     """:func:`.fast_math.shrink`: ``v`` shortened by ``by`` (never past zero)."""
+    a = abs(v[0]) + abs(v[1]) + abs(v[2])
+    if _TINY < a and a * _MARGIN <= by:  # surely no longer than ``by`` (see :data:`_MARGIN`)
+        return (v[0] * 0.0, v[1] * 0.0, v[2] * 0.0)
     return _shortened(v, by, norm(v, buffer))
 
 
 def clip_norm(v: Vec3, limit: float, buffer: np.ndarray) -> Vec3:
     """:func:`.fast_math.clip_norm`: ``v`` shortened to at most ``limit`` long."""
+    a = abs(v[0]) + abs(v[1]) + abs(v[2])
+    if _TINY < a and a * _MARGIN <= limit:  # surely no longer than ``limit``: no norm needed
+        return (v[0] + 0.0, v[1] + 0.0, v[2] + 0.0)
     n = norm(v, buffer)
     if n <= limit < math.inf:
         return (v[0] + 0.0, v[1] + 0.0, v[2] + 0.0)

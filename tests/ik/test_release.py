@@ -60,3 +60,44 @@ def test_zero_speed_switches_it_off() -> None:
     sensed = np.tile(np.eye(3), (2, 1, 1))
     easing.release(np.array([True]), lambda legs: np.radians([[2.0, 0, 0]]))
     assert easing.apply(sensed, DT) is None
+
+
+def _numpy_apply(offsets: np.ndarray, R: np.ndarray, by: float) -> tuple[np.ndarray, object]:
+    """The easing's step by NumPy on every row (its formula before rows were kept as floats)."""
+    norm = np.sqrt(np.add.reduce(offsets * offsets, axis=1))
+    positive = norm > 0
+    keep = np.maximum(0.0, 1.0 - by / np.where(positive, norm, 1.0))
+    offsets = offsets * np.where(positive, keep, 0.0)[:, None]
+    moving = np.flatnonzero(np.logical_or.reduce(offsets != 0.0, axis=1))
+    if len(moving) == 0:
+        return offsets, None
+    out = R.copy()
+    out[moving] = out[moving] @ exp_so3(offsets[moving])
+    return offsets, out
+
+
+def test_easing_steps_are_numpys_numbers() -> None:
+    """Released legs of every size, zeros of either sign, a NaN: NumPy's offsets and targets,
+    to the bit, frame after frame until they are all zero."""
+    rng = np.random.default_rng(5)
+    legs = [np.array([1, 2, 3]), np.array([4, 5]), np.array([2, 6])]
+    for trial in range(20):
+        easing = ReleaseEasing(legs, 8, SPEED)
+        sensed = exp_so3(rng.normal(size=(8, 3)))
+        bend = rng.normal(size=(8, 3)) * 10.0 ** rng.uniform(-6, -1, size=(8, 1))
+        bend[2, 1], bend[5] = -0.0, [0.0, -0.0, 0.0]
+        if trial == 0:
+            bend[6, 0] = np.nan
+        expected = np.zeros((8, 3))
+        for frame in range(40):
+            if frame in (0, 3, 11):
+                released = rng.random(3) < 0.6
+                easing.release(released, lambda s, b=bend: b[s])
+                for k in np.flatnonzero(released):
+                    expected[legs[k]] = bend[legs[k]]
+            got = easing.apply(sensed, DT)
+            expected, want = _numpy_apply(expected, sensed, SPEED * DT)
+            assert easing.offsets.tobytes() == expected.tobytes()
+            assert (got is None) == (want is None)
+            if got is not None:
+                assert np.asarray(got).tobytes() == np.asarray(want).tobytes()

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from ikfusion.ik import fast_math, vec3
+from ikfusion.ik import fast_math, support_motion, vec3
 from ikfusion.ik.tasks.position import PositionTask
 
 RNG = np.random.default_rng(7)
@@ -71,3 +71,40 @@ def test_one_target_is_set_as_set_targets_sets_it(weight: float,
     assert (one._scalar is None) == (many._scalar is None)
     if one._scalar is not None:
         assert _bits(one._scalar) == _bits(many._scalar)
+
+
+def test_clips_and_shrinks_at_their_limits_are_numpys_numbers() -> None:
+    """Limits at a vector's norm and at |x| + |y| + |z|, a few ulps either side (the shortcut's
+    bound), and zeros of either sign: the numbers of NumPy's formulas."""
+    buffer = np.zeros(3)
+    for v in VECTORS[::7]:
+        t = tuple(v.tolist())
+        n, a = float(np.linalg.norm(v)), float(np.abs(v).sum())
+        for base in (n, a, a * (1 + 1e-12)):
+            for ulps in (-3, -1, 0, 1, 3):
+                limit = base + ulps * math.ulp(base) if base else 0.0
+                assert _bits(vec3.clip_norm(t, limit, buffer)) == _bits(
+                    fast_math.clip_norm(v, limit))
+                assert _bits(vec3.shrink(t, limit, buffer)) == _bits(fast_math.shrink(v, limit))
+
+
+def test_the_supports_motions_are_numpys_numbers() -> None:
+    """:mod:`.support_motion`'s shortcuts (zeros, a kept clip) give the full formulas' numbers."""
+    buffer = np.zeros(3)
+    zeros = [np.zeros(3), np.array([-0.0, 0.0, -0.0])]
+    vectors = VECTORS[::11] + zeros
+    clip = support_motion.KeptClip()
+    for i, v in enumerate(vectors):
+        g, m = vectors[(3 * i + 1) % len(vectors)], vectors[(5 * i + 2) % len(vectors)]
+        t, tg, tm = (tuple(x.tolist()) for x in (v, g, m))
+        for by in (0.0, 1e-3, 0.05):
+            full = v + fast_math.clip_norm(g - v, by)
+            assert _bits(support_motion.moved_toward(t, tg, by, buffer)) == _bits(full)
+            assert _bits(support_motion.swing_toward(t, tg, by, tm, buffer)) == _bits(full - m)
+            lag = fast_math.clip_norm(fast_math.shrink(v, by), 0.04)
+            assert _bits(support_motion.shrunk_lag(t, by, 0.04, buffer)) == _bits(lag)
+            for again in (t, tuple((v * -1.0 * -1.0).tolist())):  # kept, then the same floats
+                assert _bits(clip(again, by, buffer)) == _bits(fast_math.clip_norm(v, by))
+    for z, w in [(a, b) for a in zeros for b in zeros]:  # a kept clip of a zero of either sign
+        clip(tuple(z.tolist()), 0.01, buffer)
+        assert _bits(clip(tuple(w.tolist()), 0.01, buffer)) == _bits(fast_math.clip_norm(w, 0.01))

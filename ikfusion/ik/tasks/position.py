@@ -40,6 +40,8 @@ class PositionTask(Task):
         self._scalar: np.ndarray | None = None  # the weights w when every matrix is w I
         self.information = np.zeros((k, 3, 3))  # also sets the rows' activity (setter)
         self.reach: float | None = None  # longest error one step acts on [m] (None: any)
+        # :meth:`set_target`'s weight and its arrays (read-only), the same from frame to frame
+        self._kept: tuple[float, np.ndarray, np.ndarray, np.ndarray] | None = None
 
     def set_targets(self, p_world_target: npt.ArrayLike, weights: npt.ArrayLike) -> None:
         """Targets (k, 3) [m] and weights: (k,) scalars or (k, 3, 3) information matrices."""
@@ -65,9 +67,10 @@ class PositionTask(Task):
             self.set_targets([p_world_target], [weight])
             return
         self.targets = np.array([p_world_target])
-        self._information = weight * _IDENTITY_1
-        self._active = np.array([weight != 0.0])
-        self._scalar = np.array([weight], dtype=float)
+        kept = self._kept
+        if kept is None or kept[0] != weight or not weight:  # (a zero's sign is in the arrays)
+            kept = self._kept = _weight_arrays(weight)
+        _, self._information, self._active, self._scalar = kept
 
     @property
     def information(self) -> np.ndarray:
@@ -139,6 +142,17 @@ class PositionTask(Task):
         e = self.compute_error(configuration).reshape(-1, 3)
         return {n: float(np.linalg.norm(v)) for n, v, W in zip(self.names, e, self.information)
                 if W.any()}
+
+
+def _weight_arrays(weight: float) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+    """A one-frame task's ``weight`` and its arrays, read-only (shared by frames of that weight).
+
+    Its information (1, 3, 3), activity (1,) and scalar weight (1,).
+    """
+    arrays = (weight * _IDENTITY_1, np.array([weight != 0.0]), np.array([weight], dtype=float))
+    for a in arrays:
+        a.setflags(write=False)
+    return (weight, *arrays)
 
 
 def _shortened(e: np.ndarray, weighed: np.ndarray, reach: float) -> np.ndarray:
