@@ -5,7 +5,7 @@ The kernel replaces about twenty NumPy and Python operations at the start of eve
 smoothed points and pitches, their steps and velocities, heights and bits are the same bytes as
 :func:`python_evidence`'s: on random frames (NaN heights and pitches, frames without time, a
 tracker restarted from outside arrays), and on the real Xsens walk (when ../shared is there),
-where every release and touch-down of the tracker is replayed from the state before it with the
+where every fourth release and touch-down of the tracker is replayed from the state before it with the
 NumPy path and must leave the tracker in the same state, bit for bit.
 """
 
@@ -101,9 +101,13 @@ def test_real_walk_replayed_with_numpy(tmp_path: Path, monkeypatch: pytest.Monke
     _kernel_or_skip()
     calls: list[tuple[str, ContactTracker, tuple[object, ...], tuple[object, ...]]] = []
     originals = {name: getattr(ContactTracker, name) for name in ("release", "touch_down")}
+    seen = dict.fromkeys(originals, 0)
 
     def captured(name: str):  # noqa: ANN202
         def call(self: ContactTracker, *args: object) -> object:
+            seen[name] += 1
+            if seen[name] % 4:  # every fourth call of each (a copy of the tracker costs ~2 ms)
+                return originals[name](self, *args)
             before = copy.deepcopy((self, args), memo={id(self.model): self.model,
                                                        id(self._sense): self._sense})
             out = originals[name](self, *args)
@@ -114,7 +118,7 @@ def test_real_walk_replayed_with_numpy(tmp_path: Path, monkeypatch: pytest.Monke
     for name in originals:
         monkeypatch.setattr(contact_tracker.ContactTracker, name, captured(name))
     solve_real_walk_natively(tmp_path / "walk")
-    assert len(calls) > 4000 and isinstance(calls[0][1]._sense, NativeSensing)
+    assert len(calls) > 1000 and isinstance(calls[0][1]._sense, NativeSensing)
     for name, tracker, args, after in calls:
         tracker._sense = functools.partial(python_evidence, tracker._sense.rules)
         originals[name](tracker, *args)
