@@ -5,8 +5,8 @@ The kernel replaces about twenty NumPy and Python operations at the start of eve
 smoothed points and pitches, their steps and velocities, heights and bits are the same bytes as
 :func:`python_evidence`'s: on random frames (NaN heights and pitches, frames without time, a
 tracker restarted from outside arrays), and on the real Xsens walk (when ../shared is there),
-where every fourth release and touch-down of the tracker is replayed from the state before it with the
-NumPy path and must leave the tracker in the same state, bit for bit.
+where every fourth release and touch-down of the tracker is replayed from the state before it
+with the NumPy path and must leave the tracker in the same state, bit for bit.
 """
 
 from __future__ import annotations
