@@ -12,6 +12,7 @@ back on the ground plants the points that reach the floor where they are (no pop
 
 from __future__ import annotations
 
+import functools
 import math
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
@@ -25,13 +26,14 @@ from ..model.topology import BodyTopology
 from .anchor_carry import AnchorCarry
 from .anchor_settling import held_again
 from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
-from .fast_math import any_true, min_of, true_indices
+from .fast_math import any_true, true_indices
 from .frame import Frame
 from .frame_stance import FrameStance
 from .landing_lag import unlagged_landings
-from .point_bits import above, indices, point_bits
-from .point_evidence import FrameEvidence, frame_evidence, heights_above_lowest
+from .point_bits import indices, point_bits
+from .point_evidence import FrameEvidence
 from .release import ANKLE, ReleaseEasing
+from .sensed_evidence import Rules, python_evidence, sensing
 from .settings import SolverSettings
 from .support import SupportFollower
 from .tasks import PositionTask, Task
@@ -82,7 +84,10 @@ class ContactTracker:
         self._no_pitch = np.full(len(self._feet), np.nan)  # foot_pitch's start: no foot
         self._stance = FrameStance(self.names, self._foot_names, self._bits)
         self._rest = self._bits.of(self._needs_rest)  # the trunk points, as bits
-        self._rest_rows = indices(self._rest)
+        rules = Rules(s.detection_smoothing, FAR_FROM_FLOOR, self.thresholds.enter_relative,
+                      self.thresholds.leave_relative, self._tilt, indices(self._rest),
+                      indices(self._bits.heels), indices(self._bits.toes))
+        self._sense = sensing(rules, len(self.names)) or functools.partial(python_evidence, rules)
         self._all = (1 << len(self.names)) - 1  # every point, as bits
         self._untracked: dict[bytes, tuple[int, ...]] = {}  # _untracked_feet's, per pattern
         self.support = SupportFollower(self.layout, s.lag_speed, s.lag_max, s.swing_speed,
@@ -188,24 +193,16 @@ class ContactTracker:
         """
         if not self.names:
             return None
-        a = self.settings.detection_smoothing  # sensor noise is white: smooth the evidence
-        previous, self._p_sensed = self._p_sensed, a * self._p_sensed + (1.0 - a) * p_sensed
         dt = frame.time - self._history[-1][0]  # the last solved frame's (smoothed) sensed pose
-        step = self._p_sensed - previous  # [m]
-        self._v_sensed = step / dt if dt > 0 else None
-        self._pitch = a * self._pitch + (1.0 - a) * pitch
-        # read-only: every rule of this frame reads them (FrameEvidence), none may write them
-        self._p_sensed.setflags(write=False)
-        self._pitch.setflags(write=False)
-        z = self._p_sensed[:, 2]
-        lowest = min_of(z)
-        self._far = above(z.tolist(), lowest + FAR_FROM_FLOOR, self._rest_rows)
+        # sensor noise is white: smooth the evidence (read-only: every rule of the frame reads it)
+        sensed = self._sense(self._p_sensed, self._pitch, p_sensed, pitch, dt)
+        self._p_sensed, self._pitch, step = sensed.p, sensed.pitch, sensed.step
+        self._v_sensed, self._far = sensed.velocity, sensed.far
         self.far_from_floor = self._bits.mask(self._far)  # (read-only, shared)
         (still, stance), moving = self._stance.feet_still(frame), self._stance.points_moving(frame)
         th = self.thresholds
-        evidence = frame_evidence(self._bits, heights_above_lowest(self._p_sensed, lowest),
-                                  self._pitch, stance, self._rest, self._tilt, th.leave_relative,
-                                  th.enter_relative)
+        evidence = FrameEvidence(sensed.height_rel, sensed.tilted, *stance, self._rest,
+                                 sensed.high, sensed.low)
         self._evidence = (frame, still, moving, evidence)
         tip = self.carrier.tip_speed  # lone toes' tips sliding (0: none, the usual frame)
         bits, on = self._bits, self.planted()  # (:mod:`.point_bits`)
