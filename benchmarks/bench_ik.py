@@ -86,7 +86,8 @@ def main() -> None:
     rate = 60.0
     model = HumanModel.default()
     truth = generate_gait(model, GaitParameters(duration=args.seconds, stand=1.0), rate=rate)
-    frames = orientation_frames(model, truth.q, truth.time, SENSOR_SEGMENTS)
+    # stacked as the application's frames are (ikfusion.app.pipeline): the solver reads them
+    frames = orientation_frames(model, truth.q, truth.time, SENSOR_SEGMENTS, stacked=True)
     repeat = max(1, args.repeat)
 
     def best(run: Callable[[], dict[str, float] | None]) -> dict[str, float] | None:

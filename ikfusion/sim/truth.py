@@ -23,15 +23,22 @@ from ..rotations import matrix_to_quat_wxyz
 
 
 def orientation_frames(model: HumanModel, q: np.ndarray, time: np.ndarray,
-                       segments: list[str] | tuple[str, ...]) -> list[Frame]:
-    """Solver frames whose targets are the exact segment orientations along ``q`` (N, nq)."""
+                       segments: list[str] | tuple[str, ...],
+                       stacked: bool = False) -> list[Frame]:
+    """Solver frames whose targets are the exact segment orientations along ``q`` (N, nq).
+
+    ``stacked``: each frame also holds its orientations as one (k, 3, 3) array
+    (``Frame.orientations_stacked``, the mapping's values views of it), as the application's
+    frames do; such a frame's orientations must not be changed in place.
+    """
     data = model.model.createData()
     ids = [model.segment_frame_id(s) for s in segments]
     frames = []
     for t, qk in zip(time, q):
         pin.framesForwardKinematics(model.model, data, qk)
-        frames.append(Frame(float(t), {s: data.oMf[f].rotation.copy()
-                                       for s, f in zip(segments, ids)}))
+        R = np.array([data.oMf[f].rotation for f in ids])
+        frames.append(Frame(float(t), dict(zip(segments, R)),
+                            orientations_stacked=R if stacked else None))
     return frames
 
 

@@ -377,6 +377,25 @@ def test_stacked_orientations_load_the_targets_of_the_dict(human: HumanModel) ->
         assert np.array_equal(got.tracked, want.tracked)
 
 
+def test_simulated_frames_stacked_solve_as_plain_ones(human: HumanModel) -> None:
+    """``orientation_frames(..., stacked=True)`` (bench_ik's frames, stacked as the
+    application's are) hold the plain frames' orientations and are solved to the same poses."""
+    from ikfusion.ik import Solver
+    from ikfusion.model import SENSOR_SEGMENTS
+    from ikfusion.sim.gait import GaitParameters, generate_gait
+    from ikfusion.sim.truth import orientation_frames
+
+    truth = generate_gait(human, GaitParameters(duration=0.5, stand=0.2), rate=60.0)
+    plain = orientation_frames(human, truth.q, truth.time, SENSOR_SEGMENTS)
+    stacked = orientation_frames(human, truth.q, truth.time, SENSOR_SEGMENTS, stacked=True)
+    for a, b in zip(plain, stacked):
+        assert a.orientations_stacked is None and b.orientations_stacked is not None
+        assert np.array_equal(b.orientations_stacked, np.array(list(a.orientations.values())))
+        assert all(np.array_equal(a.orientations[s], b.orientations[s]) for s in a.orientations)
+    q_plain = Solver(human).solve(plain).q
+    assert np.array_equal(Solver(human).solve(stacked).q, q_plain)
+
+
 def test_frame_weighting_is_kept_while_the_segments_stay(human: HumanModel) -> None:
     """Frames with the same tracked segments share one weighting (row weights, posture
     weights, sensed joints: worked out once); a sensor that drops out or comes back gets what a
