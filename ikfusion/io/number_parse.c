@@ -4,8 +4,9 @@
  * integer, are at most 2**53 and at most 22 decimals: its value is then that
  * integer divided by 10**decimals, both exact doubles, one correctly rounded division (Clinger's
  * fast path), which is the correctly rounded value of the decimal text: the double NumPy's
- * loadtxt (Python's string-to-double) reads. Anything else (an exponent, NaN, blanks, an empty
- * kept field, another field count, more digits) returns -1 and the caller uses loadtxt.
+ * loadtxt (Python's string-to-double) reads. Anything else (an exponent, NaN, blanks, CR, NUL,
+ * an empty kept field, a skipped field that is not empty, another field count, more digits)
+ * returns -1 and the caller uses loadtxt. Every byte read lies in [text, text + size).
  */
 #include <stdint.h>
 
@@ -31,18 +32,20 @@ static int field_value(const char *p, const char *end, double *value)
     for (; p < end; ++p) {
         char c = *p;
         if (c >= '0' && c <= '9') {
-            if (m > 1844674407370955160u)
-                return -1;  /* m * 10 + 9 would not fit */
-            ++digits;
+            if (m > ((uint64_t)1 << 53))
+                return -1;  /* more digits than an exact double holds (m stays far from overflow) */
+            digits = 1;
             m = m * 10 + (uint64_t)(c - '0');
             decimals += point;
+            if (decimals > 22)
+                return -1;  /* checked per digit: a long run of zeros cannot overflow the count */
         } else if (c == '.' && !point) {
             point = 1;
         } else {
-            return -1;
+            return -1;  /* an exponent, blank, NUL, CR, a byte beyond ASCII, another sign... */
         }
     }
-    if (!digits || m > ((uint64_t)1 << 53) || decimals > 22)
+    if (!digits || m > ((uint64_t)1 << 53))
         return -1;
     double v = (double)m / POWERS[decimals];
     *value = negative ? -v : v;
@@ -62,8 +65,8 @@ int64_t parse_block(const struct parse_block *a)
             char stop = p < end ? *p : '\n';
             if ((col + 1 < a->width) != (stop == d))
                 return -1;  /* a line with another field count */
-            if (a->keep[col] && field_value(start, p, out++) != 0)
-                return -1;
+            if (a->keep[col] ? field_value(start, p, out++) != 0 : p != start)
+                return -1;  /* a kept field not plain, or a skipped field not empty */
             if (p < end)
                 ++p;
         }

@@ -51,7 +51,10 @@ def kernel_table(text: str, delimiter: str, keep: np.ndarray, lines: int) -> np.
     if len(data) != len(text):  # a character beyond ASCII: loadtxt
         return None
     flags = np.ascontiguousarray(keep, dtype=np.uint8)
-    out = np.empty((lines, int(np.count_nonzero(flags))))
+    kept = int(np.count_nonzero(flags))
+    if not kept:  # no field to read (loadtxt would also drop blank lines)
+        return None
+    out = np.empty((lines, kept))
     call = _ParseBlock(ctypes.cast(ctypes.c_char_p(data), ctypes.c_void_p).value, len(data),
                        ord(delimiter), lines, len(flags), flags.ctypes.data, out.ctypes.data)
     return out if function(ctypes.byref(call)) == 0 else None

@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import io
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from ikfusion.errors import InputError
+from ikfusion.io import table
+from ikfusion.io.mtmanager import read_mtmanager_file
 from ikfusion.io.parse_kernel import kernel_table
 
 
@@ -50,3 +54,90 @@ def test_kept_columns(kernel: None) -> None:
                                   "9007199254740993,1", "1,2\r", "0.12345678901234567890123,1"])
 def test_other_fields_are_left_to_loadtxt(kernel: None, text: str) -> None:
     assert kernel_table(text, ",", np.ones(2, bool), text.count("\n") + 1) is None
+
+
+_HOSTILE = ["1e999", "-1e999", "nan", "-nan", "inf", "-inf", "-0", "+0", "+.5", "-.5", ".5", "5.",
+            ".", "-", "+", "+-1", "0x1A", "1,000", "1_000", "\u0661\u0662", "\uff11", "1\r", "\r",
+            "1\t", " 1", "1 ", "1\x00", "", "1e5", "1.2.3", "12345678901234567",
+            "9007199254740992", "9007199254740993", "18446744073709551616",
+            "0.0000000000000000000001", "0.00000000000000000000001", "4.9e-324",
+            "2.2250738585072014e-308", "0" * 300 + "1", "0." + "0" * 300, "1" * 40,
+            "0.1234567890123456789", "\u22121", "1\u00a0", "1\x0b"]
+
+
+def _plain(rng: np.random.Generator) -> str:
+    digits = "".join(map(str, rng.integers(0, 10, int(rng.integers(0, 8)))))
+    decimals = "".join(map(str, rng.integers(0, 10, int(rng.integers(0, 10)))))
+    sign = ["", "-", "+"][int(rng.integers(0, 3))]
+    return sign + digits + ("." + decimals if rng.random() < 0.7 else "")
+
+
+def _field(rng: np.random.Generator, plain: float) -> str:
+    if rng.random() < plain:
+        return _plain(rng)
+    return _HOSTILE[int(rng.integers(0, len(_HOSTILE)))]
+
+
+def _loadtxt_kept(text: str, delimiter: str, keep: list[bool]) -> np.ndarray | None:
+    try:
+        return np.loadtxt(io.StringIO(text), delimiter=delimiter, comments=None, ndmin=2,
+                          dtype=float, quotechar=None,
+                          usecols=[i for i, k in enumerate(keep) if k])
+    except ValueError:
+        return None
+
+
+def test_hostile_blocks_read_as_loadtxt_or_left_to_it(kernel: None) -> None:
+    """Fuzz: whatever the kernel accepts, loadtxt reads to the same bits (truncated blocks too)."""
+    rng = np.random.default_rng(24)
+    accepted = 0
+    for _ in range(1500):
+        delimiter = "\t;, "[int(rng.integers(0, 4))]
+        width, lines = int(rng.integers(1, 6)), int(rng.integers(1, 5))
+        plain = 0.97 if rng.random() < 0.5 else 0.6
+        text = "\n".join(delimiter.join(_field(rng, plain) for _ in range(width))
+                         for _ in range(lines))
+        if rng.random() < 0.15:
+            text = text[:int(rng.integers(0, len(text) + 1))]
+        keep = [bool(rng.random() < 0.8) for _ in range(width)]
+        got = kernel_table(text, delimiter, np.array(keep), lines)
+        if got is None:
+            continue
+        accepted += 1
+        want = _loadtxt_kept(text, delimiter, keep)
+        assert want is not None and got.shape == want.shape, repr(text)
+        assert got.tobytes() == want.tobytes(), repr(text)
+    assert accepted > 100  # the fuzz reaches the kernel's accepting path
+
+
+def test_hostile_export_files_read_the_same_with_and_without_kernel(
+        kernel: None, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Fuzz: an MT Manager export reads to the same array, numbers and warnings, or the same
+    error naming file, line and column, with the C kernel and with loadtxt alone."""
+    rng = np.random.default_rng(7)
+    path = tmp_path / "MT_x_00B421E6.txt"
+    for _ in range(120):
+        d = "\t;, "[int(rng.integers(0, 4))]
+        rows = []
+        for k in range(int(rng.integers(1, 6))):
+            fields = [f"{k:05d}", "", *(f"{v:.6f}" for v in rng.uniform(-20, 20, 3))]
+            if rng.random() < 0.4:
+                fields[int(rng.integers(2, 5))] = _field(rng, 0.0)
+            rows.append(d.join(fields))
+        text = f"// Update Rate: 100.0Hz\nPacketCounter{d}Year{d}Acc_X{d}Acc_Y{d}Acc_Z\n"
+        text += "\n".join(rows)
+        if rng.random() < 0.2:
+            text = text[:int(rng.integers(len(text) - len(rows[-1]), len(text) + 1))]
+        if rng.random() < 0.2:
+            text = text.replace("\n", "\r\n")
+        path.write_bytes(text.encode())
+        outcomes = []
+        for reader in (table.kernel_table, lambda *args: None):
+            monkeypatch.setattr(table, "kernel_table", reader)
+            try:
+                got = read_mtmanager_file(path)
+                outcomes.append((got.data.shape, got.data.tobytes(), got.line_numbers.tolist(),
+                                 got.warnings))
+            except InputError as err:
+                outcomes.append(("error", str(err)))
+        assert outcomes[0] == outcomes[1], repr(text)
