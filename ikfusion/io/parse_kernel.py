@@ -1,12 +1,12 @@
 """Delimited numbers read by a small C kernel (``number_parse.c``), the common case of tables.
 
 NumPy's ``loadtxt`` converts each field through Python's string-to-double; the kernel reads
-the plain fields (``[+-]digits[.digits]``, its digits as one integer at most 2**53, at most
-22 decimals) of a whole block
-in one pass by an exact integer divided by an exact power of ten (one correctly rounded
-division, the correctly rounded value: the same double as ``loadtxt``). Any other field
-(exponent, NaN, padding), an empty kept field or a line with another field count leaves the
-block to ``loadtxt`` (None), which then reads it or names the fault as before. Compiled once
+a whole block in one pass when every field is empty (NaN, as the Python path fills it) or
+plain (``[+-]digits[.digits]``, its digits as one integer at most 2**53, at most 22 decimals):
+an exact integer divided by an exact power of ten (one correctly rounded division, the
+correctly rounded value: the same double as ``loadtxt``). Any other field (exponent, NaN,
+padding, CR), a line with another field count or a blank line of a one-column table leaves
+the block to the Python path (None), which then reads it or names the fault as before. Compiled once
 with the machine's C compiler and cached (:func:`ikfusion.native.kernel.c_function`);
 without it (no compiler, ``IKFUSION_NO_COMPILE``) ``loadtxt`` reads every block.
 """
@@ -30,31 +30,25 @@ class _ParseBlock(ctypes.Structure):
     """``struct parse_block`` of ``number_parse.c``."""
 
     _fields_ = [("text", _P), ("size", _N), ("delimiter", _N), ("lines", _N), ("width", _N),
-                ("keep", _P), ("out", _P)]
+                ("out", _P)]
 
 
-def kernel_table(text: str, delimiter: str, keep: np.ndarray, lines: int) -> np.ndarray | None:
-    """(lines, kept columns) floats of a block of ``lines`` lines, or None (``loadtxt`` then).
+def kernel_table(text: str, delimiter: str, width: int) -> np.ndarray | None:
+    """(lines, width) floats of a block, NaN where a field is empty; None: the Python path.
 
     Args:
-        text: The lines joined by newlines (no trailing newline).
+        text: The lines joined by newlines (no trailing newline), ASCII for the kernel.
         delimiter: One-character field delimiter.
-        keep: (width,) bool, the columns read (in order).
-        lines: Lines of ``text``.
+        width: Fields per line.
     """
-    if len(delimiter) != 1 or not lines:
+    if len(delimiter) != 1 or delimiter == "\n" or width < 1 or not text.isascii():
         return None
     function = c_function(Path(__file__).with_name("number_parse.c"), "parse_block", FALLBACK)
     if function is None:
         return None
     data = text.encode()
-    if len(data) != len(text):  # a character beyond ASCII: loadtxt
-        return None
-    flags = np.ascontiguousarray(keep, dtype=np.uint8)
-    kept = int(np.count_nonzero(flags))
-    if not kept:  # no field to read (loadtxt would also drop blank lines)
-        return None
-    out = np.empty((lines, kept))
+    lines = data.count(b"\n") + 1
+    out = np.empty((lines, width))
     call = _ParseBlock(ctypes.cast(ctypes.c_char_p(data), ctypes.c_void_p).value, len(data),
-                       ord(delimiter), lines, len(flags), flags.ctypes.data, out.ctypes.data)
+                       ord(delimiter), lines, width, out.ctypes.data)
     return out if function(ctypes.byref(call)) == 0 else None

@@ -181,15 +181,15 @@ def parse_block(body: str, delimiter: str, width: int) -> np.ndarray | None:
     if not body:
         return np.zeros((0, width))
     text = _normalize_fields(body, delimiter)
+    table = kernel_table(text, delimiter, width)
+    if table is not None:  # the C kernel: the numbers and NaNs of the path below
+        return table
     raw = np.frombuffer(text.encode(), np.uint8)
     lines = int(np.count_nonzero(raw == ord("\n"))) + 1  # (str.count is several times slower)
     empty = _empty_columns(raw, delimiter, width, lines)
     if empty is not None:
         return _parse_filled_columns(text, delimiter, empty, lines)
     text = _fill_empty(text, delimiter)
-    table = kernel_table(text, delimiter, np.ones(width, bool), lines)
-    if table is not None:  # the C kernel: the same numbers
-        return table
     try:
         table = np.loadtxt(io.StringIO(text), delimiter=delimiter, comments=None, ndmin=2,
                            dtype=float, quotechar=None)
@@ -236,11 +236,6 @@ def _parse_filled_columns(text: str, delimiter: str, empty: np.ndarray,
                           lines: int) -> np.ndarray | None:
     """:func:`parse_block` of ``lines`` lines whose ``empty`` columns are all empty (NaN)."""
     filled = np.flatnonzero(~empty).tolist()
-    values = kernel_table(text, delimiter, ~empty, lines)
-    if values is not None:  # the C kernel: the same numbers
-        table = np.full((lines, len(empty)), np.nan)
-        table[:, filled] = values
-        return table
     try:
         values = np.loadtxt(io.StringIO(text), delimiter=delimiter, comments=None, ndmin=2,
                             dtype=float, quotechar=None, usecols=filled)
