@@ -31,7 +31,7 @@ class _FixedRows(ctypes.Structure):
     """``struct fixed_rows`` of ``number_text.c``."""
 
     _fields_ = [("rows", _P), ("whole", _P), ("n", _N), ("k", _N), ("decimals", _N),
-                ("literals", _P), ("bounds", _P), ("out", _P)]
+                ("literals", _P), ("bounds", _P), ("out", _P), ("field_decimals", _P)]
 
 
 class Literals:
@@ -51,8 +51,8 @@ class Literals:
         return self.out
 
 
-def kernel_text(literals: Literals, decimals: int, rows: np.ndarray,
-                whole: np.ndarray) -> str | None:
+def kernel_text(literals: Literals, decimals: int, rows: np.ndarray, whole: np.ndarray,
+                field_decimals: np.ndarray | None = None) -> str | None:
     """Rows whose every value takes the fast path, as text; None without the kernel.
 
     Args:
@@ -60,6 +60,7 @@ def kernel_text(literals: Literals, decimals: int, rows: np.ndarray,
         decimals: Digits after the point (0 to 9).
         rows: (n, k) values (their signs).
         whole: (n, k) ``|rows| * 10**decimals`` rounded, integers below 2**52 as floats.
+        field_decimals: (k,) int64 digits after the point of each field instead (0 to 9).
     """
     function = c_function(Path(__file__).with_name("number_text.c"), "fixed_rows", FALLBACK)
     if function is None:
@@ -69,6 +70,7 @@ def kernel_text(literals: Literals, decimals: int, rows: np.ndarray,
     whole = np.ascontiguousarray(whole, dtype=float)
     out = literals.room(n * (literals.row_bytes + k * FIELD_BYTES))
     call = _FixedRows(rows.ctypes.data, whole.ctypes.data, n, k, decimals,
-                      literals.text.ctypes.data, literals.bounds.ctypes.data, out.ctypes.data)
+                      literals.text.ctypes.data, literals.bounds.ctypes.data, out.ctypes.data,
+                      None if field_decimals is None else field_decimals.ctypes.data)
     length = function(ctypes.byref(call))
     return out[:length].tobytes().decode()

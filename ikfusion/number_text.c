@@ -19,7 +19,11 @@ struct fixed_rows {
     const char *literals;  /* the k + 1 literals, concatenated */
     const int64_t *bounds; /* (k + 2) where each literal starts in literals, then the end */
     char *out;             /* room for n * (literal bytes + k * 22) */
+    const int64_t *field_decimals;  /* (k) 0..9 per field, or NULL: decimals for all */
 };
+
+static const uint64_t UNITS[10] = {1u, 10u, 100u, 1000u, 10000u, 100000u, 1000000u,
+    10000000u, 100000000u, 1000000000u};
 
 static const char PAIRS[] =
     "00010203040506070809101112131415161718192021222324252627282930313233343536373839"
@@ -106,9 +110,34 @@ ALWAYS_INLINE char *rows_text(const struct fixed_rows *p, int64_t decimals, uint
     return at;
 }
 
+static char *mixed_rows_text(const struct fixed_rows *p)
+{   /* rows_text with each field's own decimals (e.g. "%.6f" then "%d" fields, as "%.0f") */
+    char *at = p->out;
+    const int64_t *b = p->bounds;
+    for (int64_t r = 0; r < p->n; ++r) {
+        const double *v = p->rows + r * p->k, *w = p->whole + r * p->k;
+        for (int64_t f = 0; f < p->k; ++f) {
+            at = literal(at, p->literals + b[f], b[f + 1] - b[f]);
+            int64_t decimals = p->field_decimals[f];
+            uint64_t unit = UNITS[decimals], scaled = (uint64_t)w[f], bits;
+            memcpy(&bits, v + f, sizeof(bits));
+            if (bits >> 63) *at++ = '-';
+            at = digits(at, scaled / unit);
+            if (decimals) {
+                *at++ = '.';
+                at = fraction(at, scaled % unit, decimals);
+            }
+        }
+        at = literal(at, p->literals + b[p->k], b[p->k + 1] - b[p->k]);
+    }
+    return at;
+}
+
 int64_t fixed_rows(const struct fixed_rows *p)
 {   /* returns the bytes written; decimals 0 to 9 */
     char *end;
+    if (p->field_decimals)
+        return (int64_t)(mixed_rows_text(p) - p->out);
     switch (p->decimals) {
     case 0: end = rows_text(p, 0, 1); break;
     case 1: end = rows_text(p, 1, 10); break;

@@ -27,6 +27,10 @@ from .number_kernel import Literals, kernel_text
 
 #: ``%`` fields the fast path writes: fixed decimals, e.g. ``%.6f``.
 _FIXED_FIELD = re.compile(r"%\.(\d)f")
+#: ``%`` fields the mixed fast path writes: fixed decimals or ``%d`` (integral values only).
+_MIXED_FIELD = re.compile(r"%\.(\d)f|%d")
+#: A ``%d`` field in :func:`mixed_row_parts`' decimals.
+_INTEGER = -1
 #: Any ``%`` field or escaped percent sign (to find the literal text between fields).
 _ANY_FIELD = re.compile(r"%%|%[^%]*?[a-zA-Z]")
 #: Scaled magnitudes below this convert to int64 exactly with room to spare.
@@ -59,6 +63,28 @@ def fixed_row_parts(row_format: str) -> tuple[list[str], int] | None:
     return literals, int(next(iter(fields))[2])
 
 
+def mixed_row_parts(row_format: str) -> tuple[list[str], list[int]] | None:
+    """The texts around the fields of ``row_format`` and each field's decimals, or None.
+
+    For formats mixing ``%.<d>f`` and ``%d`` fields (a ``%d`` field has 0 decimals); None
+    for any other field (the caller then formats with ``%``).
+    """
+    literals, decimals, start = [], [], 0
+    for match in _ANY_FIELD.finditer(row_format):
+        if match[0] == "%%":
+            continue
+        literals.append(row_format[start:match.start()].replace("%%", "%"))
+        field = _MIXED_FIELD.fullmatch(match[0])
+        if field is None:
+            return None
+        decimals.append(int(field[1]) if field[1] else _INTEGER)
+        start = match.end()
+    literals.append(row_format[start:].replace("%%", "%"))
+    if not decimals or any("\0" in part for part in literals):
+        return None
+    return literals, decimals
+
+
 def format_rows(row_format: str, table: np.ndarray) -> str:
     """``(row_format * len(table)) % tuple(table.ravel())``, the same text, faster.
 
@@ -68,13 +94,16 @@ def format_rows(row_format: str, table: np.ndarray) -> str:
     """
     rows = np.asarray(table, dtype=float)
     rows = rows.reshape(len(rows), -1 if rows.size else 0)
-    parts = fixed_row_parts(row_format)
+    parts = fixed_row_parts(row_format) or mixed_row_parts(row_format)
     if parts is None or not rows.size:
         return _percent(row_format, rows)
     literals, decimals = parts
     if len(literals) != rows.shape[1] + 1:
         raise TypeError(f"{len(literals) - 1} fields in the format, {rows.shape[1]} values")
     layout = _Layout(literals, decimals)
+    if layout.field_decimals is not None and kernel_text(
+            layout.literals, 0, rows[:0], rows[:0], layout.field_decimals) is None:
+        return _percent(row_format, rows)  # mixed fields: the C kernel only
     step = max(1, BLOCK_VALUES // rows.shape[1])
     return "".join(_block_text(layout, row_format, rows[s:s + step])
                    for s in range(0, len(rows), step))
@@ -97,10 +126,17 @@ class _Layout:
     The literals are written once per table shape; the fields are overwritten per block.
     """
 
-    def __init__(self, literals: list[str], decimals: int) -> None:
+    def __init__(self, literals: list[str], decimals: int | list[int]) -> None:
         self.encoded = [part.encode() for part in literals]
-        self.decimals = decimals
-        self.scale = 10.0 ** decimals
+        #: Mixed fields: (k,) decimals of each and which are ``%d`` (else None, None).
+        self.field_decimals: np.ndarray | None = None
+        self.integer: np.ndarray | None = None
+        self.decimals = decimals if isinstance(decimals, int) else 0
+        self.scale: float | np.ndarray = 10.0 ** self.decimals
+        if not isinstance(decimals, int):
+            self.integer = np.array(decimals) == _INTEGER
+            self.field_decimals = np.maximum(decimals, 0).astype(np.int64)
+            self.scale = np.array([10.0 ** d for d in self.field_decimals.tolist()])
         self.lengths = [len(part) for part in self.encoded[:-1]]
         self.tables: dict[tuple[int, int], tuple[np.ndarray, _Slots]] = {}
         self.literals = Literals(self.encoded)
@@ -119,6 +155,8 @@ def _block_text(layout: _Layout, row_format: str, rows: np.ndarray) -> str:
         scaled *= layout.scale
         whole = np.rint(scaled)
         slow_rows = _slow_rows(scaled, whole)
+        if layout.integer is not None:
+            slow_rows = _not_integral(rows, layout.integer, slow_rows)
     if slow_rows is None:
         return _fixed(layout, rows, whole)
     text, start = [], 0
@@ -146,6 +184,22 @@ def _slow_rows(scaled: np.ndarray, whole: np.ndarray) -> np.ndarray | None:
     return slow.any(axis=1)
 
 
+def _not_integral(rows: np.ndarray, integer: np.ndarray,
+                  slow_rows: np.ndarray | None) -> np.ndarray | None:
+    """``slow_rows`` and the rows with a ``%d`` value that is not a whole number or is -0.0.
+
+    ``%d`` truncates a float and writes -0.0 as ``0``: those rows are left to ``%`` (also
+    what it does with NaN). None when there is none.
+    """
+    values = rows[:, integer]
+    odd = (values != np.trunc(values)) | (np.signbit(values) & (values == 0))
+    odd |= ~np.isfinite(values)
+    odd_rows = odd.any(axis=1)
+    if slow_rows is not None:
+        odd_rows |= slow_rows
+    return odd_rows if odd_rows.any() else None
+
+
 def _percent(row_format: str, rows: np.ndarray) -> str:
     """The rows through ``%`` (the reference the fast path matches)."""
     return (row_format * len(rows)) % tuple(rows.ravel().tolist())
@@ -159,7 +213,7 @@ def _fixed(layout: _Layout, rows: np.ndarray, whole: np.ndarray) -> str:
         rows: (n, k) values (their signs).
         whole: (n, k) ``|rows| * 10**decimals`` rounded, integers below 2**52 as floats.
     """
-    text = kernel_text(layout.literals, layout.decimals, rows, whole)
+    text = kernel_text(layout.literals, layout.decimals, rows, whole, layout.field_decimals)
     if text is not None:
         return text
     return _numpy_fixed(layout, rows, whole)

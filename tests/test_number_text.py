@@ -97,3 +97,23 @@ def test_parts_of_a_format() -> None:
     assert fixed_row_parts("no fields\n") is None
     with pytest.raises(TypeError):
         format_rows("%.6f,%.6f\n", np.zeros((2, 3)))
+
+
+def test_mixed_decimal_and_integer_fields_as_percent_writes_them(rng) -> None:
+    # contacts.csv and solve_time.csv: "%.6f" then "%d" fields (and "%.4f"); a "%d" field
+    # truncates a float and writes -0.0 as "0": such rows (and halves, huge values) go to %
+    row_format = "%.6f,%d,%.4f,%d,%d\n"
+    table = np.column_stack([rng.normal(0, 50, 3000), rng.integers(-5, 5, 3000),
+                             rng.normal(0, 1, 3000) * 10.0 ** rng.integers(-6, 8, 3000),
+                             rng.integers(0, 2, 3000), rng.integers(-10**12, 10**12, 3000)])
+    table = table.astype(float)
+    table[:20, 1] = [-0.0, 0.0, 1.5, -1.5, 2.999, -2.5, 1e17, -1e17, 4503599627370497.0, 0.5,
+                     1e-300, -1e-300, 7, -7, 0.9999999, 2 ** 52, -(2 ** 52), 3, 1e15, 0.0]
+    table[20:29, 2] = AWKWARD[:9]
+    assert format_rows(row_format, table) == percent(row_format, table)
+    assert format_rows("t=%d;%.3f%%\n", table[:, :2]) == percent("t=%d;%.3f%%\n", table[:, :2])
+
+
+def test_mixed_fields_with_nan_in_an_integer_field_fail_as_percent() -> None:
+    with pytest.raises(ValueError, match="NaN"):
+        format_rows("%.6f,%d\n", np.array([[1.0, 2.0], [0.5, np.nan]]))
