@@ -199,6 +199,10 @@ class StepRows:
         self._floor_rows = np.zeros(contacts, dtype=np.int64)
         self._held_rows = np.zeros(3 * contacts, dtype=np.int64)
         self._anchors = np.zeros((contacts, 3))
+        # the arrays last copied there (held, so their ids stay theirs): the contact limit and
+        # the floor replace these arrays, never write them in place, so the same array again
+        # holds the same numbers and is not copied again
+        self._copied: tuple[np.ndarray | None, ...] = (None, None, None)
         # (floor rows' first row, QP inequality rows) -> the floor rows' views of the buffer
         self._floors: dict[tuple[int, int], Inequality] = {}
         # the damping weights' address (the same array frame after frame)
@@ -267,11 +271,16 @@ class StepRows:
         contacts = len(self.contact_rows)
         n_floor = n_held = 0
         if contacts:
-            floor_rows = tasks.floor.z_rows()
+            floor_rows, anchors = tasks.floor.z_rows(), contact.anchors
             n_floor, n_held = len(floor_rows), len(held)
-            self._floor_rows[:n_floor] = floor_rows
-            self._held_rows[:n_held] = held
-            np.copyto(self._anchors, contact.anchors)
+            last_floor, last_held, last_anchors = self._copied
+            if floor_rows is not last_floor:
+                self._floor_rows[:n_floor] = floor_rows
+            if held is not last_held:
+                self._held_rows[:n_held] = held
+            if anchors is not last_anchors:
+                np.copyto(self._anchors, anchors)
+            self._copied = (floor_rows, held, anchors)
             plan.floor_z = tasks.floor.floor_z
         plan.n_floor, plan.n_held = n_floor, n_held
         plan.root_on = root_on

@@ -19,6 +19,7 @@ from real_walk import solve_real_walk_natively
 from ikfusion.ik import Frame, Solver
 from ikfusion.ik import frame_problem as fp
 from ikfusion.ik import solver as solver_module
+from ikfusion.ik.limits import ContactConstraint, FloorLimit
 from ikfusion.model import SENSOR_SEGMENTS, HumanModel
 from ikfusion.rotations import random_rotations
 from ikfusion.sim.gait import GaitParameters, generate_gait
@@ -142,3 +143,24 @@ def test_without_a_compiler_the_numpy_path_builds(human: HumanModel,
     monkeypatch.setenv("IKFUSION_NO_COMPILE", "1")
     assert step_rows.step_rows(fp.QpBuffer(human.model.nv), np.zeros((3, 3), dtype=int),
                                np.zeros(0, dtype=int), 0.1) is None
+
+
+def test_contact_rows_and_anchors_are_replaced_never_written_in_place() -> None:
+    """What the writer's skipped copies rely on: new contacts, new arrays; the old ones keep
+    their numbers (so the same array again holds the same numbers)."""
+    contact = ContactConstraint([1, 2, 3], ["a", "b", "c"])
+    contact.set_anchors([True, False, True], [[0.1, 0.2, 0.0], [0, 0, 0], [0.4, 0.5, 0.0]])
+    anchors, rows = contact.anchors, contact.world_rows()
+    kept_anchors, kept_rows = anchors.copy(), np.array(rows)
+    contact.set_anchors([True, True, False], [[0.3, 0.2, 0.0], [0.7, 0.1, 0.0], [0, 0, 0]],
+                        [False, True, False])
+    assert contact.anchors is not anchors and contact.world_rows() is not rows
+    np.testing.assert_array_equal(anchors, kept_anchors)
+    np.testing.assert_array_equal(rows, kept_rows)
+    np.testing.assert_array_equal(contact.world_rows(), [0, 1, 2, 3, 4])
+    floor = FloorLimit([1, 2, 3])
+    every = floor.z_rows()
+    floor.enabled = np.array([False, True, True])
+    assert floor.z_rows() is not every
+    np.testing.assert_array_equal(every, [2, 5, 8])
+    np.testing.assert_array_equal(floor.z_rows(), [5, 8])
