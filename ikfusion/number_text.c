@@ -87,6 +87,21 @@ static char *literal(char *at, const char *text, int64_t length)
 #define ALWAYS_INLINE static inline
 #endif
 
+ALWAYS_INLINE char *field_text(char *at, const double *value, double whole, int64_t decimals,
+                               uint64_t unit)
+{   /* one field: its sign (from the value's sign bit), integer digits and decimals */
+    uint64_t scaled = (uint64_t)whole;
+    uint64_t bits;
+    memcpy(&bits, value, sizeof(bits));
+    if (bits >> 63) *at++ = '-';
+    at = digits(at, scaled / unit);
+    if (decimals) {
+        *at++ = '.';
+        at = fraction(at, scaled % unit, decimals);
+    }
+    return at;
+}
+
 ALWAYS_INLINE char *rows_text(const struct fixed_rows *p, int64_t decimals, uint64_t unit)
 {   /* called with constant decimals and unit: their divisions become multiplications */
     char *at = p->out;
@@ -95,15 +110,7 @@ ALWAYS_INLINE char *rows_text(const struct fixed_rows *p, int64_t decimals, uint
         const double *v = p->rows + r * p->k, *w = p->whole + r * p->k;
         for (int64_t f = 0; f < p->k; ++f) {
             at = literal(at, p->literals + b[f], b[f + 1] - b[f]);
-            uint64_t scaled = (uint64_t)w[f];
-            uint64_t bits;
-            memcpy(&bits, v + f, sizeof(bits));
-            if (bits >> 63) *at++ = '-';
-            at = digits(at, scaled / unit);
-            if (decimals) {
-                *at++ = '.';
-                at = fraction(at, scaled % unit, decimals);
-            }
+            at = field_text(at, v + f, w[f], decimals, unit);
         }
         at = literal(at, p->literals + b[p->k], b[p->k + 1] - b[p->k]);
     }
@@ -119,14 +126,7 @@ static char *mixed_rows_text(const struct fixed_rows *p)
         for (int64_t f = 0; f < p->k; ++f) {
             at = literal(at, p->literals + b[f], b[f + 1] - b[f]);
             int64_t decimals = p->field_decimals[f];
-            uint64_t unit = UNITS[decimals], scaled = (uint64_t)w[f], bits;
-            memcpy(&bits, v + f, sizeof(bits));
-            if (bits >> 63) *at++ = '-';
-            at = digits(at, scaled / unit);
-            if (decimals) {
-                *at++ = '.';
-                at = fraction(at, scaled % unit, decimals);
-            }
+            at = field_text(at, v + f, w[f], decimals, UNITS[decimals]);
         }
         at = literal(at, p->literals + b[p->k], b[p->k + 1] - b[p->k]);
     }
