@@ -92,3 +92,21 @@ def test_sensed_points_are_read_only_and_the_targets_reach_the_slot_transposed()
     compiled = solver.sensed._compiled
     if compiled is not None:  # the function reads each 3 x 3 block column-major
         assert compiled.call.input_slot(1).tobytes() == T.transpose(0, 2, 1).tobytes()
+
+
+def test_ballistic_velocity_kept_in_floats_is_the_filter_on_arrays() -> None:
+    from ikfusion.ik.ballistic import BallisticRoot
+
+    rng = np.random.default_rng(9)
+    root = BallisticRoot(0.05)
+    v = rng.normal(size=3)
+    root.velocity = v.copy()
+    assert root.velocity.tobytes() == v.tobytes()  # set and read back: the same numbers
+    for _ in range(300):
+        v_solved, a, dt = rng.normal(size=3), rng.normal(size=3) * 5.0, rng.uniform(0.005, 0.02)
+        root.update(v_solved, dt, a, supported=True)
+        predicted = v + a * dt  # the filter on (3,) arrays (no lever arm: no motion around)
+        v = predicted + min(1.0, dt / 0.05) * (v_solved + np.zeros(3) / dt + 0.5 * a * dt
+                                               - predicted)
+        assert root.velocity.tobytes() == v.tobytes()
+        assert root.velocity is not root.velocity  # a new array at each read
