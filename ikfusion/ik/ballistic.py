@@ -49,6 +49,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .vec3 import ZERO, ArrayView, Vec3
+
 if TYPE_CHECKING:
     from ..model.human_model import HumanModel
 
@@ -68,6 +70,8 @@ class BallisticRoot:
             pelvis origin); None: at the origin.
     """
 
+    velocity = ArrayView()  #: (3,) [m/s] the filter's velocity (read: a new array)
+
     def __init__(self, tau: float, lever: np.ndarray | None = None) -> None:
         if tau < 0.0:
             raise ValueError(f"tau must be >= 0 s, got {tau}")
@@ -77,7 +81,7 @@ class BallisticRoot:
 
     def reset(self) -> None:
         """At rest, nothing measured."""
-        self.velocity = np.zeros(3)
+        self._velocity: Vec3 = ZERO  # :attr:`velocity`'s floats
         self.position: np.ndarray | None = None  # on the path in flight, None on the ground
         #: the path came down onto the floor and follows the feet there
         self.landed = False
@@ -124,7 +128,7 @@ class BallisticRoot:
             # a shift may lower the path onto the landing height, never under it
             self.position[2] = max(float(self.position[2]), min(float(free[2]), lowest_z))
         self._shift = _NO_SHIFT
-        descending = self.velocity[2] * dt <= around[2]  # the origin's velocity
+        descending = self._velocity[2] * dt <= around[2]  # the origin's velocity
         self.landed = (lowest_z is not None and descending
                        and (self.landed or bool(self.position[2] < lowest_z)))
         if self.landed and lowest_z is not None:
@@ -163,9 +167,8 @@ class BallisticRoot:
             self.velocity = np.asarray(v_solved, dtype=float) + (
                 np.array(around) / dt if dt > 0 else 0.0)
             return
-        self.velocity = np.array(_filtered(self.velocity.tolist(),
-                                           np.asarray(v_solved, dtype=float).tolist(),
-                                           around, a, dt, self.tau))
+        self._velocity = _filtered(self._velocity, np.asarray(v_solved, dtype=float).tolist(),
+                                   around, a, dt, self.tau)
 
     def _lever_world_of(self, R_world_pelvis: np.ndarray | None) -> np.ndarray | None:
         """(3,) the accelerometer's offset from the pelvis origin in the world [m], or None."""
@@ -184,8 +187,8 @@ class BallisticRoot:
         return np.asarray(lever_now - self._lever_world)
 
 
-def _filtered(v: list[float], v_solved: list[float], around: list[float], a: list[float],
-              dt: float, tau: float) -> tuple[float, ...]:
+def _filtered(v: Vec3, v_solved: list[float], around: list[float], a: list[float],
+              dt: float, tau: float) -> Vec3:
     """The standing filter's velocity [m/s], per axis with floats (NumPy's numbers on (3,)).
 
     ``v``: the kept velocity, ``v_solved``: the solve's finite difference [m/s], ``around``:
@@ -199,7 +202,8 @@ def _filtered(v: list[float], v_solved: list[float], around: list[float], a: lis
         predicted = vi + ai * dt
         v_now = si + ri / dt + 0.5 * ai * dt
         out.append(predicted + gain * (v_now - predicted))
-    return tuple(out)
+    x, y, z = out
+    return (x, y, z)
 
 
 def sensor_lever(model: HumanModel, segment: str = "Pelvis") -> np.ndarray | None:

@@ -285,13 +285,16 @@ class ContactTracker:
         self.support.lose_support()
         return None
 
-    def support_tasks(self, q: np.ndarray, p_warm: np.ndarray, root: PositionTask,
-                      swing: PositionTask) -> list[Task]:
+    def support_tasks(self, q: np.ndarray, p_sensed: np.ndarray, offset: np.ndarray,
+                      root: PositionTask, swing: PositionTask) -> list[Task]:
         """The pelvis at its warm start plus the lag; swing feet led to their offsets.
 
         Args:
             q: The warm start (sensed pose on the support).
-            p_warm: (c, 3) its contact points [m].
+            p_sensed: (c, 3) the sensed pose's contact points [m] (:meth:`follow`'s; not
+                written to after).
+            offset: (3,) the support offset [m] (:meth:`follow`'s): the warm start's points
+                are ``p_sensed + offset``, worked out when a swing foot is led.
             root: The pelvis position task (its targets are set here).
             swing: The swing-feet position task (its targets are set here).
         """
@@ -303,9 +306,9 @@ class ContactTracker:
             root.set_target(target, weight)
             tasks.append(root)
         if not support.leads():  # the usual frame: no swing foot led
-            support.keep_base(p_warm)
+            support.keep_base(p_sensed, offset)
             return tasks
-        targets, weights = support.swing_targets(support.led_points(p_warm))
+        targets, weights = support.swing_targets(support.led_points(p_sensed + offset))
         if any_true(weights):
             swing.set_targets(targets, weights)
             tasks.append(swing)

@@ -87,10 +87,11 @@ class SensedPose:
 
     def pose(self, q: np.ndarray, R_world_target: np.ndarray,
              tracked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The sensed configuration at ``q`` and its contact points (c, 3) [m].
+        """The sensed configuration at ``q`` and its contact points (c, 3) [m] (read-only).
 
         The configuration keeps the toes of ``q`` (the posture prior decides them); the points
-        are those with level toes (see :meth:`configuration`).
+        are those with level toes (see :meth:`configuration`). The points are kept for a frame
+        (:meth:`.support.SupportFollower.keep_base`): never written to.
 
         Args:
             q: The configuration whose unsensed joints are kept.
@@ -98,9 +99,12 @@ class SensedPose:
             tracked: (n,) which segments are tracked.
         """
         if self._compiled is not None:
-            return self._compiled(q, R_world_target, tracked)
-        return (self.configuration(q, R_world_target, tracked, level_toes=False),
-                self.contact_positions(self.configuration(q, R_world_target, tracked)))
+            q_sensed, p_sensed = self._compiled(q, R_world_target, tracked)
+        else:
+            q_sensed = self.configuration(q, R_world_target, tracked, level_toes=False)
+            p_sensed = self.contact_positions(self.configuration(q, R_world_target, tracked))
+        p_sensed.setflags(write=False)
+        return q_sensed, p_sensed
 
     def configuration(self, q: np.ndarray, R_world_target: np.ndarray, tracked: np.ndarray,
                       level_toes: bool = True) -> np.ndarray:
@@ -176,7 +180,9 @@ class _CompiledPose:
         self.call = call
         call.input_slot(2)[:] = geometry
         self._q = call.input_slot(0)
-        self._R = call.input_slot(1).reshape(-1, 3, 3)  # a view: the slot's 3 x 3 blocks
+        # a view: the slot's 3 x 3 blocks transposed (the targets copied in as they are: NumPy
+        # copies into strided blocks faster than from them)
+        self._R_T = call.input_slot(1).reshape(-1, 3, 3).transpose(0, 2, 1)
         self._tracked: np.ndarray | None = None  # the set in the slot ...
         self._owner: np.ndarray | None = None  # ... and the array owning its memory
         # the outputs as returned, views of their buffers (None: sparse, scattered per call)
@@ -192,7 +198,7 @@ class _CompiledPose:
             self.call.input_slot(3)[:] = tracked
             self._tracked, self._owner = tracked, memory_owner(tracked)
         self._q[:] = q
-        self._R[:] = R_world_target.transpose(0, 2, 1)
+        self._R_T[...] = R_world_target
         self.call.run()
         if self._outputs is not None:
             q_out, p_out = self._outputs

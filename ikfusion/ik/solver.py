@@ -162,7 +162,7 @@ class Solver:
         if offset is not None:
             q[:3] += offset
             if frame.root_position is None:
-                active += contacts.support_tasks(q, p_sensed + offset, tasks.root, tasks.swing)
+                active += contacts.support_tasks(q, p_sensed, offset, tasks.root, tasks.swing)
         elif frame.root_position is None and self._contact_frames:  # flight: ballistic pelvis
             # the sensed pose's lowest contact point on the floor bounds the pelvis height
             lowest_z = self.settings.floor_z + q[2] - float(np.min(p_sensed[:, 2]))

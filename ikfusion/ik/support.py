@@ -331,12 +331,12 @@ class SupportFollower:
         """Whether a swinging foot is led now (:meth:`swing_targets` gives it information)."""
         return any(map(bool.__and__, self._swinging, self._has_goal))  # lists of bools
 
-    def keep_base(self, p_warm: np.ndarray) -> None:
+    def keep_base(self, p_sensed: np.ndarray, offset: np.ndarray) -> None:
         """Keep the contact points (k, 3) [m] of the warm start for :meth:`record` (no swing).
 
-        They are led by this frame's lag and lean (:meth:`led_points`, worked out at a lift-off).
+        ``p_sensed + offset`` (3,) and this frame's lag and lean, summed at a lift-off only.
         """
-        self._led_base.keep(p_warm, self._lag, self._lean)
+        self._led_base.keep(p_sensed, self._lag, self._lean, offset)
 
     def swing_targets(self, p_points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Targets (k, 3) [m] and information (k, 3, 3) of the heels of swing feet led now.

@@ -26,8 +26,8 @@ import numpy as np
 
 _HORIZONTAL = np.diag([1.0, 1.0, 0.0])  # information of a lead on the x and y axes
 _VERTICAL = np.diag([0.0, 0.0, 1.0])  # ... and on the z axis
-#: (points, lag or None, lean) of :class:`LedBase`
-_Led = tuple[np.ndarray, tuple[float, ...] | None, tuple[float, ...]]
+#: (points, lag or None, lean, offset or None) of :class:`LedBase`
+_Led = tuple[np.ndarray, tuple[float, ...] | None, tuple[float, ...], np.ndarray | None]
 UNDER_FLOOR_BAND = 0.01  # [m] the lead lets a heel's height go as its foot sinks this far
 # under the floor, or as the heel lifts off this far from the sensed leg's height
 
@@ -75,9 +75,12 @@ class LedBase:
         self._recorded: tuple[np.ndarray, _Led] | None = None
 
     def keep(self, points: np.ndarray, lag: tuple[float, ...] | None = None,
-             lean: tuple[float, ...] = (0.0, 0.0, 0.0)) -> None:
-        """This frame's points (k, 3) [m], led by ``lag`` then ``lean`` (3,) [m] (None: led)."""
-        self._base = (points, lag, lean)
+             lean: tuple[float, ...] = (0.0, 0.0, 0.0), offset: np.ndarray | None = None) -> None:
+        """This frame's points (k, 3) [m], led by ``lag`` then ``lean`` (3,) [m] (None: led).
+
+        ``offset`` (3,) [m] moves the points first (None: none); no array is written to after.
+        """
+        self._base = (points, lag, lean, offset)
 
     def record(self, p_solved: np.ndarray) -> None:
         """After solving: the solved points (k, 3) [m] of the frame kept (none kept: no change)."""
@@ -88,6 +91,8 @@ class LedBase:
         """(k, 3) [m] the last recorded solved points less where they were led (zeros: none)."""
         if self._recorded is None:
             return np.zeros((self._k, 3))
-        p_solved, (points, lag, lean) = self._recorded
+        p_solved, (points, lag, lean, offset) = self._recorded
+        if offset is not None:
+            points = points + offset
         return p_solved - (points if lag is None else points + lag + lean)
 

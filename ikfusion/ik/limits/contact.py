@@ -45,6 +45,8 @@ class ContactConstraint:
         self._world_axes_key: tuple[bytes, bytes] | None = None
         # :meth:`slides`' planted points (index, anchor x, y, z, z held), made when first asked
         self._planted: list[tuple[int, float, float, float, bool]] | None = None
+        # the bytes of what :meth:`set_anchors` was last given (free_z None: b"") and made
+        self._given = (b"-", b"-", b"-", b"-")
 
     def set_anchors(self, active: npt.ArrayLike, anchors: npt.ArrayLike,
                     free_z: npt.ArrayLike | None = None) -> None:
@@ -55,11 +57,16 @@ class ContactConstraint:
             anchors: (k, 3) where they are held [m].
             free_z: (k,) which of them are held horizontally only.
         """
-        self.active = np.asarray(active, dtype=bool).copy()
-        self.anchors = np.asarray(anchors, dtype=float).reshape(-1, 3).copy()
-        self.free_z = (np.zeros_like(self.active) if free_z is None
-                       else np.asarray(free_z, dtype=bool) & self.active)
+        active = np.asarray(active, dtype=bool)
+        anchors = np.asarray(anchors, dtype=float).reshape(-1, 3)
+        rising = None if free_z is None else np.asarray(free_z, dtype=bool)
         self._planted = None
+        if self._holds(active, anchors, rising):  # the usual frame: the same points and anchors
+            return
+        self.active, self.anchors = active.copy(), anchors.copy()
+        self.free_z = np.zeros_like(self.active) if rising is None else rising & self.active
+        self._given = (self.active.tobytes(), self.anchors.tobytes(),
+                       b"" if rising is None else rising.tobytes(), self.free_z.tobytes())
         key = (self.active.tobytes(), self.free_z.tobytes())
         if key == self._world_axes_key:  # the same points held along the world axes as before
             return
@@ -73,6 +80,18 @@ class ContactConstraint:
             self._basis, self._held = shared
             self._world_axes_key = None
         self._held_rows = self._held.ravel().nonzero()[0]
+
+    def _holds(self, active: np.ndarray, anchors: np.ndarray, rising: np.ndarray | None) -> bool:
+        """Whether :meth:`set_anchors` of these arrays would set what the constraint holds now.
+
+        Bit for bit the arrays it was last given, its own arrays unchanged since (so one
+        written in place is never taken for what was set).
+        """
+        was_active, was_anchors, was_rising, was_free_z = self._given
+        return (active.tobytes() == was_active == self.active.tobytes()
+                and anchors.tobytes() == was_anchors == self.anchors.tobytes()
+                and (b"" if rising is None else rising.tobytes()) == was_rising
+                and self.free_z.tobytes() == was_free_z)
 
     def _along_held(self, vectors: np.ndarray, on: np.ndarray | slice) -> np.ndarray:
         """Per point ``on``, ``vectors`` (m, 3, ...) in its held directions' frame."""
