@@ -244,10 +244,10 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     """
     previous = tasks.velocity.q_previous  # also the damping task's reference
     moved = None if previous is None else conf.difference(previous)
-    bounds = tasks.velocity.bounds(conf, moved)
     nv = conf.model.nv
     limits = tasks.joint_range
     if compiled is None:
+        bounds = tasks.velocity.bounds(conf, moved)
         ranges = limits.softened(limits.linearise(limits.angles(conf.q), None, nv))
         up, down = ranges.near(limits.margin)
         floor = tasks.floor.inequality(conf)
@@ -280,13 +280,18 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     if compiled.rows is not None and not shape and not numpy_persistence:
         error = None if tasks.damping.q_reference is None else \
             moved if same else tasks.damping.compute_error(conf)
+        # the move since the previous frame is the damping's error: the kernel bounds it too
+        velocity = tasks.velocity if error is moved else None
         written = compiled.rows.write(step, compiled.kinematics, None if few else sites, tasks,
-                                      active, error, levenberg_marquardt)
+                                      active, error, levenberg_marquardt, velocity)
         if written is not None:
-            qp, ranges, (up, down), floor_rows = written
+            qp, ranges, (up, down), floor_rows, bounds = written
+            if velocity is None:
+                bounds = tasks.velocity.bounds(conf, moved)
             return FrameProblem(qp, LimitRows(
                 ranges, up, down,
                 compiled.no_floor if floor_rows is None else floor_rows, bounds))
+    bounds = tasks.velocity.bounds(conf, moved)
     if sites:
         P = step.output(5).reshape(-1, 3)
         J = step.output(6).reshape(-1, 3, nv)

@@ -32,6 +32,7 @@ from .tasks.position import PositionTask
 
 if TYPE_CHECKING:
     from .frame_problem import FrameTasks
+    from .limits.velocity import VelocityLimit
 
 _P = ctypes.c_void_p
 _I, _D = ctypes.c_int, ctypes.c_double
@@ -60,11 +61,16 @@ class _Plan(ctypes.Structure):
                 ("n_floor", _I), ("floor_z", _D), ("held_rows", _P), ("n_held", _I),
                 ("anchors", _P), ("root_on", _I), ("root_weight", _D), ("root_target", _P),
                 ("site_task", _Points), ("swing", _Points), ("damping", _P), ("moved", _P),
-                ("levenberg_marquardt", _D)]
+                ("levenberg_marquardt", _D), ("span", _P), ("bounds", _P)]
 
 
 def _address(a: np.ndarray) -> int:
     return int(a.ctypes.data)
+
+
+def _c_float64(a: np.ndarray) -> bool:
+    """Whether the kernel can read ``a`` as it stands (C-contiguous float64)."""
+    return bool(a.flags.c_contiguous and a.dtype == np.float64)
 
 
 def _flat(sparsity: ca.Sparsity, mirrored: bool = False) -> np.ndarray:
@@ -228,9 +234,9 @@ class StepRows:
 
     def write(self, step: BoundFunction, kinematics: CompiledKinematics, sites: bool | None,
               tasks: FrameTasks, active: list[Task], error: np.ndarray | None,
-              levenberg_marquardt: float
+              levenberg_marquardt: float, velocity: VelocityLimit | None = None
               ) -> tuple[QpProblem, LinearisedRanges, tuple[np.ndarray, np.ndarray],
-                         Inequality | None] | None:
+                         Inequality | None, tuple[np.ndarray, np.ndarray] | None] | None:
         """The step's QP from the evaluated ``step``; None: a step for the NumPy path.
 
         Args:
@@ -241,12 +247,15 @@ class StepRows:
             active: The tasks of this frame.
             error: The damping task's error ``q ⊖ q_reference`` (nv,), or None without one.
             levenberg_marquardt: Damping of the step [1/rad^2].
+            velocity: The velocity limit whose bounds the kernel writes too (``error`` is then
+                the move since its previous frame, ``q ⊖ q_previous``); None: not here.
 
         Returns:
             The QP (views of the buffer), the ranges (``G`` and the rooms in place, valid until
             the next step), the masks (angles,) of the range rows in the QP (upper, lower; the
-            same arrays step after step, written in place) and the floor rows (None without
-            contact points).
+            same arrays step after step, written in place), the floor rows (None without
+            contact points) and ``velocity``'s bounds (:meth:`.VelocityLimit.bounds`; None
+            without a bound or without ``velocity``).
         """
         root, swing, contact, position = tasks.root, tasks.swing, tasks.contact, tasks.position
         held = contact.world_rows()
@@ -260,7 +269,7 @@ class StepRows:
                 (site_on and (site_w is None or position.reach is not None
                               or len(site_w) > MAX_SWING)):
             return None
-        made = self.plan(step, kinematics, sites)
+        made = self._plans.get(id(step)) or self.plan(step, kinematics, sites)
         plan = made.plan
         room = tasks.joint_range.wall_room(made.G, made.room_up_raw)
         if room is None:
@@ -292,10 +301,10 @@ class StepRows:
         if error is None:
             plan.damping = None
         else:
-            plan.damping = self._addresses.of(
-                tasks.damping.weights, lambda a: a.flags.c_contiguous and a.dtype == np.float64,
-                "not a C-contiguous float64 array")
+            plan.damping = self._addresses.of(tasks.damping.weights, _c_float64,
+                                              "not a C-contiguous float64 array")
             made.moved[:] = error
+        bounds = self._bounds(plan, velocity if error is not None else None)
         plan.levenberg_marquardt = levenberg_marquardt
         below = made.kernel(made.at)
         qp = self.buffer.views(below + n_floor, n_held)
@@ -304,7 +313,19 @@ class StepRows:
         floor = self._floors.get((below, n_floor)) if contacts else None
         if contacts and floor is None:  # (views of the buffer, whose array never moves)
             floor = self._floors[below, n_floor] = Inequality(qp.G[below:], qp.h[below:])
-        return qp, made.ranges, made.up_down, floor
+        return qp, made.ranges, made.up_down, floor, bounds
+
+    def _bounds(self, plan: _Plan, velocity: VelocityLimit | None
+                ) -> tuple[np.ndarray, np.ndarray] | None:
+        """The kernel told to write ``velocity``'s bounds (or not); the bounds it will write."""
+        span = None if velocity is None else velocity.span()
+        if velocity is None or span is None:
+            plan.span = None
+            return None
+        rows, bounds = velocity.bound_rows
+        plan.span = self._addresses.of(span, _c_float64, "not a C-contiguous float64 array")
+        plan.bounds = self._addresses.of(rows, _c_float64, "not a C-contiguous float64 array")
+        return bounds
 
 
 def step_rows(buffer: QpBuffer, rate_rows: np.ndarray | None, contact_rows: np.ndarray,
