@@ -80,6 +80,8 @@ class SlotInputs:
         # the inputs of each kind picked from a call's inputs at once, and their slots' views
         self._pick_varying, self._pick_kept = picker(self._varying), picker(self._kept)
         self._varying_views = self._pick_varying(self._views)
+        self._varying_shapes = tuple(view.shape for view in self._varying_views)
+        self._shape = attrgetter("shape")  # (read in a C loop)
         # each kept input: the object last written and the read-only array owning its memory;
         # (None, an array that reads writeable) until one is, and for one not owned by an array
         self._unowned = np.zeros(0)
@@ -89,11 +91,16 @@ class SlotInputs:
 
     def set(self, inputs: Sequence[Any]) -> BoundFunction:
         """Set every input (in the function's order) and evaluate; the call, outputs ready."""
-        for i, value, view in zip(self._varying, self._pick_varying(inputs),
-                                  self._varying_views):
-            if type(value) is np.ndarray and value.shape == view.shape:  # (the common shape)
+        varying = self._pick_varying(inputs)
+        try:  # (the common case: arrays of their slots' shapes, copied as they stand)
+            shaped = tuple(map(self._shape, varying)) == self._varying_shapes
+        except AttributeError:  # (not arrays)
+            shaped = False
+        if shaped:
+            for view, value in zip(self._varying_views, varying):
                 view[...] = value
-            else:
+        else:
+            for i, value in zip(self._varying, varying):
                 self._write(i, value)
         kept = self._pick_kept(inputs)
         # (the checks of every kept input in C loops: the same held objects, owners read-only)

@@ -258,12 +258,13 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     held = tasks.chain_share.q_previous
     share = (tasks.chain_share.row_weights(), held) \
         if held is not None and tasks.chain_share in active else None
-    persistence, persist = tasks.persistence, None
+    persistence = tasks.persistence
+    reference = persistence.q_reference if persistence in active else None
     # the root's columns are beyond the compiled step: a task weighing them is summed in NumPy
-    numpy_persistence = persistence in active and persistence.q_reference is not None and \
+    numpy_persistence = reference is not None and \
         persistence_in_numpy(compiled, persistence.weights)
-    if persistence in active and persistence.q_reference is not None and not numpy_persistence:
-        persist = (persistence.weights, persistence.q_reference)
+    persist = (persistence.weights, reference) \
+        if reference is not None and not numpy_persistence else None
     # the outputs (:mod:`.compiled`) this step reads: H, c, the sites and the ranges, read in
     # place (valid until the next evaluation, after this step's solve); the sites only when a
     # task or a limit weighs them (with contact points or site targets): otherwise from the

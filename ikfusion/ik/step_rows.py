@@ -15,6 +15,7 @@ position rows' ``J^T W J`` (round-off); every other step, and every step without
 from __future__ import annotations
 
 import ctypes
+from operator import is_
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -157,6 +158,8 @@ class StepFunctionRows:
         self.site_task = (*self.site_task[:2], self.plan.site_task)  # (the plan's own copy)
         self.swing = (*self.swing[:2], self.plan.swing)
         self.at = ctypes.addressof(self.plan)
+        # the damping weights, velocity span and bounds arrays whose addresses the plan holds
+        self.read_arrays: tuple[np.ndarray | None, ...] = (None, None, None)
         # the ranges every step returns: its rows and rooms, written in place by each step
         self.ranges = LinearisedRanges.stacked(self.G, self.rooms)
         self.kernel = library.ik_step_rows
@@ -298,13 +301,10 @@ class StepRows:
             made.root_target[:] = root.targets[0]
         made.set_points(made.site_task, position if site_on else None, site_w)
         made.set_points(made.swing, swing if swing_on else None, swing_w)
-        if error is None:
-            plan.damping = None
-        else:
-            plan.damping = self._addresses.of(tasks.damping.weights, _c_float64,
-                                              "not a C-contiguous float64 array")
+        if error is not None:
             made.moved[:] = error
-        bounds = self._bounds(plan, velocity if error is not None else None)
+        bounds = self._read_arrays(made, None if error is None else tasks.damping.weights,
+                                   None if error is None else velocity)
         plan.levenberg_marquardt = levenberg_marquardt
         below = made.kernel(made.at)
         qp = self.buffer.views(below + n_floor, n_held)
@@ -315,16 +315,24 @@ class StepRows:
             floor = self._floors[below, n_floor] = Inequality(qp.G[below:], qp.h[below:])
         return qp, made.ranges, made.up_down, floor, bounds
 
-    def _bounds(self, plan: _Plan, velocity: VelocityLimit | None
-                ) -> tuple[np.ndarray, np.ndarray] | None:
-        """The kernel told to write ``velocity``'s bounds (or not); the bounds it will write."""
+    def _read_arrays(self, made: StepFunctionRows, damping: np.ndarray | None,
+                     velocity: VelocityLimit | None) -> tuple[np.ndarray, np.ndarray] | None:
+        """The damping weights (nv,) and ``velocity``'s bounds given to ``made``'s kernel.
+
+        None: no damping term, no bounds written. Their addresses are set only when the arrays
+        are not those of the last step (held there: their ids stay theirs). Returns the
+        bounds the kernel writes (:meth:`.VelocityLimit.bounds`), or None.
+        """
         span = None if velocity is None else velocity.span()
-        if velocity is None or span is None:
-            plan.span = None
-            return None
-        rows, bounds = velocity.bound_rows
-        plan.span = self._addresses.of(span, _c_float64, "not a C-contiguous float64 array")
-        plan.bounds = self._addresses.of(rows, _c_float64, "not a C-contiguous float64 array")
+        rows, bounds = (None, None) if velocity is None or span is None else \
+            velocity.bound_rows
+        arrays = (damping, span, rows)
+        if not all(map(is_, arrays, made.read_arrays)):
+            plan, addresses = made.plan, self._addresses
+            plan.damping, plan.span, plan.bounds = (
+                None if a is None else addresses.of(a, _c_float64, "not a C-contiguous "
+                                                    "float64 array") for a in arrays)
+            made.read_arrays = arrays
         return bounds
 
 
