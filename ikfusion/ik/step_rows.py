@@ -3,9 +3,10 @@
 :func:`.frame_problem.build_frame_problem` turns the compiled step function's outputs into the
 packed QP (:class:`.qp.QpBuffer`) with a few dozen NumPy calls: the ranges' rooms softened and
 the rows near a limit, ``H`` and ``c``, the site targets', the root's and the swing feet's
-position rows, the damping term, the Levenberg-Marquardt diagonal, the floor and the contact rows.
-:class:`StepRows` does the same in one call of a small C kernel (compiled once and cached like
-:mod:`.tree_solve`, :func:`ikfusion.native.kernel.native_kernel`) for the common steps: contact rows
+position rows, the damping term, the Levenberg-Marquardt diagonal, the floor and the contact rows
+(and the velocity bounds, :meth:`.VelocityLimit.bounds`). :class:`StepRows` does the same in
+one call of a small C kernel (compiled once and cached like :mod:`.tree_solve`,
+:func:`ikfusion.native.kernel.native_kernel`) for the common steps: contact rows
 along the world axes, position targets of scalar weights without a reach, no column-shape target
 and no persistence on the root's columns. The same numbers but for the summation order of the
 position rows' ``J^T W J`` (round-off); every other step, and every step without a C compiler
