@@ -35,15 +35,16 @@ class VelocityLimit:
     def span(self) -> np.ndarray | None:
         """``v_max dt`` (nv,) of the current time step; None when there is no bound.
 
-        The same array while the time step stays (read-only).
+        The same array at every call, written again when the time step changes (the
+        timestamps' round-off changes it in about half the frames of a steady rate).
         """
         if self.q_previous is None or self.dt <= 0.0:
             return None
-        dt, span, _ = self._span
-        if dt != self.dt:  # a new time step (every frame of a steady rate keeps it)
-            span = self.max_velocity * self.dt
-            span.setflags(write=False)
-            self._span = (self.dt, span, -span)
+        dt, span, negative = self._span
+        if dt != self.dt:  # a new time step: v_max dt and its negative in place
+            np.multiply(self.max_velocity, self.dt, out=span)
+            np.negative(span, out=negative)
+            self._span = (self.dt, span, negative)
         return span
 
     def bounds(self, configuration: Configuration,
