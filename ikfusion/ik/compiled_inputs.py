@@ -17,7 +17,8 @@ packing them did, so the outputs are the same bit for bit.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from operator import attrgetter, is_, itemgetter
 from typing import Any
 
 import numpy as np
@@ -31,6 +32,13 @@ def memory_owner(value: Any) -> np.ndarray | None:
     while isinstance(owner, np.ndarray) and not owner.flags.owndata:
         owner = owner.base
     return owner if isinstance(owner, np.ndarray) else None
+
+
+def picker(indices: Sequence[int]) -> Callable[[Sequence[Any]], tuple[Any, ...]]:
+    """A function picking the items ``indices`` of a sequence as a tuple (in C from two on)."""
+    if len(indices) >= 2:
+        return itemgetter(*indices)
+    return lambda items: tuple(items[i] for i in indices)
 
 
 def read_only(array: np.ndarray) -> np.ndarray:
@@ -69,27 +77,47 @@ class SlotInputs:
                        for i, s in enumerate(self._slots)]
         self._varying = tuple(varying)
         self._kept = tuple(i for i in range(count) if i not in self._varying)
-        self._held: list[Any] = [None] * count  # the object last written, when kept
-        self._owners: list[Any] = [None] * count  # ... and the read-only array owning it
+        # the inputs of each kind picked from a call's inputs at once, and their slots' views
+        self._pick_varying, self._pick_kept = picker(self._varying), picker(self._kept)
+        self._varying_views = self._pick_varying(self._views)
+        self._varying_shapes = tuple(view.shape for view in self._varying_views)
+        self._shape = attrgetter("shape")  # (read in a C loop)
+        # each kept input: the object last written and the read-only array owning its memory;
+        # (None, an array that reads writeable) until one is, and for one not owned by an array
+        self._unowned = np.zeros(0)
+        self._held: list[Any] = [None] * len(self._kept)
+        self._owners = [self._unowned] * len(self._kept)
+        self._writeable = attrgetter("flags.writeable")  # (read in a C loop)
 
     def set(self, inputs: Sequence[Any]) -> BoundFunction:
         """Set every input (in the function's order) and evaluate; the call, outputs ready."""
-        write, views = self._write, self._views
-        for i in self._varying:  # (the common shape inline: a third of the cost of _write)
-            value, view = inputs[i], views[i]
-            if type(value) is np.ndarray and value.shape == view.shape:
+        varying = self._pick_varying(inputs)
+        try:  # (the common case: arrays of their slots' shapes, copied as they stand)
+            shaped = tuple(map(self._shape, varying)) == self._varying_shapes
+        except AttributeError:  # (not arrays)
+            shaped = False
+        if shaped:
+            for view, value in zip(self._varying_views, varying):
                 view[...] = value
-            else:
-                write(i, value)
-        held, owners = self._held, self._owners
-        for i in self._kept:
-            value = inputs[i]
-            if value is not held[i] or owners[i].flags.writeable:  # (its memory may change)
-                write(i, value)
-                owner = memory_owner(value)
-                held[i], owners[i] = (value, owner) if owner is not None else (None, None)
+        else:
+            for i, value in zip(self._varying, varying):
+                self._write(i, value)
+        kept = self._pick_kept(inputs)
+        # (the checks of every kept input in C loops: the same held objects, owners read-only)
+        if not all(map(is_, kept, self._held)) or any(map(self._writeable, self._owners)):
+            self._write_kept(kept)
         self.call.run()
         return self.call
+
+    def _write_kept(self, kept: Sequence[Any]) -> None:
+        """The kept inputs ``kept`` that changed (or may have) written into their slots."""
+        held, owners = self._held, self._owners
+        for n, (i, value) in enumerate(zip(self._kept, kept)):
+            if value is not held[n] or owners[n].flags.writeable:  # (its memory may change)
+                self._write(i, value)
+                owner = memory_owner(value)
+                held[n], owners[n] = (value, owner) if owner is not None else \
+                    (None, self._unowned)
 
     def _write(self, i: int, value: Any) -> None:
         """Input ``i`` written into its slot (read flattened in C order, as packed inputs)."""

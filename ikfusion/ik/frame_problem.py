@@ -244,10 +244,10 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     """
     previous = tasks.velocity.q_previous  # also the damping task's reference
     moved = None if previous is None else conf.difference(previous)
-    bounds = tasks.velocity.bounds(conf, moved)
     nv = conf.model.nv
     limits = tasks.joint_range
     if compiled is None:
+        bounds = tasks.velocity.bounds(conf, moved)
         ranges = limits.softened(limits.linearise(limits.angles(conf.q), None, nv))
         up, down = ranges.near(limits.margin)
         floor = tasks.floor.inequality(conf)
@@ -258,12 +258,13 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     held = tasks.chain_share.q_previous
     share = (tasks.chain_share.row_weights(), held) \
         if held is not None and tasks.chain_share in active else None
-    persistence, persist = tasks.persistence, None
+    persistence = tasks.persistence
+    reference = persistence.q_reference if persistence in active else None
     # the root's columns are beyond the compiled step: a task weighing them is summed in NumPy
-    numpy_persistence = persistence in active and persistence.q_reference is not None and \
+    numpy_persistence = reference is not None and \
         persistence_in_numpy(compiled, persistence.weights)
-    if persistence in active and persistence.q_reference is not None and not numpy_persistence:
-        persist = (persistence.weights, persistence.q_reference)
+    persist = (persistence.weights, reference) \
+        if reference is not None and not numpy_persistence else None
     # the outputs (:mod:`.compiled`) this step reads: H, c, the sites and the ranges, read in
     # place (valid until the next evaluation, after this step's solve); the sites only when a
     # task or a limit weighs them (with contact points or site targets): otherwise from the
@@ -280,13 +281,18 @@ def build_frame_problem(conf: Configuration, tasks: FrameTasks, active: list[Tas
     if compiled.rows is not None and not shape and not numpy_persistence:
         error = None if tasks.damping.q_reference is None else \
             moved if same else tasks.damping.compute_error(conf)
+        # the move since the previous frame is the damping's error: the kernel bounds it too
+        velocity = tasks.velocity if error is moved else None
         written = compiled.rows.write(step, compiled.kinematics, None if few else sites, tasks,
-                                      active, error, levenberg_marquardt)
+                                      active, error, levenberg_marquardt, velocity)
         if written is not None:
-            qp, ranges, (up, down), floor_rows = written
+            qp, ranges, (up, down), floor_rows, bounds = written
+            if velocity is None:
+                bounds = tasks.velocity.bounds(conf, moved)
             return FrameProblem(qp, LimitRows(
                 ranges, up, down,
                 compiled.no_floor if floor_rows is None else floor_rows, bounds))
+    bounds = tasks.velocity.bounds(conf, moved)
     if sites:
         P = step.output(5).reshape(-1, 3)
         J = step.output(6).reshape(-1, 3, nv)

@@ -7,8 +7,9 @@
  * the site targets', the root's and the swing feet's position rows (scalar weights) added; the
  * damping term and the Levenberg-Marquardt diagonal; then into the packed QP (ikfusion.ik.qp.QpBuffer: H, c,
  * G, h, A, b) the range rows near a limit (upper ones, then lower ones negated), the floor rows
- * and the contacts' equality rows. The only difference from NumPy is the summation order of the
- * position rows' products (BLAS's J^T W J): round-off.
+ * and the contacts' equality rows; and the velocity bounds from the step's move since the previous
+ * frame (ikfusion.ik.limits.velocity.VelocityLimit.bounds). The only difference from NumPy is the
+ * summation order of the position rows' products (BLAS's J^T W J): round-off.
  *
  * Matrices are row-major. A sparse output is its nonzeros nz and their flat positions flat
  * (row * columns + column); J's rows are read through a CSR index (J_ptr, J_col, J_at).
@@ -48,7 +49,27 @@ struct step_rows {
     struct points site_task, swing;  /* the site targets (every site), the swing feet */
     const double *damping; const double *moved;  /* (nv) each, damping NULL: none */
     double levenberg_marquardt;
+    const double *span; double *bounds;  /* (nv) v_max dt, or NULL: no bounds here;
+                                            (2 * nv) lb then ub, from moved */
 };
+
+static double minimum_zero(double x)
+{   /* np.minimum(x, 0.0): x when below or NaN, else the second operand (+0.0) */
+    return (x < 0.0 || isnan(x)) ? x : 0.0;
+}
+
+static double maximum_zero(double x)
+{   /* np.maximum(x, 0.0): x when above or NaN, else the second operand (+0.0) */
+    return (x > 0.0 || isnan(x)) ? x : 0.0;
+}
+
+static void velocity_bounds(const struct step_rows *p)
+{   /* lb = min(-span - moved, 0), ub = max(span - moved, 0): VelocityLimit.bounds */
+    for (int i = 0; i < p->nv; ++i) {
+        p->bounds[i] = minimum_zero(-p->span[i] - p->moved[i]);
+        p->bounds[p->nv + i] = maximum_zero(p->span[i] - p->moved[i]);
+    }
+}
 
 static void J_row(const struct step_rows *p, int r, double *out)
 {   /* row r of J, dense (nv) */
@@ -129,6 +150,7 @@ static int ranges(struct step_rows *p)
 int ik_step_rows(struct step_rows *p)
 {
     const int nv = p->nv, n = p->angles;
+    if (p->span) velocity_bounds(p);
     for (int k = 0; k < p->G_nnz; ++k) p->G[p->G_flat[k]] = p->G_nz[k];
     const int below = ranges(p);
     const int m_in = below + p->n_floor;

@@ -3,9 +3,10 @@
 :func:`.frame_problem.build_frame_problem` turns the compiled step function's outputs into the
 packed QP (:class:`.qp.QpBuffer`) with a few dozen NumPy calls: the ranges' rooms softened and
 the rows near a limit, ``H`` and ``c``, the site targets', the root's and the swing feet's
-position rows, the damping term, the Levenberg-Marquardt diagonal, the floor and the contact rows.
-:class:`StepRows` does the same in one call of a small C kernel (compiled once and cached like
-:mod:`.tree_solve`, :func:`ikfusion.native.kernel.native_kernel`) for the common steps: contact rows
+position rows, the damping term, the Levenberg-Marquardt diagonal, the floor and the contact rows
+(and the velocity bounds, :meth:`.VelocityLimit.bounds`). :class:`StepRows` does the same in
+one call of a small C kernel (compiled once and cached like :mod:`.tree_solve`,
+:func:`ikfusion.native.kernel.native_kernel`) for the common steps: contact rows
 along the world axes, position targets of scalar weights without a reach, no column-shape target
 and no persistence on the root's columns. The same numbers but for the summation order of the
 position rows' ``J^T W J`` (round-off); every other step, and every step without a C compiler
@@ -15,6 +16,7 @@ position rows' ``J^T W J`` (round-off); every other step, and every step without
 from __future__ import annotations
 
 import ctypes
+from operator import is_
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -32,6 +34,7 @@ from .tasks.position import PositionTask
 
 if TYPE_CHECKING:
     from .frame_problem import FrameTasks
+    from .limits.velocity import VelocityLimit
 
 _P = ctypes.c_void_p
 _I, _D = ctypes.c_int, ctypes.c_double
@@ -60,11 +63,16 @@ class _Plan(ctypes.Structure):
                 ("n_floor", _I), ("floor_z", _D), ("held_rows", _P), ("n_held", _I),
                 ("anchors", _P), ("root_on", _I), ("root_weight", _D), ("root_target", _P),
                 ("site_task", _Points), ("swing", _Points), ("damping", _P), ("moved", _P),
-                ("levenberg_marquardt", _D)]
+                ("levenberg_marquardt", _D), ("span", _P), ("bounds", _P)]
 
 
 def _address(a: np.ndarray) -> int:
     return int(a.ctypes.data)
+
+
+def _c_float64(a: np.ndarray) -> bool:
+    """Whether the kernel can read ``a`` as it stands (C-contiguous float64)."""
+    return bool(a.flags.c_contiguous and a.dtype == np.float64)
 
 
 def _flat(sparsity: ca.Sparsity, mirrored: bool = False) -> np.ndarray:
@@ -151,6 +159,8 @@ class StepFunctionRows:
         self.site_task = (*self.site_task[:2], self.plan.site_task)  # (the plan's own copy)
         self.swing = (*self.swing[:2], self.plan.swing)
         self.at = ctypes.addressof(self.plan)
+        # the damping weights, velocity span and bounds arrays whose addresses the plan holds
+        self.read_arrays: tuple[np.ndarray | None, ...] = (None, None, None)
         # the ranges every step returns: its rows and rooms, written in place by each step
         self.ranges = LinearisedRanges.stacked(self.G, self.rooms)
         self.kernel = library.ik_step_rows
@@ -228,9 +238,9 @@ class StepRows:
 
     def write(self, step: BoundFunction, kinematics: CompiledKinematics, sites: bool | None,
               tasks: FrameTasks, active: list[Task], error: np.ndarray | None,
-              levenberg_marquardt: float
+              levenberg_marquardt: float, velocity: VelocityLimit | None = None
               ) -> tuple[QpProblem, LinearisedRanges, tuple[np.ndarray, np.ndarray],
-                         Inequality | None] | None:
+                         Inequality | None, tuple[np.ndarray, np.ndarray] | None] | None:
         """The step's QP from the evaluated ``step``; None: a step for the NumPy path.
 
         Args:
@@ -241,12 +251,15 @@ class StepRows:
             active: The tasks of this frame.
             error: The damping task's error ``q ⊖ q_reference`` (nv,), or None without one.
             levenberg_marquardt: Damping of the step [1/rad^2].
+            velocity: The velocity limit whose bounds the kernel writes too (``error`` is then
+                the move since its previous frame, ``q ⊖ q_previous``); None: not here.
 
         Returns:
             The QP (views of the buffer), the ranges (``G`` and the rooms in place, valid until
             the next step), the masks (angles,) of the range rows in the QP (upper, lower; the
-            same arrays step after step, written in place) and the floor rows (None without
-            contact points).
+            same arrays step after step, written in place), the floor rows (None without
+            contact points) and ``velocity``'s bounds (:meth:`.VelocityLimit.bounds`; None
+            without a bound or without ``velocity``).
         """
         root, swing, contact, position = tasks.root, tasks.swing, tasks.contact, tasks.position
         held = contact.world_rows()
@@ -260,7 +273,7 @@ class StepRows:
                 (site_on and (site_w is None or position.reach is not None
                               or len(site_w) > MAX_SWING)):
             return None
-        made = self.plan(step, kinematics, sites)
+        made = self._plans.get(id(step)) or self.plan(step, kinematics, sites)
         plan = made.plan
         room = tasks.joint_range.wall_room(made.G, made.room_up_raw)
         if room is None:
@@ -289,13 +302,10 @@ class StepRows:
             made.root_target[:] = root.targets[0]
         made.set_points(made.site_task, position if site_on else None, site_w)
         made.set_points(made.swing, swing if swing_on else None, swing_w)
-        if error is None:
-            plan.damping = None
-        else:
-            plan.damping = self._addresses.of(
-                tasks.damping.weights, lambda a: a.flags.c_contiguous and a.dtype == np.float64,
-                "not a C-contiguous float64 array")
+        if error is not None:
             made.moved[:] = error
+        bounds = self._read_arrays(made, None if error is None else tasks.damping.weights,
+                                   None if error is None else velocity)
         plan.levenberg_marquardt = levenberg_marquardt
         below = made.kernel(made.at)
         qp = self.buffer.views(below + n_floor, n_held)
@@ -304,7 +314,27 @@ class StepRows:
         floor = self._floors.get((below, n_floor)) if contacts else None
         if contacts and floor is None:  # (views of the buffer, whose array never moves)
             floor = self._floors[below, n_floor] = Inequality(qp.G[below:], qp.h[below:])
-        return qp, made.ranges, made.up_down, floor
+        return qp, made.ranges, made.up_down, floor, bounds
+
+    def _read_arrays(self, made: StepFunctionRows, damping: np.ndarray | None,
+                     velocity: VelocityLimit | None) -> tuple[np.ndarray, np.ndarray] | None:
+        """The damping weights (nv,) and ``velocity``'s bounds given to ``made``'s kernel.
+
+        None: no damping term, no bounds written. Their addresses are set only when the arrays
+        are not those of the last step (held there: their ids stay theirs). Returns the
+        bounds the kernel writes (:meth:`.VelocityLimit.bounds`), or None.
+        """
+        span = None if velocity is None else velocity.span()
+        rows, bounds = (None, None) if velocity is None or span is None else \
+            velocity.bound_rows
+        arrays = (damping, span, rows)
+        if not all(map(is_, arrays, made.read_arrays)):
+            plan, addresses = made.plan, self._addresses
+            plan.damping, plan.span, plan.bounds = (
+                None if a is None else addresses.of(a, _c_float64, "not a C-contiguous "
+                                                    "float64 array") for a in arrays)
+            made.read_arrays = arrays
+        return bounds
 
 
 def step_rows(buffer: QpBuffer, rate_rows: np.ndarray | None, contact_rows: np.ndarray,

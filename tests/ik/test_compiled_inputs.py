@@ -103,3 +103,21 @@ def test_still_angles_found_past_their_witnesses(rng) -> None:
         nonzeros[rows[rng.random(10) < 0.2]] = 0.0  # whole rows at zero
         expected = ~np.any(nonzeros[rows] != 0.0, axis=1)
         np.testing.assert_array_equal(rates.still(nonzeros), expected)
+
+
+def test_inputs_of_other_forms_and_a_kept_input_not_an_array(rng) -> None:
+    """Varying inputs given as lists or nested lists, and a kept input that is a list (written
+    at every call, its numbers changed between calls): CasADi's numbers of the same inputs."""
+    f = small_function()
+    inputs = SlotInputs(BoundFunction(f), varying=(0, 1), rotations=(1,), triples=())
+    s = [0.5]
+    for n in range(4):
+        x = rng.normal(size=3)
+        R = random_rotations(2, rng)
+        given_x = list(x) if n % 2 else x
+        given_R = R.tolist() if n == 2 else R
+        s[0] = float(n) - 1.5  # the same list, other numbers
+        call = inputs.set((given_x, given_R, s))
+        expected = [np.asarray(v) for v in f(x, column_major(R), s[0])]
+        assert np.array_equal(call.output(0)[:, 0], expected[0][:, 0]), n
+        assert np.array_equal(call.output(1), expected[1]), n

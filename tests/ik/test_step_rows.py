@@ -29,9 +29,17 @@ TIGHT = 1e-12  # relative to the largest entry of the array compared
 _NAMES = ("H", "c", "G", "h", "A", "b")
 
 
+def _bounds_bytes(problem: fp.FrameProblem) -> bytes | None:
+    """The velocity bounds of ``problem`` as their bytes (None without bounds)."""
+    bounds = problem.rows.bounds
+    return None if bounds is None else bounds[0].tobytes() + bounds[1].tobytes()
+
+
 def _compare(native: fp.FrameProblem, numpy: dict[str, np.ndarray], masks, rooms,
-             floor) -> bool:
-    """Assert the kernel's problem is the NumPy one's; whether bit for bit."""
+             floor, bounds: bytes | None) -> bool:
+    """Assert the kernel's problem is the NumPy one's (its velocity bounds bit for bit);
+    whether bit for bit."""
+    assert _bounds_bytes(native) == bounds
     same = True
     for name in _NAMES:
         ours, theirs = getattr(native.qp, name), numpy[name]
@@ -52,6 +60,7 @@ class _BothPaths:
 
     def __init__(self) -> None:
         self.steps = self.exact = self.root = self.swing = self.contact = self.sites = 0
+        self.bounded = 0
 
     def __call__(self, conf, tasks, active, row_weights, compiled, lm):
         if compiled is None or compiled.rows is None:
@@ -62,9 +71,12 @@ class _BothPaths:
         masks = plain.rows.up.copy(), plain.rows.down.copy()
         rooms = plain.rows.ranges.rooms.copy()
         floor = [a.copy() for a in plain.rows.floor]
+        bounds = _bounds_bytes(plain)
         native = fp.build_frame_problem(conf, tasks, active, row_weights, compiled, lm)
+        self.last = (conf, tasks, active, row_weights, compiled, lm)
         self.steps += 1
-        self.exact += _compare(native, numpy, masks, rooms, floor)
+        self.exact += _compare(native, numpy, masks, rooms, floor, bounds)
+        self.bounded += bounds is not None
         self.root += tasks.root in active
         self.swing += tasks.swing in active
         self.contact += len(numpy["b"]) > 0
@@ -92,6 +104,7 @@ def test_every_step_of_a_simulated_walk(human: HumanModel, both: _BothPaths) -> 
     _native_solver(human, contacts=True).solve(frames)
     assert both.steps >= len(frames) and both.contact > len(frames) // 2
     assert both.root > 0 and both.sites > 0  # the position rows' sums too
+    assert both.bounded >= len(frames) - 1  # the velocity bounds too
 
 
 def test_the_real_walk(both: _BothPaths, tmp_path: Path) -> None:
@@ -130,11 +143,46 @@ def test_random_poses_with_site_root_swing_and_contact_rows(human: HumanModel, s
     numpy = {n: getattr(plain.qp, n).copy() for n in _NAMES}
     masks = plain.rows.up.copy(), plain.rows.down.copy()
     rooms, floor = plain.rows.ranges.rooms.copy(), [a.copy() for a in plain.rows.floor]
+    bounds = _bounds_bytes(plain)
     native = fp.build_frame_problem(conf, tasks, active, targets.row_weights, compiled,
                                     s.levenberg_marquardt)
     assert masks[0].sum() + masks[1].sum() >= 10 and len(numpy["b"]) > 0
-    _compare(native, numpy, masks, rooms, floor)
+    _compare(native, numpy, masks, rooms, floor, bounds)
     assert native.qp.packed is not None and np.shares_memory(native.qp.G, native.qp.packed)
+
+
+def test_velocity_bounds_at_special_spans(human: HumanModel, both: _BothPaths, rng) -> None:
+    """The kernel's velocity bounds (and never NumPy's) are NumPy's bit for bit at zero,
+    signed-zero, infinite, NaN, tiny and huge spans, after a simulated walk's steps."""
+    truth = generate_gait(human, GaitParameters(duration=1.0, stand=0.5), rate=60.0)
+    frames = orientation_frames(human, truth.q, truth.time, SENSOR_SEGMENTS)
+    _native_solver(human, contacts=True).solve(frames)
+    conf, tasks, active, row_weights, compiled, lm = both.last
+    velocity = tasks.velocity
+    special = [0.0, -0.0, np.inf, -np.inf, np.nan, 1e-300, 1e300, 5e-324]
+    nv = len(velocity.max_velocity)
+    velocity.max_velocity = np.resize(special + list(rng.uniform(0, 3, nv)), nv)
+    # a previous frame 10 ms before, the damping's reference too (the kernel's case)
+    q_previous = pin.integrate(conf.model, conf.q, rng.normal(0.0, 0.05, nv))
+    q_previous[:3] = conf.q[:3]  # (a root translation not moved: some moves exactly zero)
+    tasks.damping.set_reference(q_previous)
+    velocity.set_previous(q_previous, 0.01)
+    plain = fp.build_frame_problem(conf, tasks, active, row_weights,
+                                   dataclasses.replace(compiled, rows=None), lm)
+    expected = _bounds_bytes(plain)
+    assert expected is not None
+    for a in plain.rows.bounds:
+        a.fill(np.nan)
+
+    def not_numpy(*args):
+        raise AssertionError("the NumPy bounds were computed: expected the kernel's")
+
+    velocity.bounds = not_numpy
+    try:
+        native = fp.build_frame_problem(conf, tasks, active, row_weights, compiled, lm)
+    finally:
+        del velocity.bounds
+    assert _bounds_bytes(native) == expected
 
 
 def test_without_a_compiler_the_numpy_path_builds(human: HumanModel,

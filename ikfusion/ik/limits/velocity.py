@@ -24,7 +24,7 @@ class VelocityLimit:
         self._zero = np.zeros(())  # (an array: no conversion of a Python 0.0 per call)
         # the bounds (lb, ub): the rows of one array, written in place by each call (the tree
         # step's kernel reads them there, :meth:`.tree_solve.TreeClosedForm.step`)
-        both = np.zeros((2, len(self.max_velocity)))
+        both = self._both = np.zeros((2, len(self.max_velocity)))
         self._bounds = (both[0], both[1])
 
     def set_previous(self, q_previous: npt.ArrayLike | None, dt: float) -> None:
@@ -32,22 +32,34 @@ class VelocityLimit:
         self.q_previous = None if q_previous is None else np.asarray(q_previous, dtype=float)
         self.dt = float(dt)
 
+    def span(self) -> np.ndarray | None:
+        """``v_max dt`` (nv,) of the current time step; None when there is no bound.
+
+        The same array at every call, written again when the time step changes (the
+        timestamps' round-off changes it in about half the frames of a steady rate).
+        """
+        if self.q_previous is None or self.dt <= 0.0:
+            return None
+        dt, span, negative = self._span
+        if dt != self.dt:  # a new time step: v_max dt and its negative in place
+            np.multiply(self.max_velocity, self.dt, out=span)
+            np.negative(span, out=negative)
+            self._span = (self.dt, span, negative)
+        return span
+
     def bounds(self, configuration: Configuration,
                moved: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
         """``(lb, ub)`` on ``dq``, or None when there is no previous frame.
 
         ``moved`` is ``q ⊖ q_previous`` when the caller has it already. The same two arrays
-        at every call, overwritten by the next.
+        at every call (:attr:`bound_rows`), overwritten by the next.
         """
-        if self.q_previous is None or self.dt <= 0.0:
+        span, previous = self.span(), self.q_previous
+        if span is None or previous is None:
             return None
         if moved is None:
-            moved = configuration.difference(self.q_previous)
-        dt, span, negative = self._span
-        if dt != self.dt:  # a new time step (every frame of a steady rate keeps it)
-            span = self.max_velocity * self.dt
-            self._span = (self.dt, span, -span)
-            negative = self._span[2]
+            moved = configuration.difference(previous)
+        negative = self._span[2]
         bounds = self._bounds
         lb, ub = bounds
         np.subtract(negative, moved, out=lb)  # then clipped in place
@@ -55,3 +67,11 @@ class VelocityLimit:
         np.minimum(lb, self._zero, out=lb)
         np.maximum(ub, self._zero, out=ub)
         return bounds
+
+    @property
+    def bound_rows(self) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray]]:
+        """Where :meth:`bounds` writes: one array (2, nv) and its rows ``(lb, ub)`` it returns.
+
+        For a native writer of the same numbers (:mod:`..step_rows`).
+        """
+        return self._both, self._bounds
