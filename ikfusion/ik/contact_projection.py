@@ -141,8 +141,11 @@ class NativeProjection:
         self.enabled[:] = floor.enabled
         plan.floor_z, plan.tolerance, plan.max_steps = floor.floor_z, tolerance, max_steps
         answer = int(self._kernel(*self._args))
-        if answer == HELD:
-            conf.set_evaluated(self.q)  # its buffers hold the points at the projected q
+        if answer == HELD:  # its buffers hold the points at the projected q
+            if plan.steps:
+                conf.set_evaluated(self.q)
+            else:  # (half the frames of a walk) q not moved: the configuration kept
+                conf.points_evaluated()
         else:
             conf.update(conf.q)  # the kernel overwrote the buffers of the points at q
         return answer
