@@ -106,6 +106,7 @@ class TreeClosedForm:
         self._kernel.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_int, ctypes.c_void_p]
         # id of a packed array -> (the array, kept alive so its id stays its own; its address)
         self._addresses = ArrayAddresses()
+        self._last_packed: tuple[np.ndarray | None, int] = (None, 0)  # the last one and its address
         self._step = library.ik_active_step
         self._step.restype = ctypes.c_int
         self._step.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_int,
@@ -309,9 +310,12 @@ class TreeClosedForm:
                 self._work = np.zeros(2 * size)
                 self._plan.work = self._work.ctypes.data
             self._work_rows = m_eq
-        # a buffer's views are made once per size: their addresses too
-        return self._addresses.of(packed, lambda a: a.flags.c_contiguous and len(a) >= n * n + n
-                                  + (m_in + m_eq) * (n + 1), "not a packed QP of this size")
+        last, at = self._last_packed
+        if packed is not last:  # a buffer's views are made once per size: their addresses too
+            at = self._addresses.of(packed, lambda a: a.flags.c_contiguous and len(a) >= n * n
+                                    + n + (m_in + m_eq) * (n + 1), "not a packed QP of this size")
+            self._last_packed = (packed, at)  # (held here: the same object is the same memory)
+        return at
 
 
 def _fits(a: np.ndarray, dtype: type, shape: tuple[int, ...]) -> bool:
