@@ -66,6 +66,8 @@ def solve_with_active_set(problem: QpProblem, rows: LimitRows, backend: str,
     answer, solution = _native_step(problem, rows, backend, tolerance, resolves, hint)
     if solution is None:  # the kernel's answer (if it ran) not asked for again
         solution = solve_qp(problem, backend, settings, hint, answer)
+        if _surely_within(problem, rows, solution, tolerance):  # the loop's first test
+            return solution
     elif answer == SOLVED:  # the common step: nothing left out crossed, no bound passed
         return solution
     lb, ub = rows.bounds if rows.bounds is not None else (None, None)
@@ -95,6 +97,24 @@ def solve_with_active_set(problem: QpProblem, rows: LimitRows, backend: str,
         if relaxed_before:
             return solution
     return solution
+
+
+def _surely_within(problem: QpProblem, rows: LimitRows, solution: QpSolution,
+                   tolerance: float) -> bool:
+    """The first test of :func:`solve_with_active_set`'s loop in one native call.
+
+    True when the solution is not relaxed, crosses none of the range rows left out and
+    passes none of the bounds (tested when the QP has none) by more than ``tolerance``,
+    whatever the summation order of the rates (:meth:`.tree_solve.TreeClosedForm.passes_none`):
+    the loop would return it at once. False: the loop decides (also without the kernel).
+    """
+    tree = problem.tree
+    if tree is None or solution.relaxed:
+        return False
+    bounds = rows.bounds if problem.lb is None else None
+    if bounds is not None and (bounds[0] is None or bounds[1] is None):
+        bounds = None
+    return tree.passes_none(solution.dq, rows.ranges, rows.up, rows.down, bounds, tolerance)
 
 
 def _native_step(problem: QpProblem, rows: LimitRows, backend: str, tolerance: float,

@@ -67,6 +67,14 @@ class PointsConfiguration(Configuration):
         are read from the buffers instead of evaluated again.
         """
         super().update(q)
+        self.points_evaluated()
+
+    def points_evaluated(self) -> None:
+        """The points function's output buffers were just evaluated at this very ``q``.
+
+        The points are read from them (a caller's evaluation, :mod:`.contact_projection`, that
+        did not move ``q``: every other cached answer stays valid).
+        """
         P = self._call.output(0).reshape(-1, 3).copy()
         P.setflags(write=False)
         self._P, self._J = P, None

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .least_distance import COUNTS, EQUALITY, least_distance_daqp, row_bounds
+from .least_distance import COUNTS, least_distance_daqp, row_bounds, senses
 
 if TYPE_CHECKING:
     from .qp import QpSettings
@@ -88,9 +88,7 @@ def daqp_as_given(daqp: Any, max_iterations: int, H: np.ndarray, c: np.ndarray,
     end_in = n_box + (0 if h is None else len(h))
     rows = [m for m in (G, A) if m is not None]
     A_all = np.vstack(rows) if rows else np.zeros((0, nv))  # a copy: DAQP may scale its rows
-    sense = np.zeros(len(upper), dtype=np.intc)
-    sense[end_in:] = EQUALITY
-    x, _, exitflag, info = daqp.solve(H, c, A_all, upper, lower, sense,
+    x, _, exitflag, info = daqp.solve(H, c, A_all, upper, lower, senses(len(upper), end_in),
                                       iter_limit=max_iterations)
     if exitflag <= 0 or not np.isfinite(x).all():
         return None, False

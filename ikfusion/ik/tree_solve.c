@@ -294,14 +294,10 @@ static double rate_of(const double *row, const double *x, int n, double *magnitu
     return rate;
 }
 
-/* ik_tree_closed_form, then, when it solved (0), the left-out range rows crossed and the bounds
- * passed by x: 0: none (x is the step), 5: one is (or a summation order could decide that one
- * is): the Python loop goes on from x; else the closed form's own answer (1 to 4). */
-int ik_active_step(const struct plan *p, const struct active *a, int m_in, int m_eq,
-                   const double *packed)
+/* The left-out range rows crossed and the bounds passed by x (the plan's): 0: none, 5: one is
+ * (or a summation order could decide that one is): the Python loop decides. */
+int ik_active_check(const struct plan *p, const struct active *a)
 {
-    const int answer = ik_tree_closed_form(p, m_in, m_eq, packed);
-    if (answer != 0) return answer;
     const int n = p->n, angles = a->angles;
     const double *x = p->x, tolerance = a->tolerance;
     for (int i = 0; i < angles; ++i) {
@@ -318,6 +314,15 @@ int ik_active_step(const struct plan *p, const struct active *a, int m_in, int m
             if (x[k] < lb[k] - tolerance || x[k] > ub[k] + tolerance) return 5;
     }
     return 0;
+}
+
+/* ik_tree_closed_form, then, when it solved (0), ik_active_check of its x: 0 (x is the step)
+ * or 5 (the Python loop goes on from x); else the closed form's own answer (1 to 4). */
+int ik_active_step(const struct plan *p, const struct active *a, int m_in, int m_eq,
+                   const double *packed)
+{
+    const int answer = ik_tree_closed_form(p, m_in, m_eq, packed);
+    return answer != 0 ? answer : ik_active_check(p, a);
 }
 
 

@@ -97,6 +97,7 @@ class TreeClosedForm:
         #: The last minimiser (overwritten by the next call).
         self.x = np.zeros(n)
         self._work = np.zeros(0)
+        self._work_rows = -1  # the most equality rows the work array was sized for
         self._plan = _Plan(self._ptr.ctypes.data, self._anc.ctypes.data, self._off.ctypes.data,
                            self.x.ctypes.data, None, DEPENDENT_ROWS, n, len(self._off))
         self._plan_at = ctypes.addressof(self._plan)
@@ -105,10 +106,14 @@ class TreeClosedForm:
         self._kernel.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.c_int, ctypes.c_void_p]
         # id of a packed array -> (the array, kept alive so its id stays its own; its address)
         self._addresses = ArrayAddresses()
+        self._last_packed: tuple[np.ndarray | None, int] = (None, 0)  # the last one and its address
         self._step = library.ik_active_step
         self._step.restype = ctypes.c_int
         self._step.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int, ctypes.c_int,
                                ctypes.c_void_p]
+        self._check = library.ik_active_check
+        self._check.restype = ctypes.c_int
+        self._check.argtypes = [ctypes.c_void_p, ctypes.c_void_p]
         # the rows left out (copied in by step): rooms (2, angles), up and down, lb then ub
         self._rooms = np.zeros((2, 0))
         self._in_qp = np.zeros((2, 0), dtype=bool)
@@ -127,6 +132,8 @@ class TreeClosedForm:
         self._distance_step = library.ik_least_distance_step
         self._distance_step.restype = ctypes.c_int
         self._distance_step.argtypes = [ctypes.c_void_p, ctypes.c_void_p]
+        self._u = np.zeros(n)  # DAQP's u, copied in for least_distance_step
+        self._u_at = self._u.ctypes.data
         # (m_in, m_eq) -> (M, upper, lower) for least_distance_rows and their addresses
         self._distance_rows: dict[tuple[int, int], tuple[tuple[np.ndarray, ...],
                                                          tuple[int, ...]]] = {}
@@ -176,10 +183,34 @@ class TreeClosedForm:
             limit that BLAS's summation of it (the Python loop's) could say so: the caller's
             loop decides from :attr:`x`; else :meth:`solve`'s answer (1 to 4).
         """
+        if not self._read_limits(ranges, up, down, bounds, tolerance):
+            raise ValueError("the ranges' G is not (angles, nv) C-contiguous")
+        return int(self._step(self._plan_at, self._active_at, m_in, m_eq,
+                              self._packed_at(packed, m_in, m_eq)))
+
+    def passes_none(self, x: np.ndarray, ranges: LinearisedRanges, up: np.ndarray,
+                    down: np.ndarray, bounds: tuple[np.ndarray, np.ndarray] | None,
+                    tolerance: float) -> bool:
+        """Whether the step ``x`` (n,) surely crosses no range row left out and passes no bound.
+
+        :meth:`step`'s test of its minimiser (arguments as there) on another QP solution
+        (DAQP's), copied into :attr:`x`: True when no rate passes its room and no entry its
+        bound by more than ``tolerance``, whatever the summation order of the rates; False
+        when one does or might (or ``ranges`` is not for the kernel): the caller's loop
+        decides then.
+        """
+        if not self._read_limits(ranges, up, down, bounds, tolerance):
+            return False
+        self.x[:] = x
+        return self._check(self._plan_at, self._active_at) == SOLVED
+
+    def _read_limits(self, ranges: LinearisedRanges, up: np.ndarray, down: np.ndarray,
+                     bounds: tuple[np.ndarray, np.ndarray] | None, tolerance: float) -> bool:
+        """The kernel pointed at the limit rows and bounds (:meth:`step`); False: G unfit."""
         active, G = self._active, ranges.G
         if G is not self._G:  # the step function's output: the same array step after step
             if G.dtype != np.float64 or not G.flags.c_contiguous or G.shape[1] != self.n:
-                raise ValueError("the ranges' G is not (angles, nv) C-contiguous")
+                return False
             angles = len(G)
             if self._rooms.shape[1] != angles:
                 self._rooms = np.zeros((2, angles))
@@ -198,8 +229,7 @@ class TreeClosedForm:
             if kept is None or bounds[0] is not kept[0] or bounds[1] is not kept[1]:
                 self._read_bounds(bounds[0], bounds[1])
         active.tolerance = tolerance
-        return int(self._step(self._plan_at, self._active_at, m_in, m_eq,
-                              self._packed_at(packed, m_in, m_eq)))
+        return True
 
     def _read_rows(self, rooms: np.ndarray, up: np.ndarray, down: np.ndarray) -> None:
         """The kernel pointed at ``rooms`` (2, angles), ``up`` and ``down`` (angles,) in place.
@@ -265,9 +295,8 @@ class TreeClosedForm:
 
         After :meth:`least_distance_rows`; None when the step is not finite.
         """
-        if u.dtype != np.float64 or not u.flags.c_contiguous or u.shape != (self.n,):
-            u = np.ascontiguousarray(u, dtype=np.float64).reshape(self.n)
-        return self.x if self._distance_step(self._plan_at, u.ctypes.data) == 0 else None
+        self._u[:] = u  # (copied in: reading a fresh array's address costs 2 us)
+        return self.x if self._distance_step(self._plan_at, self._u_at) == 0 else None
 
     def _packed_at(self, packed: np.ndarray, m_in: int, m_eq: int) -> int:
         """The address of the packed QP ``packed`` (checked and kept on first sight).
@@ -275,13 +304,18 @@ class TreeClosedForm:
         The kernel's work array is grown for it first when it is too small.
         """
         n = self.n
-        size = self._tree_entries + 2 * n + m_eq * (2 * n + m_eq + 2)
-        if len(self._work) < size:
-            self._work = np.zeros(2 * size)
-            self._plan.work = self._work.ctypes.data
-        # a buffer's views are made once per size: their addresses too
-        return self._addresses.of(packed, lambda a: a.flags.c_contiguous and len(a) >= n * n + n
-                                  + (m_in + m_eq) * (n + 1), "not a packed QP of this size")
+        if m_eq > self._work_rows:  # (its size grows with the equality rows only)
+            size = self._tree_entries + 2 * n + m_eq * (2 * n + m_eq + 2)
+            if len(self._work) < size:
+                self._work = np.zeros(2 * size)
+                self._plan.work = self._work.ctypes.data
+            self._work_rows = m_eq
+        last, at = self._last_packed
+        if packed is not last:  # a buffer's views are made once per size: their addresses too
+            at = self._addresses.of(packed, lambda a: a.flags.c_contiguous and len(a) >= n * n
+                                    + n + (m_in + m_eq) * (n + 1), "not a packed QP of this size")
+            self._last_packed = (packed, at)  # (held here: the same object is the same memory)
+        return at
 
 
 def _fits(a: np.ndarray, dtype: type, shape: tuple[int, ...]) -> bool:

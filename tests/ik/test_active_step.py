@@ -1,7 +1,8 @@
 """The common step of the lazy active set in one native call (TreeClosedForm.step through
-ikfusion.ik.active_set) against the Python loop it short-cuts: the same steps bit for bit, the
-same rows added, on random problems (rows crossed, bounds passed, rates exactly at their
-limits) and on the solver's walk."""
+ikfusion.ik.active_set), and the first test of a DAQP step (TreeClosedForm.passes_none), against
+the Python loop they short-cut: the same steps bit for bit, the same rows added, on random
+problems (rows crossed, bounds passed, rates exactly at their limits) and on the solver's
+walk."""
 
 from __future__ import annotations
 
@@ -42,6 +43,12 @@ def _python_loop(*args: object) -> object:
     return None, None
 
 
+def _python_only(m: pytest.MonkeyPatch) -> None:
+    """Neither the native common step nor the native first test of a DAQP step."""
+    m.setattr(active_set, "_native_step", _python_loop)
+    m.setattr(active_set, "_surely_within", lambda *args: False)
+
+
 def _step(rng: np.random.Generator, model: HumanModel, tree: TreeClosedForm
           ) -> tuple[QpProblem, LimitRows]:
     """A step's QP on a diagonal H (on any tree), two contact rows, a floor row, and range rows
@@ -77,7 +84,7 @@ def _both(p: QpProblem, rows: LimitRows, monkeypatch: pytest.MonkeyPatch
         limit_rows = copy.deepcopy(rows)
         with monkeypatch.context() as m:
             if not native:
-                m.setattr(active_set, "_native_step", _python_loop)
+                _python_only(m)
             solution = solve_with_active_set(problem, limit_rows, "daqp", SETTINGS, TOLERANCE,
                                              2, ClosedFormHint())
         made.append((solution.dq, limit_rows.up, limit_rows.down, solution.relaxed))
@@ -153,6 +160,31 @@ def test_the_solver_gives_the_python_loops_poses(tree, model, monkeypatch) -> No
     for native in (True, False):
         with monkeypatch.context() as m:
             if not native:
-                m.setattr(active_set, "_native_step", _python_loop)
+                _python_only(m)
             poses.append(Solver(model, backend="daqp").solve(frames).q)
     np.testing.assert_array_equal(poses[0], poses[1])
+
+
+def test_the_native_test_of_a_daqp_step_says_none_passed_only_where_the_loop_does(
+        tree, model) -> None:
+    rng = np.random.default_rng(5)
+    seen = set()
+    for trial in range(300):
+        _, rows = _step(rng, model, tree)
+        x = rng.standard_normal(tree.n) * rng.choice([1e-3, 1e-2, 0.1])
+        rate = rows.ranges.G @ x
+        at_limit = trial % 3 == 0
+        if at_limit:  # a left-out rate on its limit, to rounding: the loop must decide
+            i = int(rng.integers(len(rate)))
+            rows.ranges.rooms[0, i] = rate[i] - TOLERANCE
+            rows.up[i] = False
+        bounds = rows.bounds if trial % 2 else None
+        native = tree.passes_none(x, rows.ranges, rows.up, rows.down, bounds, TOLERANCE)
+        up, down = rows.ranges.crossed(x, TOLERANCE)
+        passed = bool(np.any(up & ~rows.up) or np.any(down & ~rows.down)) or (
+            bounds is not None and bool(np.any(x < bounds[0] - TOLERANCE)
+                                        or np.any(x > bounds[1] + TOLERANCE)))
+        assert not (native and passed)
+        assert not (native and at_limit)
+        seen.add((native, passed))
+    assert seen == {(True, False), (False, False), (False, True)}

@@ -19,7 +19,7 @@ from real_walk import solve_real_walk_natively
 from ikfusion.ik import Frame, Solver
 from ikfusion.ik import projection as projection_module
 from ikfusion.ik import solver as solver_module
-from ikfusion.ik.contact_projection import TO_QP, ball_joints, native_projection
+from ikfusion.ik.contact_projection import HELD, TO_QP, ball_joints, native_projection
 from ikfusion.model import SENSOR_SEGMENTS, HumanModel
 from ikfusion.native.build import usable_compiler
 from ikfusion.native.kernel import loaded_kernel
@@ -36,6 +36,7 @@ class _BothPaths:
 
     def __init__(self) -> None:
         self.calls = self.native = self.steps = self.to_qp = self.crossed = 0
+        self.in_place = 0  # held without a step: the configuration kept, its points read
         self.largest_difference = 0.0
 
     def __call__(self, conf, contact, floor, ranges, frames, tolerance, max_steps, backend,
@@ -64,6 +65,7 @@ class _BothPaths:
         difference = float(np.abs(conf.q - reference).max())
         assert difference <= TIGHT, difference
         self.largest_difference = max(self.largest_difference, difference)
+        self.in_place += answers == [HELD] and native.plan.steps == 0
         kept = conf.positions(frames).copy()  # read from the kernel's last call
         conf.update(conf.q.copy())
         np.testing.assert_array_equal(conf.positions(frames), kept)  # evaluated again
@@ -111,12 +113,12 @@ def test_every_projection_of_a_simulated_walk(human: HumanModel, both: _BothPath
     truth = generate_gait(human, GaitParameters(duration=3.0, stand=0.5), rate=60.0)
     frames = orientation_frames(human, truth.q, truth.time, SENSOR_SEGMENTS)
     _native_solver(human).solve(frames)
-    assert both.calls >= len(frames) // 2 and both.steps > 0
+    assert both.calls >= len(frames) // 2 and both.steps > 0 and both.in_place > 0
 
 
 def test_the_real_walk(both: _BothPaths, tmp_path: Path) -> None:
     solve_real_walk_natively(tmp_path / "out")
-    assert both.calls >= 2000 and both.steps > 1000
+    assert both.calls >= 2000 and both.steps > 1000 and both.in_place > 1000
     assert both.to_qp > 100 and both.crossed > 0.9 * both.to_qp
 
 

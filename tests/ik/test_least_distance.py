@@ -12,7 +12,7 @@ import pytest
 
 import ikfusion.ik.qp_backends as backends
 from ikfusion.ik.equality_qp import equality_optimum
-from ikfusion.ik.least_distance import COUNTS, identity, least_distance_daqp
+from ikfusion.ik.least_distance import COUNTS, EQUALITY, identity, least_distance_daqp, senses
 from ikfusion.model import HumanModel
 
 N = 30
@@ -55,6 +55,10 @@ def test_the_step_and_its_binding_rows_are_daqps(seed: int, bounds: bool) -> Non
         assert np.all(x >= lb - 1e-6) and np.all(x <= ub + 1e-6)  # type: ignore[operator]
     np.testing.assert_array_equal(H, H_before)  # the Hessian is left alone
     np.testing.assert_array_equal(identity(N), np.eye(N))  # and so is the shared identity
+    rows = len(h) + len(b) + (N if bounds else 0)  # type: ignore[arg-type]
+    fresh = np.zeros(rows, dtype=np.intc)
+    fresh[rows - len(b):] = EQUALITY  # type: ignore[arg-type]
+    np.testing.assert_array_equal(senses(rows, rows - len(b)), fresh)  # and the shared senses
 
 
 @pytest.mark.parametrize("bounds", [False, True])
