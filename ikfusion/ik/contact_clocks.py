@@ -142,6 +142,14 @@ class NativeClocks:
         self._last_at = (at, at + 8 * k, at_anchors)
         return new_released, new_age, anchors
 
+    def __deepcopy__(self, memo: dict[int, object]) -> NativeClocks:
+        """Itself: a handle on the kernel (a copy of a tracker shares it, as the model).
+
+        Its memory of the last call's arrays is by identity: a copy's arrays are read at their
+        own addresses.
+        """
+        return self
+
     @staticmethod
     def _address(values: np.ndarray, size: int) -> int:
         """Where the kernel reads ``values`` of ``size`` numbers; 0 where it cannot."""
