@@ -7,10 +7,15 @@ world z up.
 from __future__ import annotations
 
 import functools
+import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .fast_math import any_true
+
+if TYPE_CHECKING:
+    from ..model.topology import FootLayout
 
 
 def settled_heights(z: np.ndarray, active: np.ndarray, same_segment: np.ndarray, drop: float,
@@ -37,7 +42,7 @@ def settled_heights(z: np.ndarray, active: np.ndarray, same_segment: np.ndarray,
     Returns:
         The settled heights; ``z`` itself when every anchor is on the floor already.
     """
-    if drop >= 0.0 and z.tobytes() == _on_floor(len(z), floor_z):
+    if drop >= 0.0 and z.tobytes() == _on_floor(len(z), floor_z, math.copysign(1.0, floor_z)):
         return z  # every anchor on the floor (bit for bit): nothing settles (the usual frame)
     own = np.minimum(np.maximum(z - floor_z, 0.0), drop)  # np.clip's result, without its wrapper
     if shares_segment is not None and not any_true(active & shares_segment):
@@ -47,9 +52,30 @@ def settled_heights(z: np.ndarray, active: np.ndarray, same_segment: np.ndarray,
     return np.maximum(z - np.minimum(own, shared), floor_z)
 
 
+def settled_anchors(anchors: np.ndarray, planted: np.ndarray, drop: float, floor_z: float,
+                    layout: FootLayout) -> np.ndarray:
+    """The anchors (k, 3) [m] with their heights settled (:func:`settled_heights`).
+
+    ``planted`` (k,): the planted points (those of one segment settle together, ``layout``'s
+    segments); ``drop``, ``floor_z`` [m] as there. ``anchors`` itself when no height changed,
+    bit for bit (a state's arrays are never written to), else a new array.
+    """
+    z = anchors[:, 2]
+    settled = settled_heights(z, planted, layout.same_segment, drop, floor_z,
+                              layout.shares_segment)
+    if settled is z or settled.tobytes() == z.tobytes():
+        return anchors
+    out = anchors.copy()
+    out[:, 2] = settled
+    return out
+
+
 @functools.cache
-def _on_floor(k: int, floor_z: float) -> bytes:
-    """The bytes of ``k`` heights [m] at ``floor_z`` exactly (:func:`settled_heights`'s test)."""
+def _on_floor(k: int, floor_z: float, sign: float) -> bytes:
+    """The bytes of ``k`` heights [m] at ``floor_z`` exactly (:func:`settled_heights`'s test).
+
+    ``sign``: ``floor_z``'s (a floor at -0.0 equals one at 0.0 as a key, not in its bytes).
+    """
     return np.full(k, floor_z, dtype=float).tobytes()
 
 

@@ -25,6 +25,7 @@ from ..model.layout import TRUNK_CONTACT_SITES
 from ..model.topology import BodyTopology
 from .anchor_carry import AnchorCarry
 from .anchor_settling import held_again
+from .contact_clocks import contact_clocks
 from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
 from .fast_math import any_true, true_indices
 from .frame import Frame
@@ -88,6 +89,7 @@ class ContactTracker:
                       self.thresholds.leave_relative, self._tilt, indices(self._rest),
                       indices(self._bits.heels), indices(self._bits.toes))
         self._sense = sensing(rules, len(self.names)) or functools.partial(python_evidence, rules)
+        self._clocks = contact_clocks(len(self.names))  # (None: NumPy's, without a compiler)
         self._all = (1 << len(self.names)) - 1  # every point, as bits
         self._untracked: dict[bytes, tuple[int, ...]] = {}  # _untracked_feet's, per pattern
         self.support = SupportFollower(self.layout, s.lag_speed, s.lag_max, s.swing_speed,
@@ -334,7 +336,8 @@ class ContactTracker:
                                 frame.time - t_old, self.thresholds, self._hints(frame),
                                 self._pitch, layout=self.layout, points_moving=moving,
                                 foot_still=still, needs_rest=self._needs_rest,
-                                v_sensed=self._v_sensed, evidence=evidence, on=self.planted())
+                                v_sensed=self._v_sensed, evidence=evidence, on=self.planted(),
+                                clocks=self._clocks)
         if frame.points_velocity:  # (none: no landing is unlagged)
             stood, lag = (before, self.support.lag) if any_true(before) else self._flown
             self.state = unlagged_landings(stood, self.state, self.layout, lag, frame)

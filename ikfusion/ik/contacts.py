@@ -31,7 +31,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..model.topology import FootLayout
-from .anchor_settling import settled_heights
+from .anchor_settling import settled_anchors
+from .contact_clocks import ClockStep, python_clocks
 from .contact_thresholds import ContactThresholds
 from .foot_pairs import drift_from_other_foot, landing_anchors, other_foot_age
 from .handover import plant_anchors
@@ -251,7 +252,7 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
                needs_rest: np.ndarray | None = None,
                v_sensed: np.ndarray | None = None,
                evidence: FrameEvidence | None = None,
-               on: int | None = None) -> ContactState:
+               on: int | None = None, clocks: ClockStep | None = None) -> ContactState:
     """Plant the points that reached the floor this frame (run after solving).
 
     A point enters contact when it is near the floor, slow, among the lowest points of the
@@ -278,6 +279,7 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
             IMU says it does not move does not touch down.
         evidence: See :func:`release_contacts` (the same frame's).
         on: See :func:`release_contacts`.
+        clocks: The native :func:`.contact_clocks.python_clocks`, when the caller has it.
 
     Returns:
         A new state; anchors above the floor settle toward it at ``settle_speed``
@@ -289,7 +291,11 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
     on = bits.of(was) if on is None else on  # planted (bits: :mod:`.point_bits`)
     step = max(dt, 0.0)
     ev = evidence or _evidence(bits, p_sensed, foot_pitch, foot_still, needs_rest, th)
-    released = np.where(was, state.released, state.released + step)
+    # the clocks move on and the anchors settle as if no point landed (the usual frame): the
+    # points that land were free (age 0 either way) and their anchors settle anew below
+    released, age, anchors = (clocks or python_clocks)(
+        state.released, state.age, state.anchors, on, step, th.settle_speed * step, th.floor_z,
+        layout)
     # near the floor and among the lowest points: the candidates (few frames have any)
     if enter := ev.low & ~on:
         enter = below(p_solved[:, 2].tolist(), th.floor_z + th.enter_height, indices(enter))
@@ -301,20 +307,12 @@ def touch_down(state: ContactState, p_solved: np.ndarray, p_solved_previous: np.
         enter = enter | 1 << i if not on & 1 << i and hinted else enter & ~(1 << i)
     if not on and not enter and not hints:
         enter = 1 << int(np.argmin(p_sensed[:, 2]))
-    anchors, active = state.anchors, was  # (shared while unchanged, as release_contacts's)
-    if enter:
-        entering = bits.mask(enter)
-        anchors = anchors.copy()
-        anchors[entering] = landing_anchors(layout, was, anchors, p_solved, entering)
-        active = bits.array(on | enter)
-        anchors[entering, 2] = np.maximum(anchors[entering, 2], th.floor_z)
-    z = anchors[:, 2]
-    settled = settled_heights(z, active, layout.same_segment, th.settle_speed * step, th.floor_z,
-                              layout.shares_segment)
-    if settled is not z:
-        anchors = anchors.copy() if anchors is state.anchors else anchors
-        anchors[:, 2] = settled
-    age = np.where(active, state.age + step, 0.0)
-    if enter:
-        age[entering] = 0.0
+    if not enter:  # (shared while unchanged, as release_contacts's)
+        return ContactState(state.names, was, anchors, age, released)
+    entering = bits.mask(enter)
+    anchors = state.anchors.copy()
+    anchors[entering] = landing_anchors(layout, was, anchors, p_solved, entering)
+    active = bits.array(on | enter)
+    anchors[entering, 2] = np.maximum(anchors[entering, 2], th.floor_z)
+    anchors = settled_anchors(anchors, active, th.settle_speed * step, th.floor_z, layout)
     return ContactState(state.names, active, anchors, age, released)

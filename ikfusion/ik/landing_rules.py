@@ -31,10 +31,16 @@ def may_land(bits: PointBits, on: int, enter: int, p_solved: np.ndarray,
     that does not move holds the body, not a trunk point whose segment moves. ``on``: the
     planted points; ``ev``: the frame's evidence.
     """
-    height_rel, rows = ev.height_rel, indices(enter)
     moving_point, settled = motion_bits(bits, points_moving)
     since = released.tolist()
-    slow = _slow(rows, p_solved, p_solved_previous, dt, th.enter_speed)
+    # the rules without speeds first: most candidates fail them (a toe let go just now, a foot
+    # pitched), and the rest is a conjunction of rules of each point alone
+    enter &= (~ev.tilted & ~(ev.rest & ev.foot_moves)
+              & (sum(1 << i for i in indices(enter) if since[i] >= th.reenter_delay) | settled))
+    if points_moving is not None:  # see :func:`.contacts.release_contacts`
+        enter &= ~(moving_point & bits.other_foot(on & ~moving_point))
+    if not enter:
+        return 0
     # a point that just let go (toe-off) does not come back down at once while it is low,
     # unless its foot IMU says it no longer moves (a landing heel let go while it skidded).
     # A point its foot IMU says does not move is slow whatever its solved speed: that speed
@@ -43,14 +49,11 @@ def may_land(bits: PointBits, on: int, enter: int, p_solved: np.ndarray,
     # the solved speed says nothing while the IMUs say every planted point moves (a body held
     # on a toe that lifts): the sensed pose decides then, a point taking the body once it is
     # as low as the planted points.
+    height_rel = ev.height_rel
     support_moving = (bits.of(height_rel <= np.min(height_rel[bits.mask(on)], initial=np.inf))
                       if on and not on & ~moving_point else 0)
-    ok = ((slow | settled | support_moving) & ~ev.tilted
-          & (sum(1 << i for i in rows if since[i] >= th.reenter_delay) | settled))
-    if points_moving is not None:  # see :func:`.contacts.release_contacts`
-        ok &= ~(moving_point & bits.other_foot(on & ~moving_point))
-    # a trunk point whose segment's IMU says it moves (NaN: unknown)
-    return enter & ok & ~(ev.rest & ev.foot_moves)
+    return enter & (_slow(indices(enter), p_solved, p_solved_previous, dt, th.enter_speed)
+                    | settled | support_moving)
 
 
 def _slow(rows: tuple[int, ...], p: np.ndarray, p_before: np.ndarray, dt: float,
