@@ -82,6 +82,33 @@ def test_foot_pitch_is_nan_without_a_foot_and_fresh_each_frame(human: HumanModel
         pitch[:] = 0.0  # the caller's own array: the next frame starts from NaN again
 
 
+@pytest.mark.parametrize("feet", [None, [-1, 3, 3, -1, 7, 1, 1, -1], [2, 2, 5, 5, -1], [-1, -1]])
+def test_foot_pitch_is_its_references_bytes(human: HumanModel, rng: np.random.Generator,
+                                            feet: list[int] | None) -> None:
+    """The flat ``take`` and the slice give the strided columns' pitches, bit for bit.
+
+    On the default points' feet (consecutive: a slice) and on scattered ones (an index array),
+    targets near pitch zero and +-90 deg, untracked feet from ``q``, NaN in the targets.
+    """
+    from ikfusion.ik.foot_pitch import FootPitch
+    from ikfusion.rotations import exp_so3
+
+    pitch_of = (_tracker(human)._pitch_of if feet is None
+                else FootPitch(human, np.array(feet, dtype=int)))
+    n = len(human.segment_names)
+    q = human.neutral()
+    for frame in range(200):
+        R = exp_so3(rng.normal(scale=[0.5, 2.0, 0.5][frame % 3], size=(n, 3)))
+        if frame % 7 == 0:
+            R[rng.integers(n), :, 0] = [0.0, 0.0, 1.0]  # straight up: pitch -90 deg
+        if frame % 13 == 0:
+            R[rng.integers(n)] = np.nan
+        tracked = rng.random(n) < (0.9 if frame % 2 else 1.0)
+        new, old = pitch_of(q, R, tracked), pitch_of.reference(q, R, tracked)
+        assert new.tobytes() == old.tobytes()
+        assert new.flags.writeable and new is not pitch_of(q, R, tracked)
+
+
 def test_reference_points_are_the_oldest_groups_whatever_the_ages(human: HumanModel,
                                                                    rng: np.random.Generator
                                                                    ) -> None:
