@@ -61,6 +61,28 @@ def test_feet_stance_follows_every_pattern_back_and_forth(human: HumanModel) -> 
     assert tracker._stance.feet_still(Frame(0.0))[0] is None
 
 
+def test_stance_like_the_last_frames_is_safe_against_a_dict_written_in_place(
+        human: HumanModel) -> None:
+    """The usual frame's shortcut (the last frame's stance, equal) follows a caller's dict that
+    it writes to in place between frames, and equal dicts in another order."""
+    stance, fresh = _tracker(human)._stance, _tracker(human)._stance
+    known = {"LeftFoot": True, "RightFoot": False}
+    moving = {"LeftHeel": True}
+    for flags in [(True, False), (True, False), (False, False), (False, True), (False, True)]:
+        known["LeftFoot"], known["RightFoot"] = flags
+        moving["LeftHeel"] = flags[1]
+        frame = Frame(0.0, feet_still=known, points_moving=moving)
+        copied = Frame(0.0, feet_still=dict(reversed(known.items())), points_moving=dict(moving))
+        for got in (stance.feet_still(frame), stance.feet_still(copied)):
+            want = fresh.feet_still(Frame(0.0, feet_still=dict(known)))
+            assert got[1] == want[1] and got[0] is not None and want[0] is not None
+            np.testing.assert_array_equal(got[0], want[0])
+        for moved in (stance.points_moving(frame), stance.points_moving(copied)):
+            expected = fresh.points_moving(Frame(0.0, points_moving=dict(moving)))
+            assert moved is not None and expected is not None
+            np.testing.assert_array_equal(moved, expected)
+
+
 def test_foot_pitch_is_nan_without_a_foot_and_fresh_each_frame(human: HumanModel,
                                                                rng: np.random.Generator) -> None:
     from ikfusion.rotations import exp_so3
