@@ -31,7 +31,7 @@ from .foot_pitch import FootPitch
 from .frame import Frame
 from .frame_stance import FrameStance
 from .landing_lag import unlagged_landings
-from .point_bits import indices, point_bits
+from .point_bits import above, indices, point_bits
 from .point_evidence import FrameEvidence
 from .release import ANKLE, ReleaseEasing
 from .sensed_evidence import Rules, python_evidence, sensing
@@ -194,7 +194,7 @@ class ContactTracker:
         on = self.planted()
         rising = bits.heels & on & ~evidence.still
         if rising:
-            rising &= bits.of(pitch > self._heel_rise)
+            rising &= above(pitch.tolist(), self._heel_rise, indices(rising))
         was, self._rising = self._rising, rising
         if again := was & ~rising & on:  # heels that rose in the last frame: held in height
             anchors = held_again(self.state.anchors, self._history[-1][1][:, 2], bits.mask(again),

@@ -148,6 +148,35 @@ def test_reference_points_are_the_oldest_groups_whatever_the_ages(human: HumanMo
         np.testing.assert_array_equal(support._bits.mask(reference), expected)
 
 
+def test_drifting_points_are_the_drifts_bits(human: HumanModel,
+                                             rng: np.random.Generator) -> None:
+    """Python floats on the asked rows give ``bits.of(drift > limit)``'s bits, bit for bit.
+
+    Every pattern of planted points (one foot, two, none), limits below, at and above the
+    drifts (negative and zero too), NaN and inf in the sensed points and anchors, scales from
+    tenths of a millimetre to overflow.
+    """
+    from ikfusion.ik.foot_pairs import drift_from_other_foot, drifting_points
+    from ikfusion.ik.point_bits import indices
+
+    tracker = _tracker(human)
+    layout, bits, k = tracker.layout, tracker._bits, len(tracker.names)
+    for case in range(3000):
+        active = bits.mask(bits.of(rng.random(k) < [0.1, 0.3, 0.6][case % 3]))
+        scale = [1e-4, 0.05, 1.0, 1e155][case % 4]
+        anchors, p_sensed = (rng.normal(scale=scale, size=(k, 3)) for _ in range(2))
+        if case % 5 == 0:
+            p_sensed[rng.integers(k), rng.integers(3)] = [np.nan, np.inf, -np.inf][case % 3]
+        if case % 7 == 0:
+            anchors[rng.integers(k), rng.integers(3)] = np.nan
+        with np.errstate(all="ignore"):  # (NaN, inf and overflow on purpose)
+            drift = drift_from_other_foot(layout, active, anchors, p_sensed)
+            limit = float(rng.choice([-0.01, 0.0, 0.05 * scale, drift[rng.integers(k)]]))
+            rows = bits.of(rng.random(k) < 0.7) if case % 2 else bits.of(active)
+            assert (drifting_points(layout, active, anchors, p_sensed, limit, indices(rows))
+                    == bits.of(drift > limit) & rows)
+
+
 def test_other_foot_and_drift_follow_every_pattern_back_and_forth(
         human: HumanModel, rng: np.random.Generator) -> None:
     from ikfusion.ik.foot_pairs import drift_from_other_foot, other_foot, other_foot_age
