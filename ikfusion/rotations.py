@@ -43,6 +43,11 @@ SMALL_ANGLE = 1e-4
 #: [rad] Above this angle the SO(3) logarithm takes its axis from the quaternion.
 LARGE_ANGLE = 3.0
 
+_EYE3 = np.eye(3)  # exp_so3's identity (read-only: every sum makes a new array)
+_EYE3.setflags(write=False)
+# skew's picks from (x, y, z, -x, -y, -z, 0): the rows (0, -z, y), (z, 0, -x), (-y, x, 0)
+_SKEW_PICK = np.array([6, 5, 1, 2, 6, 3, 4, 0, 6])
+_SKEW_PICK.setflags(write=False)
 #: ``R_enu_ned``: coordinates in NED (x North, y East, z Down) to ENU (x East, y North, z Up).
 R_ENU_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 #: ``R_enu_nwu``: coordinates in NWU (x North, y West, z Up) to ENU.
@@ -262,11 +267,9 @@ def skew(v: npt.ArrayLike) -> np.ndarray:
     if a.shape == (3,):  # one vector: a literal is several times faster (the EKF's case)
         x, y, z = a.tolist()
         return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-    S = np.zeros(a.shape[:-1] + (3, 3))
-    S[..., 0, 1], S[..., 0, 2] = -a[..., 2], a[..., 1]
-    S[..., 1, 0], S[..., 1, 2] = a[..., 2], -a[..., 0]
-    S[..., 2, 0], S[..., 2, 1] = -a[..., 1], a[..., 0]
-    return S
+    # (x, y, z, -x, -y, -z, 0) per vector, picked into the rows (one take)
+    signed = np.concatenate((a, -a, np.zeros(a.shape[:-1] + (1,))), axis=-1)
+    return signed.take(_SKEW_PICK, axis=-1).reshape(a.shape[:-1] + (3, 3))
 
 
 def exp_so3(rotvec: npt.ArrayLike) -> np.ndarray:
@@ -279,15 +282,16 @@ def exp_so3(rotvec: npt.ArrayLike) -> np.ndarray:
         Rotation matrices of shape ``S + (3, 3)``.
     """
     w = np.asarray(rotvec, dtype=float)
-    theta = np.linalg.norm(w, axis=-1)[..., None, None]
+    # np.linalg.norm(w, axis=-1)'s own sum of squares and root, without its argument handling
+    theta = np.sqrt(np.add.reduce(w * w, axis=-1))[..., None, None]
     K = skew(w)
     small = theta < SMALL_ANGLE
     if not small.any():  # the same numbers as below, without the series' branch
-        return np.eye(3) + np.sin(theta) / theta * K + (1.0 - np.cos(theta)) / theta**2 * (K @ K)
+        return _EYE3 + np.sin(theta) / theta * K + (1.0 - np.cos(theta)) / theta**2 * (K @ K)
     safe = np.where(small, 1.0, theta)
     a = np.where(small, 1.0 - theta**2 / 6.0, np.sin(safe) / safe)
     b = np.where(small, 0.5 - theta**2 / 24.0, (1.0 - np.cos(safe)) / safe**2)
-    return np.eye(3) + a * K + b * (K @ K)
+    return _EYE3 + a * K + b * (K @ K)
 
 
 def rotvec_to_quat_wxyz(rotvec: npt.ArrayLike) -> np.ndarray:

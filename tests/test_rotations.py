@@ -177,3 +177,43 @@ def test_many_batches_convert_as_each_alone_to_the_bit() -> None:
     for R, q in zip(batches, together, strict=True):
         np.testing.assert_array_equal(q, rot.matrix_to_quat_wxyz(R))
     assert rot.matrices_to_quats_wxyz([]) == []
+
+
+def _skew_reference(a: np.ndarray) -> np.ndarray:
+    """skew's batch as it was written before its single take (#20): the reference."""
+    S = np.zeros(a.shape[:-1] + (3, 3))
+    S[..., 0, 1], S[..., 0, 2] = -a[..., 2], a[..., 1]
+    S[..., 1, 0], S[..., 1, 2] = a[..., 2], -a[..., 0]
+    S[..., 2, 0], S[..., 2, 1] = -a[..., 1], a[..., 0]
+    return S
+
+
+def _exp_so3_reference(w: np.ndarray) -> np.ndarray:
+    """exp_so3 as it was before (np.linalg.norm, np.eye, the zeros-filled skew): the reference."""
+    theta = np.linalg.norm(w, axis=-1)[..., None, None]
+    K = _skew_reference(w) if w.shape != (3,) else rot.skew(w)
+    small = theta < rot.SMALL_ANGLE
+    if not small.any():
+        return np.eye(3) + np.sin(theta) / theta * K + (1.0 - np.cos(theta)) / theta**2 * (K @ K)
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0 - theta**2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - theta**2 / 24.0, (1.0 - np.cos(safe)) / safe**2)
+    return np.eye(3) + a * K + b * (K @ K)
+
+
+@pytest.mark.parametrize("shape", [(3,), (1, 3), (2, 3), (7, 3), (4, 5, 3), (0, 3)])
+def test_exp_so3_and_skew_are_their_references_bytes(shape: tuple[int, ...]) -> None:
+    """The norm's own sum and root, the kept identity and skew's take: the same bits.
+
+    Angles near zero (the series), near pi and far beyond, signed zeros, NaN and inf.
+    """
+    rng = np.random.default_rng(len(shape) * 10 + shape[0])
+    for case in range(300):
+        w = rng.normal(size=shape) * rng.choice([1e-7, 1e-4, 0.5, 3.0, 40.0], size=shape)
+        if case % 5 == 0:
+            w.reshape(-1)[:: 3 + case % 4] *= [0.0, -0.0, np.nan, np.inf][case % 4]
+        with np.errstate(all="ignore"):
+            got, want = rot.exp_so3(w), _exp_so3_reference(w)
+            assert got.shape == want.shape and got.tobytes() == want.tobytes()
+            if w.shape != (3,):
+                assert rot.skew(w).tobytes() == _skew_reference(w).tobytes()

@@ -27,11 +27,12 @@ from .anchor_carry import AnchorCarry
 from .anchor_settling import held_again
 from .contact_clocks import contact_clocks
 from .contacts import ContactState, ContactThresholds, release_contacts, touch_down
-from .fast_math import any_true, true_indices
+from .fast_math import any_true
+from .foot_pitch import FootPitch
 from .frame import Frame
 from .frame_stance import FrameStance
 from .landing_lag import unlagged_landings
-from .point_bits import indices, point_bits
+from .point_bits import above, indices, point_bits
 from .point_evidence import FrameEvidence
 from .release import ANKLE, ReleaseEasing
 from .sensed_evidence import Rules, python_evidence, sensing
@@ -75,14 +76,11 @@ class ContactTracker:
         self._feet = np.array([segments.index(f) if f is not None and steps else -1
                                for f, steps in zip(self._foot_names, self.layout.stepping)],
                               dtype=int)
-        self._has_foot = self._feet >= 0
         self._heel_rise, self._tilt = math.radians(s.heel_rise_deg), math.radians(s.tilt_deg)
         # the points of each foot, for the per-frame stance lookup
         self._points_of_foot = {f: np.array([i for i, g in enumerate(self._foot_names) if g == f])
                                 for f in dict.fromkeys(self._foot_names) if f is not None}
-        self._foot_rows = self._feet[self._has_foot]  # the segment of each point with a foot
-        self._foot_points = true_indices(self._has_foot)  # ... and the point
-        self._no_pitch = np.full(len(self._feet), np.nan)  # foot_pitch's start: no foot
+        self._pitch_of = FootPitch(model, self._feet)  # :meth:`foot_pitch`
         self._stance = FrameStance(self.names, self._foot_names, self._bits)
         self._rest = self._bits.of(self._needs_rest)  # the trunk points, as bits
         rules = Rules(s.detection_smoothing, FAR_FROM_FLOOR, self.thresholds.enter_relative,
@@ -91,7 +89,6 @@ class ContactTracker:
         self._sense = sensing(rules, len(self.names)) or functools.partial(python_evidence, rules)
         self._clocks = contact_clocks(len(self.names))  # (None: NumPy's, without a compiler)
         self._all = (1 << len(self.names)) - 1  # every point, as bits
-        self._untracked: dict[bytes, tuple[int, ...]] = {}  # _untracked_feet's, per pattern
         self.support = SupportFollower(self.layout, s.lag_speed, s.lag_max, s.swing_speed,
                                        s.lean_max, s.lean_speed, s.touchdown_confirm,
                                        self.thresholds.floor_z)
@@ -148,33 +145,10 @@ class ContactTracker:
                    tracked: np.ndarray) -> np.ndarray:
         """Pitch [rad] (toe down positive) of the foot of each contact point.
 
-        From the foot's sensed target when tracked, else from ``q``; NaN without a foot.
+        From the foot's sensed target when tracked, else from ``q``; NaN without a foot
+        (:class:`.foot_pitch.FootPitch`).
         """
-        if not len(self._feet):  # no contact points
-            return np.zeros(0)
-        # (points with a foot, 3) the forward axes, by index (a copy)
-        forward = R_world_sensed[:, :, 0].take(self._foot_rows, axis=0)
-        for row in self._untracked_feet(tracked):  # a foot without sensor
-            name = self.model.segment_names[self._foot_rows[row]]
-            forward[row] = self.model.segment_rotation(q, name)[:, 0]
-        pitch = self._no_pitch.copy()
-        pitch[self._foot_points] = np.arctan2(-forward[:, 2],
-                                              np.hypot(forward[:, 0], forward[:, 1]))
-        return pitch
-
-    def _untracked_feet(self, tracked: np.ndarray) -> tuple[int, ...]:
-        """Rows of ``_foot_rows`` whose foot has no target in ``tracked`` (n,) bool.
-
-        Kept per pattern of ``tracked`` (the targets' weighting is the same from frame to frame
-        until a sensor drops out or comes back).
-        """
-        key = tracked.tobytes()
-        rows = self._untracked.get(key)
-        if rows is None:
-            rows = tuple(true_indices(~np.asarray(tracked, dtype=bool)[self._foot_rows]).tolist())
-            if len(self._untracked) < 64:  # (a few patterns: sensors dropping out, coming back)
-                self._untracked[key] = rows
-        return rows
+        return self._pitch_of(q, R_world_sensed, tracked)
 
     def start(self, p_sensed: np.ndarray, pitch: np.ndarray) -> None:
         """The first frame's sensed contact points (c, 3) [m] and foot pitches (c,) [rad]."""
@@ -222,7 +196,7 @@ class ContactTracker:
         on = self.planted()
         rising = bits.heels & on & ~evidence.still
         if rising:
-            rising &= bits.of(pitch > self._heel_rise)
+            rising &= above(pitch.tolist(), self._heel_rise, indices(rising))
         was, self._rising = self._rising, rising
         if again := was & ~rising & on:  # heels that rose in the last frame: held in height
             anchors = held_again(self.state.anchors, self._history[-1][1][:, 2], bits.mask(again),

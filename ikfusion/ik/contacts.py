@@ -34,7 +34,7 @@ from ..model.topology import FootLayout
 from .anchor_settling import settled_anchors
 from .contact_clocks import ClockStep, python_clocks
 from .contact_thresholds import ContactThresholds
-from .foot_pairs import drift_from_other_foot, landing_anchors, other_foot_age
+from .foot_pairs import drifting_points, landing_anchors, other_foot_age
 from .handover import plant_anchors
 from .landing_rules import may_land
 from .point_bits import PointBits, below, has, indices, point_bits
@@ -173,8 +173,8 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
         held = state.anchors if placed is None else state.anchors - placed
         planted = bits.mask(staying)
         # only a planted point that disagrees may be pulled (the ages of the rare frame)
-        if disagrees := bits.of(drift_from_other_foot(layout, planted, held, p_sensed)
-                                > th.leave_distance) & staying:
+        if disagrees := drifting_points(layout, planted, held, p_sensed, th.leave_distance,
+                                        indices(staying)):
             older = bits.of(state.age >= other_foot_age(layout, planted, state.age))
             pulled = pulled_points(bits, disagrees, older, staying, rest)
     # a resting knee or palm (calm accelerometer) is weaker evidence than a still foot: the

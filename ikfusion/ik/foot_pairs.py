@@ -6,6 +6,8 @@ Helpers of :mod:`.contacts`; a point's foot is given by :class:`FootLayout` ``sa
 from __future__ import annotations
 
 import functools
+import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -60,6 +62,29 @@ def drift_from_other_foot(layout: FootLayout, active: np.ndarray, anchors: np.nd
     others, has, count = pairs
     offset = (others @ (anchors - p_sensed)) / count
     return np.where(has, row_norms((p_sensed + offset - anchors)[:, :2]), 0.0)
+
+
+def drifting_points(layout: FootLayout, active: np.ndarray, anchors: np.ndarray,
+                    p_sensed: np.ndarray, limit: float, rows: Sequence[int]) -> int:
+    """The points of ``rows`` (bits) that :func:`drift_from_other_foot` puts over ``limit`` [m].
+
+    ``bits.of(drift_from_other_foot(...) > limit)`` on ``rows`` (:mod:`.point_bits`), the same
+    numbers: the offset by NumPy, each row's horizontal distance as Python floats, the products,
+    sum and square root of ``row_norms`` in its order (IEEE; NaN compares False), without the
+    NumPy calls on the rows that are not asked (a frame on two feet asks the planted points).
+    """
+    pairs = layout_memo(layout, "planted_pairs", _planted_pairs)(active)
+    if pairs is None:  # no drift: 0 everywhere
+        return sum(1 << i for i in rows) if 0.0 > limit else 0
+    others, has, count = pairs
+    offset = (others @ (anchors - p_sensed)) / count
+    away, has_other = (p_sensed + offset - anchors).tolist(), has.tolist()
+    out = 0
+    for i in rows:
+        x, y = away[i][0], away[i][1]
+        if (math.sqrt(x * x + y * y) if has_other[i] else 0.0) > limit:
+            out |= 1 << i
+    return out
 
 
 def other_foot_age(layout: FootLayout, active: np.ndarray, age: np.ndarray) -> np.ndarray:

@@ -4,7 +4,8 @@
 moves by its foot IMU) change at steps only: a walk meets a few dozen patterns. Per contact
 point they become read-only (k,) arrays (1 yes, 0 no, NaN unknown) and, for the stance, the
 bits (:mod:`.point_bits`) of the points whose foot stands still and of those whose foot moves;
-:class:`FrameStance` keeps them per pattern so that a frame pays a dictionary look-up.
+:class:`FrameStance` keeps them per pattern so that a frame pays a dictionary look-up, and the
+usual frame, whose stance equals the last frame's, one comparison of two small dicts.
 """
 
 from __future__ import annotations
@@ -38,6 +39,10 @@ class FrameStance:
         self._bits = bits
         self._still_of: dict[_Key, tuple[np.ndarray, tuple[int, int]]] = {}
         self._moving_of: dict[_Key, np.ndarray] = {}
+        # the last frame's stance and answer (a copy: the usual frame's is equal, a look-up less)
+        self._last_still: tuple[dict[str, bool], tuple[np.ndarray, tuple[int, int]] | None] = (
+            {}, None)
+        self._last_moving: tuple[dict[str, bool], np.ndarray | None] = ({}, None)
 
     def feet_still(self, frame: Frame) -> tuple[np.ndarray | None, tuple[int, int]]:
         """Per point, 1 its foot stands still by its IMU, 0 moves, NaN unknown; and as bits.
@@ -49,6 +54,9 @@ class FrameStance:
         known = frame.feet_still
         if not known:
             return None, (0, 0)
+        last, answer = self._last_still
+        if answer is not None and known == last:  # (equal values: the same floats and bits)
+            return answer
         key = tuple(known.items())
         kept = self._still_of.get(key)
         if kept is None:
@@ -59,6 +67,7 @@ class FrameStance:
             kept = (still, stance_bits(self._bits, still))
             if len(self._still_of) < _PATTERNS:
                 self._still_of[key] = kept
+        self._last_still = (dict(known), kept)
         return kept
 
     def points_moving(self, frame: Frame) -> np.ndarray | None:
@@ -69,6 +78,9 @@ class FrameStance:
         known = frame.points_moving
         if not known:
             return None
+        last, answer = self._last_moving
+        if answer is not None and known == last:
+            return answer
         key = tuple(known.items())
         moving = self._moving_of.get(key)
         if moving is None:
@@ -76,4 +88,5 @@ class FrameStance:
             moving.setflags(write=False)
             if len(self._moving_of) < _PATTERNS:
                 self._moving_of[key] = moving
+        self._last_moving = (dict(known), moving)
         return moving

@@ -87,19 +87,20 @@ class ReleaseEasing:
             return None
         # the rows that may be non-zero, as floats: NumPy's numbers (``row_norms`` sums the
         # squares from the first; ``np.maximum(0.0, k)`` keeps a NaN); rows of zeros keep theirs
-        by, rows, out = self.speed * dt, self._rows, []
-        for x, y, z in self.offsets[list(rows)].tolist():
+        # (rows as index arrays: NumPy's fancy indexing converts a list at each use)
+        by, rows, out = self.speed * dt, np.array(self._rows, dtype=np.intp), []
+        for x, y, z in self.offsets.take(rows, axis=0).tolist():
             n = math.sqrt(x * x + y * y + z * z)
             keep = 1.0 - by / n if n > 0 else 0.0
             keep = 0.0 if 0.0 >= keep else keep
             out.append((x * keep, y * keep, z * keep))
-        self.offsets[list(rows)] = out
-        moving = [i for i, v in zip(rows, out, strict=True) if any(v)]  # (a list: rows)
+        self.offsets[rows] = out
+        moving = [i for i, v in zip(self._rows, out, strict=True) if any(v)]  # (a list: rows)
         self._rows = tuple(moving)
         if not moving:
             self._easing = False
             return None
-        R = R_world_sensed.copy()
-        R[moving] = R[moving] @ exp_so3(self.offsets[moving])
+        R, at = R_world_sensed.copy(), np.array(moving, dtype=np.intp)
+        R[at] = R.take(at, axis=0) @ exp_so3(self.offsets.take(at, axis=0))
         return R
 

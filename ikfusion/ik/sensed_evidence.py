@@ -26,6 +26,8 @@ from .point_bits import above, below, below_above
 #: What is used when the kernel cannot be compiled (the end of the warning).
 FALLBACK = "NumPy smooths the sensed contact points instead"
 _P, _I, _D, _L = ctypes.c_void_p, ctypes.c_int, ctypes.c_double, ctypes.c_longlong
+#: :class:`NativeSensing`'s frames a block of output memory (a block of 14 points: 77 kB)
+FRAMES_A_BLOCK = 64
 
 
 class Sensed(NamedTuple):
@@ -108,9 +110,10 @@ class _Sensed(ctypes.Structure):
 class NativeSensing:
     """:func:`python_evidence` of k points in one kernel call (see the module docstring).
 
-    This frame's points and pitches are copied into buffers of their own; the outputs are a
-    new block of memory each frame (a frame's arrays are never written to again), whose
-    address the next frame reads its last smoothed points from.
+    This frame's points and pitches are copied into buffers of their own; the outputs are new
+    memory each frame (a frame's arrays are never written to again), whose address the next
+    frame reads its last smoothed points from. The frames' outputs are the rows of blocks of
+    :data:`FRAMES_A_BLOCK` frames, each block's arrays viewed once (a frame indexes them).
 
     Args:
         library: The loaded kernel.
@@ -132,6 +135,9 @@ class NativeSensing:
         self._at = ctypes.addressof(self._args)
         #: the last call's smoothed points and pitches, and their block's address
         self._last: tuple[np.ndarray | None, np.ndarray | None, int] = (None, None, 0)
+        self._next = FRAMES_A_BLOCK  # the next frame's row of the block (none yet)
+        self._block_at = 0  # the block's address
+        self._views: tuple[np.ndarray, ...] = ()  # its p, pitch, step, velocity, height rows
         self._kernel = library.ik_sensed_evidence
         self._kernel.restype = None
         self._kernel.argtypes = [ctypes.c_void_p]
@@ -149,18 +155,34 @@ class NativeSensing:
             self._p_old[...] = p_old
             self._pitch_old[...] = pitch_old
             args.p_old, args.pitch_old = self._old_at
-        memory = (ctypes.c_double * (11 * k))()
-        at = ctypes.addressof(memory)
+        if (row := self._next) == FRAMES_A_BLOCK:
+            row = self._new_block()
+        self._next = row + 1
+        at = self._block_at + 88 * k * row  # (11 k numbers a frame)
         args.out, args.dt = at, dt
         self._kernel(self._at)
-        block = np.frombuffer(memory)  # type: ignore[call-overload]
-        p, pitch = block[:3 * k].reshape(k, 3), block[3 * k:4 * k]
-        p.setflags(write=False)
-        pitch.setflags(write=False)
+        p_rows, pitch_rows, step_rows, velocity_rows, height_rows = self._views
+        p, pitch = p_rows[row], pitch_rows[row]
         self._last = (p, pitch, at)
-        return Sensed(p, pitch, block[4 * k:7 * k].reshape(k, 3),
-                      block[7 * k:10 * k].reshape(k, 3) if dt > 0 else None, block[10 * k:],
-                      args.far_bits, args.low, args.high, args.tilted)
+        return Sensed(p, pitch, step_rows[row], velocity_rows[row] if dt > 0 else None,
+                      height_rows[row], args.far_bits, args.low, args.high, args.tilted)
+
+    def _new_block(self) -> int:
+        """Fresh memory for the next :data:`FRAMES_A_BLOCK` frames; the first row (0).
+
+        A frame's row holds 11 k numbers: ``p`` (k, 3), ``pitch`` (k), ``step`` (k, 3),
+        ``velocity`` (k, 3), ``height_rel`` (k) (``sensed_evidence.c``'s ``out``); ``p`` and
+        ``pitch`` are viewed read-only, the others writable, as :func:`python_evidence`'s.
+        """
+        k = self.k
+        block = np.empty((FRAMES_A_BLOCK, 11 * k))
+        self._block_at = int(block.ctypes.data)
+        read_only = block.view()
+        read_only.setflags(write=False)
+        self._views = (read_only[:, :3 * k].reshape(-1, k, 3), read_only[:, 3 * k:4 * k],
+                       block[:, 4 * k:7 * k].reshape(-1, k, 3),
+                       block[:, 7 * k:10 * k].reshape(-1, k, 3), block[:, 10 * k:])
+        return 0
 
 def sensing(rules: Rules, k: int) -> NativeSensing | None:
     """The native :func:`python_evidence` (:class:`NativeSensing`); None without the kernel."""

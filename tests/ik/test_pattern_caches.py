@@ -61,6 +61,28 @@ def test_feet_stance_follows_every_pattern_back_and_forth(human: HumanModel) -> 
     assert tracker._stance.feet_still(Frame(0.0))[0] is None
 
 
+def test_stance_like_the_last_frames_is_safe_against_a_dict_written_in_place(
+        human: HumanModel) -> None:
+    """The usual frame's shortcut (the last frame's stance, equal) follows a caller's dict that
+    it writes to in place between frames, and equal dicts in another order."""
+    stance, fresh = _tracker(human)._stance, _tracker(human)._stance
+    known = {"LeftFoot": True, "RightFoot": False}
+    moving = {"LeftHeel": True}
+    for flags in [(True, False), (True, False), (False, False), (False, True), (False, True)]:
+        known["LeftFoot"], known["RightFoot"] = flags
+        moving["LeftHeel"] = flags[1]
+        frame = Frame(0.0, feet_still=known, points_moving=moving)
+        copied = Frame(0.0, feet_still=dict(reversed(known.items())), points_moving=dict(moving))
+        for got in (stance.feet_still(frame), stance.feet_still(copied)):
+            want = fresh.feet_still(Frame(0.0, feet_still=dict(known)))
+            assert got[1] == want[1] and got[0] is not None and want[0] is not None
+            np.testing.assert_array_equal(got[0], want[0])
+        for moved in (stance.points_moving(frame), stance.points_moving(copied)):
+            expected = fresh.points_moving(Frame(0.0, points_moving=dict(moving)))
+            assert moved is not None and expected is not None
+            np.testing.assert_array_equal(moved, expected)
+
+
 def test_foot_pitch_is_nan_without_a_foot_and_fresh_each_frame(human: HumanModel,
                                                                rng: np.random.Generator) -> None:
     from ikfusion.rotations import exp_so3
@@ -82,6 +104,33 @@ def test_foot_pitch_is_nan_without_a_foot_and_fresh_each_frame(human: HumanModel
         pitch[:] = 0.0  # the caller's own array: the next frame starts from NaN again
 
 
+@pytest.mark.parametrize("feet", [None, [-1, 3, 3, -1, 7, 1, 1, -1], [2, 2, 5, 5, -1], [-1, -1]])
+def test_foot_pitch_is_its_references_bytes(human: HumanModel, rng: np.random.Generator,
+                                            feet: list[int] | None) -> None:
+    """The flat ``take`` and the slice give the strided columns' pitches, bit for bit.
+
+    On the default points' feet (consecutive: a slice) and on scattered ones (an index array),
+    targets near pitch zero and +-90 deg, untracked feet from ``q``, NaN in the targets.
+    """
+    from ikfusion.ik.foot_pitch import FootPitch
+    from ikfusion.rotations import exp_so3
+
+    pitch_of = (_tracker(human)._pitch_of if feet is None
+                else FootPitch(human, np.array(feet, dtype=int)))
+    n = len(human.segment_names)
+    q = human.neutral()
+    for frame in range(200):
+        R = exp_so3(rng.normal(scale=[0.5, 2.0, 0.5][frame % 3], size=(n, 3)))
+        if frame % 7 == 0:
+            R[rng.integers(n), :, 0] = [0.0, 0.0, 1.0]  # straight up: pitch -90 deg
+        if frame % 13 == 0:
+            R[rng.integers(n)] = np.nan
+        tracked = rng.random(n) < (0.9 if frame % 2 else 1.0)
+        new, old = pitch_of(q, R, tracked), pitch_of.reference(q, R, tracked)
+        assert new.tobytes() == old.tobytes()
+        assert new.flags.writeable and new is not pitch_of(q, R, tracked)
+
+
 def test_reference_points_are_the_oldest_groups_whatever_the_ages(human: HumanModel,
                                                                    rng: np.random.Generator
                                                                    ) -> None:
@@ -97,6 +146,35 @@ def test_reference_points_are_the_oldest_groups_whatever_the_ages(human: HumanMo
         expected = (groups & oldest[:, None]).any(axis=0) & active
         reference = support._reference(support._bits.of(active), _bits_of(planted))
         np.testing.assert_array_equal(support._bits.mask(reference), expected)
+
+
+def test_drifting_points_are_the_drifts_bits(human: HumanModel,
+                                             rng: np.random.Generator) -> None:
+    """Python floats on the asked rows give ``bits.of(drift > limit)``'s bits, bit for bit.
+
+    Every pattern of planted points (one foot, two, none), limits below, at and above the
+    drifts (negative and zero too), NaN and inf in the sensed points and anchors, scales from
+    tenths of a millimetre to overflow.
+    """
+    from ikfusion.ik.foot_pairs import drift_from_other_foot, drifting_points
+    from ikfusion.ik.point_bits import indices
+
+    tracker = _tracker(human)
+    layout, bits, k = tracker.layout, tracker._bits, len(tracker.names)
+    for case in range(3000):
+        active = bits.mask(bits.of(rng.random(k) < [0.1, 0.3, 0.6][case % 3]))
+        scale = [1e-4, 0.05, 1.0, 1e155][case % 4]
+        anchors, p_sensed = (rng.normal(scale=scale, size=(k, 3)) for _ in range(2))
+        if case % 5 == 0:
+            p_sensed[rng.integers(k), rng.integers(3)] = [np.nan, np.inf, -np.inf][case % 3]
+        if case % 7 == 0:
+            anchors[rng.integers(k), rng.integers(3)] = np.nan
+        with np.errstate(all="ignore"):  # (NaN, inf and overflow on purpose)
+            drift = drift_from_other_foot(layout, active, anchors, p_sensed)
+            limit = float(rng.choice([-0.01, 0.0, 0.05 * scale, drift[rng.integers(k)]]))
+            rows = bits.of(rng.random(k) < 0.7) if case % 2 else bits.of(active)
+            assert (drifting_points(layout, active, anchors, p_sensed, limit, indices(rows))
+                    == bits.of(drift > limit) & rows)
 
 
 def test_other_foot_and_drift_follow_every_pattern_back_and_forth(

@@ -72,14 +72,22 @@ def test_random_frames_give_numpys_bytes(seed: int) -> None:
 
 
 def test_outputs_are_never_written_again() -> None:
-    """Each frame's arrays are new memory: the last frame's stay as they were."""
+    """Each frame's arrays are new memory: the last frames' stay as they were (blocks too)."""
+    from ikfusion.ik.sensed_evidence import FRAMES_A_BLOCK
+
     native = _kernel_or_skip()
-    first = native(np.zeros((K, 3)), np.zeros(K), np.ones((K, 3)), np.ones(K), 0.01)
-    kept = [x.copy() for x in first[:5] if x is not None]
-    second = native(first.p, first.pitch, np.full((K, 3), 2.0), np.full(K, 2.0), 0.01)
-    assert all(np.array_equal(x, y) for x, y in zip(kept, first[:5]))
-    assert not np.shares_memory(first.p, second.p)
-    assert not first.p.flags.writeable and not first.pitch.flags.writeable
+    frame = native(np.zeros((K, 3)), np.zeros(K), np.ones((K, 3)), np.ones(K), 0.01)
+    frames, kept = [], []
+    for n in range(2 * FRAMES_A_BLOCK + 3):  # across blocks of output memory
+        frames.append(frame)
+        kept.append([None if x is None else x.copy() for x in frame[:5]])
+        frame = native(frame.p, frame.pitch, np.full((K, 3), n + 2.0), np.full(K, n + 2.0),
+                       0.01 * (n % 3))
+    for made, copies in zip(frames, kept):
+        assert all(y is None if x is None else np.array_equal(x, y)
+                   for x, y in zip(copies, made[:5]))
+        assert not made.p.flags.writeable and not made.pitch.flags.writeable
+        assert not np.shares_memory(made.p, frame.p)
 
 
 def _tracker_state(tracker: ContactTracker) -> tuple[object, ...]:
