@@ -52,8 +52,8 @@ class Literals:
 
 
 def kernel_text(literals: Literals, decimals: int, rows: np.ndarray, whole: np.ndarray,
-                field_decimals: np.ndarray | None = None) -> str | None:
-    """Rows whose every value takes the fast path, as text; None without the kernel.
+                field_decimals: np.ndarray | None = None) -> bytes | None:
+    """Rows whose every value takes the fast path, as text (bytes); None without the kernel.
 
     Args:
         literals: The row format's texts around its k fields.
@@ -73,4 +73,4 @@ def kernel_text(literals: Literals, decimals: int, rows: np.ndarray, whole: np.n
                       literals.text.ctypes.data, literals.bounds.ctypes.data, out.ctypes.data,
                       None if field_decimals is None else field_decimals.ctypes.data)
     length = function(ctypes.byref(call))
-    return out[:length].tobytes().decode()
+    return out[:length].tobytes()

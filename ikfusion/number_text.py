@@ -92,21 +92,30 @@ def format_rows(row_format: str, table: np.ndarray) -> str:
         row_format: One row's format with k ``%`` fields (and its newline).
         table: (N, k) values.
     """
+    return format_rows_bytes(row_format, table).decode()
+
+
+def format_rows_bytes(row_format: str, table: np.ndarray) -> bytes:
+    """:func:`format_rows` encoded (UTF-8), made as bytes: for files opened in binary mode.
+
+    The digits are written as bytes; a file written from them needs neither their decoding
+    nor the text layer's encoding (about 2 ms of the 13 MB of a walk's result folder).
+    """
     rows = np.asarray(table, dtype=float)
     rows = rows.reshape(len(rows), -1 if rows.size else 0)
     parts = fixed_row_parts(row_format) or mixed_row_parts(row_format)
     if parts is None or not rows.size:
-        return _percent(row_format, rows)
+        return _percent(row_format, rows).encode()
     literals, decimals = parts
     if len(literals) != rows.shape[1] + 1:
         raise TypeError(f"{len(literals) - 1} fields in the format, {rows.shape[1]} values")
     layout = _Layout(literals, decimals)
     if layout.field_decimals is not None and kernel_text(
             layout.literals, 0, rows[:0], rows[:0], layout.field_decimals) is None:
-        return _percent(row_format, rows)  # mixed fields: the C kernel only
+        return _percent(row_format, rows).encode()  # mixed fields: the C kernel only
     step = max(1, BLOCK_VALUES // rows.shape[1])
-    return "".join(_block_text(layout, row_format, rows[s:s + step])
-                   for s in range(0, len(rows), step))
+    return b"".join(_block_text(layout, row_format, rows[s:s + step])
+                    for s in range(0, len(rows), step))
 
 
 #: Values converted per pass of array operations: small enough for the temporaries to stay
@@ -148,8 +157,8 @@ class _Layout:
         return self.tables[(n, width)]
 
 
-def _block_text(layout: _Layout, row_format: str, rows: np.ndarray) -> str:
-    """Rows as text: the fast path, with the rows it cannot write exactly through ``%``."""
+def _block_text(layout: _Layout, row_format: str, rows: np.ndarray) -> bytes:
+    """Rows as text (bytes): the fast path, with the rows it cannot write exactly by ``%``."""
     with np.errstate(over="ignore", invalid="ignore"):
         scaled = np.abs(rows)
         scaled *= layout.scale
@@ -163,11 +172,11 @@ def _block_text(layout: _Layout, row_format: str, rows: np.ndarray) -> str:
     for k in np.flatnonzero(slow_rows).tolist():
         if k > start:
             text.append(_fixed(layout, rows[start:k], whole[start:k]))
-        text.append(_percent(row_format, rows[k:k + 1]))
+        text.append(_percent(row_format, rows[k:k + 1]).encode())
         start = k + 1
     if start < len(rows):
         text.append(_fixed(layout, rows[start:], whole[start:]))
-    return "".join(text)
+    return b"".join(text)
 
 
 def _slow_rows(scaled: np.ndarray, whole: np.ndarray) -> np.ndarray | None:
@@ -205,8 +214,8 @@ def _percent(row_format: str, rows: np.ndarray) -> str:
     return (row_format * len(rows)) % tuple(rows.ravel().tolist())
 
 
-def _fixed(layout: _Layout, rows: np.ndarray, whole: np.ndarray) -> str:
-    """Rows whose every value takes the fast path, as text.
+def _fixed(layout: _Layout, rows: np.ndarray, whole: np.ndarray) -> bytes:
+    """Rows whose every value takes the fast path, as text (bytes).
 
     Args:
         layout: The row format.
@@ -219,7 +228,7 @@ def _fixed(layout: _Layout, rows: np.ndarray, whole: np.ndarray) -> str:
     return _numpy_fixed(layout, rows, whole)
 
 
-def _numpy_fixed(layout: _Layout, rows: np.ndarray, whole: np.ndarray) -> str:
+def _numpy_fixed(layout: _Layout, rows: np.ndarray, whole: np.ndarray) -> bytes:
     """:func:`_fixed` by NumPy (without the C kernel; the reference it matches)."""
     n, k = rows.shape
     d = layout.decimals
@@ -238,7 +247,7 @@ def _numpy_fixed(layout: _Layout, rows: np.ndarray, whole: np.ndarray) -> str:
         field[:, :, 2 + int_digits:] = digits[:, :, int_digits:]
     for view, first, end in runs or ():
         view[...] = field[:, first:end]
-    return table.tobytes().translate(None, b"\0").decode()  # NUL padding dropped
+    return table.tobytes().translate(None, b"\0")  # NUL padding dropped
 
 
 def _row_table(encoded: list[bytes], lengths: list[int], n: int,

@@ -199,9 +199,14 @@ def matrices_to_quats_wxyz(batches: list[np.ndarray]) -> list[np.ndarray]:
     return [q for q in out if q is not None]
 
 
+#: Most matrices (N, 3, 3), all finite, that :func:`matrix_to_quat_wxyz` converts one by one.
+FEW_MATRICES = 24
+
+
 def _few(M: np.ndarray) -> bool:
     """Whether :func:`matrix_to_quat_wxyz` converts ``M`` one matrix at a time."""
-    return M.ndim == 2 or (M.ndim == 3 and len(M) <= 24 and bool(np.isfinite(M).all()))
+    return M.ndim == 2 or (M.ndim == 3 and len(M) <= FEW_MATRICES
+                           and bool(np.isfinite(M).all()))
 
 
 def _quat_wxyz_one_by_one(M: np.ndarray) -> np.ndarray:

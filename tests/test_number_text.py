@@ -11,7 +11,7 @@ import pytest
 
 import ikfusion.number_text
 from ikfusion.number_kernel import kernel_text
-from ikfusion.number_text import BLOCK_VALUES, fixed_row_parts, format_rows
+from ikfusion.number_text import BLOCK_VALUES, fixed_row_parts, format_rows, format_rows_bytes
 
 #: Values whose text is easy to get wrong: signed zeros, exact and near halves, non-finite,
 #: integers too large for the fast path, the largest and smallest floats.
@@ -112,6 +112,19 @@ def test_mixed_decimal_and_integer_fields_as_percent_writes_them(rng) -> None:
     table[20:29, 2] = AWKWARD[:9]
     assert format_rows(row_format, table) == percent(row_format, table)
     assert format_rows("t=%d;%.3f%%\n", table[:, :2]) == percent("t=%d;%.3f%%\n", table[:, :2])
+
+
+@pytest.mark.parametrize("row_format", ["%.6f,Pelvis,%.6f\n%.6f,h\u00e9,%.6f\n", "%.4f,%d\n",
+                                        "%.6f,%g\n"])
+def test_bytes_are_the_text_encoded(row_format: str, rng) -> None:
+    """The fast path, the mixed fields, ``%`` alone; a non-ASCII literal; rows by ``%``."""
+    k = row_format.count("%")
+    table = rng.normal(size=(3000, k)) * 10.0 ** rng.integers(-3, 6, (3000, 1))
+    table[:, 1::2] = np.round(table[:, 1::2])
+    table[7, :2] = [0.5e-6, -0.0]
+    expected = percent(row_format, table).encode()
+    assert format_rows_bytes(row_format, table) == expected
+    assert format_rows_bytes(row_format, table[:0]) == b""
 
 
 def test_mixed_fields_with_nan_in_an_integer_field_fail_as_percent() -> None:

@@ -166,13 +166,18 @@ def combined_evidence(f_pelvis: np.ndarray, resting: np.ndarray, impact: np.ndar
 
 
 def _held_for(mask: np.ndarray, n: int) -> np.ndarray:
-    """Where ``mask`` has been True for the last ``n`` samples (the sample included)."""
-    run = np.zeros(len(mask), dtype=int)
-    count = 0
-    for k, value in enumerate(mask):
-        count = count + 1 if value else 0
-        run[k] = count
-    return run >= n
+    """Where ``mask`` has been True for the last ``n`` samples (the sample included).
+
+    From the running count of True samples: the ``n`` samples up to ``k`` are all True when
+    the count grew by ``n`` over them (integers, exact).
+    """
+    flags = np.asarray(mask, dtype=bool)
+    if n <= 0:
+        return np.ones(len(flags), dtype=bool)
+    count = np.concatenate([[0], np.cumsum(flags, dtype=np.int64)])
+    held = np.zeros(len(flags), dtype=bool)
+    held[n - 1:] = count[n:] - count[:-n] == n
+    return held
 
 
 class FlightDetector:
@@ -271,6 +276,11 @@ def detect_flight(rate: float, acc_pelvis: np.ndarray | None, acc_feet: Mapping[
     """
     evidence = flight_evidence(rate, acc_pelvis, acc_feet, gyr_feet, thresholds)
     detector = FlightDetector(rate, thresholds)
+    if not _held_for(evidence.free & evidence.light & ~evidence.impact,
+                     detector.min_samples).any():
+        # no run of free samples confirms a flight: every decision is (False, False)
+        grounded = np.zeros(len(evidence.free), dtype=bool)
+        return FlightPhases(grounded, np.flatnonzero(grounded), detector.lag)
     decisions = [d for f, li, i in zip(*evidence) if (d := detector.update(f, li, i))
                  is not None]
     decisions += detector.flush()

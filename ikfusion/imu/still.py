@@ -19,7 +19,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..rotations import continuous_quaternions, matrix_to_quat_wxyz, quat_wxyz_to_matrix
+from ..rotations import (
+    FEW_MATRICES,
+    continuous_quaternions,
+    matrix_to_quat_wxyz,
+    quat_wxyz_to_matrix,
+)
 
 
 @dataclass(frozen=True)
@@ -59,7 +64,16 @@ def _window_sums(values: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray
 
 def spread_per_window(R_world_sensor: np.ndarray, width: int) -> np.ndarray:
     """RMS orientation spread [deg] of every window of ``width`` samples (inf if mostly NaN)."""
-    q = aligned_quaternions(R_world_sensor)
+    return _spread_of_quaternions(aligned_quaternions(R_world_sensor), width)
+
+
+def _spread_of_quaternions(q: np.ndarray, width: int) -> np.ndarray:
+    """:func:`spread_per_window` of the orientations whose :func:`aligned_quaternions` are ``q``.
+
+    Every step works sample by sample or accumulates in order (the quaternions, their signs,
+    the running sums), so the windows of a prefix ``q[:m]`` are the first ``m - width + 1``
+    windows of ``q``, to the bit: the quaternions of the longest prefix serve every width.
+    """
     sums, counts = _window_sums(q, width)
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = sums / counts[:, None]
@@ -166,12 +180,19 @@ def find_still_window(R_world_sensor: Mapping[str, np.ndarray], rate: float,
     """
     limits = thresholds or StillThresholds()
     n = min(len(R) for R in R_world_sensor.values())
-    scores = {}
+    windows = {}  # width -> windows starting at 0 .. starts - 1
     for length in seconds:
         width = max(2, int(round(length * rate)))
         if width <= n:
-            starts = min(n - width + 1, max(1, int(round(search * rate)) + 1))
-            scores[width] = _window_scores(R_world_sensor, gyr, width, starts, limits)
+            windows[width] = min(n - width + 1, max(1, int(round(search * rate)) + 1))
+    # the quaternions of the samples any window covers, converted once for every width
+    covered = max((starts + width - 1 for width, starts in windows.items()), default=0)
+    shared = {name: aligned_quaternions(R[:covered]) for name, R in R_world_sensor.items()}
+    scores = {}
+    for width, starts in windows.items():
+        quats = {name: _prefix_quaternions(R, shared[name], starts + width - 1)
+                 for name, R in R_world_sensor.items()}
+        scores[width] = _window_scores(quats, gyr, width, starts, limits)
     if not scores:
         raise InputError(f"the recording ({n} samples) is shorter than a "
                          f"{min(seconds):g} s calibration window", field="calibrate")
@@ -192,17 +213,34 @@ def find_still_window(R_world_sensor: Mapping[str, np.ndarray], rate: float,
                      "give the window (--calibrate T0:T1)", field="calibrate")
 
 
-def _window_scores(R_world_sensor: Mapping[str, np.ndarray],
+def _prefix_quaternions(R_world_sensor: np.ndarray, shared: np.ndarray,
+                        needed: int) -> np.ndarray:
+    """``aligned_quaternions(R_world_sensor[:needed])`` from those of a longer prefix.
+
+    ``shared`` is :func:`aligned_quaternions` of the first ``len(shared) >= needed`` samples;
+    its first ``needed`` rows are the same, to the bit (:func:`_spread_of_quaternions`),
+    unless the shorter prefix has few enough finite samples for
+    :func:`~ikfusion.rotations.matrix_to_quat_wxyz` to convert them matrix by matrix (another
+    arithmetic) and the longer one not: then it is converted on its own, as before.
+    """
+    finite = np.isfinite(R_world_sensor[:len(shared)]).all(axis=(1, 2))
+    if int(finite[:needed].sum()) <= FEW_MATRICES < int(finite.sum()):
+        return aligned_quaternions(R_world_sensor[:needed])
+    return shared[:needed]
+
+
+def _window_scores(quats: Mapping[str, np.ndarray],
                    gyr: Mapping[str, np.ndarray | None] | None, width: int, starts: int,
                    limits: StillThresholds) -> np.ndarray:
     """Scores of the windows of ``width`` samples starting at 0 .. ``starts - 1``.
 
     A window's score is its most moving sensor's spread and angular speed, each divided by its
-    threshold: <= 1 is still.
+    threshold: <= 1 is still. ``quats``: sensor -> :func:`aligned_quaternions` of its first
+    samples (at least ``starts + width - 1``).
     """
     score = np.zeros(starts)
-    for name, R in R_world_sensor.items():
-        score = np.maximum(score, spread_per_window(R[:starts + width - 1], width)[:starts]
+    for name, q in quats.items():
+        score = np.maximum(score, _spread_of_quaternions(q[:starts + width - 1], width)[:starts]
                            / limits.spread_deg)
         g = None if gyr is None else gyr.get(name)
         if g is not None and np.isfinite(g).any():

@@ -45,10 +45,10 @@ from typing import Literal, NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from ..atomic import atomic_write_text
+from ..atomic import atomic_write_bytes
 from ..errors import InputError, NameNotFound
 from ..model.angle_continuity import continuous_series
-from ..number_text import format_rows
+from ..number_text import format_rows_bytes
 from ..rotations import axis_rotation, matrix_to_euler
 from .bad_samples import FAR_BEYOND_ANY_HALL_M, MAX_ANGLE_DEG, Kind, bad_samples, bridge_channel
 
@@ -950,7 +950,7 @@ def write_bvh(
     out.append("MOTION")
     out.append(f"Frames: {n_frames}")
     out.append(f"Frame Time: {frame_time!r}")
-    atomic_write_text(target, "\n".join(out) + "\n" + _frame_text(values, decimals))
+    atomic_write_bytes(target, ("\n".join(out) + "\n").encode() + _frame_text(values, decimals))
     return target
 
 
@@ -975,12 +975,15 @@ def _conjugated(A: np.ndarray, R: np.ndarray) -> np.ndarray:
 _HALF_MARGIN = 1e-12
 
 
-def _frame_text(values: np.ndarray, decimals: int | None) -> str:
-    """One line per frame, each with its newline: fixed decimals (no ``-0.000``) or ``repr``."""
+def _frame_text(values: np.ndarray, decimals: int | None) -> bytes:
+    """One line per frame, each with its newline: fixed decimals (no ``-0.000``) or ``repr``.
+
+    As UTF-8 bytes (ASCII), written as they are (no text layer).
+    """
     if decimals is None:
-        return "".join(" ".join(map(repr, row)) + "\n" for row in values.tolist())
+        return "".join(" ".join(map(repr, row)) + "\n" for row in values.tolist()).encode()
     if not len(values):
-        return ""
+        return b""
     number = f"%.{decimals}f"
     flat = np.array(values, dtype=float).reshape(-1)
     # Values that would print as -0.000 (negative and rounding to zero, or -0.0 itself) are
@@ -995,7 +998,8 @@ def _frame_text(values: np.ndarray, decimals: int | None) -> str:
                       & (size <= half * (1.0 + _HALF_MARGIN))].tolist():
         if number % flat[i] == negative_zero:
             flat[i] = 0.0
-    return format_rows(" ".join([number] * values.shape[1]) + "\n", flat.reshape(values.shape))
+    return format_rows_bytes(" ".join([number] * values.shape[1]) + "\n",
+                             flat.reshape(values.shape))
 
 
 def _depth_first(parents: np.ndarray) -> list[int]:

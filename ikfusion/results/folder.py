@@ -35,8 +35,8 @@ SITE_COLUMNS = ("time", "site", "x", "y", "z")
 def _write_long_csv(path: Path, header: tuple[str, ...], time: np.ndarray, names: list[str],
                     values: np.ndarray) -> None:
     """Rows ``time,name,v0,v1,...`` for every frame and name; ``values`` is (N, names, k)."""
-    with path.open("w") as out:
-        out.write(",".join(header) + "\n")
+    with path.open("wb") as out:
+        out.write((",".join(header) + "\n").encode())
         long_rows(out, time, names, values)
 
 

@@ -244,8 +244,8 @@ def write_mot(path: str | Path, time: np.ndarray, names: list[str], values: np.n
     header = [name, "version=1", f"nRows={table.shape[0]}", f"nColumns={table.shape[1]}",
               f"inDegrees={'yes' if in_degrees else 'no'}", "endheader",
               "\t".join(["time", *names])]
-    with path.open("w") as out:
-        out.write("\n".join(header) + "\n")
+    with path.open("wb") as out:
+        out.write(("\n".join(header) + "\n").encode())
         write_rows(out, "\t".join(["%.6f"] * table.shape[1]) + "\n", table)
     return path
 

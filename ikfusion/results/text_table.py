@@ -6,18 +6,19 @@ microsecond per value; the result files hold over a million. Here a row's format
 (:func:`ikfusion.number_text.format_rows`) when every field is the same ``%.<d>f``, else
 through one ``%`` operation per block. Both write the same text as formatting each value
 (``"%.6f" % v`` and ``f"{v:.6f}"`` agree for every float, ``nan``, ``inf`` and ``-0.0``
-included).
+included). The files are written in binary mode, the text as UTF-8 bytes with newline line
+ends (what text mode writes on POSIX), without decoding the digits and encoding them again.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TextIO
+from typing import BinaryIO
 
 import numpy as np
 
-from ..number_text import format_rows
+from ..number_text import format_rows_bytes
 
 #: Rows formatted per ``%`` operation (bounds the size of the temporary strings).
 BLOCK_ROWS = 2048
@@ -28,11 +29,11 @@ def literal(text: str) -> str:
     return text.replace("%", "%%")
 
 
-def write_rows(out: TextIO, row_format: str, table: np.ndarray) -> None:
+def write_rows(out: BinaryIO, row_format: str, table: np.ndarray) -> None:
     """Write every row of ``table`` (N, k) through ``row_format`` (k ``%`` fields, newline).
 
     Args:
-        out: An open text file.
+        out: A file open for writing bytes (the text in UTF-8).
         row_format: The format of one row, e.g. ``"%.6f,%.6f"`` and a newline.
         table: The values, one row per line.
     """
@@ -41,15 +42,15 @@ def write_rows(out: TextIO, row_format: str, table: np.ndarray) -> None:
         return
     rows = rows.reshape(len(rows), -1)
     for start in range(0, len(rows), BLOCK_ROWS):
-        out.write(format_rows(row_format, rows[start:start + BLOCK_ROWS]))
+        out.write(format_rows_bytes(row_format, rows[start:start + BLOCK_ROWS]))
 
 
-def long_rows(out: TextIO, time: np.ndarray, names: Sequence[str], values: np.ndarray,
+def long_rows(out: BinaryIO, time: np.ndarray, names: Sequence[str], values: np.ndarray,
               number: str = "%.6f") -> None:
     """Write ``time,name,v0,v1,...`` for every time and name (time-major, names in order).
 
     Args:
-        out: An open text file.
+        out: A file open for writing bytes (the text in UTF-8).
         time: (N,) [s].
         names: The names of the second column.
         values: (N, len(names), k) values of each name at each time.
@@ -74,6 +75,6 @@ def write_csv(path: str | Path, header: Sequence[str], formats: Sequence[str],
         formats: One ``%`` format per column (``"%.6f"``, ``"%d"``, ...).
         table: (N, len(formats)) values.
     """
-    with Path(path).open("w") as out:
-        out.write(",".join(header) + "\n")
+    with Path(path).open("wb") as out:
+        out.write((",".join(header) + "\n").encode())
         write_rows(out, ",".join(formats) + "\n", table)

@@ -7,7 +7,10 @@ import pytest
 
 from ikfusion.imu.flight import (
     FlightDetector,
+    FlightEvidence,
+    FlightPhases,
     FlightThresholds,
+    _held_for,
     detect_flight,
     flight_evidence,
     world_acceleration,
@@ -123,3 +126,48 @@ def test_world_acceleration_removes_gravity(rng: np.random.Generator) -> None:
     a = rng.normal(size=(5, 3))
     f = np.einsum("nji,nj->ni", R, a - np.array([0.0, 0.0, -9.81]))
     np.testing.assert_allclose(world_acceleration(R, f), a, atol=1e-12)
+
+
+def _detector_over(rate: float, evidence: FlightEvidence) -> FlightPhases:
+    """The reference of :func:`detect_flight`: the causal detector over every sample."""
+    detector = FlightDetector(rate)
+    decisions = [d for f, li, i in zip(*evidence) if (d := detector.update(f, li, i))
+                 is not None] + detector.flush()
+    return FlightPhases(np.array([a for a, _ in decisions], dtype=bool),
+                        np.flatnonzero([b for _, b in decisions]), detector.lag)
+
+
+@pytest.mark.parametrize("n", [0, 3, 8, 400])
+def test_grounded_recordings_decided_at_once_as_the_detector_decides_them(
+        n: int, rng: np.random.Generator) -> None:
+    """Without a run of free samples long enough (the usual walk) no sample is decided in the
+    air: the shortcut's phases are the detector's, with and without flights."""
+    for trial in range(60):
+        # pelvis |f| around the thresholds: free dips of 1 to 4 samples, some flights
+        pelvis = np.zeros((n, 3))
+        pelvis[:, 2] = rng.choice([0.0, 4.0, 6.0, 9.81], n, p=[0.1, 0.1, 0.2, 0.6])
+        if trial % 2:
+            pelvis[::3, 2] = 9.81  # runs of at most two free samples: grounded throughout
+        foot = np.tile([0.0, 0.0, 9.81], (n, 1))
+        foot[rng.random(n) < 0.05, 2] = 50.0  # impacts
+        gyr = np.where(rng.random((n, 1)) < 0.5, 0.1, 2.0) * np.ones((1, 3))
+        acc, gyrs = {"LeftFoot": foot}, {"LeftFoot": gyr}
+        phases = detect_flight(RATE, pelvis, acc, gyrs)
+        expected = _detector_over(RATE, flight_evidence(RATE, pelvis, acc, gyrs))
+        np.testing.assert_array_equal(phases.airborne, expected.airborne)
+        assert phases.airborne.dtype == expected.airborne.dtype
+        np.testing.assert_array_equal(phases.landings, expected.landings)
+        assert phases.landings.dtype == expected.landings.dtype
+        assert phases.lag == expected.lag
+
+
+def test_held_for_is_the_running_count(rng: np.random.Generator) -> None:
+    for n in (0, 1, 5, 300):
+        mask = rng.random(n) < 0.7
+        run, count = [], 0
+        for value in mask.tolist():  # the reference: the run of True samples, one by one
+            count = count + 1 if value else 0
+            run.append(count)
+        for samples in (0, 1, 2, 3, 6, n + 1):
+            np.testing.assert_array_equal(_held_for(mask, samples),
+                                          np.array(run, dtype=int) >= samples)

@@ -7,7 +7,14 @@ import pytest
 
 from ikfusion.errors import InputError
 from ikfusion.imu import check_still, find_still_window, mean_rotation
-from ikfusion.imu.still import spread_per_window
+from ikfusion.imu.still import (
+    StillThresholds,
+    _prefix_quaternions,
+    _spread_of_quaternions,
+    _window_scores,
+    aligned_quaternions,
+    spread_per_window,
+)
 from ikfusion.rotations import (
     angle_between,
     exp_so3,
@@ -97,3 +104,45 @@ def test_the_pose_at_the_start_wins_over_a_stiller_pause_later(rng) -> None:
             @ noise
     start, end = find_still_window(R, rate)
     assert end <= 250
+
+
+@pytest.mark.parametrize("finite_rows", [None, 10, 30])
+def test_prefix_quaternions_are_those_of_the_prefix_to_the_bit(rng, finite_rows) -> None:
+    """One conversion serves every window width: a prefix's quaternions and window spreads
+    are the first ones of a longer prefix's, bit for bit (NaN samples and prefixes converted
+    matrix by matrix included)."""
+    R = random_rotations(1, rng)[0] @ exp_so3(rng.normal(scale=0.2, size=(600, 3)))
+    R[rng.random(600) < 0.1] = np.nan
+    if finite_rows is not None:  # few finite samples: the one-by-one conversion
+        R[np.flatnonzero(np.isfinite(R).all(axis=(1, 2)))[finite_rows:400]] = np.nan
+    shared = aligned_quaternions(R[:500])
+    for needed in (2, 7, 24, 25, 40, 151, 399, 400, 401, 500):
+        quats = _prefix_quaternions(R, shared, needed)
+        np.testing.assert_array_equal(quats, aligned_quaternions(R[:needed]))
+        for width in (2, 5, 20):
+            if width <= needed:
+                np.testing.assert_array_equal(_spread_of_quaternions(quats, width),
+                                              spread_per_window(R[:needed], width))
+
+
+def test_window_search_as_each_width_on_its_own(rng) -> None:
+    """find_still_window's scores are those of each width's own prefix (the code before)."""
+    rate = 50.0
+    R = {s: random_rotations(1, rng)[0] @ exp_so3(
+        np.concatenate([rng.normal(scale=0.01, size=(150, 3)),
+                        rng.normal(scale=0.3, size=(450, 3))])) for s in ("A", "B")}
+    R["B"][[3, 70]] = np.nan
+    limits = StillThresholds()
+    window = find_still_window(R, rate, search=5.0)
+    for width in (100, 75, 50):
+        starts = min(600 - width + 1, int(round(5.0 * rate)) + 1)
+        expected = np.zeros(starts)
+        for R_sensor in R.values():
+            expected = np.maximum(expected, spread_per_window(R_sensor[:starts + width - 1],
+                                                              width)[:starts]
+                                  / limits.spread_deg)
+        shared = {s: aligned_quaternions(R_sensor[:350]) for s, R_sensor in R.items()}
+        quats = {s: _prefix_quaternions(R[s], q, starts + width - 1) for s, q in shared.items()}
+        np.testing.assert_array_equal(_window_scores(quats, None, width, starts, limits),
+                                      expected)
+    assert window[1] - window[0] == 100

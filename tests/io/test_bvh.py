@@ -544,8 +544,8 @@ def test_frame_lines_fixed_decimals_never_write_negative_zero(decimals: int, rng
         return text[1:] if text.lstrip("-0.") == "" and text.startswith("-") else text
 
     expected = [" ".join(one(v) for v in row) for row in values.tolist()]
-    assert _frame_text(values, decimals) == "".join(line + "\n" for line in expected)
-    assert _frame_text(values[:0], decimals) == ""
+    assert _frame_text(values, decimals) == "".join(line + "\n" for line in expected).encode()
+    assert _frame_text(values[:0], decimals) == b""
 
 
 @pytest.mark.parametrize("up", ["z", "y"])

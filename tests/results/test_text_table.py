@@ -21,19 +21,19 @@ def reference_rows(table: np.ndarray) -> str:
 def test_write_rows_matches_value_by_value_text(rng) -> None:
     table = np.concatenate([np.array(AWKWARD * 3).reshape(-1, 5),
                             rng.normal(scale=10.0 ** rng.integers(-8, 8, (40, 1)), size=(40, 5))])
-    out = io.StringIO()
+    out = io.BytesIO()
     write_rows(out, ",".join(["%.6f"] * 5) + "\n", table)
-    assert out.getvalue() == reference_rows(table)
+    assert out.getvalue().decode() == reference_rows(table)
 
 
 def test_write_rows_across_blocks_and_empty() -> None:
     table = np.arange(3 * (BLOCK_ROWS + 7), dtype=float).reshape(-1, 3) / 7.0
-    out = io.StringIO()
+    out = io.BytesIO()
     write_rows(out, "%.6f,%.6f,%.6f\n", table)
-    assert out.getvalue() == reference_rows(table)
-    empty = io.StringIO()
+    assert out.getvalue().decode() == reference_rows(table)
+    empty = io.BytesIO()
     write_rows(empty, "%.6f\n", np.empty((0, 1)))
-    assert empty.getvalue() == ""
+    assert empty.getvalue() == b""
 
 
 def test_long_rows_time_major_with_names(rng) -> None:
@@ -41,11 +41,11 @@ def test_long_rows_time_major_with_names(rng) -> None:
     names = ["Pelvis", "odd%name"]
     values = rng.normal(size=(3, 2, 3))
     values[1, 1, 2] = -0.0
-    out = io.StringIO()
+    out = io.BytesIO()
     long_rows(out, time, names, values)
     expected = "".join(f"{t:.6f},{name}," + ",".join(f"{v:.6f}" for v in values[k, i]) + "\n"
                        for k, t in enumerate(time) for i, name in enumerate(names))
-    assert out.getvalue() == expected
+    assert out.getvalue() == expected.encode()
 
 
 def test_write_csv_writes_what_savetxt_wrote(rng, tmp_path) -> None:
