@@ -113,7 +113,9 @@ def test_the_real_walk(both: _BothPaths, tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_random_poses_with_site_root_swing_and_contact_rows(human: HumanModel, seed: int) -> None:
+def test_random_poses_with_site_root_swing_and_contact_rows(human: HumanModel, seed: int,
+                                                            monkeypatch: pytest.MonkeyPatch
+                                                            ) -> None:
     rng = np.random.default_rng(seed)
     solver = _native_solver(human, contacts=True)
     q = human.neutral()
@@ -125,7 +127,16 @@ def test_random_poses_with_site_root_swing_and_contact_rows(human: HumanModel, s
     targets = solver.targets.load(frame, None)
     k = len(tasks.contact_rows)
     planted = rng.random(k) < 0.5
-    tasks.contact.set_anchors(planted, rng.normal(scale=0.3, size=(k, 3)))
+    # one fully held point a segment (the others of its segment rising, held horizontally):
+    # the kernel's case, the points held along the world axes
+    rising = np.zeros(k, dtype=bool)
+    first: set[str] = set()
+    for i in np.flatnonzero(planted):
+        segment = tasks.contact.segments[i]
+        rising[i] = segment in first
+        first.add(segment)
+    tasks.contact.set_anchors(planted, rng.normal(scale=0.3, size=(k, 3)), rising)
+    assert tasks.contact.world_rows() is not None
     tasks.floor.enabled = rng.random(k) < 0.7
     tasks.root.set_target(tuple(rng.normal(size=3)), 30.0)
     tasks.swing.set_targets(rng.normal(size=(k, 3)), np.where(planted, 0.0, rng.random(k)))
@@ -144,8 +155,16 @@ def test_random_poses_with_site_root_swing_and_contact_rows(human: HumanModel, s
     masks = plain.rows.up.copy(), plain.rows.down.copy()
     rooms, floor = plain.rows.ranges.rooms.copy(), [a.copy() for a in plain.rows.floor]
     bounds = _bounds_bytes(plain)
+    written: list[object] = []
+    write = compiled.rows.write
+
+    def recorded_write(*args, **kwargs):
+        written.append(write(*args, **kwargs))
+        return written[-1]
+    monkeypatch.setattr(compiled.rows, "write", recorded_write)
     native = fp.build_frame_problem(conf, tasks, active, targets.row_weights, compiled,
                                     s.levenberg_marquardt)
+    assert len(written) == 1 and written[0] is not None  # the kernel wrote this QP
     assert masks[0].sum() + masks[1].sum() >= 10 and len(numpy["b"]) > 0
     _compare(native, numpy, masks, rooms, floor, bounds)
     assert native.qp.packed is not None and np.shares_memory(native.qp.G, native.qp.packed)
