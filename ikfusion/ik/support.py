@@ -82,7 +82,7 @@ class SupportFollower:
         self._lag = self._lean = self._step = self._off_target = self._landed = ZERO
         self._allowance = self._max_step = 0.0
         n = len(self._feet)
-        self._swinging = [False] * n
+        self._swinging, self._planted_for = [False] * n, [0.0] * n
         self._height_trust = [1.0] * n  # how far a swing heel is held at its sensed height
         self._goal = [ZERO] * n
         self._has_goal = [False] * n  # any(self._goal[f]), kept with it
@@ -90,7 +90,6 @@ class SupportFollower:
         self._led_base = LedBase(len(self._led))  # where the contact points were led
         self._target: Vec3 | None = None
         self._wanted = KeptClip()  # where the lean goes (the same most frames)
-        self._planted_for = [0.0] * n
         self._placed_by = np.zeros((n, 3))  # how far each foot's anchors were moved on purpose
         self._reference_feet = self._all_groups  # the groups (bits) the body stands on
 
@@ -200,7 +199,8 @@ class SupportFollower:
         self._lean = moved_toward(lean, wanted, self.lean_speed * dt, buffer)
         self._support = (reference, rows)
         self._reference_feet = self._planted_of.get(reference) or self._planted(reference)
-        self._update_swing(planted, dt, moved)
+        if self._all_groups & ~planted:  # (the usual frame: every foot planted, none swings)
+            self._update_swing(planted, dt, moved)
         return np.array(offset)
 
     def _foot_of(self, points: int) -> int:
