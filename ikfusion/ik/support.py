@@ -180,8 +180,8 @@ class SupportFollower:
         if self._support is not None:
             was, held = self._support
             if was:  # the last frame's support now, less this frame's (equal rows: one mean)
-                then = offset if was == reference and held == rows else vec3.mean_rows(
-                    held, indices(was), sensed)
+                same = was == reference and (held is rows or held == rows)  # (rows kept)
+                then = offset if same else vec3.mean_rows(held, indices(was), sensed)
                 lag = vec3.add(lag, vec3.sub(then, offset))
             if not was & reference:
                 # the body is handed to a foot that was placed leaning: the lean is in it now;
@@ -224,9 +224,9 @@ class SupportFollower:
         """
         if planted and not planted & (planted - 1):  # the usual frame: one foot planted
             return self._group_points[planted.bit_length() - 1] & active
-        age, on = self._planted_for, indices(planted)
+        age, on, groups = self._planted_for, indices(planted), self._group_points
         longest = max([age[f] for f in on])
-        return sum(self._group_points[f] for f in on if age[f] == longest) & active
+        return sum([groups[f] for f in on if age[f] == longest]) & active
 
     def lose_support(self) -> None:
         """No point is planted (flight): the ballistic path takes over; nothing lags."""
