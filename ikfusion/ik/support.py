@@ -29,7 +29,7 @@ from ..model.topology import FootLayout
 from . import vec3
 from .fast_math import mean_rows
 from .point_bits import indices, point_bits
-from .support_motion import KeptClip, moved_toward, shrunk_lag, swing_toward
+from .support_motion import KeptClip, leaned, shrunk_lag, swing_toward
 from .swing_lead import LedBase, band_share, lead_targets
 from .vec3 import ZERO, ArrayView, Vec3
 
@@ -193,10 +193,8 @@ class SupportFollower:
                     self._landed_swing[self._foot_of(reference)], buffer)
         self._allowance = allowance = max(self.lag_max, self._allowance - self.lag_speed * dt)
         self._lag = lag = shrunk_lag(lag, self.lag_speed * dt, allowance, buffer)
-        step = self._step  # lean + step - pending, pending = (-lag x, -lag y, 0)
-        wanted = self._wanted((lean[0] + step[0] - -lag[0], lean[1] + step[1] - -lag[1],
-                               lean[2] + step[2] - 0.0), self.lean_max, buffer)
-        self._lean = moved_toward(lean, wanted, self.lean_speed * dt, buffer)
+        self._lean = leaned(lean, self._step, lag, self._wanted, self.lean_max,
+                            self.lean_speed * dt, buffer)
         self._support = (reference, rows)
         self._reference_feet = self._planted_of.get(reference) or self._planted(reference)
         if self._all_groups & ~planted:  # (the usual frame: every foot planted, none swings)
