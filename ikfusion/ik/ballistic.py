@@ -155,7 +155,7 @@ class BallisticRoot:
         # the sensor's motion around the origin [m], in floats (NumPy's differences)
         around = _ZERO_FLOATS if now is None or was is None else [
             now[0] - was[0], now[1] - was[1], now[2] - was[2]]
-        a = None if a_world is None else np.asarray(a_world, dtype=float).ravel().tolist()
+        a = None if a_world is None else _floats(a_world)
         measured = a is not None and all(map(math.isfinite, a))
         if not supported:  # in flight: the path's own velocity
             a_flight = a_world if measured and a_world is not None else GRAVITY
@@ -197,13 +197,12 @@ def _filtered(v: Vec3, v_solved: list[float], around: list[float], a: list[float
     a dt / 2`` (the finite difference is the velocity half a frame back, at the origin).
     """
     gain = 1.0 if tau == 0.0 else min(1.0, dt / tau)
-    out = []
-    for vi, si, ri, ai in zip(v, v_solved, around, a):
-        predicted = vi + ai * dt
-        v_now = si + ri / dt + 0.5 * ai * dt
-        out.append(predicted + gain * (v_now - predicted))
-    x, y, z = out
-    return (x, y, z)
+    (vx, vy, vz), (sx, sy, sz), (rx, ry, rz), (ax, ay, az) = v, v_solved, around, a
+    # per axis: predicted = v + a dt, v_now = v_solved + around / dt + 0.5 a dt
+    px, py, pz = vx + ax * dt, vy + ay * dt, vz + az * dt
+    return (px + gain * (sx + rx / dt + 0.5 * ax * dt - px),
+            py + gain * (sy + ry / dt + 0.5 * ay * dt - py),
+            pz + gain * (sz + rz / dt + 0.5 * az * dt - pz))
 
 
 def sensor_lever(model: HumanModel, segment: str = "Pelvis") -> np.ndarray | None:
@@ -213,6 +212,16 @@ def sensor_lever(model: HumanModel, segment: str = "Pelvis") -> np.ndarray | Non
     q = model.neutral()
     R = model.segment_rotation(q, segment)
     return np.asarray(R.T @ (model.site_position(q, segment) - model.segment_position(q, segment)))
+
+
+def _floats(a: np.ndarray) -> list[float]:
+    """``np.asarray(a, dtype=float).ravel().tolist()`` (a (3,) float array's own list at once)."""
+    if type(a) is np.ndarray and a.dtype == _FLOAT and a.ndim == 1:
+        return a.tolist()  # type: ignore[no-any-return]
+    return np.asarray(a, dtype=float).ravel().tolist()  # type: ignore[no-any-return]
+
+
+_FLOAT = np.dtype(float)
 
 
 def _finite(a: np.ndarray) -> bool:

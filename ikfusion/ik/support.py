@@ -29,7 +29,7 @@ from ..model.topology import FootLayout
 from . import vec3
 from .fast_math import mean_rows
 from .point_bits import indices, point_bits
-from .support_motion import KeptClip, moved_toward, shrunk_lag, swing_toward
+from .support_motion import KeptClip, leaned, shrunk_lag, swing_toward
 from .swing_lead import LedBase, band_share, lead_targets
 from .vec3 import ZERO, ArrayView, Vec3
 
@@ -82,7 +82,7 @@ class SupportFollower:
         self._lag = self._lean = self._step = self._off_target = self._landed = ZERO
         self._allowance = self._max_step = 0.0
         n = len(self._feet)
-        self._swinging = [False] * n
+        self._swinging, self._planted_for = [False] * n, [0.0] * n
         self._height_trust = [1.0] * n  # how far a swing heel is held at its sensed height
         self._goal = [ZERO] * n
         self._has_goal = [False] * n  # any(self._goal[f]), kept with it
@@ -90,7 +90,6 @@ class SupportFollower:
         self._led_base = LedBase(len(self._led))  # where the contact points were led
         self._target: Vec3 | None = None
         self._wanted = KeptClip()  # where the lean goes (the same most frames)
-        self._planted_for = [0.0] * n
         self._placed_by = np.zeros((n, 3))  # how far each foot's anchors were moved on purpose
         self._reference_feet = self._all_groups  # the groups (bits) the body stands on
 
@@ -181,8 +180,8 @@ class SupportFollower:
         if self._support is not None:
             was, held = self._support
             if was:  # the last frame's support now, less this frame's (equal rows: one mean)
-                then = offset if was == reference and held == rows else vec3.mean_rows(
-                    held, indices(was), sensed)
+                same = was == reference and (held is rows or held == rows)  # (rows kept)
+                then = offset if same else vec3.mean_rows(held, indices(was), sensed)
                 lag = vec3.add(lag, vec3.sub(then, offset))
             if not was & reference:
                 # the body is handed to a foot that was placed leaning: the lean is in it now;
@@ -194,13 +193,12 @@ class SupportFollower:
                     self._landed_swing[self._foot_of(reference)], buffer)
         self._allowance = allowance = max(self.lag_max, self._allowance - self.lag_speed * dt)
         self._lag = lag = shrunk_lag(lag, self.lag_speed * dt, allowance, buffer)
-        step = self._step  # lean + step - pending, pending = (-lag x, -lag y, 0)
-        wanted = self._wanted((lean[0] + step[0] - -lag[0], lean[1] + step[1] - -lag[1],
-                               lean[2] + step[2] - 0.0), self.lean_max, buffer)
-        self._lean = moved_toward(lean, wanted, self.lean_speed * dt, buffer)
+        self._lean = leaned(lean, self._step, lag, self._wanted, self.lean_max,
+                            self.lean_speed * dt, buffer)
         self._support = (reference, rows)
         self._reference_feet = self._planted_of.get(reference) or self._planted(reference)
-        self._update_swing(planted, dt, moved)
+        if self._all_groups & ~planted:  # (the usual frame: every foot planted, none swings)
+            self._update_swing(planted, dt, moved)
         return np.array(offset)
 
     def _foot_of(self, points: int) -> int:
@@ -224,9 +222,9 @@ class SupportFollower:
         """
         if planted and not planted & (planted - 1):  # the usual frame: one foot planted
             return self._group_points[planted.bit_length() - 1] & active
-        age, on = self._planted_for, indices(planted)
+        age, on, groups = self._planted_for, indices(planted), self._group_points
         longest = max([age[f] for f in on])
-        return sum(self._group_points[f] for f in on if age[f] == longest) & active
+        return sum([groups[f] for f in on if age[f] == longest]) & active
 
     def lose_support(self) -> None:
         """No point is planted (flight): the ballistic path takes over; nothing lags."""

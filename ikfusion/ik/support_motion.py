@@ -33,6 +33,21 @@ def moved_toward(v: Vec3, goal: Vec3, by: float, buffer: np.ndarray) -> Vec3:
     return (v[0] + d[0], v[1] + d[1], v[2] + d[2])
 
 
+def leaned(lean: Vec3, step: Vec3, lag: Vec3, wanted: KeptClip, lean_max: float, by: float,
+           buffer: np.ndarray) -> Vec3:
+    """The lean [m] moved by at most ``by`` toward ``wanted(lean + step - pending, lean_max)``.
+
+    ``pending`` (3,) [m] is what the ``lag`` will still move the pelvis, ``(-lag x, -lag y, 0)``.
+    No lean, step nor lag (zeros of either sign: the usual frame) is no lean (+0.0s): the
+    clipped goal is +0.0s whatever ``lean_max``, so is the move toward it and the lean moved.
+    """
+    if _is_zero(lean) and _is_zero(step) and _is_zero(lag):
+        return ZERO
+    goal = wanted((lean[0] + step[0] - -lag[0], lean[1] + step[1] - -lag[1],
+                   lean[2] + step[2] - 0.0), lean_max, buffer)
+    return moved_toward(lean, goal, by, buffer)
+
+
 def swing_toward(swing: Vec3, goal: Vec3, by: float, moved: Vec3, buffer: np.ndarray) -> Vec3:
     """A swing offset moved toward its ``goal`` by at most ``by``, less ``moved`` [m]."""
     if _is_zero(swing) and _is_zero(goal):  # the usual swing: +0.0s, less ``moved``

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from ikfusion.ik import Solver
-from ikfusion.ik.ballistic import GRAVITY, BallisticRoot
+from ikfusion.ik.ballistic import GRAVITY, BallisticRoot, _filtered, _floats
 from ikfusion.mocap.model_motion import TruthMotion
 from ikfusion.model import SENSOR_SEGMENTS, HumanModel
 from ikfusion.sim.gait import gait_preset, generate_gait
@@ -75,6 +75,26 @@ def test_the_velocity_follows_the_accelerometer_and_leans_on_the_support() -> No
     np.testing.assert_allclose(root.velocity, expected, atol=1e-12)
     with pytest.raises(ValueError, match="tau"):
         BallisticRoot(tau=-1.0)
+
+
+def test_the_standing_filter_in_floats_is_numpys_bit_for_bit() -> None:
+    """``_filtered`` (per axis, floats) equals the NumPy expression on (3,) arrays exactly."""
+    rng = np.random.default_rng(26)
+    for case in range(3000):
+        scale = 10.0 ** rng.integers(-8, 3)
+        v, s, r, a = (rng.normal(size=3) * scale for _ in range(4))
+        if case % 7 == 0:  # signed zeros
+            v, r = np.array([0.0, -0.0, 0.0]), np.array([-0.0, 0.0, -0.0])
+        dt = float(rng.choice([1 / 60, 1 / 100, 0.0123, 1.0]))
+        tau = float(rng.choice([0.0, 0.05, 0.2, 2.0]))
+        gain = 1.0 if tau == 0.0 else min(1.0, dt / tau)
+        predicted = v + a * dt
+        want = predicted + gain * (s + r / dt + 0.5 * a * dt - predicted)
+        got = _filtered(tuple(v.tolist()), s.tolist(), r.tolist(), _floats(a), dt, tau)
+        assert np.array(got).tobytes() == want.tobytes()
+    for a in (np.arange(3.0), np.arange(3.0)[::-1], np.ones((3, 1)), np.arange(3, dtype=np.float32),
+              [1.0, 2.0, 3.0]):  # any layout: ``np.asarray(a, dtype=float).ravel().tolist()``
+        assert _floats(a) == np.asarray(a, dtype=float).ravel().tolist()  # type: ignore[arg-type]
 
 
 def test_the_path_flies_the_origin_not_the_sensor_swinging_around_it() -> None:

@@ -108,3 +108,21 @@ def test_the_supports_motions_are_numpys_numbers() -> None:
     for z, w in [(a, b) for a in zeros for b in zeros]:  # a kept clip of a zero of either sign
         clip(tuple(z.tolist()), 0.01, buffer)
         assert _bits(clip(tuple(w.tolist()), 0.01, buffer)) == _bits(fast_math.clip_norm(w, 0.01))
+
+
+@pytest.mark.parametrize("lean_max", [0.03, 0.0, -1.0, math.inf, math.nan])
+def test_the_lean_moves_as_the_full_formula_moves_it(lean_max: float) -> None:
+    """:func:`.support_motion.leaned` (zeros: no lean at once) is the full formula bit for bit."""
+    buffer = np.zeros(3)
+    zeros = [np.zeros(3), np.array([-0.0, 0.0, -0.0]), np.array([0.0, -0.0, 0.0])]
+    vectors = VECTORS[::23] + zeros
+    for i, lean in enumerate(vectors):
+        for step in (vectors[(3 * i + 1) % len(vectors)], *zeros):
+            for lag in (vectors[(5 * i + 2) % len(vectors)], *zeros):
+                pending = np.array([-lag[0], -lag[1], 0.0])
+                for by in (0.0, 1e-3):
+                    full = lean + fast_math.clip_norm(
+                        fast_math.clip_norm(lean + step - pending, lean_max) - lean, by)
+                    got = support_motion.leaned(*(tuple(x.tolist()) for x in (lean, step, lag)),
+                                                support_motion.KeptClip(), lean_max, by, buffer)
+                    assert _bits(got) == _bits(full)
