@@ -57,8 +57,16 @@ def tilted_bits(bits: PointBits, foot_pitch: np.ndarray | None, limit: float) ->
     """
     if foot_pitch is None:
         return 0
-    pitch = np.asarray(foot_pitch, dtype=float).tolist()  # NaN (unknown) compares False
-    return above(pitch, limit, indices(bits.heels)) | below(pitch, -limit, indices(bits.toes))
+    pitch = np.asarray(foot_pitch, dtype=float).tolist()
+    return tilted_of(pitch, limit, indices(bits.heels), indices(bits.toes))
+
+
+def tilted_of(pitch: list[float], limit: float, heels: Sequence[int], toes: Sequence[int]) -> int:
+    """The ``heels`` pitched more than ``limit`` [rad] toe-down, ``toes`` more than it toe-up.
+
+    ``pitch``: each point's foot pitch [rad] (toe down positive; NaN, unknown, compares False).
+    """
+    return above(pitch, limit, heels) | below(pitch, -limit, toes)
 
 
 def motion_bits(bits: PointBits, points_moving: np.ndarray | None) -> tuple[int, int]:

@@ -21,7 +21,8 @@ import numpy as np
 
 from ..native.kernel import loaded_kernel
 from .fast_math import min_of
-from .point_bits import above, below, below_above
+from .point_bits import above, below_above
+from .point_evidence import tilted_of
 
 #: What is used when the kernel cannot be compiled (the end of the warning).
 FALLBACK = "NumPy smooths the sensed contact points instead"
@@ -91,8 +92,7 @@ def python_evidence(rules: Rules, p_old: np.ndarray, pitch_old: np.ndarray, p_ne
     far = above(z.tolist(), lowest + rules.far, rules.rest)
     height_rel = z - lowest
     low, high = below_above(height_rel.tolist(), rules.enter, rules.leave)
-    pitches = pitch.tolist()  # NaN (unknown) compares False
-    tilted = above(pitches, rules.tilt, rules.heels) | below(pitches, -rules.tilt, rules.toes)
+    tilted = tilted_of(pitch.tolist(), rules.tilt, rules.heels, rules.toes)
     return Sensed(p, pitch, step, step / dt if dt > 0 else None, height_rel, far, low, high,
                   tilted)
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from ikfusion.ik.point_bits import first, has, indices, point_bits
-from ikfusion.ik.point_evidence import motion_bits, stance_bits, tilted_bits
+from ikfusion.ik.point_evidence import motion_bits, stance_bits, tilted_bits, tilted_of
 from ikfusion.model import HumanModel
 from ikfusion.model.topology import BodyTopology, FootLayout
 
@@ -58,6 +58,9 @@ def test_evidence_bits_are_the_masks(layout: FootLayout, rng: np.random.Generato
         pitch[rng.random(k) < 0.2] = np.nan  # unknown: not tilted
         tilted = (layout.on_foot & (pitch > 0.3)) | (layout.below_foot & (pitch < -0.3))
         assert tilted_bits(bits, pitch, 0.3) == _plain(tilted)
+        # sensed_evidence.python_evidence's call: the rows as plain index lists
+        heels, toes = np.flatnonzero(layout.on_foot), np.flatnonzero(layout.below_foot)
+        assert tilted_of(pitch.tolist(), 0.3, heels.tolist(), toes.tolist()) == _plain(tilted)
         evidence = rng.choice([0.0, 1.0, np.nan], size=k)
         assert motion_bits(bits, evidence) == (_plain(evidence == 1.0), _plain(evidence == 0.0))
         assert stance_bits(bits, evidence) == (_plain(evidence == 1.0), _plain(evidence == 0.0))
