@@ -41,6 +41,8 @@ class PointsConfiguration(Configuration):
         self._call = BoundFunction(points_function)
         self._call.set_input(1, geometry)  # kept: each call writes q only
         self._q_input = self._call.input_slot(0)
+        # the positions' output buffer as (n, 3) when dense (None: scattered per read)
+        self._P_buffer = self._call.output(0).reshape(-1, 3) if self._call.is_dense(0) else None
         self._P: np.ndarray | None = None
         self._J: np.ndarray | None = None
         super().__init__(model, q)
@@ -75,9 +77,14 @@ class PointsConfiguration(Configuration):
         The points are read from them (a caller's evaluation, :mod:`.contact_projection`, that
         did not move ``q``: every other cached answer stays valid).
         """
-        P = self._call.output(0).reshape(-1, 3).copy()
+        self._P, self._J = self._read_positions(), None
+
+    def _read_positions(self) -> np.ndarray:
+        """The points' positions (n, 3) [m] in the output buffer: a read-only copy."""
+        buffer = self._P_buffer
+        P = (self._call.output(0).reshape(-1, 3) if buffer is None else buffer).copy()
         P.setflags(write=False)
-        self._P, self._J = P, None
+        return P
 
     def _point_positions(self) -> np.ndarray:
         """Every point's ``p_world_point`` (n, 3) [m], read-only."""
@@ -85,9 +92,7 @@ class PointsConfiguration(Configuration):
             self._q_input[:] = self._q
             self._call.run()
             self._J = None  # scattered from this evaluation when asked for
-            P = self._call.output(0).reshape(-1, 3).copy()
-            P.setflags(write=False)
-            self._P = P
+            self._P = self._read_positions()
         return self._P
 
     def _point_jacobians(self) -> np.ndarray:
