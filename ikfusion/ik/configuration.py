@@ -37,7 +37,17 @@ class Configuration:
 
     def update(self, q: npt.ArrayLike) -> None:
         """Set ``q``; forward kinematics and joint Jacobians run once, when first needed."""
-        qq = np.array(q, dtype=float)
+        self._hold(np.array(q, dtype=float))
+
+    def step_by(self, dq: np.ndarray) -> None:
+        """Move to ``q ⊕ dq`` (``dq`` (nv,) float): :meth:`update` of :meth:`integrate`.
+
+        The same configuration bit for bit, its new array held without copying it.
+        """
+        self._hold(pin.integrate(self.model, self._q, dq))
+
+    def _hold(self, qq: np.ndarray) -> None:
+        """Make ``qq`` (nq,), an array no one else holds, the read-only configuration."""
         qq.setflags(write=False)
         self._q = qq
         self._kinematics_done = False

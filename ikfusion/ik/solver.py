@@ -270,7 +270,7 @@ class Solver:
                 relaxed = True
                 break
             relaxed = relaxed or solution.relaxed
-            conf.update(conf.integrate(solution.dq))
+            conf.step_by(solution.dq)
             self.tasks.joint_range.took_step(solution.dq)
             if np.maximum.reduce(np.abs(solution.dq)) < s.step_tolerance:
                 break  # planted points are then held exactly by the projection below

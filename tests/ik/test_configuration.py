@@ -26,3 +26,19 @@ def test_positions_are_the_frame_placements_of_the_configuration(human: HumanMod
     q2[2] += 0.25  # the root 0.25 m higher: every point follows after update()
     conf.update(q2)
     np.testing.assert_allclose(conf.positions(frames), expected + [0.0, 0.0, 0.25], atol=1e-12)
+
+
+def test_step_by_is_update_of_integrate_bit_for_bit(human: HumanModel) -> None:
+    model, frames = human.model, [human.site_frame_id(s) for s in CONTACT_SITES]
+    rng = np.random.default_rng(7)
+    for _ in range(50):
+        q = pin.randomConfiguration(model, -np.ones(model.nq), np.ones(model.nq))
+        dq = rng.normal(scale=0.3, size=model.nv)
+        by_update, stepped = Configuration(model, q), Configuration(model, q)
+        by_update.positions(frames)  # a cached point must not survive the step
+        stepped.positions(frames)
+        by_update.update(by_update.integrate(dq))
+        stepped.step_by(dq)
+        assert stepped.q.tobytes() == by_update.q.tobytes()
+        assert not stepped.q.flags.writeable
+        assert stepped.positions(frames).tobytes() == by_update.positions(frames).tobytes()
