@@ -47,9 +47,9 @@ class PointsConfiguration(Configuration):
         self._J: np.ndarray | None = None
         super().__init__(model, q)
 
-    def update(self, q: npt.ArrayLike) -> None:
-        """Set ``q``; the points are computed once, when first asked for."""
-        super().update(q)
+    def _hold(self, qq: np.ndarray) -> None:
+        """A new configuration (:meth:`update`, :meth:`step_by`): points computed when asked."""
+        super()._hold(qq)
         self._P = self._J = None
 
     @property

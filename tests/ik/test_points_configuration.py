@@ -83,3 +83,26 @@ def test_the_solver_takes_its_contact_points_from_the_compiled_function(
     np.testing.assert_allclose(motion.q, reference.q, rtol=0.0, atol=1e-9)
     np.testing.assert_array_equal(motion.contacts, reference.contacts)
     assert motion.contacts.any()
+
+
+def test_a_step_by_forgets_the_points_of_the_last_configuration(rng) -> None:
+    """``step_by`` (the solver's Gauss-Newton step) is ``update(integrate(dq))`` for the compiled
+    points too: the points and Jacobians read after it are those of the new ``q``, bit for bit."""
+    model = HumanModel.default()
+    points = [model.site_frame_id(n) for n in model.sites_of_kind("contact")]
+    kinematics = CompiledKinematics(model.model, [], [], [], points=points)
+    assert kinematics.points_function is not None
+    geometry = kinematics.geometry(model.model)
+    q = _random_configuration(model, rng)
+    stepped, updated = (PointsConfiguration(model.model, q, points, kinematics.points_function,
+                                            geometry) for _ in range(2))
+    for _ in range(5):
+        dq = rng.normal(scale=0.3, size=model.model.nv)
+        stepped.positions(points)  # kept points and Jacobians must not survive the step
+        stepped.linear_jacobians(points)
+        stepped.step_by(dq)
+        updated.update(updated.integrate(dq))
+        assert stepped.q.tobytes() == updated.q.tobytes()
+        assert stepped.positions(points).tobytes() == updated.positions(points).tobytes()
+        assert stepped.linear_jacobians(points).tobytes() == \
+            updated.linear_jacobians(points).tobytes()
