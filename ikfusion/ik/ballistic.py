@@ -214,6 +214,9 @@ def sensor_lever(model: HumanModel, segment: str = "Pelvis") -> np.ndarray | Non
     return np.asarray(R.T @ (model.site_position(q, segment) - model.segment_position(q, segment)))
 
 
+_FLOAT = np.dtype(float)
+
+
 def _floats(a: np.ndarray) -> list[float]:
     """``np.asarray(a, dtype=float).ravel().tolist()`` (a (3,) float array's own list at once)."""
     if type(a) is np.ndarray and a.dtype == _FLOAT and a.ndim == 1:
@@ -221,9 +224,6 @@ def _floats(a: np.ndarray) -> list[float]:
     return np.asarray(a, dtype=float).ravel().tolist()  # type: ignore[no-any-return]
 
 
-_FLOAT = np.dtype(float)
-
-
 def _finite(a: np.ndarray) -> bool:
     """Every entry of ``a`` finite (``np.all(np.isfinite(a))`` without NumPy's overhead)."""
-    return all(map(math.isfinite, np.asarray(a, dtype=float).ravel().tolist()))
+    return all(map(math.isfinite, _floats(a)))
