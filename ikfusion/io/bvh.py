@@ -966,8 +966,21 @@ def _conjugated(A: np.ndarray, R: np.ndarray) -> np.ndarray:
         p = np.argmax(A, axis=1)  # (A @ R @ A.T)[i, j] = R[p[i], p[j]]
         if (p == np.arange(3)).all():  # the identity (a Z-up file): no reordering
             return R + 0.0
-        return R[..., p, :][..., :, p] + 0.0
+        return _permuted_entries(R, p)
     return A @ R @ A.T
+
+
+def _permuted_entries(R: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """``R[..., p, :][..., :, p] + 0.0`` bit for bit, a C-ordered new array, in half the time.
+
+    Each of the 9 output entries is one strided copy (plus the exact ``+ 0.0``) of an input
+    entry over the whole stack, instead of two fancy-indexing passes.
+    """
+    flat = np.ascontiguousarray(R).reshape(-1, 9)
+    out = np.empty_like(flat)
+    for k, source in enumerate((3 * p[:, None] + p[None, :]).ravel().tolist()):
+        np.add(flat[:, source], 0.0, out=out[:, k])
+    return out.reshape(R.shape)
 
 
 #: Relative distance from half a unit of the last digit within which ``%`` decides the rounding

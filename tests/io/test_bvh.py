@@ -557,3 +557,17 @@ def test_axes_change_of_rotations_is_the_matrix_product_to_the_bit(up: str, rng)
     patterns = np.array(list(itertools.product([-0.0, 0.0, -1.5, 2.0], repeat=9)))
     for R in (patterns.reshape(-1, 3, 3), rng.normal(size=(50, 23, 3, 3))):
         assert (_conjugated(A, R).view(np.uint64) == (A @ R @ A.T).view(np.uint64)).all()
+
+
+@pytest.mark.parametrize("p", list(itertools.permutations(range(3))))
+def test_permuted_entries_equal_fancy_indexing_to_the_bit(p: tuple[int, ...], rng) -> None:
+    """Every axis permutation, signed zeros and NaN included, on a (F, J, 3, 3) stack."""
+    from ikfusion.io.bvh import _permuted_entries
+
+    R = rng.normal(size=(40, 23, 3, 3))
+    R[0, 0] = -0.0
+    R[1, 2, 1, 0] = np.nan
+    order = np.array(p)
+    got = _permuted_entries(R, order)
+    assert got.shape == R.shape and got.flags.c_contiguous
+    assert got.tobytes() == (R[..., order, :][..., :, order] + 0.0).tobytes()
