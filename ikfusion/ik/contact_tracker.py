@@ -185,6 +185,7 @@ class ContactTracker:
         bits, on = self._bits, self.planted()  # (:mod:`.point_bits`)
         hints, points_moving = self._hints(frame), self.carrier.relative_motion(self.state, moving)
         toe_off = tip > th.enter_speed if any_true(tip) else None
+        # the usual frame keeps every point (:mod:`.usual_release`); the general rule decides
         if (hints or toe_off is not None or points_moving is not None or still is None
                 or not keeps_every_point(bits, on, evidence, th.leave_distance)):
             # the placed offsets matter only while two feet are planted (the drift)
