@@ -83,6 +83,7 @@ class SupportFollower:
         self._allowance = self._max_step = 0.0
         n = len(self._feet)
         self._swinging, self._planted_for = [False] * n, [0.0] * n
+        self._swinging_bits = 0  # the groups swinging (bits: bit f is ``_swinging[f]``)
         self._height_trust = [1.0] * n  # how far a swing heel is held at its sensed height
         self._goal = [ZERO] * n
         self._has_goal = [False] * n  # any(self._goal[f]), kept with it
@@ -234,7 +235,13 @@ class SupportFollower:
     def _settle_landings(self, planted: int, dt: float) -> None:
         """Groups ``planted`` (bits) that touched down stay where they were led (``landed``)."""
         self._landed = ZERO
-        swinging, age, swing_of = self._swinging, self._planted_for, self._swing
+        age, swing_of = self._planted_for, self._swing
+        if not planted & self._swinging_bits:  # the usual frame: none touched down
+            for f in indices(planted):
+                age[f] += dt
+                swing_of[f] = ZERO
+            return
+        swinging = self._swinging
         for f in indices(planted):
             if swinging[f]:
                 swinging[f] = False
@@ -246,6 +253,7 @@ class SupportFollower:
             else:
                 age[f] += dt
             swing_of[f] = ZERO
+        self._swinging_bits &= ~planted
 
     def _update_swing(self, planted: int, dt: float, moved: Vec3) -> None:
         """Latch the offset of feet that lifted off and move swinging feet.
@@ -259,17 +267,22 @@ class SupportFollower:
         resumed there jumped the heel by centimetres), and its landing is not counted.
         """
         lifted, swinging, swing_of = self._all_groups & ~planted, self._swinging, self._swing
-        for f in indices(lifted & ~self._steps):
+        for f in indices(lifted & ~self._steps & ~self._swinging_bits):
             swinging[f] = True  # lifted, never led: lands with no swing offset
+        self._swinging_bits |= lifted & ~self._steps
         for f in indices(lifted & self._steps):
             if not swinging[f]:
                 self._lift_off(f)
+            elif moved is ZERO and not self._has_goal[f] and not any(swing_of[f]):
+                swing_of[f] = ZERO  # the usual swing: +0.0s (:func:`.swing_toward`)
+                continue
             swing_of[f] = swing_toward(swing_of[f], self._goal[f], self.swing_speed * dt, moved,
                                        self._buffer)
 
     def _lift_off(self, f: int) -> None:
         """Group ``f`` (a foot) lifts off: latch its goal, its swing starts where its heel is."""
         self._swinging[f] = True
+        self._swinging_bits |= 1 << f
         if self._planted_for[f] < self.confirm and any(self._landed_swing[f]):
             self._landed = vec3.sub(self._landed, self._landed_swing[f])  # not counted
         else:  # (a resumed swing keeps its goal)
