@@ -86,6 +86,7 @@ class SupportFollower:
         self._height_trust = [1.0] * n  # how far a swing heel is held at its sensed height
         self._goal = [ZERO] * n
         self._has_goal = [False] * n  # any(self._goal[f]), kept with it
+        self._swinging_bits = self._goal_bits = 0  # bit f: ``_swinging[f]``, ``_has_goal[f]``
         self._swing, self._landed_swing = [ZERO] * n, [ZERO] * n
         self._led_base = LedBase(len(self._led))  # where the contact points were led
         self._target: Vec3 | None = None
@@ -166,9 +167,7 @@ class SupportFollower:
             dt: Time since the last frame [s].
         """
         on = active if isinstance(active, int) else self._bits.of(active)
-        planted = self._planted_of.get(on)
-        if planted is None:
-            planted = self._planted(on)
+        planted = self._planted_of.get(on) or self._planted(on)
         self._settle_landings(planted, dt)
         reference = self._reference(on, planted)
         # rows of floats (:mod:`.vec3`)
@@ -246,6 +245,7 @@ class SupportFollower:
             else:
                 age[f] += dt
             swing_of[f] = ZERO
+        self._swinging_bits &= ~planted
 
     def _update_swing(self, planted: int, dt: float, moved: Vec3) -> None:
         """Latch the offset of feet that lifted off and move swinging feet.
@@ -259,13 +259,14 @@ class SupportFollower:
         resumed there jumped the heel by centimetres), and its landing is not counted.
         """
         lifted, swinging, swing_of = self._all_groups & ~planted, self._swinging, self._swing
-        for f in indices(lifted & ~self._steps):
+        for f in indices(lifted & ~self._steps & ~self._swinging_bits):
             swinging[f] = True  # lifted, never led: lands with no swing offset
         for f in indices(lifted & self._steps):
             if not swinging[f]:
                 self._lift_off(f)
             swing_of[f] = swing_toward(swing_of[f], self._goal[f], self.swing_speed * dt, moved,
                                        self._buffer)
+        self._swinging_bits |= lifted
 
     def _lift_off(self, f: int) -> None:
         """Group ``f`` (a foot) lifts off: latch its goal, its swing starts where its heel is."""
@@ -275,7 +276,8 @@ class SupportFollower:
         else:  # (a resumed swing keeps its goal)
             self._goal[f] = vec3.clip_norm(vec3.sub(self._step, self.pending),
                                            self._max_step, self._buffer)
-            self._has_goal[f] = any(self._goal[f])
+            self._has_goal[f] = has_goal = any(self._goal[f])
+            self._goal_bits = self._goal_bits & ~(1 << f) | has_goal << f
         # the heel leaves the floor where it is, not where the sensed leg puts it (nor
         # where it was led before a short touch-down: the body moved under it since)
         swing = self._swing[f] = tuple(  # type: ignore[assignment]
@@ -286,8 +288,8 @@ class SupportFollower:
 
     def pelvis_target(self, p_warm: np.ndarray) -> Vec3:
         """Where the pelvis should be (3,) [m], its warm start ``p_warm`` plus lag and lean."""
-        x, y, z = p_warm.tolist()
-        self._target = vec3.add(vec3.add((x, y, z), self._lag), self._lean)
+        (x, y, z), lag, lean = p_warm.tolist(), self._lag, self._lean
+        self._target = (x + lag[0] + lean[0], y + lag[1] + lean[1], z + lag[2] + lean[2])
         return self._target
 
     def record(self, p_solved: np.ndarray, p_pelvis: np.ndarray) -> None:
@@ -327,7 +329,7 @@ class SupportFollower:
 
     def leads(self) -> bool:
         """Whether a swinging foot is led now (:meth:`swing_targets` gives it information)."""
-        return any(map(bool.__and__, self._swinging, self._has_goal))  # lists of bools
+        return bool(self._swinging_bits & self._goal_bits)
 
     def keep_base(self, p_sensed: np.ndarray, offset: np.ndarray) -> None:
         """Keep the contact points (k, 3) [m] of the warm start for :meth:`record` (no swing).

@@ -8,6 +8,8 @@ whatever its limit, with no norm to work out.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from . import vec3
@@ -41,8 +43,11 @@ def leaned(lean: Vec3, step: Vec3, lag: Vec3, wanted: KeptClip, lean_max: float,
     No lean, step nor lag (zeros of either sign: the usual frame) is no lean (+0.0s): the
     clipped goal is +0.0s whatever ``lean_max``, so is the move toward it and the lean moved.
     """
-    if _is_zero(lean) and _is_zero(step) and _is_zero(lag):
-        return ZERO
+    if _is_zero(step) and _is_zero(lag):
+        if _is_zero(lean):
+            return ZERO
+        if wanted.reached(lean, lean_max):  # the lean has reached what it wants: it stays
+            return (lean[0] + 0.0, lean[1] + 0.0, lean[2] + 0.0)
     goal = wanted((lean[0] + step[0] - -lag[0], lean[1] + step[1] - -lag[1],
                    lean[2] + step[2] - 0.0), lean_max, buffer)
     return moved_toward(lean, goal, by, buffer)
@@ -65,6 +70,16 @@ class KeptClip:
 
     def __init__(self) -> None:
         self._kept: tuple[Vec3, float, Vec3] | None = None
+
+    def reached(self, v: Vec3, limit: float) -> bool:
+        """Whether the last clip was of ``v`` (finite) at ``limit`` and gave ``v`` back.
+
+        Then :func:`leaned` of a lean ``v`` with no step nor lag is ``v + 0.0``: its goal is
+        ``v`` (the zeros added to it do not change its value), so is the move toward it.
+        """
+        kept = self._kept
+        return (kept is not None and kept[0] == v and kept[1] == limit and kept[2] == v
+                and math.isfinite(v[0] + v[1] + v[2]))
 
     def __call__(self, v: Vec3, limit: float, buffer: np.ndarray) -> Vec3:
         """``vec3.clip_norm(v, limit, buffer)``."""

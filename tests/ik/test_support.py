@@ -201,3 +201,18 @@ def test_a_led_foot_that_lands_does_not_pull_the_other_foot_off() -> None:
         state = release_contacts(state, sensed, th, placed=placed, layout=LAYOUT)
         assert state.active.all()  # no toe-off forced by the placement
         f.follow(BOTH, anchors, sensed, DT)
+
+
+def test_the_swinging_groups_bits_are_kept_with_their_flags() -> None:
+    """The swinging and led groups' bits (the usual frame's shortcuts) are their flags."""
+    follower, anchors = _follower(lean_max=0.02, lean_speed=0.1), _points(0.0, 0.5)
+    follower.set_step(np.array([0.1, 0.0, 0.0]), 0.2)
+    for i, on in enumerate([BOTH, LEFT, LEFT, BOTH, RIGHT, RIGHT, BOTH, LEFT, BOTH] * 3):
+        offset = follower.follow(on, anchors, _points(0.01 * i, 0.5 + 0.01 * i), DT)
+        follower.swing_targets(_points(0.0, 0.5) + offset)
+        follower.record(_points(0.0, 0.5), np.zeros(3))
+        swinging = sum(1 << f for f, s in enumerate(follower._swinging) if s)
+        assert follower._swinging_bits == swinging
+        assert follower._goal_bits == sum(1 << f for f, g in enumerate(follower._has_goal) if g)
+        assert follower.leads() == any(map(bool.__and__, follower._swinging, follower._has_goal))
+    assert follower._goal_bits  # (the swings were led)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -126,3 +127,25 @@ def test_the_lean_moves_as_the_full_formula_moves_it(lean_max: float) -> None:
                     got = support_motion.leaned(*(tuple(x.tolist()) for x in (lean, step, lag)),
                                                 support_motion.KeptClip(), lean_max, by, buffer)
                     assert _bits(got) == _bits(full)
+
+
+@pytest.mark.parametrize("lean_max", [0.03, 0.0, math.inf, math.nan])
+def test_a_lean_that_reached_its_goal_stays_as_the_general_path_keeps_it(lean_max: float) -> None:
+    """:func:`.support_motion.leaned`'s kept lean (no step, no lag) is its general path's.
+
+    The general path: the goal clipped (by a copy of the kept clip), the lean moved toward it.
+    """
+    buffer = np.zeros(3)
+    zeros = [(0.0, 0.0, 0.0), (-0.0, 0.0, -0.0)]
+    odd = [(math.inf, 0.0, 0.0), (1e308, 1e308, 0.0), (0.0, math.nan, 0.0), (-0.0, 1e-3, -0.0)]
+    for start in [tuple(v.tolist()) for v in VECTORS[::7]] + zeros + odd:
+        clip, lean = support_motion.KeptClip(), start
+        for step in (start, *zeros):  # led toward ``2 start``, then standing with no step
+            for by in (math.inf, 1e-3, 0.0):  # it reaches its goal at once, creeps, stands
+                for lag in (zeros * 2):
+                    wanted = (lean[0] + step[0] - -lag[0], lean[1] + step[1] - -lag[1],
+                              lean[2] + step[2] - 0.0)
+                    goal = copy.deepcopy(clip)(wanted, lean_max, buffer)
+                    full = support_motion.moved_toward(lean, goal, by, buffer)
+                    lean = support_motion.leaned(lean, step, lag, clip, lean_max, by, buffer)
+                    assert _bits(lean) == _bits(full)
