@@ -39,7 +39,6 @@ from .sensed_evidence import Rules, python_evidence, sensing
 from .settings import SolverSettings
 from .support import SupportFollower
 from .tasks import PositionTask, Task
-from .usual_release import keeps_every_point
 
 #: A trunk point (``needs_rest``) this far [m] above the lowest contact point of the
 #: sensed pose cannot reach the floor within a frame: it gets no floor row (standing, walking,
@@ -183,18 +182,15 @@ class ContactTracker:
         self._evidence = (frame, still, moving, evidence)
         tip = self.carrier.tip_speed  # lone toes' tips sliding (0: none, the usual frame)
         bits, on = self._bits, self.planted()  # (:mod:`.point_bits`)
-        hints, points_moving = self._hints(frame), self.carrier.relative_motion(self.state, moving)
-        toe_off = tip > th.enter_speed if any_true(tip) else None
-        # the usual frame keeps every point (:mod:`.usual_release`); the general rule decides
-        if (hints or toe_off is not None or points_moving is not None or still is None
-                or not keeps_every_point(bits, on, evidence, th.leave_distance)):
-            # the placed offsets matter only while two feet are planted (the drift)
-            two_feet = on & bits.other_foot(on) or th.leave_distance < 0
-            self.state = release_contacts(
-                self.state, self._p_sensed, th, hints, self._pitch, still, self._history[-1][1],
-                self.support.placed_offsets(on) if two_feet else None, layout=self.layout,
-                points_moving=points_moving, needs_rest=self._needs_rest, v_sensed=self._v_sensed,
-                step_sensed=step, toe_off=toe_off, evidence=evidence, on=on)
+        # the placed offsets matter only while two feet are planted (release_contacts's drift)
+        two_feet = on & bits.other_foot(on) or th.leave_distance < 0
+        self.state = release_contacts(
+            self.state, self._p_sensed, th, self._hints(frame), self._pitch, still,
+            self._history[-1][1],
+            self.support.placed_offsets(on) if two_feet else None,
+            layout=self.layout, points_moving=self.carrier.relative_motion(self.state, moving),
+            needs_rest=self._needs_rest, v_sensed=self._v_sensed, step_sensed=step,
+            toe_off=tip > th.enter_speed if any_true(tip) else None, evidence=evidence, on=on)
         # a planted heel whose foot already rolls toe-down may rise (it still cannot slip),
         # unless its IMU says the foot stands still
         on = self.planted()

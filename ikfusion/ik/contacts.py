@@ -49,6 +49,7 @@ from .point_evidence import (
 )
 from .sweeping import sweeping_beside, sweeping_points
 from .trunk_roll import body_takers, pulled_points, roll_on_segment
+from .usual_release import keeps_every_point
 
 
 @dataclass
@@ -151,6 +152,9 @@ def release_contacts(state: ContactState, p_sensed: np.ndarray, thresholds: Cont
     bits = point_bits(layout)
     on = bits.of(active) if on is None else on  # planted
     ev = evidence or _evidence(bits, p_sensed, foot_pitch, foot_still, needs_rest, th)
+    if not hints and toe_off is None and points_moving is None and foot_still is not None \
+            and keeps_every_point(bits, on, ev, th.leave_distance):
+        return state  # the usual frame: nothing lets go nor lands (:mod:`.usual_release`)
     height_rel, tilted, still, rest = ev.height_rel, ev.tilted, ev.still, ev.rest
     moving_point, settled = motion_bits(bits, points_moving)
     pushing_off = bits.of_optional(toe_off)  # lone toes pushing off: they let go

@@ -6,8 +6,9 @@ returns its state unchanged, after some twenty calls (the evidence's bits, the p
 the hints, the plant heights, the drift of two feet). :func:`keeps_every_point` reads that off
 the frame's :class:`.point_evidence.FrameEvidence` bits alone (:mod:`.point_bits`), exactly:
 where it says True the general rule returns the same state, and where it says False the
-general rule decides (it is the reference; ``tests/ik/test_usual_release.py`` checks the two
-on the real walk's frames and on random ones).
+general rule decides. :func:`.contacts.release_contacts` asks it first and returns at once
+where it may; the rest of that function is the reference (``tests/ik/test_usual_release.py``
+checks the two on the real walk's frames and on random ones).
 """
 
 from __future__ import annotations

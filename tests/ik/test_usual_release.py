@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from real_walk import solve_real_walk_natively
 
-from ikfusion.ik import contact_tracker
+from ikfusion.ik import contacts
 from ikfusion.ik.contact_thresholds import ContactThresholds
 from ikfusion.ik.contacts import ContactState, release_contacts
 from ikfusion.ik.point_bits import point_bits
@@ -68,8 +68,10 @@ def _random_frame(rng: np.random.Generator) -> tuple[ContactState, dict[str, obj
 
 
 @pytest.mark.parametrize("seed", range(4))
-def test_random_frames_kept_by_the_general_rule(seed: int) -> None:
+def test_random_frames_kept_by_the_general_rule(seed: int,
+                                               monkeypatch: pytest.MonkeyPatch) -> None:
     """Where the shortcut keeps every point, release_contacts returns the state itself."""
+    monkeypatch.setattr(contacts, "keeps_every_point", lambda *args: False)  # the general rule
     rng = np.random.default_rng(seed)
     kept = 0
     for _ in range(2000):
@@ -94,9 +96,9 @@ def test_real_walk_solved_without_the_shortcut(tmp_path: Path,
         taken[0] += kept
         return kept
 
-    monkeypatch.setattr(contact_tracker, "keeps_every_point", counted)
+    monkeypatch.setattr(contacts, "keeps_every_point", counted)
     solve_real_walk_natively(tmp_path / "fast")
-    monkeypatch.setattr(contact_tracker, "keeps_every_point", lambda *args: False)
+    monkeypatch.setattr(contacts, "keeps_every_point", lambda *args: False)
     solve_real_walk_natively(tmp_path / "general")
     assert taken[0] > 1000
     files = sorted(p.relative_to(tmp_path / "fast") for p in (tmp_path / "fast").rglob("*")
