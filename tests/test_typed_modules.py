@@ -2,8 +2,8 @@
 
 Their build key and loader, and (when they are built for these sources: ``make test`` builds
 them) solves by the compiled modules compared file by file with the Python modules' solves of
-the same input: the real walk, and a simulated walk corrected by UWB (``no-slide``: tag hints,
-flights of the tag tracks, the correction's world moves).
+the same input: the real walk, a simulated walk corrected by UWB (``no-slide``: tag hints, the
+correction's world moves) and simulated jumps (flights on the ballistic path, landings).
 """
 
 from __future__ import annotations
@@ -114,15 +114,20 @@ def test_the_real_walk_solves_bit_for_bit_as_the_python_modules(
                          _solve(argv, tmp_path / "python", False))
 
 
-def test_a_uwb_corrected_walk_solves_bit_for_bit_as_the_python_modules(
-        built: Path, tmp_path: Path) -> None:
+@pytest.mark.parametrize("motion, seconds, correction", [
+    ("gait", "12", "no-slide"),  # tag hints, the correction's world moves
+    ("gait:jump", "8", None),  # flights: the ballistic path, landings
+])
+def test_a_simulated_capture_solves_bit_for_bit_as_the_python_modules(
+        built: Path, tmp_path: Path, motion: str, seconds: str, correction: str | None) -> None:
     capture = tmp_path / "capture"
-    subprocess.run([sys.executable, "-m", "ikfusion", "simulate", "--motion", "gait",
-                    "--seconds", "12", "--readers", str(ROOM), "--seed", "4", "--out",
+    subprocess.run([sys.executable, "-m", "ikfusion", "simulate", "--motion", motion,
+                    "--seconds", seconds, "--readers", str(ROOM), "--seed", "4", "--out",
                     str(capture), "--quiet"], env=_child_env(False), check=True)
     argv = ["solve", "--imu", str(capture / "imu"), "--map", str(capture / "sensors.yaml"),
-            "--body", str(capture / "body.yaml"), "--toa", str(capture / "toa.csv"),
-            "--readers", str(capture / "readers.yaml"), "--tags", str(capture / "tags.yaml"),
-            "--correction", "no-slide"]
+            "--body", str(capture / "body.yaml")]
+    if correction is not None:
+        argv += ["--toa", str(capture / "toa.csv"), "--readers", str(capture / "readers.yaml"),
+                 "--tags", str(capture / "tags.yaml"), "--correction", correction]
     _assert_same_results(_solve(argv, tmp_path / "typed", True),
                          _solve(argv, tmp_path / "python", False))

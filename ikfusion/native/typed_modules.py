@@ -15,15 +15,15 @@ stale compiled code is never loaded (the Python modules are, until the next buil
 ``IKFUSION_NO_TYPED`` (or ``IKFUSION_NO_COMPILE``) keeps the Python modules; the test suite sets
 it, so that its checks that replace functions of these modules see their replacements.
 
-Left out on purpose: modules whose semantics mypyc changes or cannot compile (a descriptor class,
-:class:`ikfusion.ik.vec3.ArrayView`, and the classes that use it; ``ctypes`` structures; a
-dataclass derived from an interpreted one; :class:`ikfusion.ik.configuration.Configuration`,
-which :mod:`ikfusion.retarget` derives from, and its compiled subclass; modules whose functions
-tests replace, as
-:mod:`ikfusion.ik.fast_math`) and :mod:`ikfusion.ik.pose`, whose objects cross process
-boundaries in ``batch``. A module is added to :data:`MODULES` once the compiled solves are
-bit for bit the Python ones (``tests/test_typed_modules.py``, the motion clips of
-``benchmarks/bench_motions.py``).
+Left out on purpose: modules mypyc cannot compile (``ctypes`` structures; a dataclass derived
+from an interpreted one; :mod:`ikfusion.ik.fast_math`, :mod:`ikfusion.ik.compiled` and the joint
+ranges: internal errors), :class:`ikfusion.ik.configuration.Configuration`, which
+:mod:`ikfusion.retarget` derives from (compiled classes refuse interpreted subclasses), and its
+compiled subclass, and :mod:`ikfusion.ik.pose`, whose objects cross process boundaries in
+``batch``. No class here may be a descriptor (mypyc compiles ``__get__``/``__set__`` of a native
+class as plain methods: the attribute would silently stop being one). A module is added to
+:data:`MODULES` once the compiled solves are bit for bit the Python ones
+(``tests/test_typed_modules.py``, the motion clips of ``benchmarks/bench_motions.py``).
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ from ..paths import user_cache_dir
 
 #: The modules compiled (each compiles and keeps its results bit for bit, checked by the tests).
 MODULES: tuple[str, ...] = tuple(f"ikfusion.ik.{name}" for name in (
-    "active_set", "anchor_carry", "anchor_settling", "assumed", "bound_function",
+    "active_set", "anchor_carry", "anchor_settling", "assumed", "ballistic", "bound_function",
     "casadi_kinematics", "compiled_blocks", "compiled_inputs", "compiled_joint_tasks",
     "compiled_key", "compiled_points", "compiled_ranges", "compiled_sensed", "contact_flags",
     "contact_thresholds", "contact_tracker", "contacts", "equality_qp", "foot_pairs",
@@ -54,9 +54,10 @@ MODULES: tuple[str, ...] = tuple(f"ikfusion.ik.{name}" for name in (
     "landing_lag", "landing_rules", "least_distance", "limits.base", "limits.contact",
     "limits.shared_segment", "limits.soft_wall", "limits.velocity", "point_bits",
     "point_evidence", "point_masks", "projection", "qp", "qp_backends", "release", "residuals",
-    "sensed_pose", "solver", "step_ranges", "support_motion", "sweeping", "swing_lead",
-    "tasks.base", "tasks.chain", "tasks.column_shape", "tasks.damping", "tasks.orientation",
-    "tasks.position", "tasks.posture", "trunk_roll", "usual_release", "world_offset"))
+    "sensed_pose", "solver", "step_ranges", "support", "support_motion", "sweeping",
+    "swing_lead", "tasks.base", "tasks.chain", "tasks.column_shape", "tasks.damping",
+    "tasks.orientation", "tasks.position", "tasks.posture", "trunk_roll", "usual_release",
+    "vec3", "world_offset"))
 
 #: Set (to anything) to keep the Python modules.
 DISABLE = "IKFUSION_NO_TYPED"
