@@ -17,6 +17,9 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     _os.environ.setdefault(_var, "1")
 
 from .errors import ConfigError, IkfusionError, InputError, NameNotFound, SolverError  # noqa: E402
+from .native.typed_modules import enable as _enable_typed_modules  # noqa: E402
+
+_enable_typed_modules()  # the solver's modules compiled by mypyc, when built (opt-in)
 
 if TYPE_CHECKING:
     from .ik import Frame, Motion, Pose, Solver, SolverSettings

@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+
+# The suite checks the Python modules (the reference): its checks that replace a function of a
+# module see the replacement only there. tests/test_typed_modules.py runs the compiled ones
+# (:mod:`ikfusion.native.typed_modules`) in subprocesses against them.
+os.environ["IKFUSION_NO_TYPED"] = "1"
 
 
 @pytest.fixture

@@ -49,7 +49,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .vec3 import ZERO, ArrayView, Vec3
+from .vec3 import ZERO, Vec3, floats
 
 if TYPE_CHECKING:
     from ..model.human_model import HumanModel
@@ -70,8 +70,6 @@ class BallisticRoot:
             pelvis origin); None: at the origin.
     """
 
-    velocity = ArrayView()  #: (3,) [m/s] the filter's velocity (read: a new array)
-
     def __init__(self, tau: float, lever: np.ndarray | None = None) -> None:
         if tau < 0.0:
             raise ValueError(f"tau must be >= 0 s, got {tau}")
@@ -79,9 +77,18 @@ class BallisticRoot:
         self.lever = None if lever is None else np.asarray(lever, dtype=float)
         self.reset()
 
+    @property
+    def velocity(self) -> np.ndarray:
+        """(3,) [m/s] the filter's velocity (a new array; kept as floats)."""
+        return np.array(self._velocity)
+
+    @velocity.setter
+    def velocity(self, value: np.ndarray) -> None:
+        self._velocity = floats(value)
+
     def reset(self) -> None:
         """At rest, nothing measured."""
-        self._velocity: Vec3 = ZERO  # :attr:`velocity`'s floats
+        self._velocity = ZERO  # :attr:`velocity`'s floats
         self.position: np.ndarray | None = None  # on the path in flight, None on the ground
         #: the path came down onto the floor and follows the feet there
         self.landed = False
@@ -128,7 +135,7 @@ class BallisticRoot:
             # a shift may lower the path onto the landing height, never under it
             self.position[2] = max(float(self.position[2]), min(float(free[2]), lowest_z))
         self._shift = _NO_SHIFT
-        descending = self._velocity[2] * dt <= around[2]  # the origin's velocity
+        descending = bool(self._velocity[2] * dt <= around[2])  # the origin's velocity
         self.landed = (lowest_z is not None and descending
                        and (self.landed or bool(self.position[2] < lowest_z)))
         if self.landed and lowest_z is not None:

@@ -17,8 +17,12 @@ from .point_masks import LastInput
 
 
 def hinted_points(names: Sequence[str],
-                  hints: Mapping[str, bool] | None) -> list[tuple[int, bool]]:
-    """(index, in contact) of the points ``hints`` names; none without hints (the usual case)."""
+                  hints: Mapping[str, object] | None) -> list[tuple[int, bool]]:
+    """(index, in contact) of the points ``hints`` names; none without hints (the usual case).
+
+    A hint is anything ``bool`` takes (NumPy's booleans too: compiled, :mod:`ikfusion.native.
+    typed_modules`, a ``bool`` annotation would refuse them).
+    """
     if not hints:
         return []
     return [(i, bool(hints[n])) for i, n in enumerate(names) if n in hints]

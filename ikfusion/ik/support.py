@@ -31,7 +31,7 @@ from .fast_math import mean_rows
 from .point_bits import indices, point_bits
 from .support_motion import KeptClip, leaned, shrunk_lag, swing_toward
 from .swing_lead import LedBase, band_share, lead_targets
-from .vec3 import ZERO, ArrayView, Vec3
+from .vec3 import ZERO, Vec3, floats, rows_of_floats
 
 
 class SupportFollower:
@@ -48,11 +48,6 @@ class SupportFollower:
         floor_z: Height of the floor [m] (world z): a swing foot whose sensed points sink under
             it is led horizontally only.
     """
-
-    lag = ArrayView()  # the pelvis's lag (3,) [m] (read: a new array)
-    lean = ArrayView()  # its lean toward the correction (3,) [m]
-    swing = ArrayView()  # each foot's swing offset (n, 3) [m]
-    landed = ArrayView()  # swing offsets of the feet that touched down this frame, summed (3,)
 
     def __init__(self, layout: FootLayout, lag_speed: float, lag_max: float,
                  swing_speed: float, lean_max: float, lean_speed: float,
@@ -74,6 +69,42 @@ class SupportFollower:
         self._led = np.asarray(layout.on_foot, dtype=bool)  # led by its heels, not unsensed toes
         self._buffer = np.zeros(3)  # for :mod:`.vec3`'s norms
         self.reset()
+
+    @property
+    def lag(self) -> np.ndarray:
+        """The pelvis's lag (3,) [m] (a new array; kept as floats, :mod:`.vec3`)."""
+        return np.array(self._lag)
+
+    @lag.setter
+    def lag(self, value: np.ndarray) -> None:
+        self._lag = floats(value)
+
+    @property
+    def lean(self) -> np.ndarray:
+        """Its lean toward the correction (3,) [m] (a new array)."""
+        return np.array(self._lean)
+
+    @lean.setter
+    def lean(self, value: np.ndarray) -> None:
+        self._lean = floats(value)
+
+    @property
+    def swing(self) -> np.ndarray:
+        """Each foot's swing offset (n, 3) [m] (a new array)."""
+        return np.array(self._swing)
+
+    @swing.setter
+    def swing(self, value: np.ndarray) -> None:
+        self._swing = rows_of_floats(value)
+
+    @property
+    def landed(self) -> np.ndarray:
+        """Swing offsets of the feet that touched down this frame, summed (3,) [m]."""
+        return np.array(self._landed)
+
+    @landed.setter
+    def landed(self, value: np.ndarray) -> None:
+        self._landed = floats(value)
 
     def reset(self) -> None:
         """Forget the support, the lag and every offset."""

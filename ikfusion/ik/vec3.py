@@ -88,22 +88,12 @@ def mean_rows(a: Sequence[Sequence[float]], rows: tuple[int, ...],
     return (x / n, y / n, z / n)
 
 
-class ArrayView:
-    """An attribute ``name`` of floats kept as ``_name`` (tuples), read as a new NumPy array.
-
-    Setting it (from an array of any shape) stores its floats as nested tuples.
-    """
-
-    def __set_name__(self, owner: type, name: str) -> None:
-        self._private = "_" + name
-
-    def __get__(self, instance: object, owner: type | None = None) -> np.ndarray:
-        return np.array(getattr(instance, self._private))
-
-    def __set__(self, instance: object, value: np.ndarray) -> None:
-        setattr(instance, self._private, _tuples(np.asarray(value, dtype=float).tolist()))
+def floats(value: np.ndarray | Sequence[float]) -> Vec3:
+    """A (3,) array's (or any three numbers') floats, as the tuple the vectors here are."""
+    x, y, z = np.asarray(value, dtype=float).tolist()
+    return (x, y, z)
 
 
-def _tuples(value: object) -> object:
-    """Lists (nested) as tuples."""
-    return tuple(map(_tuples, value)) if isinstance(value, list) else value
+def rows_of_floats(value: np.ndarray | Sequence[Sequence[float]]) -> list[Vec3]:
+    """The rows of a (n, 3) array as :func:`floats` tuples, in a list."""
+    return [(x, y, z) for x, y, z in np.asarray(value, dtype=float).reshape(-1, 3).tolist()]

@@ -9,7 +9,10 @@ import numpy as np
 import pytest
 
 from ikfusion.ik import fast_math, support_motion, vec3
+from ikfusion.ik.support import SupportFollower
 from ikfusion.ik.tasks.position import PositionTask
+from ikfusion.model import HumanModel
+from ikfusion.model.topology import BodyTopology
 
 RNG = np.random.default_rng(7)
 # vectors of every scale the support meets, zero ones and ones with negative zeros among them
@@ -44,19 +47,21 @@ def test_sums_and_means_are_numpys_numbers() -> None:
     assert _bits(vec3.sub(u, w)) == _bits(a[0] - b[0])
 
 
-def test_an_array_view_reads_and_sets_its_floats() -> None:
-    class Holder:
-        lag = vec3.ArrayView()
+def test_floats_are_an_arrays_floats_and_rows_a_list_of_them() -> None:
+    v = vec3.floats(np.array([0.1, -0.2, 0.3]))
+    assert v == (0.1, -0.2, 0.3) and all(type(x) is float for x in v)
+    rows = vec3.rows_of_floats(np.array([[0.1, -0.2, 0.3], [1.0, 2.0, -0.0]]))
+    assert rows == [(0.1, -0.2, 0.3), (1.0, 2.0, -0.0)] and isinstance(rows, list)
+    assert math.copysign(1.0, rows[1][2]) == -1.0  # the sign of a zero kept
 
-        def __init__(self) -> None:
-            self._lag = vec3.ZERO
 
-    h = Holder()
-    h.lag = np.array([0.1, -0.2, 0.3])
-    assert h._lag == (0.1, -0.2, 0.3) and all(type(x) is float for x in h._lag)
-    view = h.lag
-    view[0] = 5.0  # a new array: the holder's floats stay
-    assert h.lag.tolist() == [0.1, -0.2, 0.3]
+def test_a_support_lag_is_read_as_a_new_array() -> None:
+    follower = SupportFollower(BodyTopology.of(HumanModel.default()).foot_layout(
+        HumanModel.default().sites_of_kind("contact")), 0.2, 0.1, 0.4, 0.05, 0.1, 0.1)
+    follower.lag = np.array([0.1, -0.2, 0.3])
+    view = follower.lag
+    view[0] = 5.0  # a new array: the follower's floats stay
+    assert follower.lag.tolist() == [0.1, -0.2, 0.3]
 
 
 @pytest.mark.parametrize("weight", [0.0, 2.5])
