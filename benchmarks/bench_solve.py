@@ -128,8 +128,11 @@ def warm_table(repeat: int) -> float:
         timed_solve(out)  # warm-up: imports, native step functions, first calls
         runs = [timed_solve(out) for _ in range(repeat)]
     frames = int(runs[0]["n_frames"])
+    from ikfusion.native.typed_modules import enabled
+
+    modules = "compiled by mypyc" if enabled() else "Python (make typed compiles them)"
     print(f"ikfusion solve of opensense_walk ({frames} frames), warm process, {repeat} runs "
-          "after one warm-up")
+          f"after one warm-up; the solver's modules: {modules}")
     print(f"{'stage':12} {'best s':>8} {'median s':>8} {'share':>6}")
     best_total = min(r["total"] for r in runs)
     for stage in [*STAGES, "other", "total"]:
