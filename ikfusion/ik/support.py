@@ -31,7 +31,7 @@ from .fast_math import mean_rows
 from .point_bits import indices, point_bits
 from .support_motion import KeptClip, leaned, shrunk_lag, swing_toward
 from .swing_lead import LedBase, band_share, lead_targets
-from .vec3 import ZERO, Vec3, floats, rows_of_floats
+from .vec3 import ZERO, Vec3, floats
 
 
 class SupportFollower:
@@ -84,27 +84,15 @@ class SupportFollower:
         """Its lean toward the correction (3,) [m] (a new array)."""
         return np.array(self._lean)
 
-    @lean.setter
-    def lean(self, value: np.ndarray) -> None:
-        self._lean = floats(value)
-
     @property
     def swing(self) -> np.ndarray:
         """Each foot's swing offset (n, 3) [m] (a new array)."""
         return np.array(self._swing)
 
-    @swing.setter
-    def swing(self, value: np.ndarray) -> None:
-        self._swing = rows_of_floats(value)
-
     @property
     def landed(self) -> np.ndarray:
         """Swing offsets of the feet that touched down this frame, summed (3,) [m]."""
         return np.array(self._landed)
-
-    @landed.setter
-    def landed(self, value: np.ndarray) -> None:
-        self._landed = floats(value)
 
     def reset(self) -> None:
         """Forget the support, the lag and every offset."""

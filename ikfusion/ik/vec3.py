@@ -93,7 +93,3 @@ def floats(value: np.ndarray | Sequence[float]) -> Vec3:
     x, y, z = np.asarray(value, dtype=float).tolist()
     return (x, y, z)
 
-
-def rows_of_floats(value: np.ndarray | Sequence[Sequence[float]]) -> list[Vec3]:
-    """The rows of a (n, 3) array as :func:`floats` tuples, in a list."""
-    return [(x, y, z) for x, y, z in np.asarray(value, dtype=float).reshape(-1, 3).tolist()]
