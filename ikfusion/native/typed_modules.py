@@ -15,14 +15,16 @@ stale compiled code is never loaded (the Python modules are, until the next buil
 ``IKFUSION_NO_TYPED`` (or ``IKFUSION_NO_COMPILE``) keeps the Python modules; the test suite sets
 it, so that its checks that replace functions of these modules see their replacements.
 
-Left out on purpose: modules mypyc cannot compile (``ctypes`` structures; a dataclass derived
-from an interpreted one; :mod:`ikfusion.ik.fast_math`, :mod:`ikfusion.ik.compiled` and the joint
-ranges: internal errors), :class:`ikfusion.ik.configuration.Configuration`, which
-:mod:`ikfusion.retarget` derives from (compiled classes refuse interpreted subclasses), and its
-compiled subclass, and :mod:`ikfusion.ik.pose`, whose objects cross process boundaries in
-``batch``. No class here may be a descriptor (mypyc compiles ``__get__``/``__set__`` of a native
-class as plain methods: the attribute would silently stop being one). A module is added to
-:data:`MODULES` once the compiled solves are bit for bit the Python ones
+Left out on purpose: modules mypyc cannot compile (the kernels' ``ctypes`` structures, kept
+in :mod:`ikfusion.ik.kernel_arguments` for that; a dataclass derived from an interpreted one;
+:mod:`ikfusion.ik.fast_math`, :mod:`ikfusion.ik.compiled` and the joint ranges: internal
+errors), :class:`ikfusion.ik.configuration.Configuration`, which :mod:`ikfusion.retarget`
+derives from (compiled classes refuse interpreted subclasses), and its compiled subclass, and
+:mod:`ikfusion.ik.pose`, whose objects cross process boundaries in ``batch``. No class here may
+be a descriptor (mypyc compiles ``__get__``/``__set__`` of a native class as plain methods: the
+attribute would silently stop being one), and no module may find files from its ``__file__``
+(a compiled module's is in the cache: :func:`ikfusion.paths.module_source`). A module is added
+to :data:`MODULES` once the compiled solves are bit for bit the Python ones
 (``tests/test_typed_modules.py``, the motion clips of ``benchmarks/bench_motions.py``).
 """
 
@@ -42,22 +44,25 @@ from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
 
-from ..paths import user_cache_dir
+from ..paths import module_source, user_cache_dir
 
 #: The modules compiled (each compiles and keeps its results bit for bit, checked by the tests).
 MODULES: tuple[str, ...] = tuple(f"ikfusion.ik.{name}" for name in (
     "active_set", "anchor_carry", "anchor_settling", "assumed", "ballistic", "bound_function",
-    "casadi_kinematics", "compiled_blocks", "compiled_inputs", "compiled_joint_tasks",
-    "compiled_key", "compiled_points", "compiled_ranges", "compiled_sensed", "contact_flags",
-    "contact_thresholds", "contact_tracker", "contacts", "equality_qp", "foot_pairs",
-    "foot_pitch", "frame", "frame_problem", "frame_stance", "frame_targets", "handover",
-    "landing_lag", "landing_rules", "least_distance", "limits.base", "limits.contact",
-    "limits.shared_segment", "limits.soft_wall", "limits.velocity", "point_bits",
-    "point_evidence", "point_masks", "projection", "qp", "qp_backends", "release", "residuals",
-    "sensed_pose", "solver", "step_ranges", "support", "support_motion", "sweeping",
-    "swing_lead", "tasks.base", "tasks.chain", "tasks.column_shape", "tasks.damping",
-    "tasks.orientation", "tasks.position", "tasks.posture", "trunk_roll", "usual_release",
-    "vec3", "world_offset"))
+    "casadi_kinematics", "compiled", "compiled_blocks", "compiled_inputs", "compiled_joint_tasks",
+    "compiled_key", "compiled_points", "compiled_ranges", "compiled_sensed", "configuration",
+    "contact_clocks", "contact_flags", "contact_projection", "contact_thresholds",
+    "contact_tracker", "contacts", "equality_qp", "fast_math", "foot_pairs", "foot_pitch", "frame",
+    "frame_problem", "frame_stance", "frame_targets", "handover", "landing_lag", "landing_rules",
+    "least_distance", "limits.base", "limits.contact", "limits.joint_range",
+    "limits.shared_segment", "limits.soft_wall", "limits.velocity", "point_bits", "point_evidence",
+    "point_masks", "points_configuration", "projection", "qp", "qp_backends", "release",
+    "residuals", "sensed_evidence", "sensed_pose", "solver", "step_ranges", "step_rows", "support",
+    "support_motion", "sweeping", "swing_lead", "tasks.base", "tasks.chain", "tasks.column_shape",
+    "tasks.damping", "tasks.orientation", "tasks.position", "tasks.posture", "tree_solve",
+    "trunk_roll", "usual_release", "vec3", "wall_sink", "world_offset")) + (
+    "ikfusion.retarget.compiled_step",  # (its Configuration subclass: compiled with its base)
+)
 
 #: Set (to anything) to keep the Python modules.
 DISABLE = "IKFUSION_NO_TYPED"
@@ -68,17 +73,12 @@ MANIFEST = "modules.txt"
 _PACKAGE = Path(__file__).resolve().parents[1]  # the ikfusion package folder
 
 
-def source_path(module: str) -> Path:
-    """The ``.py`` file of ``module`` (a name under ``ikfusion``)."""
-    return _PACKAGE.parent.joinpath(*module.split(".")).with_suffix(".py")
-
-
 def build_key(modules: Sequence[str] = MODULES) -> str:
     """Hash of what a build depends on: Python, the platform and the modules' sources."""
     digest = hashlib.sha256(f"{sys.version} {platform.machine()} {sys.platform}".encode())
     for module in modules:
         digest.update(f"\0{module}\0".encode())
-        digest.update(source_path(module).read_bytes())
+        digest.update(module_source(module).read_bytes())
     return digest.hexdigest()[:20]
 
 
@@ -173,7 +173,7 @@ def build(modules: Sequence[str] = MODULES, quiet: bool = False) -> Path:
     folder.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
     try:
-        paths = [str(source_path(m).relative_to(_PACKAGE.parent)) for m in modules]
+        paths = [str(module_source(m).relative_to(_PACKAGE.parent)) for m in modules]
         if not quiet:
             print(f"ikfusion: compiling {len(modules)} modules with mypyc (once; about two "
                   f"minutes) into {folder} ...", file=sys.stderr, flush=True)

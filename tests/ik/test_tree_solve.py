@@ -24,10 +24,11 @@ from ikfusion.ik.tree_solve import (
 )
 from ikfusion.model import SENSOR_SEGMENTS, HumanModel
 from ikfusion.native.kernel import kernel_path, native_kernel
+from ikfusion.paths import module_source
 from ikfusion.sim.gait import GaitParameters, generate_gait
 from ikfusion.sim.truth import orientation_frames
 
-SOURCE = Path(tree_solve.__file__).with_name("tree_solve.c")
+SOURCE = module_source(tree_solve.__name__).with_name("tree_solve.c")
 
 
 @pytest.fixture(scope="module")
