@@ -44,6 +44,19 @@ def test_the_build_key_follows_each_source(monkeypatch: pytest.MonkeyPatch,
     assert typed.build_key(modules) != key  # an edited source: another build, never the stale one
 
 
+def test_only_the_newest_builds_are_kept(tmp_path: Path) -> None:
+    folders = [tmp_path / f"typed_{n}" for n in range(6)]
+    for age, folder in enumerate(folders):  # typed_0 the newest
+        (folder / "ikfusion").mkdir(parents=True)
+        os.utime(folder, (1e9 - age, 1e9 - age))
+    (tmp_path / "typed_other.so").write_bytes(b"")  # not a build folder
+    kept = folders[4]  # the one just built (an older mtime than two others)
+    removed = typed.prune_builds(kept, keep=3)
+    assert sorted(removed) == sorted(folders[2:4] + folders[5:])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["typed_0", "typed_1", "typed_4",
+                                                          "typed_other.so"]
+
+
 def _child_env(typed_on: bool) -> dict[str, str]:
     env = {k: v for k, v in os.environ.items() if k != typed.DISABLE}
     if not typed_on:
