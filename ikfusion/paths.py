@@ -10,6 +10,16 @@ from .errors import ConfigError
 _REPO_ROOT = Path(__file__).resolve().parent.parent
 
 
+def module_source(name: str) -> Path:
+    """The ``.py`` file of the ikfusion module ``name`` (a module's ``__name__``), as shipped.
+
+    Not ``module.__file__``: a module compiled by mypyc (:mod:`ikfusion.native.typed_modules`)
+    is loaded from the cache folder, its ``__file__`` the extension there. Files shipped beside a
+    module (a kernel's C source) are found from here: ``module_source(__name__).with_name(...)``.
+    """
+    return _REPO_ROOT.joinpath(*name.split(".")).with_suffix(".py")
+
+
 def configs_dir() -> Path:
     """Folder of the shipped YAML configurations (``configs/``)."""
     return _REPO_ROOT / "configs"

@@ -17,6 +17,7 @@ import types
 import typing
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
+from functools import cache
 from pathlib import Path
 from typing import Any, ClassVar, Self, TypeVar
 
@@ -70,7 +71,7 @@ def load_settings(cls: type[T], shipped: str | Path, what: str,
             the shipped file's, or a value of the wrong type; with file, line and key.
     """
     names = [f.name for f in fields(cls)]  # type: ignore[arg-type]
-    hints = typing.get_type_hints(cls)
+    hints = _type_hints(cls)  # type: ignore[arg-type]  # (a class is hashable)
     shipped_doc = read_yaml_document(shipped, what)
     values = _sections(shipped_doc, (), names, None)
     missing = [n for n in names if n not in values]
@@ -86,6 +87,12 @@ def load_settings(cls: type[T], shipped: str | Path, what: str,
         values[key] = _Value(value, values[key].section, None, None)
     checked = {name: _check(hints[name], values[name], name) for name in names}
     return cls(**checked)
+
+
+@cache
+def _type_hints(cls: type) -> dict[str, Any]:
+    """``cls``'s fields' types, resolved once a process (2 ms for the solver's settings)."""
+    return typing.get_type_hints(cls)
 
 
 class ShippedSettings:

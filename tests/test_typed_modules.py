@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 
 from ikfusion.native import typed_modules as typed
+from ikfusion.paths import module_source
 
 ROOM = Path(__file__).resolve().parents[1] / "configs" / "constellations" / "room_6x8.yaml"
 #: What differs between two solves of the same input by nature (wall-clock timings).
@@ -27,7 +28,7 @@ TIMED = {"solve_time.csv", "summary.json"}
 def test_every_module_compiled_has_its_source() -> None:
     assert len(set(typed.MODULES)) == len(typed.MODULES)
     for module in typed.MODULES:
-        assert typed.source_path(module).is_file(), module
+        assert module_source(module).is_file(), module
 
 
 def test_the_build_key_follows_each_source(monkeypatch: pytest.MonkeyPatch,
@@ -35,12 +36,25 @@ def test_the_build_key_follows_each_source(monkeypatch: pytest.MonkeyPatch,
     modules = typed.MODULES[:3]
     copies = {m: tmp_path / f"{m}.py" for m in modules}
     for m, copy in copies.items():
-        copy.write_bytes(typed.source_path(m).read_bytes())
-    monkeypatch.setattr(typed, "source_path", copies.__getitem__)
+        copy.write_bytes(module_source(m).read_bytes())
+    monkeypatch.setattr(typed, "module_source", copies.__getitem__)
     key = typed.build_key(modules)
     assert typed.build_key(modules) == key
     copies[modules[1]].write_bytes(copies[modules[1]].read_bytes() + b"\n")
     assert typed.build_key(modules) != key  # an edited source: another build, never the stale one
+
+
+def test_only_the_newest_builds_are_kept(tmp_path: Path) -> None:
+    folders = [tmp_path / f"typed_{n}" for n in range(6)]
+    for age, folder in enumerate(folders):  # typed_0 the newest
+        (folder / "ikfusion").mkdir(parents=True)
+        os.utime(folder, (1e9 - age, 1e9 - age))
+    (tmp_path / "typed_other.so").write_bytes(b"")  # not a build folder
+    kept = folders[4]  # the one just built (an older mtime than two others)
+    removed = typed.prune_builds(kept, keep=3)
+    assert sorted(removed) == sorted(folders[2:4] + folders[5:])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["typed_0", "typed_1", "typed_4",
+                                                          "typed_other.so"]
 
 
 def _child_env(typed_on: bool) -> dict[str, str]:

@@ -53,7 +53,7 @@ warning of the solve).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, ClassVar
 
 import casadi as ca
 import numpy as np
@@ -103,8 +103,8 @@ class CompiledKinematics:
     #: The names of the step function, the sensed-pose function, the points function, the
     #: step function without the sites (:attr:`function_no_sites`) and the one with only the
     #: points and the root (:attr:`function_points`).
-    FUNCTION_NAMES = ("ik_step_objective", "ik_sensed_pose", "ik_points", "ik_step_no_sites",
-                      "ik_step_points")
+    FUNCTION_NAMES: ClassVar[tuple[str, ...]] = (
+        "ik_step_objective", "ik_sensed_pose", "ik_points", "ik_step_no_sites", "ik_step_points")
 
     def __init__(self, model: pin.Model, segment_frames: Sequence[int],
                  ball_joints: Sequence[BallJoint], site_frames: Sequence[int],

@@ -18,20 +18,20 @@ identity downstream keep their rows.
 from __future__ import annotations
 
 import ctypes
-from pathlib import Path
 from typing import Protocol
 
 import numpy as np
 
 from ..model.topology import FootLayout
 from ..native.kernel import loaded_kernel
+from ..paths import module_source
 from .anchor_settling import settled_anchors
+from .kernel_arguments import ClockArguments
 from .point_bits import point_bits
 
 #: What is used when the kernel cannot be compiled (the end of the warning).
 FALLBACK = "NumPy moves the contact clocks on instead"
 _ROWS = 64  # outputs a block of memory holds
-_P, _I, _D, _L = ctypes.c_void_p, ctypes.c_int, ctypes.c_double, ctypes.c_longlong
 
 #: (released (k,) [s], age (k,) [s], anchors (k, 3) [m]) after a touch-down's step
 Clocks = tuple[np.ndarray, np.ndarray, np.ndarray]
@@ -70,14 +70,6 @@ def python_clocks(released: np.ndarray, age: np.ndarray, anchors: np.ndarray, wa
             settled_anchors(anchors, planted, drop, floor_z, layout))
 
 
-class _Clocks(ctypes.Structure):
-    """The kernel's arguments (``struct clocks`` of ``contact_clocks.c``)."""
-
-    _fields_ = [("released", _P), ("age", _P), ("anchors", _P), ("out", _P), ("was", _L),
-                ("k", _I), ("settle", _I), ("step", _D), ("drop", _D), ("floor_z", _D),
-                ("changed", _I)]
-
-
 class NativeClocks:
     """:func:`python_clocks` of k points in one kernel call (see the module docstring).
 
@@ -95,7 +87,7 @@ class NativeClocks:
 
     def __init__(self, library: ctypes.CDLL, k: int) -> None:
         self.k = k
-        self._args = _Clocks(0, 0, 0, 0, 0, k, 0, 0.0, 0.0, 0.0, 0)
+        self._args = ClockArguments(0, 0, 0, 0, 0, k, 0, 0.0, 0.0, 0.0, 0)
         self._at = ctypes.addressof(self._args)
         self._blocks, self._used, self._blocks_at = np.zeros((0, 5 * k)), 0, 0  # the outputs
         self._shares: tuple[FootLayout | None, int] = (None, 0)  # a layout's shares_segment
@@ -162,5 +154,5 @@ def contact_clocks(k: int) -> NativeClocks | None:
     """The native :func:`python_clocks` of k points; None without the kernel."""
     if not 0 < k <= 62:
         return None
-    library = loaded_kernel(Path(__file__).with_name("contact_clocks.c"), FALLBACK)
+    library = loaded_kernel(module_source(__name__).with_name("contact_clocks.c"), FALLBACK)
     return None if library is None else NativeClocks(library, k)

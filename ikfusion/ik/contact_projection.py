@@ -16,35 +16,22 @@ stays the reference (and the path without a C compiler or with ``IKFUSION_NO_COM
 from __future__ import annotations
 
 import ctypes
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
 from ..native.kernel import loaded_kernel
+from ..paths import module_source
 from .configuration import Configuration
+from .kernel_arguments import ProjectionArguments
 from .limits import ContactConstraint, FloorLimit
 from .native import compiled_library
 from .points_configuration import PointsConfiguration
 
-_P = ctypes.c_void_p
-_I, _D = ctypes.c_int, ctypes.c_double
 #: The kernel's answers (``contact_projection.c``).
 HELD, TO_QP, TO_PYTHON = 0, 1, 2
 #: What is used when the kernel cannot be compiled (the end of the warning).
 FALLBACK = "NumPy and Pinocchio project the frames onto their contacts instead"
-
-
-class _Projection(ctypes.Structure):
-    """``struct projection`` of ``contact_projection.c``."""
-
-    _fields_ = [("points", _P), ("arg", _P), ("res", _P), ("iw", _P), ("w", _P),
-                ("J_row", _P), ("J_col", _P), ("J_nnz", _I), ("J", _P),
-                ("n_points", _I), ("nq", _I), ("nv", _I), ("n_balls", _I), ("ball_q", _P),
-                ("ball_v", _P), ("active", _P), ("free_z", _P), ("anchors", _P),
-                ("enabled", _P), ("floor_z", _D), ("tolerance", _D), ("max_steps", _I),
-                ("q", _P), ("rows", _P), ("S", _P), ("y", _P), ("dq", _P), ("steps", _I),
-                ("floor_crossed", _I)]
 
 
 def _address(a: np.ndarray) -> int:
@@ -107,7 +94,7 @@ class NativeProjection:
         self._y = np.zeros(3 * n)
         self._dq = np.zeros(model.nv)
         function_pointer = ctypes.cast(getattr(points, name), ctypes.c_void_p).value
-        self.plan = _Projection(
+        self.plan = ProjectionArguments(
             function_pointer, ctypes.addressof(self._arg), ctypes.addressof(self._res),
             _address(self._iw), _address(self._w), _address(rows), _address(cols), len(rows),
             _address(self.J), n, model.nq, model.nv, len(balls[0]), _address(balls[0]),
@@ -166,5 +153,5 @@ def native_projection(conf: Configuration, contact: ContactConstraint
     balls = ball_joints(conf.model)
     if points is None or balls is None:
         return None
-    library = loaded_kernel(Path(__file__).with_name("contact_projection.c"), FALLBACK)
+    library = loaded_kernel(module_source(__name__).with_name("contact_projection.c"), FALLBACK)
     return None if library is None else NativeProjection(library, points, conf, balls)

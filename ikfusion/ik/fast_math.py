@@ -8,13 +8,26 @@ dominates on arrays of a few rows.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
-try:  # the C function behind ``np.count_nonzero(values)``: its Python wrapper costs 3x the count
-    from numpy._core.multiarray import count_nonzero as _count_nonzero
-except ImportError:  # NumPy 1
-    _count_nonzero = np.count_nonzero
+
+def _c_count_nonzero() -> Callable[[np.ndarray], Any]:
+    """The C function behind ``np.count_nonzero(values)`` (its Python wrapper costs 3x the count).
+
+    It returns a NumPy integer (hence ``Any``: compiled by mypyc, an ``int`` would refuse it);
+    found by a function rather than a guarded import, which mypyc cannot compile.
+    """
+    try:
+        from numpy._core.multiarray import count_nonzero
+    except ImportError:  # NumPy 1
+        return np.count_nonzero
+    return count_nonzero  # type: ignore[no-any-return]
+
+
+_count_nonzero = _c_count_nonzero()
 
 
 def row_norms(v: np.ndarray) -> np.ndarray:
@@ -29,7 +42,7 @@ def mean_rows(v: np.ndarray) -> np.ndarray:
 
 def min_of(values: np.ndarray) -> float:
     """The smallest entry of ``values`` (NaN if any; at least one entry): ``values.min()``."""
-    return np.minimum.reduce(values, axis=None)
+    return float(np.minimum.reduce(values, axis=None))
 
 
 def sum_of(values: np.ndarray) -> float:

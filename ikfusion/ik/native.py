@@ -29,6 +29,7 @@ from ..native import build as native_build
 from ..native.build import cache_dir as cache_dir  # re-exported (tree_solve, tests)
 from ..native.build import compile_shared, compiler_identity
 from ..native.build import find_compiler as find_compiler
+from ..paths import module_source
 from .bound_function import BoundFunction as BoundFunction  # re-exported (retarget uses them)
 from .bound_function import column_major as column_major
 
@@ -61,12 +62,11 @@ def generator_fingerprint() -> str:
     )
 
     digest = hashlib.sha256()
-    for module in (compiled.__file__, compiled_sensed.__file__, compiled_points.__file__,
-                   casadi_kinematics.__file__, compiled_ranges.__file__,
-                   compiled_joint_tasks.__file__, compiled_blocks.__file__, __file__,
-                   native_build.__file__,
-                   rotations_casadi.__file__, numpy_rotations.__file__):
-        digest.update(Path(str(module)).read_bytes())
+    for module in (compiled.__name__, compiled_sensed.__name__, compiled_points.__name__,
+                   casadi_kinematics.__name__, compiled_ranges.__name__,
+                   compiled_joint_tasks.__name__, compiled_blocks.__name__, __name__,
+                   native_build.__name__, rotations_casadi.__name__, numpy_rotations.__name__):
+        digest.update(module_source(module).read_bytes())  # (a compiled module's, not its .so)
     return digest.hexdigest()
 
 

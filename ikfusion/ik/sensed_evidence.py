@@ -14,19 +14,19 @@ from __future__ import annotations
 
 import ctypes
 from collections.abc import Sequence
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
 from ..native.kernel import loaded_kernel
+from ..paths import module_source
 from .fast_math import min_of
+from .kernel_arguments import SensedArguments
 from .point_bits import above, below_above
 from .point_evidence import tilted_of
 
 #: What is used when the kernel cannot be compiled (the end of the warning).
 FALLBACK = "NumPy smooths the sensed contact points instead"
-_P, _I, _D, _L = ctypes.c_void_p, ctypes.c_int, ctypes.c_double, ctypes.c_longlong
 #: :class:`NativeSensing`'s frames a block of output memory (a block of 14 points: 77 kB)
 FRAMES_A_BLOCK = 64
 
@@ -97,16 +97,6 @@ def python_evidence(rules: Rules, p_old: np.ndarray, pitch_old: np.ndarray, p_ne
                   tilted)
 
 
-class _Sensed(ctypes.Structure):
-    """The kernel's arguments (``struct sensed`` of ``sensed_evidence.c``)."""
-
-    _fields_ = [("p_new", _P), ("pitch_new", _P), ("p_old", _P), ("pitch_old", _P),
-                ("out", _P), ("rest", _P), ("heels", _P), ("toes", _P), ("n_rest", _I),
-                ("n_heels", _I), ("n_toes", _I), ("k", _I), ("a", _D), ("b", _D), ("dt", _D),
-                ("far", _D), ("enter", _D), ("leave", _D), ("tilt", _D), ("far_bits", _L),
-                ("low", _L), ("high", _L), ("tilted", _L)]
-
-
 class NativeSensing:
     """:func:`python_evidence` of k points in one kernel call (see the module docstring).
 
@@ -127,10 +117,10 @@ class NativeSensing:
         self._p_old, self._pitch_old = np.zeros((k, 3)), np.zeros(k)  # an outside start
         self._rows = [np.array(r, dtype=np.intc) for r in (rules.rest, rules.heels, rules.toes)]
         rows = [int(r.ctypes.data) for r in self._rows]
-        self._args = _Sensed(int(self._p_new.ctypes.data), int(self._pitch_new.ctypes.data),
-                             0, 0, 0, *rows, *(len(r) for r in self._rows), k, rules.a,
-                             1.0 - rules.a, 0.0, rules.far, rules.enter, rules.leave, rules.tilt,
-                             0, 0, 0, 0)
+        self._args = SensedArguments(
+            int(self._p_new.ctypes.data), int(self._pitch_new.ctypes.data), 0, 0, 0, *rows,
+            *(len(r) for r in self._rows), k, rules.a, 1.0 - rules.a, 0.0, rules.far,
+            rules.enter, rules.leave, rules.tilt, 0, 0, 0, 0)
         self._old_at = (int(self._p_old.ctypes.data), int(self._pitch_old.ctypes.data))
         self._at = ctypes.addressof(self._args)
         #: the last call's smoothed points and pitches, and their block's address
@@ -188,5 +178,5 @@ def sensing(rules: Rules, k: int) -> NativeSensing | None:
     """The native :func:`python_evidence` (:class:`NativeSensing`); None without the kernel."""
     if not 0 < k <= 62:
         return None
-    library = loaded_kernel(Path(__file__).with_name("sensed_evidence.c"), FALLBACK)
+    library = loaded_kernel(module_source(__name__).with_name("sensed_evidence.c"), FALLBACK)
     return None if library is None else NativeSensing(library, rules, k)

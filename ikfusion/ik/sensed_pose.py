@@ -56,7 +56,6 @@ class SensedPose:
             self.toe_flexion[k] = (axis, np.radians(flex.lower_deg), np.radians(flex.upper_deg))
         self.segment_frames = list(segment_frames)
         self.contact_frames = list(contact_frames)
-        self._data = pin.Data(model.model)
         self._compiled: _CompiledPose | None = None
 
     def spec(self) -> SensedPoseSpec:
@@ -143,7 +142,7 @@ class SensedPose:
 
     def contact_positions(self, q: np.ndarray) -> np.ndarray:
         """The contact points (c, 3) [m] at ``q``."""
-        data = self._data
+        data = self.model.data  # (the model's scratch Data: not one more, 13 MB to fault in)
         pin.forwardKinematics(self.model.model, data, q)
         return np.array([pin.updateFramePlacement(self.model.model, data, f).translation
                          for f in self.contact_frames]).reshape(-1, 3)
@@ -154,7 +153,7 @@ class SensedPose:
 
         ``Log(R_world_sensed^T R_world_solved)`` (m, 3) [rad], in the segment frames.
         """
-        data = self._data
+        data = self.model.data
         pin.forwardKinematics(self.model.model, data, q)
         ids = [self.segment_frames[i] for i in segments]
         R_solved = np.array([pin.updateFramePlacement(self.model.model, data, f).rotation

@@ -61,7 +61,7 @@ class RateRows:
         """``G`` and the rooms of the evaluated ``step`` (arrays read in place)."""
         read_from, ranges = self._read
         if read_from is not step or ranges is None:
-            ranges = LinearisedRanges.stacked(step.output(_G), step.vectors(_UP, 2))
+            ranges = LinearisedRanges(step.output(_G), step.vectors(_UP, 2))
             self._read = (step, ranges)
             return ranges
         step.output(_G)  # G's nonzeros scattered into the array that ``ranges`` holds
@@ -81,7 +81,7 @@ def evaluated_ranges(step: BoundFunction, rate_rows: RateRows | None,
         limits: The ranges of motion.
     """
     if rate_rows is None:
-        return limits.softened(LinearisedRanges.stacked(step.output(_G), step.vectors(_UP, 2)))
+        return limits.softened(LinearisedRanges(step.output(_G), step.vectors(_UP, 2)))
     return limits.softened(rate_rows.ranges(step), rate_rows.still(step.nonzeros(_G)))
 
 

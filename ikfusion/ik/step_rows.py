@@ -17,15 +17,16 @@ from __future__ import annotations
 
 import ctypes
 from operator import is_
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import casadi as ca
 import numpy as np
 
 from ..native.kernel import ArrayAddresses, loaded_kernel
+from ..paths import module_source
 from .bound_function import BoundFunction
 from .compiled import MIRRORED, CompiledKinematics
+from .kernel_arguments import StepPlan, StepPoints
 from .limits.base import Inequality
 from .limits.joint_range import LinearisedRanges
 from .qp import QpBuffer, QpProblem
@@ -36,34 +37,10 @@ if TYPE_CHECKING:
     from .frame_problem import FrameTasks
     from .limits.velocity import VelocityLimit
 
-_P = ctypes.c_void_p
-_I, _D = ctypes.c_int, ctypes.c_double
 #: What is used when the kernel cannot be compiled (the end of the warning).
 FALLBACK = "NumPy writes the steps' QPs instead"
 #: The most swing points the kernel takes (its stack arrays); more: the NumPy path.
 MAX_SWING = 64
-
-
-class _Points(ctypes.Structure):
-    """``struct points`` of ``step_rows.c``."""
-
-    _fields_ = [("on", _I), ("count", _I), ("scale", _D), ("weight", _P), ("targets", _P)]
-
-
-class _Plan(ctypes.Structure):
-    """``struct step_rows`` of ``step_rows.c``."""
-
-    _fields_ = [("H_nz", _P), ("H_flat", _P), ("H_nnz", _I), ("c_nz", _P), ("c_flat", _P),
-                ("c_nnz", _I), ("P", _P),
-                ("J_nz", _P), ("J_ptr", _P), ("J_col", _P), ("J_at", _P),
-                ("G_nz", _P), ("G_flat", _P), ("G_nnz", _I), ("G", _P), ("rate_rows", _P),
-                ("rooms_raw", _P), ("contact_site", _P), ("nv", _I), ("angles", _I),
-                ("root_site", _I), ("rooms", _P), ("close", _P), ("packed", _P), ("work", _P),
-                ("n_up", _I), ("wall_room", _P), ("margin", _D), ("floor_rows", _P),
-                ("n_floor", _I), ("floor_z", _D), ("held_rows", _P), ("n_held", _I),
-                ("anchors", _P), ("root_on", _I), ("root_weight", _D), ("root_target", _P),
-                ("site_task", _Points), ("swing", _Points), ("damping", _P), ("moved", _P),
-                ("levenberg_marquardt", _D), ("span", _P), ("bounds", _P)]
 
 
 def _address(a: np.ndarray) -> int:
@@ -138,12 +115,12 @@ class StepFunctionRows:
         self.wall_room_at = _address(self.wall_room)
         n_sites = function.size1_out(5) // 3 - 1  # (and the root)
         # each position task's weights and targets copied here: (weights, targets, struct)
-        self.site_task = (np.zeros(n_sites), np.zeros((n_sites, 3)), _Points(0, n_sites))
+        self.site_task = (np.zeros(n_sites), np.zeros((n_sites, 3)), StepPoints(0, n_sites))
         self.swing = (np.zeros(len(contact_site)), np.zeros((len(contact_site), 3)),
-                      _Points(0, len(contact_site)))
+                      StepPoints(0, len(contact_site)))
         self.rooms_raw = step.vectors(8, 2)
         self.room_up_raw = self.rooms_raw[0]
-        self.plan = _Plan(
+        self.plan = StepPlan(
             _address(step.nonzeros(0)), _address(H_flat), function.nnz_out(0),
             _address(step.nonzeros(1)), _address(c_flat), len(c_flat), _address(P),
             _address(step.nonzeros(6)), _address(J_ptr), _address(J_col), _address(J_at),
@@ -162,13 +139,13 @@ class StepFunctionRows:
         # the damping weights, velocity span and bounds arrays whose addresses the plan holds
         self.read_arrays: tuple[np.ndarray | None, ...] = (None, None, None)
         # the ranges every step returns: its rows and rooms, written in place by each step
-        self.ranges = LinearisedRanges.stacked(self.G, self.rooms)
+        self.ranges = LinearisedRanges(self.G, self.rooms)
         self.kernel = library.ik_step_rows
         self.kernel.restype = ctypes.c_int
         self.kernel.argtypes = [ctypes.c_void_p]
 
 
-    def set_points(self, points: tuple[np.ndarray, np.ndarray, _Points],
+    def set_points(self, points: tuple[np.ndarray, np.ndarray, StepPoints],
                    task: PositionTask | None, weights: np.ndarray | None) -> None:
         """A position task's rows on (its weight, the weights and targets copied) or off."""
         points[2].on = task is not None
@@ -342,6 +319,6 @@ def step_rows(buffer: QpBuffer, rate_rows: np.ndarray | None, contact_rows: np.n
     """The native step writer, or None without the kernel (or without ``rate_rows``)."""
     if rate_rows is None or len(contact_rows) > MAX_SWING:
         return None
-    library = loaded_kernel(Path(__file__).with_name("step_rows.c"), FALLBACK)
+    library = loaded_kernel(module_source(__name__).with_name("step_rows.c"), FALLBACK)
     return None if library is None else StepRows(library, buffer, rate_rows, contact_rows,
                                                  margin)

@@ -16,14 +16,15 @@ keeping to it.
 from __future__ import annotations
 
 import ctypes
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
 from ..native.kernel import ArrayAddresses, loaded_kernel
+from ..paths import module_source
 from .equality_qp import DEPENDENT_ROWS
+from .kernel_arguments import ActiveRows, TreePlan
 
 if TYPE_CHECKING:
     from .limits.joint_range import LinearisedRanges
@@ -36,11 +37,19 @@ SOLVED, CROSSES, FAILED, NOT_TREE, NOT_FINITE, GOES_ON = 0, 1, 2, 3, 4, 5
 def column_parents(model: pin.Model) -> np.ndarray:
     """(nv,) the parent of each tangent column in the kinematic tree (-1 for the first).
 
-    Pinocchio's ``Data.parents_fromRow`` (the row structure its own sparse Cholesky of the
-    joint-space inertia factors on): a joint's columns form a chain, its first column's parent
-    is the last column of its parent joint.
+    What Pinocchio's ``Data.parents_fromRow`` holds (the row structure its own sparse Cholesky
+    of the joint-space inertia factors on), from the model's tree alone (building a ``Data``
+    costs milliseconds): a joint's columns form a chain, its first column's parent is the last
+    column of its parent joint (-1 under the universe).
     """
-    return np.array(pin.Data(model).parents_fromRow, dtype=int)
+    parents = np.full(model.nv, -1, dtype=int)
+    for joint in range(1, model.njoints):
+        first, count = model.idx_vs[joint], model.nvs[joint]
+        parent = model.parents[joint]
+        if count:
+            parents[first] = model.idx_vs[parent] + model.nvs[parent] - 1 if parent else -1
+            parents[first + 1:first + count] = np.arange(first, first + count - 1)
+    return parents
 
 
 def ancestors(parents: np.ndarray) -> list[list[int]]:
@@ -55,24 +64,6 @@ def ancestors(parents: np.ndarray) -> list[list[int]]:
 
 #: What is used when the kernel cannot be compiled (the end of the warning).
 FALLBACK = "LAPACK solves the closed-form steps instead"
-
-class _Plan(ctypes.Structure):
-    """What the kernel keeps from call to call (``struct plan`` of ``tree_solve.c``)."""
-
-    _fields_ = [("ptr", ctypes.c_void_p), ("anc", ctypes.c_void_p), ("off", ctypes.c_void_p),
-                ("x", ctypes.c_void_p), ("work", ctypes.c_void_p),
-                ("dependent_rows", ctypes.c_double), ("n", ctypes.c_int),
-                ("n_off", ctypes.c_int)]
-
-
-class _Active(ctypes.Structure):
-    """The limit rows left out of a step's QP (``struct active`` of ``tree_solve.c``)."""
-
-    _fields_ = [("G", ctypes.c_void_p), ("rooms", ctypes.c_void_p), ("bounds", ctypes.c_void_p),
-                ("up", ctypes.c_void_p), ("down", ctypes.c_void_p),
-                ("tolerance", ctypes.c_double), ("angles", ctypes.c_int),
-                ("has_bounds", ctypes.c_int)]
-
 
 class TreeClosedForm:
     """The native closed-form step of one model (:func:`tree_closed_form`).
@@ -98,8 +89,8 @@ class TreeClosedForm:
         self.x = np.zeros(n)
         self._work = np.zeros(0)
         self._work_rows = -1  # the most equality rows the work array was sized for
-        self._plan = _Plan(self._ptr.ctypes.data, self._anc.ctypes.data, self._off.ctypes.data,
-                           self.x.ctypes.data, None, DEPENDENT_ROWS, n, len(self._off))
+        self._plan = TreePlan(self._ptr.ctypes.data, self._anc.ctypes.data, self._off.ctypes.data,
+                              self.x.ctypes.data, None, DEPENDENT_ROWS, n, len(self._off))
         self._plan_at = ctypes.addressof(self._plan)
         self._kernel = library.ik_tree_closed_form
         self._kernel.restype = ctypes.c_int
@@ -118,7 +109,7 @@ class TreeClosedForm:
         self._rooms = np.zeros((2, 0))
         self._in_qp = np.zeros((2, 0), dtype=bool)
         self._bounds = np.zeros((2, n))
-        self._active = _Active(None, None, self._bounds.ctypes.data, None, None, 0.0, 0, 0)
+        self._active = ActiveRows(None, None, self._bounds.ctypes.data, None, None, 0.0, 0, 0)
         self._active_at = ctypes.addressof(self._active)
         self._G: np.ndarray | None = None  # the range rows' G the kernel reads (kept alive)
         # the caller's rooms and masks, and bounds, the kernel reads in place (kept alive, so
@@ -329,5 +320,5 @@ def tree_closed_form(model: pin.Model) -> TreeClosedForm | None:
     None without a C compiler, with ``IKFUSION_NO_COMPILE``, or after a failed build
     (:func:`ikfusion.native.kernel.kernel_warnings` says why): LAPACK solves the closed form then.
     """
-    library = loaded_kernel(Path(__file__).with_name("tree_solve.c"), FALLBACK)
+    library = loaded_kernel(module_source(__name__).with_name("tree_solve.c"), FALLBACK)
     return None if library is None else TreeClosedForm(library, column_parents(model))

@@ -11,22 +11,15 @@ caller keeps its NumPy path.
 from __future__ import annotations
 
 import ctypes
-from pathlib import Path
 
 import numpy as np
 
 from ..native.kernel import loaded_kernel
+from ..paths import module_source
+from .kernel_arguments import WallArguments
 
 #: What is used when the kernel cannot be compiled (the end of the warning).
 FALLBACK = "NumPy computes the soft wall's sink instead"
-
-
-class _Wall(ctypes.Structure):
-    """The kernel's arguments (``struct wall`` of ``wall_sink.c``)."""
-
-    _fields_ = [("now", ctypes.c_void_p), ("before", ctypes.c_void_p),
-                ("limit", ctypes.c_void_p), ("sunk", ctypes.c_void_p),
-                ("grow", ctypes.c_double), ("drift", ctypes.c_double), ("count", ctypes.c_int)]
 
 
 class WallSink:
@@ -47,8 +40,9 @@ class WallSink:
         #: The last sink (2, joints, 3) [rad] (overwritten by the next call).
         self.sunk = np.zeros(self._limit.shape)
         a, b = (int(x.ctypes.data) for x in self._angles)
-        self._args = tuple(_Wall(now, before, self._limit.ctypes.data, self.sunk.ctypes.data,
-                                 0.0, 0.0, count) for now, before in ((a, b), (b, a)))
+        self._args = tuple(WallArguments(now, before, self._limit.ctypes.data,
+                                         self.sunk.ctypes.data, 0.0, 0.0, count)
+                           for now, before in ((a, b), (b, a)))
         self._at = tuple(ctypes.addressof(arg) for arg in self._args)
         self._turn = 0  # the buffer the next angles go to
         self._kernel = library.ik_wall_sink
@@ -76,5 +70,5 @@ class WallSink:
 
 def wall_sink(limit: np.ndarray) -> WallSink | None:
     """The native sink of ``limit`` (:class:`WallSink`); None without the kernel."""
-    library = loaded_kernel(Path(__file__).with_name("wall_sink.c"), FALLBACK)
+    library = loaded_kernel(module_source(__name__).with_name("wall_sink.c"), FALLBACK)
     return None if library is None else WallSink(library, limit)

@@ -115,7 +115,12 @@ class HumanModel:
 
     @property
     def data(self) -> pin.Data:
-        """The internal ``pinocchio.Data`` of the convenience queries (created on first use)."""
+        """The internal ``pinocchio.Data`` of the convenience queries (created on first use).
+
+        Also the scratch of :class:`ikfusion.ik.sensed_pose.SensedPose`: whoever uses it runs
+        the kinematics it reads first. One Data is enough: Pinocchio sizes its second-order
+        tensors by ``nv`` cubed (13 MB for the human model, 8 ms of page faults to build).
+        """
         if self._data is None:
             self._data = pin.Data(self.model)
         return self._data

@@ -2,8 +2,9 @@
 
 A frame of the solve is mostly Python glue between small native calls (the contact tracking, the
 targets, the assembly of the QP): about 300 us of interpreter work on the real walk. mypyc
-compiles the same typed modules (:data:`MODULES`) to C extension modules: the solve loop of the
-real walk runs about 12-15 % faster end to end, and the results are bit for bit the same (IEEE
+compiles the same typed modules (:data:`MODULES`) to C extension modules: a warm solve of the
+real walk takes 11 % fewer instructions (the whole command, reading and writing included), and
+the results are bit for bit the same (IEEE
 double arithmetic either way, the same operations in the same order; the tests compare both).
 
 Opt-in for now: ``make typed`` (``python -m ikfusion.native.compile_typed``) builds them (about
@@ -15,13 +16,19 @@ stale compiled code is never loaded (the Python modules are, until the next buil
 ``IKFUSION_NO_TYPED`` (or ``IKFUSION_NO_COMPILE``) keeps the Python modules; the test suite sets
 it, so that its checks that replace functions of these modules see their replacements.
 
-Left out on purpose: modules mypyc cannot compile (``ctypes`` structures; a dataclass derived
-from an interpreted one; :mod:`ikfusion.ik.fast_math`, :mod:`ikfusion.ik.compiled` and the joint
-ranges: internal errors), :class:`ikfusion.ik.configuration.Configuration`, which
-:mod:`ikfusion.retarget` derives from (compiled classes refuse interpreted subclasses), and its
-compiled subclass, and :mod:`ikfusion.ik.pose`, whose objects cross process boundaries in
-``batch``. No class here may be a descriptor (mypyc compiles ``__get__``/``__set__`` of a native
-class as plain methods: the attribute would silently stop being one). A module is added to
+What mypyc needs of a module (each learnt from a build or a compiled solve that failed):
+no ``ctypes.Structure`` subclass (the kernels' are in :mod:`ikfusion.ik.kernel_arguments`,
+which stays Python), no guarded import of a name (:mod:`ikfusion.ik.fast_math` finds its
+function by a function), no ``cls.__new__``, class constants marked ``ClassVar``, no
+interpreted subclass of a compiled class (retarget's :class:`CompiledConfiguration` is compiled
+with its base), no descriptor class (mypyc compiles ``__get__``/``__set__`` of a native class as
+plain methods: the attribute would silently stop being one), no file found from ``__file__``
+(a compiled module's is in the cache: :func:`ikfusion.paths.module_source`), and annotations
+that hold: compiled, an ``int``, ``float`` or ``bool`` refuses NumPy's scalars (``Any`` where a
+NumPy scalar comes). Left out: :mod:`ikfusion.ik.settings` (a dataclass derived from an
+interpreted one), :mod:`ikfusion.ik.native` (run once per process), and
+:mod:`ikfusion.ik.pose` with :mod:`ikfusion.rotations`, which compile and keep the results but
+save 0.2 % of a solve's instructions (not worth their use everywhere). A module is added to
 :data:`MODULES` once the compiled solves are bit for bit the Python ones
 (``tests/test_typed_modules.py``, the motion clips of ``benchmarks/bench_motions.py``).
 """
@@ -42,25 +49,31 @@ from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
 
-from ..paths import user_cache_dir
+from ..paths import module_source, user_cache_dir
 
 #: The modules compiled (each compiles and keeps its results bit for bit, checked by the tests).
 MODULES: tuple[str, ...] = tuple(f"ikfusion.ik.{name}" for name in (
     "active_set", "anchor_carry", "anchor_settling", "assumed", "ballistic", "bound_function",
-    "casadi_kinematics", "compiled_blocks", "compiled_inputs", "compiled_joint_tasks",
-    "compiled_key", "compiled_points", "compiled_ranges", "compiled_sensed", "contact_flags",
-    "contact_thresholds", "contact_tracker", "contacts", "equality_qp", "foot_pairs",
-    "foot_pitch", "frame", "frame_problem", "frame_stance", "frame_targets", "handover",
-    "landing_lag", "landing_rules", "least_distance", "limits.base", "limits.contact",
-    "limits.shared_segment", "limits.soft_wall", "limits.velocity", "point_bits",
-    "point_evidence", "point_masks", "projection", "qp", "qp_backends", "release", "residuals",
-    "sensed_pose", "solver", "step_ranges", "support", "support_motion", "sweeping",
-    "swing_lead", "tasks.base", "tasks.chain", "tasks.column_shape", "tasks.damping",
-    "tasks.orientation", "tasks.position", "tasks.posture", "trunk_roll", "usual_release",
-    "vec3", "world_offset"))
+    "casadi_kinematics", "compiled", "compiled_blocks", "compiled_inputs", "compiled_joint_tasks",
+    "compiled_key", "compiled_points", "compiled_ranges", "compiled_sensed", "configuration",
+    "contact_clocks", "contact_flags", "contact_projection", "contact_thresholds",
+    "contact_tracker", "contacts", "equality_qp", "fast_math", "foot_pairs", "foot_pitch", "frame",
+    "frame_problem", "frame_stance", "frame_targets", "handover", "landing_lag", "landing_rules",
+    "least_distance", "limits.base", "limits.contact", "limits.joint_range",
+    "limits.shared_segment", "limits.soft_wall", "limits.velocity", "point_bits", "point_evidence",
+    "point_masks", "points_configuration", "projection", "qp", "qp_backends", "release",
+    "residuals", "sensed_evidence", "sensed_pose", "solver", "step_ranges", "step_rows", "support",
+    "support_motion", "sweeping", "swing_lead", "tasks.base", "tasks.chain", "tasks.column_shape",
+    "tasks.damping", "tasks.orientation", "tasks.position", "tasks.posture", "tree_solve",
+    "trunk_roll", "usual_release", "vec3", "wall_sink", "world_offset")) + (
+    "ikfusion.retarget.compiled_step",  # (its Configuration subclass: compiled with its base)
+)
 
 #: Set (to anything) to keep the Python modules.
 DISABLE = "IKFUSION_NO_TYPED"
+
+#: Builds kept in the cache folder (the newest; :func:`prune_builds`).
+KEPT_BUILDS = 3
 
 #: The build folder's list of ``module-name relative-path`` lines, written last.
 MANIFEST = "modules.txt"
@@ -68,17 +81,12 @@ MANIFEST = "modules.txt"
 _PACKAGE = Path(__file__).resolve().parents[1]  # the ikfusion package folder
 
 
-def source_path(module: str) -> Path:
-    """The ``.py`` file of ``module`` (a name under ``ikfusion``)."""
-    return _PACKAGE.parent.joinpath(*module.split(".")).with_suffix(".py")
-
-
 def build_key(modules: Sequence[str] = MODULES) -> str:
     """Hash of what a build depends on: Python, the platform and the modules' sources."""
     digest = hashlib.sha256(f"{sys.version} {platform.machine()} {sys.platform}".encode())
     for module in modules:
         digest.update(f"\0{module}\0".encode())
-        digest.update(source_path(module).read_bytes())
+        digest.update(module_source(module).read_bytes())
     return digest.hexdigest()[:20]
 
 
@@ -173,7 +181,7 @@ def build(modules: Sequence[str] = MODULES, quiet: bool = False) -> Path:
     folder.parent.mkdir(mode=0o700, parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
     try:
-        paths = [str(source_path(m).relative_to(_PACKAGE.parent)) for m in modules]
+        paths = [str(module_source(m).relative_to(_PACKAGE.parent)) for m in modules]
         if not quiet:
             print(f"ikfusion: compiling {len(modules)} modules with mypyc (once; about two "
                   f"minutes) into {folder} ...", file=sys.stderr, flush=True)
@@ -183,9 +191,25 @@ def build(modules: Sequence[str] = MODULES, quiet: bool = False) -> Path:
             tail = "\n".join((done.stdout + done.stderr).strip().splitlines()[-5:])
             raise RuntimeError(f"mypyc build failed:\n{tail}")
         _install(work / "lib", folder)
+        prune_builds(folder)
         return folder
     finally:
         shutil.rmtree(work, ignore_errors=True)
+
+
+def prune_builds(kept: Path, keep: int = KEPT_BUILDS) -> list[Path]:
+    """Remove the oldest builds beside ``kept`` beyond the ``keep`` newest (``kept`` stays).
+
+    Each edit of a compiled module's source makes another build (6-8 MB); a few are kept for
+    other checkouts or Python versions sharing the cache. A process still running on a removed
+    build is unharmed (its extension modules stay mapped). Returns the folders removed.
+    """
+    builds = sorted((f for f in kept.parent.glob("typed_*") if f.is_dir() and f != kept),
+                    key=lambda f: f.stat().st_mtime, reverse=True)
+    removed = builds[max(keep - 1, 0):]
+    for folder in removed:
+        shutil.rmtree(folder, ignore_errors=True)
+    return removed
 
 
 def _install(lib: Path, folder: Path) -> None:

@@ -18,7 +18,6 @@ from __future__ import annotations
 import hashlib
 from collections.abc import Iterable, Sequence
 from functools import lru_cache
-from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -36,6 +35,7 @@ from ..ik.compiled import structure_key
 from ..ik.configuration import Configuration
 from ..ik.native import BoundFunction, cached_functions, column_major, native_functions
 from ..ik.tasks import OrientationTask, PositionTask
+from ..paths import module_source
 from ..rotations_casadi import left_jacobian_inverse, log_so3
 from .capsules import WITNESS_ENDS, CapsulePairs, closest_points_sx
 
@@ -276,8 +276,8 @@ def _generator_fingerprint() -> str:
     from . import capsules
 
     digest = hashlib.sha256()
-    for module in (__file__, capsules.__file__):
-        digest.update(Path(str(module)).read_bytes())
+    for module in (__name__, capsules.__name__):
+        digest.update(module_source(module).read_bytes())
     return digest.hexdigest()
 
 

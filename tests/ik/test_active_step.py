@@ -72,7 +72,7 @@ def _step(rng: np.random.Generator, model: HumanModel, tree: TreeClosedForm
     floor = Inequality(p.G[-1:].copy(), p.h[-1:].copy())
     span = rng.uniform(0.05, 1.0)
     bounds = (np.full(n, -span), np.full(n, span))
-    return p, LimitRows(LinearisedRanges.stacked(G, rooms), up, down, floor, bounds)
+    return p, LimitRows(LinearisedRanges(G, rooms), up, down, floor, bounds)
 
 
 def _both(p: QpProblem, rows: LimitRows, monkeypatch: pytest.MonkeyPatch

@@ -79,7 +79,7 @@ def test_rows_added_by_the_active_set_are_checked_not_the_stale_packing() -> Non
 
     H = np.eye(NV)
     c = -np.ones(NV)  # unconstrained step: dq = 1 in every column
-    ranges = LinearisedRanges(np.eye(NV)[:2], np.array([0.5, 2.0]), np.array([2.0, 2.0]))
+    ranges = LinearisedRanges(np.eye(NV)[:2], np.array([[0.5, 2.0], [2.0, 2.0]]))
     up, down = np.zeros(2, dtype=bool), np.zeros(2, dtype=bool)
     floor = Inequality(np.zeros((0, NV)), np.zeros(0))
     problem = QpBuffer(NV).assemble(H, c, [], [], None, 0.0)

@@ -9,6 +9,7 @@ import subprocess
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 import ikfusion.ik.tree_solve as tree_solve
@@ -24,10 +25,11 @@ from ikfusion.ik.tree_solve import (
 )
 from ikfusion.model import SENSOR_SEGMENTS, HumanModel
 from ikfusion.native.kernel import kernel_path, native_kernel
+from ikfusion.paths import module_source
 from ikfusion.sim.gait import GaitParameters, generate_gait
 from ikfusion.sim.truth import orientation_frames
 
-SOURCE = Path(tree_solve.__file__).with_name("tree_solve.c")
+SOURCE = module_source(tree_solve.__name__).with_name("tree_solve.c")
 
 
 @pytest.fixture(scope="module")
@@ -46,6 +48,13 @@ def _related(model: HumanModel) -> np.ndarray:
     return np.array([[int(joint_of[a]) in supports[int(joint_of[k])]
                       or int(joint_of[k]) in supports[int(joint_of[a])] for a in range(m.nv)]
                      for k in range(m.nv)])
+
+
+@pytest.mark.parametrize("build", ["human", "buildSampleModelHumanoidRandom",
+                                   "buildSampleModelHumanoid", "buildSampleModelManipulator"])
+def test_the_column_parents_are_pinocchios_row_parents(model: HumanModel, build: str) -> None:
+    m = model.model if build == "human" else getattr(pin, build)()
+    np.testing.assert_array_equal(column_parents(m), np.array(pin.Data(m).parents_fromRow))
 
 
 def test_the_column_tree_is_pinocchios_joint_tree(model: HumanModel) -> None:

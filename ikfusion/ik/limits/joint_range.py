@@ -127,8 +127,7 @@ class JointRangeLimit:
         """
         room = self.wall_room(ranges.G, ranges.room_up)
         if room is not None:  # both limits' rooms at once
-            ranges = LinearisedRanges.stacked(ranges.G,
-                                              ranges.rooms + room.reshape(ranges.rooms.shape))
+            ranges = LinearisedRanges(ranges.G, ranges.rooms + room.reshape(ranges.rooms.shape))
         return ranges.without_still_angles(still)
 
     def wall_room(self, G: np.ndarray, room_up: np.ndarray) -> np.ndarray | None:
@@ -199,7 +198,7 @@ class JointRangeLimit:
         G = np.zeros((a.size, nv))  # row 3j + m: angle m of joint j per unit tangent step
         G[self._rows, self._cols] = Einv.reshape(-1)
         rooms = np.stack((self.upper - a, a - self.lower)).reshape(2, -1)
-        return LinearisedRanges.stacked(G, rooms)
+        return LinearisedRanges(G, rooms)
 
 
 def finite_rates(E_inv: np.ndarray) -> np.ndarray:
@@ -224,17 +223,8 @@ class LinearisedRanges:
         room_down: (angles,) ``a - lower`` [rad], a view of ``rooms``.
     """
 
-    def __init__(self, G: np.ndarray, room_up: np.ndarray, room_down: np.ndarray) -> None:
-        self._set(G, np.stack((room_up, room_down)))
-
-    @classmethod
-    def stacked(cls, G: np.ndarray, rooms: np.ndarray) -> LinearisedRanges:
+    def __init__(self, G: np.ndarray, rooms: np.ndarray) -> None:
         """The ranges of ``G`` and the rooms (2, angles) [rad] (``rooms`` kept, not copied)."""
-        made = cls.__new__(cls)
-        made._set(G, rooms)
-        return made
-
-    def _set(self, G: np.ndarray, rooms: np.ndarray) -> None:
         self.G, self.rooms = G, rooms
         self.room_up, self.room_down = rooms[0], rooms[1]  # (indexed: faster than unpacked)
 
@@ -249,7 +239,7 @@ class LinearisedRanges:
             still = ~np.any(self.G, axis=1)
         if not any_true(still):
             return self
-        return LinearisedRanges.stacked(self.G, np.where(still, np.inf, self.rooms))
+        return LinearisedRanges(self.G, np.where(still, np.inf, self.rooms))
 
     def near(self, margin: float) -> np.ndarray:
         """Masks (2, angles) of the angles within ``margin`` [rad] of their limits.
