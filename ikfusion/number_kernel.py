@@ -13,11 +13,10 @@ byte. The kernel is compiled once with the machine's C compiler and cached
 from __future__ import annotations
 
 import ctypes
-from pathlib import Path
 
 import numpy as np
 
-from .native.kernel import c_function
+from .native.kernel import c_function, kernel_source
 
 #: What is used when the kernel cannot be compiled (the end of the build warning).
 FALLBACK = "NumPy writes the numbers of the result files instead"
@@ -62,7 +61,7 @@ def kernel_text(literals: Literals, decimals: int, rows: np.ndarray, whole: np.n
         whole: (n, k) ``|rows| * 10**decimals`` rounded, integers below 2**52 as floats.
         field_decimals: (k,) int64 digits after the point of each field instead (0 to 9).
     """
-    function = c_function(Path(__file__).with_name("number_text.c"), "fixed_rows", FALLBACK)
+    function = c_function(kernel_source(__name__, "number_text.c"), "fixed_rows", FALLBACK)
     if function is None:
         return None
     n, k = rows.shape

@@ -23,8 +23,7 @@ from typing import Protocol
 import numpy as np
 
 from ..model.topology import FootLayout
-from ..native.kernel import loaded_kernel
-from ..paths import module_source
+from ..native.kernel import kernel_source, loaded_kernel
 from .anchor_settling import settled_anchors
 from .kernel_arguments import ClockArguments
 from .point_bits import point_bits
@@ -154,5 +153,5 @@ def contact_clocks(k: int) -> NativeClocks | None:
     """The native :func:`python_clocks` of k points; None without the kernel."""
     if not 0 < k <= 62:
         return None
-    library = loaded_kernel(module_source(__name__).with_name("contact_clocks.c"), FALLBACK)
+    library = loaded_kernel(kernel_source(__name__, "contact_clocks.c"), FALLBACK)
     return None if library is None else NativeClocks(library, k)

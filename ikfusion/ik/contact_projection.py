@@ -20,8 +20,7 @@ import ctypes
 import numpy as np
 import pinocchio as pin
 
-from ..native.kernel import loaded_kernel
-from ..paths import module_source
+from ..native.kernel import kernel_source, loaded_kernel
 from .configuration import Configuration
 from .kernel_arguments import ProjectionArguments
 from .limits import ContactConstraint, FloorLimit
@@ -153,5 +152,5 @@ def native_projection(conf: Configuration, contact: ContactConstraint
     balls = ball_joints(conf.model)
     if points is None or balls is None:
         return None
-    library = loaded_kernel(module_source(__name__).with_name("contact_projection.c"), FALLBACK)
+    library = loaded_kernel(kernel_source(__name__, "contact_projection.c"), FALLBACK)
     return None if library is None else NativeProjection(library, points, conf, balls)

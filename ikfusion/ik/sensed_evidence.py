@@ -18,8 +18,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..native.kernel import loaded_kernel
-from ..paths import module_source
+from ..native.kernel import kernel_source, loaded_kernel
 from .fast_math import min_of
 from .kernel_arguments import SensedArguments
 from .point_bits import above, below_above
@@ -178,5 +177,5 @@ def sensing(rules: Rules, k: int) -> NativeSensing | None:
     """The native :func:`python_evidence` (:class:`NativeSensing`); None without the kernel."""
     if not 0 < k <= 62:
         return None
-    library = loaded_kernel(module_source(__name__).with_name("sensed_evidence.c"), FALLBACK)
+    library = loaded_kernel(kernel_source(__name__, "sensed_evidence.c"), FALLBACK)
     return None if library is None else NativeSensing(library, rules, k)

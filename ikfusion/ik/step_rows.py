@@ -22,8 +22,7 @@ from typing import TYPE_CHECKING
 import casadi as ca
 import numpy as np
 
-from ..native.kernel import ArrayAddresses, loaded_kernel
-from ..paths import module_source
+from ..native.kernel import ArrayAddresses, kernel_source, loaded_kernel
 from .bound_function import BoundFunction
 from .compiled import MIRRORED, CompiledKinematics
 from .kernel_arguments import StepPlan, StepPoints
@@ -319,6 +318,6 @@ def step_rows(buffer: QpBuffer, rate_rows: np.ndarray | None, contact_rows: np.n
     """The native step writer, or None without the kernel (or without ``rate_rows``)."""
     if rate_rows is None or len(contact_rows) > MAX_SWING:
         return None
-    library = loaded_kernel(module_source(__name__).with_name("step_rows.c"), FALLBACK)
+    library = loaded_kernel(kernel_source(__name__, "step_rows.c"), FALLBACK)
     return None if library is None else StepRows(library, buffer, rate_rows, contact_rows,
                                                  margin)

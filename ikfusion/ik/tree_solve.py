@@ -21,8 +21,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from ..native.kernel import ArrayAddresses, loaded_kernel
-from ..paths import module_source
+from ..native.kernel import ArrayAddresses, kernel_source, loaded_kernel
 from .equality_qp import DEPENDENT_ROWS
 from .kernel_arguments import ActiveRows, TreePlan
 
@@ -320,5 +319,5 @@ def tree_closed_form(model: pin.Model) -> TreeClosedForm | None:
     None without a C compiler, with ``IKFUSION_NO_COMPILE``, or after a failed build
     (:func:`ikfusion.native.kernel.kernel_warnings` says why): LAPACK solves the closed form then.
     """
-    library = loaded_kernel(module_source(__name__).with_name("tree_solve.c"), FALLBACK)
+    library = loaded_kernel(kernel_source(__name__, "tree_solve.c"), FALLBACK)
     return None if library is None else TreeClosedForm(library, column_parents(model))

@@ -14,8 +14,7 @@ import ctypes
 
 import numpy as np
 
-from ..native.kernel import loaded_kernel
-from ..paths import module_source
+from ..native.kernel import kernel_source, loaded_kernel
 from .kernel_arguments import WallArguments
 
 #: What is used when the kernel cannot be compiled (the end of the warning).
@@ -70,5 +69,5 @@ class WallSink:
 
 def wall_sink(limit: np.ndarray) -> WallSink | None:
     """The native sink of ``limit`` (:class:`WallSink`); None without the kernel."""
-    library = loaded_kernel(module_source(__name__).with_name("wall_sink.c"), FALLBACK)
+    library = loaded_kernel(kernel_source(__name__, "wall_sink.c"), FALLBACK)
     return None if library is None else WallSink(library, limit)

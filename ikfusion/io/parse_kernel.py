@@ -14,11 +14,10 @@ without it (no compiler, ``IKFUSION_NO_COMPILE``) ``loadtxt`` reads every block.
 from __future__ import annotations
 
 import ctypes
-from pathlib import Path
 
 import numpy as np
 
-from ..native.kernel import c_function
+from ..native.kernel import c_function, kernel_source
 
 #: What is used when the kernel cannot be compiled (the end of the build warning).
 FALLBACK = "NumPy's loadtxt reads the IMU tables instead"
@@ -43,7 +42,7 @@ def kernel_table(text: str, delimiter: str, width: int) -> np.ndarray | None:
     """
     if len(delimiter) != 1 or delimiter == "\n" or width < 1 or not text.isascii():
         return None
-    function = c_function(Path(__file__).with_name("number_parse.c"), "parse_block", FALLBACK)
+    function = c_function(kernel_source(__name__, "number_parse.c"), "parse_block", FALLBACK)
     if function is None:
         return None
     data = text.encode()

@@ -10,11 +10,10 @@ compiler, ``IKFUSION_NO_COMPILE``) the NumPy path runs.
 from __future__ import annotations
 
 import ctypes
-from pathlib import Path
 
 import numpy as np
 
-from ..native.kernel import c_function
+from ..native.kernel import c_function, kernel_source
 
 #: What is used when the kernel cannot be compiled (the end of the build warning).
 FALLBACK = "NumPy makes joint angle series continuous instead"
@@ -33,7 +32,7 @@ def continuous_in_place(flat: np.ndarray) -> bool:
     Args:
         flat: C-contiguous float64 angles, frames first, each joint's triple in sequence order.
     """
-    function = c_function(Path(__file__).with_name("angle_continuity.c"), "continuous_series",
+    function = c_function(kernel_source(__name__, "angle_continuity.c"), "continuous_series",
                           FALLBACK)
     if function is None:
         return False

@@ -11,12 +11,11 @@ from __future__ import annotations
 
 import ctypes
 from collections.abc import Callable, Sequence
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
-from ..native.kernel import c_function
+from ..native.kernel import c_function, kernel_source
 
 #: What is used when the kernel cannot be compiled (the end of the build warning).
 FALLBACK = "NumPy computes the segment and site poses of the result files instead"
@@ -57,7 +56,7 @@ def kernel_placements(model: pin.Model, Q: np.ndarray, ids: list[int], joints: S
     """
     if any(model.joints[j].shortname() not in _KINDS for j in joints):
         return None
-    function = c_function(Path(__file__).with_name("motion_kinematics.c"), "frame_placements",
+    function = c_function(kernel_source(__name__, "motion_kinematics.c"), "frame_placements",
                           FALLBACK)
     if function is None:
         return None

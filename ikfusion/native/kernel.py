@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..paths import module_source
 from . import build as native_build
 from .build import cache_dir, compile_shared, compiler_identity, find_compiler
 
@@ -32,6 +33,15 @@ _LOADED: dict[tuple[str, str, str | None, str | None], ctypes.CDLL | None] = {}
 _WARNINGS: list[str] = []
 #: (C file, function, IKFUSION_NO_COMPILE) -> the function (None: without the kernel)
 _FUNCTIONS: dict[tuple[str, str, str | None], Callable[..., int] | None] = {}
+
+
+def kernel_source(module: str, file: str) -> Path:
+    """The C ``file`` shipped beside the module ``module`` (its ``__name__``).
+
+    Found from the module's source (:func:`ikfusion.paths.module_source`), not its ``__file__``:
+    a module compiled by mypyc is loaded from the cache folder, without its C files.
+    """
+    return module_source(module).with_name(file)
 
 
 def kernel_path(source: Path, folder: Path, compiler: str) -> Path:

@@ -9,11 +9,10 @@ once and cached (:func:`ikfusion.native.kernel.c_function`); without it (no comp
 from __future__ import annotations
 
 import ctypes
-from pathlib import Path
 
 import numpy as np
 
-from ..native.kernel import c_function
+from ..native.kernel import c_function, kernel_source
 
 #: What is used when the kernel cannot be compiled (the end of the build warning).
 FALLBACK = "NumPy converts the segment rotations of the result files instead"
@@ -30,7 +29,7 @@ def kernel_quats_wxyz(R: np.ndarray) -> np.ndarray | None:
 
     None without the kernel or when ``R`` holds a non-finite value.
     """
-    function = c_function(Path(__file__).with_name("segment_quats.c"), "matrix_quats", FALLBACK)
+    function = c_function(kernel_source(__name__, "segment_quats.c"), "matrix_quats", FALLBACK)
     if function is None or not np.isfinite(R).all():
         return None
     M = np.ascontiguousarray(R, dtype=float)

@@ -22,8 +22,7 @@ from ikfusion.ik import solver as solver_module
 from ikfusion.ik.contact_projection import HELD, TO_QP, ball_joints, native_projection
 from ikfusion.model import SENSOR_SEGMENTS, HumanModel
 from ikfusion.native.build import usable_compiler
-from ikfusion.native.kernel import loaded_kernel
-from ikfusion.paths import module_source
+from ikfusion.native.kernel import kernel_source, loaded_kernel
 from ikfusion.rotations import random_rotations
 from ikfusion.sim.gait import GaitParameters, generate_gait
 from ikfusion.sim.truth import orientation_frames
@@ -92,8 +91,7 @@ def _native_solver(human: HumanModel) -> Solver:
 def test_the_integration_is_pinocchios(human: HumanModel) -> None:
     if usable_compiler() is None:
         pytest.skip("no C compiler (or IKFUSION_NO_COMPILE): the kernel is not built")
-    library = loaded_kernel(module_source(projection_module.__name__).with_name(
-        "contact_projection.c"))
+    library = loaded_kernel(kernel_source(projection_module.__name__, "contact_projection.c"))
     assert library is not None
     model = human.model
     balls = ball_joints(model)

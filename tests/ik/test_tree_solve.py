@@ -24,12 +24,11 @@ from ikfusion.ik.tree_solve import (
     column_parents,
 )
 from ikfusion.model import SENSOR_SEGMENTS, HumanModel
-from ikfusion.native.kernel import kernel_path, native_kernel
-from ikfusion.paths import module_source
+from ikfusion.native.kernel import kernel_path, kernel_source, native_kernel
 from ikfusion.sim.gait import GaitParameters, generate_gait
 from ikfusion.sim.truth import orientation_frames
 
-SOURCE = module_source(tree_solve.__name__).with_name("tree_solve.c")
+SOURCE = kernel_source(tree_solve.__name__, "tree_solve.c")
 
 
 @pytest.fixture(scope="module")
